@@ -1,0 +1,31 @@
+# One command sets up and runs the main job; one sets up and passes the tests.
+#   make run    -> creates .venv with Python >= 3.12 if missing, installs, runs `scioc run`
+#   make test   -> same setup, then the whole test suite
+VENV ?= .venv
+# Python >= 3.12 (PyMC 6). Tried in order: $(PYTHON) if given, python3.12/3.13 on PATH, pyenv installs.
+PYTHON ?= $(shell for p in python3.12 python3.13 $$HOME/.pyenv/versions/3.12*/bin/python3 $$HOME/.pyenv/versions/3.13*/bin/python3 /usr/bin/python3; do \
+	$$p -c 'import sys; sys.exit(0 if sys.version_info >= (3, 12) else 1)' >/dev/null 2>&1 && { echo $$p; break; }; done)
+STAMP := $(VENV)/.installed
+
+.PHONY: setup run test bench clean
+
+$(STAMP): pyproject.toml
+	@test -n "$(PYTHON)" || { echo "error: no Python >= 3.12 found (PyMC 6 needs it); pass PYTHON=/path/to/python3.12" >&2; exit 1; }
+	@test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(VENV)/bin/python -m pip install --quiet -e '.[test]'
+	@touch $(STAMP)
+
+setup: $(STAMP)
+
+run: $(STAMP)
+	$(VENV)/bin/scioc run
+
+test: $(STAMP)
+	$(VENV)/bin/python -m pytest
+
+bench: $(STAMP)
+	$(VENV)/bin/scioc bench
+
+clean:
+	rm -rf $(VENV)

@@ -1,0 +1,4 @@
+"""The mathematics of scioc: plant, costs, optimal control, max-ent likelihood, simulators.
+
+Pure functions on arrays; no file I/O, no printing, no CLI. Never imports ``pipelines``.
+"""

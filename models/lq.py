@@ -1,0 +1,166 @@
+"""Finite-horizon LQ tracking with a known affine input: the backward Riccati recursion.
+
+This module is the one place where the recursion lives. Both the human model
+(cost θ = [q11, q22, R] on the 0.01-s plant) and the MPC assistant (θ_A on the
+0.02-s plant) are instances of the same problem::
+
+    min_u  sum_{k=1..K} e_kᵀ Q e_k + sum_{k=0..K-1} R u_k²
+    s.t.   x_{k+1} = A x_k + b (u_k + a_k),   e_k = x_k - (r_k, 0)
+
+where ``a_k`` is a known torque (the assistant's u_A, from the human's point of view).
+
+Writing the cost-to-go including the state cost at k as
+``W_k(x) = xᵀ P_k x - 2 s_kᵀ x + const`` with ``P_K = Q`` and ``s_K = Q (r_K, 0)``,
+one step back gives
+
+* ``S_k = R + bᵀ P_{k+1} b``                                    (scalar)
+* ``L_k = bᵀ P_{k+1} A / S_k``, ``M_k = A - b L_k``              (feedback, closed loop)
+* ``f_k = bᵀ (s_{k+1} - P_{k+1} b a_k) / S_k``                   (feedforward)
+* ``P_k = Q + Aᵀ P_{k+1} A - S_k L_kᵀ L_k``
+* ``s_k = Q (r_k, 0) + M_kᵀ (s_{k+1} - P_{k+1} b a_k)``
+
+and the optimal policy is ``u_k = -L_k x_k + f_k``. Completing the square step by
+step gives ``J(u) - min J = sum_k S_k (u_k + L_k x_k - f_k)²`` with ``x_k`` driven by
+the given ``u``: this is what makes the max-ent likelihood linear in K
+(see :mod:`models.maxent`).
+
+The scalar helpers are compiled with numba and written out element by element for
+the 2-state plant so that the batched likelihood kernel can vectorize across
+segments.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from models.cost import validate_theta
+from models.plant import DiscretePlant
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def riccati_gains(p11, p12, p22, a11, a12, a21, a22, b1, b2, R):
+    """Quantities of one backward step derived from ``P_{k+1}`` (symmetric, 3 entries).
+
+    Returns ``(S, invS, L1, L2, pb1, pb2, m11, m12, m21, m22)`` with ``pb = P b`` and
+    ``M = A - b L``.
+    """
+    pb1 = p11 * b1 + p12 * b2
+    pb2 = p12 * b1 + p22 * b2
+    S = R + b1 * pb1 + b2 * pb2
+    invS = 1.0 / S
+    L1 = (pb1 * a11 + pb2 * a21) * invS
+    L2 = (pb1 * a12 + pb2 * a22) * invS
+    m11 = a11 - b1 * L1
+    m12 = a12 - b1 * L2
+    m21 = a21 - b2 * L1
+    m22 = a22 - b2 * L2
+    return S, invS, L1, L2, pb1, pb2, m11, m12, m21, m22
+
+
+@njit(cache=True, inline="always")
+def riccati_update(p11, p12, p22, q11, q22, R, L1, L2, m11, m12, m21, m22):
+    """``P_k = Q + Lᵀ R L + Mᵀ P_{k+1} M`` (Joseph form: symmetric, equal to the textbook form).
+
+    The same form gives the tangent: by the envelope theorem (L minimizes the bracket
+    for every x), ``dP_k = dQ + Lᵀ dR L + Mᵀ dP_{k+1} M``, so this helper serves both.
+    """
+    x11 = p11 * m11 + p12 * m21
+    x12 = p11 * m12 + p12 * m22
+    x21 = p12 * m11 + p22 * m21
+    x22 = p12 * m12 + p22 * m22
+    n11 = q11 + R * L1 * L1 + (m11 * x11 + m21 * x21)
+    n12 = R * L1 * L2 + (m11 * x12 + m21 * x22)
+    n22 = q22 + R * L2 * L2 + (m12 * x12 + m22 * x22)
+    return n11, n12, n22
+
+
+class Policy(NamedTuple):
+    """Time-varying affine optimal policy ``u_k = -L[k] @ x_k + f[k]``.
+
+    Attributes
+    ----------
+    L : ndarray, shape (K, 2)
+        Feedback gains, N·m per (rad, rad/s).
+    f : ndarray, shape (K,)
+        Feedforward torque, N·m.
+    S : ndarray, shape (K,)
+        ``R + bᵀ P_{k+1} b``, 1/(N·m)²: under max-ent, u_k given x_k is Gaussian with
+        variance ``1 / (2 S_k)``.
+    """
+
+    L: np.ndarray
+    f: np.ndarray
+    S: np.ndarray
+
+
+@njit(cache=True)
+def _policy_kernel(A, b, q11, q22, R, r, a):
+    K = a.shape[0]
+    a11, a12, a21, a22 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    b1, b2 = b[0], b[1]
+    L = np.empty((K, 2))
+    f = np.empty(K)
+    Sv = np.empty(K)
+    p11, p12, p22 = q11, 0.0, q22
+    s1, s2 = q11 * r[K], 0.0
+    for k in range(K - 1, -1, -1):
+        S, invS, L1, L2, pb1, pb2, m11, m12, m21, m22 = riccati_gains(p11, p12, p22, a11, a12, a21, a22, b1, b2, R)
+        w1 = s1 - pb1 * a[k]
+        w2 = s2 - pb2 * a[k]
+        f[k] = (b1 * w1 + b2 * w2) * invS
+        L[k, 0] = L1
+        L[k, 1] = L2
+        Sv[k] = S
+        s1 = q11 * r[k] + m11 * w1 + m21 * w2
+        s2 = m12 * w1 + m22 * w2
+        p11, p12, p22 = riccati_update(p11, p12, p22, q11, q22, R, L1, L2, m11, m12, m21, m22)
+    return L, f, Sv
+
+
+def lq_policy(plant: DiscretePlant, theta, angle_ref, u_A) -> Policy:
+    """Optimal tracking policy for cost θ against a known assistant torque sequence.
+
+    Parameters
+    ----------
+    plant : DiscretePlant
+        Discretized wheel (its ``dt`` sets the step).
+    theta : array_like, shape (3,)
+        ``[q11, q22, R]``.
+    angle_ref : array_like, shape (K + 1,)
+        Angle reference r_0..r_K in rad (r_0 is not used by the cost).
+    u_A : array_like, shape (K,)
+        Known additional torque a_0..a_{K-1} in N·m (zeros in manual control).
+
+    Returns
+    -------
+    Policy
+    """
+    q11, q22, R = validate_theta(theta)
+    r = np.ascontiguousarray(angle_ref, dtype=float)
+    a = np.ascontiguousarray(u_A, dtype=float)
+    if r.ndim != 1 or a.ndim != 1 or r.shape[0] != a.shape[0] + 1:
+        raise ValueError(f"angle_ref must have K + 1 entries and u_A K entries; got {r.shape} and {a.shape}")
+    L, f, S = _policy_kernel(plant.A, plant.b, q11, q22, R, r, a)
+    return Policy(L=L, f=f, S=S)
+
+
+@njit(cache=True)
+def rollout(A, b, L, f, x0, a, noise):
+    """Run ``u_k = -L_k x_k + f_k + noise_k`` through the plant with extra torque ``a``.
+
+    Returns ``(x, u)`` with shapes (K + 1, 2) and (K,).
+    """
+    K = a.shape[0]
+    x = np.empty((K + 1, 2))
+    u = np.empty(K)
+    x[0, 0] = x0[0]
+    x[0, 1] = x0[1]
+    for k in range(K):
+        u[k] = -(L[k, 0] * x[k, 0] + L[k, 1] * x[k, 1]) + f[k] + noise[k]
+        tot = u[k] + a[k]
+        x[k + 1, 0] = A[0, 0] * x[k, 0] + A[0, 1] * x[k, 1] + b[0] * tot
+        x[k + 1, 1] = A[1, 0] * x[k, 0] + A[1, 1] * x[k, 1] + b[1] * tot
+    return x, u

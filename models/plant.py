@@ -1,0 +1,153 @@
+"""Steering-wheel dynamics (paper Eq. 18, Table I) and their exact zero-order-hold discretization.
+
+The wheel is a damped rotational spring driven by the sum of the human torque
+``u_H`` and the assistant torque ``u_A`` (both in N·m, entering through the same
+input vector, so ``B_H = B_A``)::
+
+    d/dt [phi, phi_dot] = [[0, 1], [-c/J, -d/J]] [phi, phi_dot] + [0, 1/J] (u_H + u_A)
+
+State ``x = (phi, phi_dot)`` in (rad, rad/s).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from scipy.linalg import expm
+
+#: Sample time of the recordings and of the human model (100 Hz), s.
+DT_HUMAN = 0.01
+#: Sample time of the MPC assistant (Section IV-D), s.
+DT_ASSISTANT = 0.02
+
+
+class WheelParameters(NamedTuple):
+    """Physical parameters of the steering wheel (paper Table I).
+
+    Attributes
+    ----------
+    inertia : float
+        Rotational inertia Θ_L, kg·m². Default 0.04.
+    spring : float
+        Spring constant c, N·m/rad. Default 1.146.
+    damper : float
+        Damping constant d, N·m·s/rad. Default 0.286.
+    """
+
+    inertia: float = 0.04
+    spring: float = 1.146
+    damper: float = 0.286
+
+
+class DiscretePlant(NamedTuple):
+    """Discrete-time plant ``x[k+1] = A x[k] + b (u_H[k] + u_A[k])`` (paper Eq. 1).
+
+    Attributes
+    ----------
+    A : ndarray, shape (2, 2)
+        State transition over one sample.
+    b : ndarray, shape (2,)
+        Input vector for a torque held constant over the sample (ZOH), (rad, rad/s) per N·m.
+    dt : float
+        Sample time, s.
+    """
+
+    A: np.ndarray
+    b: np.ndarray
+    dt: float
+
+
+def continuous_matrices(params: WheelParameters = WheelParameters()) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous-time matrices of paper Eq. 18.
+
+    Parameters
+    ----------
+    params : WheelParameters
+        Inertia (kg·m²), spring (N·m/rad) and damper (N·m·s/rad); Table I by default.
+
+    Returns
+    -------
+    A_c : ndarray, shape (2, 2)
+    b_c : ndarray, shape (2,)
+
+    Examples
+    --------
+    >>> A_c, b_c = continuous_matrices()
+    >>> float(b_c[1])
+    25.0
+    """
+    J, c, d = (float(v) for v in params)
+    if not (J > 0 and c >= 0 and d >= 0 and np.isfinite([J, c, d]).all()):
+        raise ValueError(f"wheel parameters must be finite with inertia > 0, spring >= 0, damper >= 0; got {params}")
+    A_c = np.array([[0.0, 1.0], [-c / J, -d / J]])
+    b_c = np.array([0.0, 1.0 / J])
+    return A_c, b_c
+
+
+def discretize(dt: float = DT_HUMAN, params: WheelParameters = WheelParameters()) -> DiscretePlant:
+    """Exact zero-order-hold discretization of Eq. 18 for sample time ``dt``.
+
+    Uses the block matrix exponential ``expm([[A_c, b_c], [0, 0]] dt)``, which is
+    exact for an input held constant over each sample.
+
+    Parameters
+    ----------
+    dt : float
+        Sample time in s (0.01 for the human, 0.02 for the assistant).
+    params : WheelParameters
+        Table I by default.
+
+    Returns
+    -------
+    DiscretePlant
+
+    Examples
+    --------
+    >>> plant = discretize(0.01)
+    >>> plant.A.shape, plant.b.shape
+    ((2, 2), (2,))
+    """
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"sample time dt must be a positive number of seconds; got {dt!r}")
+    A_c, b_c = continuous_matrices(params)
+    M = np.zeros((3, 3))
+    M[:2, :2] = A_c
+    M[:2, 2] = b_c
+    E = expm(M * dt)
+    A = np.ascontiguousarray(E[:2, :2])
+    b = np.ascontiguousarray(E[:2, 2])
+    return DiscretePlant(A=A, b=b, dt=float(dt))
+
+
+def propagate(plant: DiscretePlant, x0: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """States driven from ``x0`` by the total torque sequence ``u`` (paper Eq. 11).
+
+    Parameters
+    ----------
+    plant : DiscretePlant
+    x0 : ndarray, shape (2,)
+        Initial angle (rad) and velocity (rad/s).
+    u : ndarray, shape (K,)
+        Total torque ``u_H + u_A`` in N·m acting from t_k to t_{k+1}.
+
+    Returns
+    -------
+    ndarray, shape (K + 1, 2)
+        States x_0 .. x_K.
+    """
+    u = np.ascontiguousarray(u, dtype=float)
+    x0 = np.asarray(x0, dtype=float)
+    return _propagate(plant.A, plant.b, x0[0], x0[1], u)
+
+
+@njit(cache=True)
+def _propagate(A, b, phi0, omega0, u):
+    x = np.empty((u.shape[0] + 1, 2))
+    x[0, 0] = phi0
+    x[0, 1] = omega0
+    for k in range(u.shape[0]):
+        x[k + 1, 0] = A[0, 0] * x[k, 0] + A[0, 1] * x[k, 1] + b[0] * u[k]
+        x[k + 1, 1] = A[1, 0] * x[k, 0] + A[1, 1] * x[k, 1] + b[1] * u[k]
+    return x

@@ -1,0 +1,1 @@
+"""The workflow of scioc: data I/O and validation, the CLI, benchmarks and reports."""

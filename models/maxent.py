@@ -38,7 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from models.cost import validate_theta
 from models.lq import Policy, lq_policy, riccati_gains, riccati_update, rollout  # noqa: F401
@@ -353,10 +353,8 @@ def _finish(K, q11, q22, R, quad, logs, g0, g1):
 
 
 @njit(cache=True)
-def _batch_kernel(A, b, th, x1, x2, r, u, a, freeze, ll, g):
-    n, K = u.shape
-    wbuf = np.empty((K, 2))
-    vbuf = np.empty(K)
+def _batch_kernel(A, b, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
+    n = u.shape[0]
     for i in range(n):
         ll[i], g[0, i], g[1, i], g[2, i] = _segment_kernel(
             A, b, th[0, i], th[1, i], th[2, i], x1[i], x2[i], r[i], u[i], a[i], freeze, wbuf, vbuf
@@ -396,10 +394,15 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: boo
     """
     th = validate_theta(theta)
     n = batch.n
-    th = np.ascontiguousarray(np.broadcast_to(th.reshape(3, -1), (3, n)), dtype=float)
+    # Always a fresh writable C array: one compiled specialization serves every call, so a
+    # segment's bits never depend on how the caller laid out θ.
+    th = np.array(np.broadcast_to(th.reshape(3, -1), (3, n)), dtype=np.float64, order="C")
     ll = np.empty(n)
     g = np.empty((3, n))
-    _batch_kernel(plant.A, plant.b, th, batch.x1, batch.x2, batch.r, batch.u, batch.a, bool(freeze), ll, g)
+    # O(K) scratch for the adjoint sweep, reused across the batch.
+    wbuf = np.empty((batch.K, 2))
+    vbuf = np.empty(batch.K)
+    _batch_kernel(plant.A, plant.b, th, batch.x1, batch.x2, batch.r, batch.u, batch.a, bool(freeze), ll, g, wbuf, vbuf)
     return LoglikGrad(ll, g)
 
 
@@ -507,13 +510,18 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bo
     ll = -0.5 * g @ y + 0.5 * logdet - K * _HALF_LOG_2PI
     grad = np.full(3, np.nan)
     if with_grad:
-        Hinv = cho_solve(c, np.eye(K))
-        for j in range(3):
-            dq = np.tile([1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0], K)
-            dR = 1.0 if j == 2 else 0.0
-            dg = 2.0 * Gamma.T @ (dq * e) + 2.0 * dR * seg.u_H
-            dH = 2.0 * Gamma.T @ (dq[:, None] * Gamma) + 2.0 * dR * np.eye(K)
-            grad[j] = -dg @ y + 0.5 * y @ dH @ y + 0.5 * np.sum(Hinv * dH)
+        # d log p = -yᵀ dg + ½ yᵀ dH y + ½ tr(H⁻¹ dH), y = H⁻¹ g, with
+        # dH/dq_ii = 2 Γᵀ E_ii Γ and dH/dR = 2 I: the traces need the weighted column
+        # norms of L⁻¹ Γᵀ and the Frobenius norm of L⁻¹ (H = L Lᵀ).
+        Lc = np.tril(c[0])
+        W = solve_triangular(Lc, Gamma.T, lower=True)
+        col2 = np.sum(W * W, axis=0)  # diag(Γ H⁻¹ Γᵀ)
+        Linv = solve_triangular(Lc, np.eye(K), lower=True)
+        Gy = Gamma @ y
+        for j in range(2):
+            dg = 2.0 * Gamma[j::2].T @ e[j::2]
+            grad[j] = -dg @ y + Gy[j::2] @ Gy[j::2] + np.sum(col2[j::2])
+        grad[2] = -2.0 * seg.u_H @ y + y @ y + np.sum(Linv * Linv)
     return DenseResult(float(ll), grad, g, H, seg.u_H - y)
 
 

@@ -1,0 +1,212 @@
+"""The MPC haptic assistant (paper Section IV-D) and the 100-Hz closed-loop simulator.
+
+Every ``T_C = 0.02`` s the assistant solves Eq. 19 over ``N_P = 50`` steps of the
+0.02-s discretization with θ_A = [5, 0, 1], predicting the wheel with u_H = 0 and
+previewing the reference ``r(t + j T_C)``, j = 1..N_P; it applies the first torque and
+holds it for two 10-ms samples.
+
+Eq. 19 is an unconstrained LQ tracking problem whose horizon and weights never
+change, so its first optimal torque is a fixed linear function of the current state
+and of the previewed reference::
+
+    u_A(t) = -gain @ x(t) + preview_weights @ [r(t + T_C), ..., r(t + N_P T_C)]
+
+:func:`design_assistant` computes ``gain`` and ``preview_weights`` once with the
+Riccati recursion of :mod:`models.lq`; solving the quadratic program at every sample
+gives the same torque (tested against the dense solution).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from models.cost import validate_theta
+from models.lq import lq_policy
+from models.plant import DT_ASSISTANT, DT_HUMAN, DiscretePlant, WheelParameters, discretize
+
+#: The assistant's cost θ_A = [q11, q22, R] (Section IV-D: "slight assistance").
+THETA_ASSISTANT = (5.0, 0.0, 1.0)
+#: Prediction horizon N_P in assistant samples.
+HORIZON = 50
+
+
+class MPCAssistant(NamedTuple):
+    """The assistant as a fixed affine law of state and reference preview.
+
+    Attributes
+    ----------
+    gain : ndarray, shape (2,)
+        Feedback on (angle, velocity), N·m per (rad, rad/s).
+    preview_weights : ndarray, shape (N_P,)
+        Weights on the previewed reference angles r(t + j T_C), j = 1..N_P, N·m/rad.
+    hold : int
+        Human samples per assistant sample (T_C / dt = 2).
+    theta : ndarray, shape (3,)
+        θ_A.
+    plant : DiscretePlant
+        The T_C discretization the assistant predicts with.
+    """
+
+    gain: np.ndarray
+    preview_weights: np.ndarray
+    hold: int
+    theta: np.ndarray
+    plant: DiscretePlant
+
+
+def design_assistant(
+    theta_A=THETA_ASSISTANT,
+    horizon: int = HORIZON,
+    dt_assistant: float = DT_ASSISTANT,
+    dt: float = DT_HUMAN,
+    params: WheelParameters = WheelParameters(),
+) -> MPCAssistant:
+    """Precompute the MPC law of Eq. 19.
+
+    Parameters
+    ----------
+    theta_A : array_like, shape (3,)
+        Assistant cost [q11, q22, R]; default [5, 0, 1].
+    horizon : int
+        N_P, default 50.
+    dt_assistant : float
+        T_C in s, default 0.02.
+    dt : float
+        Sample time of the loop it runs in, s (default 0.01); ``dt_assistant`` must be
+        a whole multiple of it.
+    params : WheelParameters
+        Table I by default (the assistant's internal model).
+
+    Returns
+    -------
+    MPCAssistant
+    """
+    theta = validate_theta(theta_A, name="theta_A")
+    if int(horizon) != horizon or horizon < 1:
+        raise ValueError(f"horizon must be a positive integer; got {horizon!r}")
+    hold = round(dt_assistant / dt)
+    if hold < 1 or abs(hold * dt - dt_assistant) > 1e-12:
+        raise ValueError(f"dt_assistant={dt_assistant} must be a whole multiple of dt={dt}")
+    plant = discretize(dt_assistant, params)
+    N = int(horizon)
+    zeros_a = np.zeros(N)
+    base = lq_policy(plant, theta, np.zeros(N + 1), zeros_a)
+    gain = base.L[0].copy()
+    # f_0 is linear in r_1..r_N: read off the weights with unit impulses.
+    weights = np.empty(N)
+    for j in range(1, N + 1):
+        r = np.zeros(N + 1)
+        r[j] = 1.0
+        weights[j - 1] = lq_policy(plant, theta, r, zeros_a).f[0]
+    return MPCAssistant(gain=gain, preview_weights=weights, hold=int(hold), theta=theta, plant=plant)
+
+
+def assistant_torque(assistant: MPCAssistant, x, r_preview) -> float:
+    """The assistant's torque for state ``x`` and previewed reference, N·m.
+
+    Parameters
+    ----------
+    assistant : MPCAssistant
+    x : array_like, shape (2,)
+        Angle (rad) and velocity (rad/s) now.
+    r_preview : array_like, shape (N_P,)
+        Reference angles at t + j T_C, j = 1..N_P, rad.
+    """
+    return float(-assistant.gain @ np.asarray(x, float) + assistant.preview_weights @ np.asarray(r_preview, float))
+
+
+class ClosedLoop(NamedTuple):
+    """A 100-Hz closed-loop run.
+
+    Attributes
+    ----------
+    x : ndarray, shape (K + 1, 2)
+        Angle (rad) and velocity (rad/s).
+    u_H : ndarray, shape (K,)
+        Human torque, N·m.
+    u_A : ndarray, shape (K,)
+        Assistant torque, N·m (zeros without assistance).
+    """
+
+    x: np.ndarray
+    u_H: np.ndarray
+    u_A: np.ndarray
+
+
+@njit(cache=True)
+def _closed_loop(A, b, gain, weights, hold, assist, x0, r, L, f, noise):
+    K = noise.shape[0]
+    N = weights.shape[0]
+    last = r.shape[0] - 1
+    x = np.empty((K + 1, 2))
+    uH = np.empty(K)
+    uA = np.zeros(K)
+    x[0, 0] = x0[0]
+    x[0, 1] = x0[1]
+    ua = 0.0
+    for k in range(K):
+        if assist and k % hold == 0:
+            ua = -(gain[0] * x[k, 0] + gain[1] * x[k, 1])
+            for j in range(1, N + 1):
+                idx = k + hold * j
+                ua += weights[j - 1] * r[idx if idx < last else last]
+        if assist:
+            uA[k] = ua
+        uH[k] = -(L[k, 0] * x[k, 0] + L[k, 1] * x[k, 1]) + f[k] + noise[k]
+        tot = uH[k] + uA[k]
+        x[k + 1, 0] = A[0, 0] * x[k, 0] + A[0, 1] * x[k, 1] + b[0] * tot
+        x[k + 1, 1] = A[1, 0] * x[k, 0] + A[1, 1] * x[k, 1] + b[1] * tot
+    return x, uH, uA
+
+
+def simulate_closed_loop(
+    plant: DiscretePlant,
+    assistant: MPCAssistant | None,
+    x0,
+    angle_ref,
+    human_L=None,
+    human_f=None,
+    human_noise=None,
+) -> ClosedLoop:
+    """Step wheel, assistant and a human policy together at the plant's rate.
+
+    The human acts by ``u_H,k = -human_L[k] @ x_k + human_f[k] + human_noise[k]``
+    (omit all three for a passive human, u_H = 0). The assistant, if given, recomputes
+    its torque from the actual state every ``hold`` samples and holds it; its
+    reference preview beyond the end of ``angle_ref`` repeats the last value.
+
+    Parameters
+    ----------
+    plant : DiscretePlant
+        The 0.01-s wheel.
+    assistant : MPCAssistant or None
+        None for manual control (u_A = 0).
+    x0 : array_like, shape (2,)
+        rad, rad/s.
+    angle_ref : array_like, shape (K + 1,)
+        Reference angle on the plant's time grid, rad.
+    human_L : array_like, shape (K, 2), optional
+    human_f : array_like, shape (K,), optional
+    human_noise : array_like, shape (K,), optional
+        N·m.
+
+    Returns
+    -------
+    ClosedLoop
+    """
+    r = np.ascontiguousarray(angle_ref, dtype=float)
+    K = r.shape[0] - 1
+    L = np.zeros((K, 2)) if human_L is None else np.ascontiguousarray(human_L, dtype=float)
+    f = np.zeros(K) if human_f is None else np.ascontiguousarray(human_f, dtype=float)
+    noise = np.zeros(K) if human_noise is None else np.ascontiguousarray(human_noise, dtype=float)
+    if L.shape != (K, 2) or f.shape != (K,) or noise.shape != (K,):
+        raise ValueError(f"human policy arrays must have shapes ({K}, 2), ({K},), ({K},) for {K + 1} reference samples")
+    if assistant is None:
+        gain, weights, hold, assist = np.zeros(2), np.zeros(1), 1, False
+    else:
+        gain, weights, hold, assist = assistant.gain, assistant.preview_weights, assistant.hold, True
+    x, uH, uA = _closed_loop(plant.A, plant.b, gain, weights, hold, assist, np.asarray(x0, float), r, L, f, noise)
+    return ClosedLoop(x, uH, uA)

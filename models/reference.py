@@ -1,0 +1,95 @@
+"""The reference trajectory of the simulated study (paper Section IV-B, IV-F, Fig. 4).
+
+One smooth trajectory, the same for every subject and both conditions: a 4-minute
+run at 100 Hz whose analysis window starts at 3:30 and lasts 15 s, followed by 15 s
+that are not analysed.
+
+The paper does not publish the trajectory, only that a point of it crosses the
+visualization window in 2 s (so the subject previews 2 s of it). We use a sum of
+sines with incommensurate frequencies between 0.05 and 0.5 Hz (the fastest
+component completes a full cycle in 2 s: one swing visible on screen at once),
+amplitudes falling as 1/f so that the steering rate stays moderate, fixed phases,
+scaled to an RMS angle of 0.2 rad (11.5°, peaks of about ±0.6 rad), and faded in
+over the first 2 s so that the run starts at rest. Its peak angular rate is about
+0.4 rad/s, well inside what a person turns a wheel at (``scioc assistant`` prints
+these numbers).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+#: Length of one run, s.
+RUN_SECONDS = 240.0
+#: Start of the analysis window (3:30), s.
+WINDOW_START = 210.0
+#: Length of the analysis window, s.
+WINDOW_SECONDS = 15.0
+#: Sample time, s.
+DT = 0.01
+#: Target RMS of the reference angle, rad.
+RMS_ANGLE = 0.2
+#: Frequencies of the components, Hz (incommensurate, 0.05 .. 0.5).
+FREQUENCIES = np.array([0.05, 0.083, 0.121, 0.157, 0.199, 0.241, 0.293, 0.347, 0.411, 0.5])
+#: Seed of the fixed phases: the trajectory is part of the study design, not of a replication.
+PHASE_SEED = 2018
+
+
+class Reference(NamedTuple):
+    """A reference angle on the 100-Hz grid.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        s, from 0.
+    angle : ndarray, shape (N,)
+        rad.
+    """
+
+    t: np.ndarray
+    angle: np.ndarray
+
+
+def reference_trajectory(seconds: float = RUN_SECONDS, dt: float = DT, rms: float = RMS_ANGLE) -> Reference:
+    """The study's reference angle for a whole run.
+
+    Parameters
+    ----------
+    seconds : float
+        Duration, s (default 240: a 4-minute run).
+    dt : float
+        Sample time, s.
+    rms : float
+        RMS of the angle over a whole 4-minute run, rad.
+
+    Returns
+    -------
+    Reference
+        ``round(seconds / dt) + 1`` samples.
+
+    Examples
+    --------
+    >>> ref = reference_trajectory()
+    >>> ref.t.shape
+    (24001,)
+    """
+    n = int(round(seconds / dt)) + 1
+    t = np.arange(n) * dt
+    phases = np.random.default_rng(PHASE_SEED).uniform(0.0, 2.0 * np.pi, FREQUENCIES.shape[0])
+    amps = 1.0 / FREQUENCIES
+    # Scale on the full 4-minute grid so that a shorter or longer call gives the same curve.
+    t_full = np.arange(int(round(RUN_SECONDS / dt)) + 1) * dt
+    raw_full = np.sin(2 * np.pi * FREQUENCIES[:, None] * t_full[None, :] + phases[:, None]).T @ amps
+    scale = rms / np.sqrt(np.mean(raw_full**2))
+    raw = np.sin(2 * np.pi * FREQUENCIES[:, None] * t[None, :] + phases[:, None]).T @ amps
+    fade = np.clip(t / 2.0, 0.0, 1.0)
+    fade = fade * fade * (3.0 - 2.0 * fade)  # smoothstep: zero slope at both ends
+    return Reference(t=t, angle=scale * raw * fade)
+
+
+def window_slice(start: float = WINDOW_START, seconds: float = WINDOW_SECONDS, dt: float = DT) -> slice:
+    """Sample indices k = 0..K of the analysis window (K = seconds / dt, so K + 1 rows)."""
+    i0 = int(round(start / dt))
+    return slice(i0, i0 + int(round(seconds / dt)) + 1)

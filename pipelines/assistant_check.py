@@ -1,0 +1,63 @@
+"""``scioc assistant``: the MPC assistant alone on the study reference (nobody holds the wheel).
+
+The paper chose θ_A = [5, 0, 1] for "slight assistance": the assistant cannot track
+the reference on its own. This measures how well it does and how much torque it uses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from models.assistant import design_assistant, simulate_closed_loop
+from models.plant import DT_HUMAN, discretize
+from models.reference import reference_trajectory, window_slice
+
+
+def assistant_alone() -> dict:
+    """Closed-loop run of wheel + assistant with u_H = 0 over a whole 4-minute run.
+
+    Returns
+    -------
+    dict
+        Reference RMS and peak (rad, rad/s), tracking error RMS and peak (rad), assistant
+        torque RMS and peak (N·m), for the whole run and the analysis window, and the
+        same error with nobody steering for comparison.
+    """
+    plant = discretize(DT_HUMAN)
+    ref = reference_trajectory()
+    x0 = [ref.angle[0], 0.0]
+    run = simulate_closed_loop(plant, design_assistant(), x0, ref.angle)
+    passive = simulate_closed_loop(plant, None, x0, ref.angle)
+    out = {}
+    for name, sl in (("run", slice(None)), ("window", window_slice())):
+        r = ref.angle[sl]
+        e = run.x[sl, 0] - r
+        u = run.u_A[sl][:-1] if sl.stop is not None else run.u_A
+        out[name] = {
+            "reference_rms_rad": float(np.sqrt(np.mean(r**2))),
+            "reference_peak_rad": float(np.abs(r).max()),
+            "reference_peak_rate_rad_s": float(np.abs(np.diff(r)).max() / DT_HUMAN),
+            "error_rms_rad": float(np.sqrt(np.mean(e**2))),
+            "error_peak_rad": float(np.abs(e).max()),
+            "error_rms_nobody_steering_rad": float(np.sqrt(np.mean((passive.x[sl, 0] - r) ** 2))),
+            "u_A_rms_Nm": float(np.sqrt(np.mean(u**2))),
+            "u_A_peak_Nm": float(np.abs(u).max()),
+        }
+    return out
+
+
+def format_assistant(res: dict) -> str:
+    lines = ["MPC assistant alone (θ_A = [5, 0, 1], N_P = 50 × 0.02 s), u_H = 0, study reference"]
+    lines.append(f"{'':>30} {'whole run':>10} {'window':>10}")
+    for key, label in (
+        ("reference_rms_rad", "reference RMS (rad)"),
+        ("reference_peak_rad", "reference peak (rad)"),
+        ("reference_peak_rate_rad_s", "reference peak rate (rad/s)"),
+        ("error_rms_rad", "tracking error RMS (rad)"),
+        ("error_peak_rad", "tracking error peak (rad)"),
+        ("error_rms_nobody_steering_rad", "error, nobody steering (rad)"),
+        ("u_A_rms_Nm", "assistant torque RMS (N·m)"),
+        ("u_A_peak_Nm", "assistant torque peak (N·m)"),
+    ):
+        lines.append(f"{label:>30} {res['run'][key]:>10.3f} {res['window'][key]:>10.3f}")
+    return "\n".join(lines)

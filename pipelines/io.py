@@ -1,0 +1,318 @@
+"""Reading and validating study files in the data convention; atomic writes.
+
+The data convention (README "Data format"): a long table, one row per 10-ms sample,
+with columns ``subject``, ``condition`` (MC or SC), ``t`` (s), ``angle`` (rad),
+``angle_ref`` (rad), ``u_A`` (N·m) and optionally ``velocity`` (rad/s) and ``u_H``
+(N·m). Parquet, or CSV on input. Rows k = 0..K of one (subject, condition) segment
+give x_k = (angle_k, velocity_k); u_H,k and u_A,k act from t_k to t_{k+1}; the last
+row's torques are unused.
+
+Validation happens here, once, and every error names the file, the column and the
+first bad row (0-based position in the table; for CSV also the line number).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from models.maxent import Segment
+
+REQUIRED = ("subject", "condition", "t", "angle", "angle_ref", "u_A")
+OPTIONAL = ("velocity", "u_H")
+NUMERIC = ("t", "angle", "angle_ref", "u_A", "velocity", "u_H")
+CONDITIONS = ("MC", "SC")
+#: Sample time of the data convention, s.
+DT = 0.01
+#: Allowed deviation of a time step from DT, s (recording clocks print rounded times).
+DT_TOL = 1e-6
+
+
+class StudyFileError(ValueError):
+    """A study file that does not follow the data convention.
+
+    Attributes
+    ----------
+    path : str
+    column : str or None
+    row : int or None
+        0-based row position in the table.
+    """
+
+    def __init__(self, path, message, column=None, row=None, csv=False):
+        where = [str(path)]
+        if column is not None:
+            where.append(f"column '{column}'")
+        if row is not None:
+            where.append(f"row {row}" + (f" (line {row + 2})" if csv else ""))
+        super().__init__(": ".join([", ".join(where), message]))
+        self.path = str(path)
+        self.column = column
+        self.row = row
+
+
+@dataclass(frozen=True)
+class SegmentData:
+    """One (subject, condition) segment as recorded.
+
+    Attributes
+    ----------
+    subject : str
+    condition : str
+        ``MC`` or ``SC``.
+    t : ndarray, shape (K + 1,)
+        Time, s.
+    angle, angle_ref : ndarray, shape (K + 1,)
+        rad.
+    u_A : ndarray, shape (K + 1,)
+        N·m (last entry unused).
+    velocity : ndarray or None, shape (K + 1,)
+        rad/s, if recorded.
+    u_H : ndarray or None, shape (K + 1,)
+        N·m (last entry unused), if recorded.
+    first_row : int
+        Row of the segment's first sample in the file.
+    """
+
+    subject: str
+    condition: str
+    t: np.ndarray
+    angle: np.ndarray
+    angle_ref: np.ndarray
+    u_A: np.ndarray
+    velocity: np.ndarray | None
+    u_H: np.ndarray | None
+    first_row: int
+
+    @property
+    def K(self) -> int:
+        return int(self.t.shape[0] - 1)
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study file: its segments in file order."""
+
+    path: str
+    segments: tuple[SegmentData, ...]
+
+    @property
+    def has_velocity_and_torque(self) -> bool:
+        return all(s.velocity is not None and s.u_H is not None for s in self.segments)
+
+
+def read_table(path) -> pd.DataFrame:
+    """Read a Parquet or CSV file into a DataFrame (no validation)."""
+    p = Path(path)
+    if not p.exists():
+        raise StudyFileError(p, "no such file")
+    suffix = p.suffix.lower()
+    try:
+        if suffix in (".parquet", ".pq"):
+            return pd.read_parquet(p)
+        if suffix == ".csv":
+            return pd.read_csv(p, dtype={"subject": str, "condition": str}, keep_default_na=True)
+    except Exception as exc:  # the reader's own message says what is wrong
+        raise StudyFileError(p, f"cannot be read as {suffix[1:]}: {exc}") from exc
+    raise StudyFileError(p, f"unknown file type '{suffix}': use .parquet or .csv")
+
+
+def load_study(path) -> Study:
+    """Read and validate a study file in the data convention.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.parquet`` / ``.pq`` or ``.csv``.
+
+    Returns
+    -------
+    Study
+
+    Raises
+    ------
+    StudyFileError
+        Naming the file, the column and the first bad row.
+    """
+    df = read_table(path)
+    return validate_table(df, path, csv=Path(path).suffix.lower() == ".csv")
+
+
+def _first(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> Study:
+    """Validate a table in the data convention and split it into segments.
+
+    Parameters
+    ----------
+    df : DataFrame
+    path : str
+        Named in error messages.
+    csv : bool
+        Also give CSV line numbers in errors.
+
+    Returns
+    -------
+    Study
+    """
+
+    def fail(msg, column=None, row=None):
+        raise StudyFileError(path, msg, column=column, row=row, csv=csv)
+
+    for col in REQUIRED:
+        if col not in df.columns:
+            fail(f"required column is missing (columns present: {', '.join(map(str, df.columns))})", column=col)
+    if len(df) == 0:
+        fail("the table has no rows")
+    cols = {}
+    for col in ("subject", "condition"):
+        raw = df[col]
+        bad = raw.isna().to_numpy()
+        if bad.any():
+            fail("empty value", column=col, row=_first(bad))
+        cols[col] = raw.astype(str).str.strip().to_numpy()
+    bad = ~np.isin(cols["condition"], CONDITIONS)
+    if bad.any():
+        i = _first(bad)
+        fail(f"unknown condition label '{cols['condition'][i]}' (expected MC or SC)", column="condition", row=i)
+    bad = cols["subject"] == ""
+    if bad.any():
+        fail("empty value", column="subject", row=_first(bad))
+    present = [c for c in NUMERIC if c in df.columns]
+    for col in present:
+        values = pd.to_numeric(df[col], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(values)
+        if bad.any():
+            i = _first(bad)
+            fail(f"not a finite number: {df[col].iloc[i]!r}", column=col, row=i)
+        cols[col] = values
+    has_opt = {c: c in df.columns for c in OPTIONAL}
+
+    # Segments: rows of one (subject, condition) in file order.
+    keys = pd.MultiIndex.from_arrays([cols["subject"], cols["condition"]])
+    codes, uniques = pd.factorize(keys)
+    segments = []
+    for code in range(len(uniques)):
+        rows = np.flatnonzero(codes == code)
+        subject, condition = uniques[code]
+        label = f"segment ({subject}, {condition})"
+        if rows.shape[0] < 2:
+            fail(f"{label} has a single sample; a segment needs at least two", column="t", row=int(rows[0]))
+        t = cols["t"][rows]
+        steps = np.diff(t)
+        bad = np.abs(steps - DT) > DT_TOL
+        if bad.any():
+            j = _first(bad)
+            fail(
+                f"{label}: time step {steps[j]:.6g} s from the previous row; samples must be "
+                f"uniform {DT} s apart in increasing order",
+                column="t",
+                row=int(rows[j + 1]),
+            )
+        if condition == "MC":
+            bad = cols["u_A"][rows] != 0.0
+            if bad.any():
+                j = _first(bad)
+                fail(f"{label}: u_A must be 0 throughout manual control", column="u_A", row=int(rows[j]))
+        segments.append(
+            SegmentData(
+                subject=str(subject),
+                condition=str(condition),
+                t=t,
+                angle=cols["angle"][rows],
+                angle_ref=cols["angle_ref"][rows],
+                u_A=cols["u_A"][rows],
+                velocity=cols["velocity"][rows] if has_opt["velocity"] else None,
+                u_H=cols["u_H"][rows] if has_opt["u_H"] else None,
+                first_row=int(rows[0]),
+            )
+        )
+    return Study(path=str(path), segments=tuple(segments))
+
+
+def to_maxent_segment(seg: SegmentData, path="<table>") -> Segment:
+    """The likelihood's view of a recorded segment: x_0, references and torques.
+
+    Raises
+    ------
+    StudyFileError
+        If the segment lacks velocity or u_H (they must be reconstructed first).
+    """
+    for col in ("velocity", "u_H"):
+        if getattr(seg, col) is None:
+            raise StudyFileError(
+                path,
+                f"column is missing; segment ({seg.subject}, {seg.condition}) needs it for the likelihood "
+                "(reconstruct it from the angle first)",
+                column=col,
+            )
+    return Segment(
+        x0=np.array([seg.angle[0], seg.velocity[0]]),
+        angle_ref=seg.angle_ref,
+        u_H=seg.u_H[:-1],
+        u_A=seg.u_A[:-1],
+    )
+
+
+def segments_to_table(segments) -> pd.DataFrame:
+    """Inverse of :func:`validate_table`: a long table in the data convention."""
+    frames = []
+    for s in segments:
+        d = {
+            "subject": np.full(s.t.shape[0], s.subject, dtype=object),
+            "condition": np.full(s.t.shape[0], s.condition, dtype=object),
+            "t": s.t,
+            "angle": s.angle,
+            "angle_ref": s.angle_ref,
+            "u_A": s.u_A,
+        }
+        if s.velocity is not None:
+            d["velocity"] = s.velocity
+        if s.u_H is not None:
+            d["u_H"] = s.u_H
+        frames.append(pd.DataFrame(d))
+    return pd.concat(frames, ignore_index=True)
+
+
+@contextlib.contextmanager
+def atomic_path(path):
+    """Yield a temporary path beside ``path``; rename it onto ``path`` only on success.
+
+    Nothing already at ``path`` is lost or half-written if the writer fails.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def write_text_atomic(path, text: str) -> Path:
+    """Write text to ``path`` through a temporary file and a rename."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+    return Path(path)
+
+
+def write_table_atomic(df: pd.DataFrame, path) -> Path:
+    """Write a DataFrame as Parquet (or CSV for a ``.csv`` path) atomically."""
+    with atomic_path(path) as tmp:
+        if Path(path).suffix.lower() == ".csv":
+            df.to_csv(tmp, index=False)
+        else:
+            df.to_parquet(tmp, index=False)
+    return Path(path)

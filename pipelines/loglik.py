@@ -1,0 +1,53 @@
+"""``scioc loglik``: the max-ent log-likelihood of every segment of a study file under one θ."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from models.cost import validate_theta
+from models.maxent import loglik_segments
+from models.plant import DT_HUMAN, discretize
+from pipelines.io import load_study, to_maxent_segment
+
+
+def parse_theta(text: str) -> np.ndarray:
+    """Parse ``"q11,q22,R"`` into a validated θ, with a clear error."""
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != 3:
+        raise ValueError(f"--theta needs three comma-separated numbers q11,q22,R; got {text!r}")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise ValueError(f"--theta needs three comma-separated numbers q11,q22,R; got {text!r}") from None
+    return validate_theta(values, name="--theta")
+
+
+def study_loglik(path, theta) -> pd.DataFrame:
+    """Log-likelihood (nats) of each (subject, condition) segment of a study file.
+
+    Parameters
+    ----------
+    path : str or Path
+        Study file in the data convention with ``velocity`` and ``u_H``.
+    theta : array_like, shape (3,)
+        [q11, q22, R].
+
+    Returns
+    -------
+    DataFrame
+        Columns ``subject``, ``condition``, ``K`` (torque samples) and ``loglik``,
+        in file order.
+    """
+    th = validate_theta(theta)
+    study = load_study(path)
+    segs = [to_maxent_segment(s, study.path) for s in study.segments]
+    res = loglik_segments(th, segs, discretize(DT_HUMAN))
+    return pd.DataFrame(
+        {
+            "subject": [s.subject for s in study.segments],
+            "condition": [s.condition for s in study.segments],
+            "K": [s.K for s in study.segments],
+            "loglik": res.loglik,
+        }
+    )

@@ -1,0 +1,147 @@
+"""The linear-time max-ent likelihood against the dense Eq. 8-16, finite differences and itself."""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from models.maxent import (
+    Segment,
+    forward_optimal_control,
+    loglik_dense,
+    loglik_grad,
+    loglik_segments,
+    prepare_batch,
+    sample_maxent,
+)
+from tests.conftest import random_segment, random_theta
+
+CASES = [(K, shared, q22_zero) for K in (1, 7, 60, 250, 500) for shared in (False, True) for q22_zero in (True, False)]
+
+
+@pytest.mark.parametrize("K, shared, q22_zero", CASES)
+def test_linear_time_equals_dense(plant, K, shared, q22_zero):
+    rng = np.random.default_rng([K, shared, q22_zero])
+    for _ in range(3):
+        seg = random_segment(rng, K, shared)
+        theta = random_theta(rng, q22_zero)
+        dense = loglik_dense(theta, seg, plant)
+        fast = loglik_grad(theta, prepare_batch(plant, [seg]), plant)
+        assert abs(fast.loglik[0] - dense.loglik) <= 1e-9 * abs(dense.loglik)
+        # Gradient against the dense analytic gradient, relative to the gradient's size.
+        assert np.max(np.abs(fast.grad[:, 0] - dense.grad)) <= 1e-9 * np.max(np.abs(dense.grad))
+
+
+@pytest.mark.parametrize("shared", [False, True])
+@pytest.mark.parametrize("q22_zero", [True, False])
+def test_gradient_matches_central_differences(plant, shared, q22_zero):
+    rng = np.random.default_rng([11, shared, q22_zero])
+    seg = random_segment(rng, 400, shared)
+    batch = prepare_batch(plant, [seg])
+    theta = random_theta(rng, q22_zero)
+    theta[1] = max(theta[1], 0.05)  # a central difference needs room on both sides of q22
+    grad = loglik_grad(theta, batch, plant).grad[:, 0]
+    fd = np.empty(3)
+    for j in range(3):
+        h = 1e-5 * theta[j]
+        tp, tm = theta.copy(), theta.copy()
+        tp[j] += h
+        tm[j] -= h
+        fd[j] = (loglik_grad(tp, batch, plant).loglik[0] - loglik_grad(tm, batch, plant).loglik[0]) / (2 * h)
+        # Each component on its own: O(h²) truncation and eps·|ll|/h rounding are both < 1e-8 here.
+        assert abs(fd[j] - grad[j]) <= 1e-6 * abs(grad[j]), (j, fd[j], grad[j])
+
+
+def test_freeze_shortcut_agrees_with_tangents_through_every_step(plant):
+    rng = np.random.default_rng(3)
+    segs = [random_segment(rng, 1500, i % 2 == 1) for i in range(6)]
+    thetas = np.column_stack([random_theta(rng, i % 3 == 0) for i in range(6)])
+    batch = prepare_batch(plant, segs)
+    fast = loglik_grad(thetas, batch, plant)
+    slow = loglik_grad(thetas, batch, plant, freeze=False)
+    # The frozen step quantities differ from the still-moving ones by <= FREEZE_RTOL relative,
+    # and over 1500 steps that adds up to a few 1e-14 of the gradient's size.
+    np.testing.assert_allclose(fast.loglik, slow.loglik, rtol=1e-12)
+    np.testing.assert_allclose(fast.grad, slow.grad, rtol=1e-10, atol=1e-12 * np.abs(slow.grad).max())
+
+
+def test_segment_result_does_not_depend_on_its_batch(plant):
+    rng = np.random.default_rng(4)
+    segs = [random_segment(rng, 300, i % 2 == 1) for i in range(5)]
+    thetas = np.column_stack([random_theta(rng, False) for _ in range(5)])
+    together = loglik_grad(thetas, prepare_batch(plant, segs), plant)
+    for i, s in enumerate(segs):
+        alone = loglik_grad(thetas[:, i], prepare_batch(plant, [s]), plant)
+        assert alone.loglik[0] == together.loglik[i]
+        assert np.array_equal(alone.grad[:, 0], together.grad[:, i])
+
+
+def test_mixed_lengths_are_batched_by_length(plant):
+    rng = np.random.default_rng(5)
+    segs = [random_segment(rng, K, True) for K in (30, 80, 30)]
+    theta = random_theta(rng, True)
+    res = loglik_segments(theta, segs, plant)
+    for i, s in enumerate(segs):
+        assert res.loglik[i] == pytest.approx(loglik_dense(theta, s, plant).loglik, rel=1e-10)
+
+
+def test_forward_optimal_control_is_the_dense_qp_solution(plant):
+    rng = np.random.default_rng(6)
+    for shared in (False, True):
+        seg = random_segment(rng, 200, shared)
+        theta = random_theta(rng, False)
+        demo = forward_optimal_control(theta, seg.x0, seg.angle_ref, seg.u_A, plant)
+        # The dense minimizer from any u: u - H⁻¹ g(u).
+        dense = loglik_dense(theta, seg._replace(u_H=demo.u_H), plant, with_grad=False)
+        np.testing.assert_allclose(dense.g, 0.0, atol=1e-9 * np.abs(dense.H).max())
+        dense2 = loglik_dense(theta, seg, plant, with_grad=False)
+        np.testing.assert_allclose(demo.u_H, dense2.u_opt, rtol=1e-8, atol=1e-10)
+
+
+def test_optimal_torques_are_the_likelihood_mode(plant):
+    rng = np.random.default_rng(7)
+    seg = random_segment(rng, 100, True)
+    theta = random_theta(rng, True)
+    demo = forward_optimal_control(theta, seg.x0, seg.angle_ref, seg.u_A, plant)
+    best = loglik_grad(theta, prepare_batch(plant, [seg._replace(u_H=demo.u_H)]), plant).loglik[0]
+    perturbed = seg._replace(u_H=demo.u_H + 1e-3 * rng.standard_normal(100))
+    assert loglik_grad(theta, prepare_batch(plant, [perturbed]), plant).loglik[0] < best
+
+
+# Seeded statistical test of the exact sampler. False-failure budget per KS test:
+ALPHA = 1e-3
+
+
+def _whitened(plant, theta, seg, rng, n, noise_scale=1.0):
+    """(u - u*)ᵀ H (u - u*) per draw; u ~ N(u*, H⁻¹) makes it χ² with K degrees of freedom."""
+    dense = loglik_dense(theta, seg, plant, with_grad=False)
+    out = np.empty(n)
+    for i in range(n):
+        demo = sample_maxent(theta, seg.x0, seg.angle_ref, seg.u_A, plant, rng)
+        d = noise_scale * (demo.u_H - dense.u_opt)
+        out[i] = d @ dense.H @ d
+    return out
+
+
+@pytest.mark.parametrize("shared", [False, True])
+def test_sampler_draws_from_the_maxent_gaussian(plant, shared):
+    rng = np.random.default_rng([8, shared])
+    seg = random_segment(rng, 40, shared)
+    theta = random_theta(rng, False)
+    q = _whitened(plant, theta, seg, rng, 2000)
+    assert stats.kstest(q, stats.chi2(df=40).cdf).pvalue > ALPHA
+
+
+def test_sampler_test_catches_a_wrong_variance(plant):
+    # Negative control: noise 10 % too large must be flagged by the same test at the same size.
+    rng = np.random.default_rng(9)
+    seg = random_segment(rng, 40, True)
+    theta = random_theta(rng, False)
+    q = _whitened(plant, theta, seg, rng, 2000, noise_scale=1.1)
+    assert stats.kstest(q, stats.chi2(df=40).cdf).pvalue < ALPHA
+
+
+def test_empty_or_mismatched_segments_are_rejected(plant):
+    with pytest.raises(ValueError, match="shape"):
+        prepare_batch(plant, [Segment(np.zeros(2), np.zeros(5), np.zeros(5), np.zeros(5))])
+    with pytest.raises(ValueError, match="no segments"):
+        prepare_batch(plant, [])

@@ -54,12 +54,16 @@ class Segment(NamedTuple):
     ----------
     x0 : ndarray, shape (2,)
         Initial angle (rad) and velocity (rad/s).
-    angle_ref : ndarray, shape (K + 1,)
-        Reference angle r_0..r_K, rad.
+    angle_ref : ndarray, shape (K + M + 1,)
+        Reference angle r_0..r_{K+M}, rad.
     u_H : ndarray, shape (K,)
         Observed human torque, N·m, acting from t_k to t_{k+1}.
-    u_A : ndarray, shape (K,)
+    u_A : ndarray, shape (K + M,)
         Assistant torque, N·m (zeros in manual control).
+
+    M >= 0 preview steps extend the human's planning horizon past the observed torques
+    (the reference and u_A after the window are known from the recording); M = 0 is
+    the paper's model, planning exactly over the window.
     """
 
     x0: np.ndarray
@@ -71,6 +75,10 @@ class Segment(NamedTuple):
     def K(self) -> int:
         return int(self.u_H.shape[0])
 
+    @property
+    def preview(self) -> int:
+        return int(self.u_A.shape[0] - self.u_H.shape[0])
+
 
 class SegmentBatch(NamedTuple):
     """Segments of equal length K, one row each, for the kernel.
@@ -79,11 +87,11 @@ class SegmentBatch(NamedTuple):
     ----------
     x1, x2 : ndarray, shape (n, K + 1)
         Angle (rad) and velocity (rad/s) propagated from x_0 with the observed torques.
-    r : ndarray, shape (n, K + 1)
-        Angle reference, rad.
+    r : ndarray, shape (n, K + M + 1)
+        Angle reference, rad (M preview steps).
     u : ndarray, shape (n, K)
         Human torque, N·m.
-    a : ndarray, shape (n, K)
+    a : ndarray, shape (n, K + M)
         Assistant torque, N·m.
     """
 
@@ -121,10 +129,10 @@ def _check_segment(seg: Segment) -> Segment:
     r = np.asarray(seg.angle_ref, dtype=float)
     u = np.asarray(seg.u_H, dtype=float)
     a = np.asarray(seg.u_A, dtype=float)
-    if u.ndim != 1 or a.shape != u.shape or r.shape != (u.shape[0] + 1,):
+    if u.ndim != 1 or a.ndim != 1 or a.shape[0] < u.shape[0] or r.shape != (a.shape[0] + 1,):
         raise ValueError(
-            f"a segment needs u_H and u_A of shape (K,) and angle_ref of shape (K + 1,); "
-            f"got {u.shape}, {a.shape}, {r.shape}"
+            f"a segment needs u_H of shape (K,), u_A of shape (K + M,) and angle_ref of shape (K + M + 1,) "
+            f"with M >= 0; got {u.shape}, {a.shape}, {r.shape}"
         )
     if u.shape[0] < 1:
         raise ValueError("a segment needs at least two samples (K >= 1)")
@@ -148,17 +156,19 @@ def prepare_batch(plant: DiscretePlant, segments) -> SegmentBatch:
     segs = [_check_segment(s) for s in segments]
     if not segs:
         raise ValueError("no segments given")
-    K = segs[0].K
-    if any(s.K != K for s in segs):
-        raise ValueError("prepare_batch needs segments of equal length; use loglik_segments for mixed lengths")
+    K, M = segs[0].K, segs[0].preview
+    if any(s.K != K or s.preview != M for s in segs):
+        raise ValueError(
+            "prepare_batch needs segments of equal length and preview; use loglik_segments for mixed lengths"
+        )
     n = len(segs)
     x1 = np.empty((n, K + 1))
     x2 = np.empty((n, K + 1))
-    r = np.empty((n, K + 1))
+    r = np.empty((n, K + M + 1))
     u = np.empty((n, K))
-    a = np.empty((n, K))
+    a = np.empty((n, K + M))
     for i, s in enumerate(segs):
-        x = propagate(plant, s.x0, s.u_H + s.u_A)
+        x = propagate(plant, s.x0, s.u_H + s.u_A[:K])
         x1[i] = x[:, 0]
         x2[i] = x[:, 1]
         r[i] = s.angle_ref
@@ -187,8 +197,14 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
     phase 3 sweeps forward with the adjoint of s, collecting the sums that the
     constants' tangents multiply. Phases 2-3 cost about half of carrying three
     tangents of s through every step.
+
+    The plan may look past the observed torques: ``a`` and ``r`` may extend beyond
+    ``u`` (preview steps). Those steps shape the policy through s_k but contribute no
+    factor, which is exactly the marginal of the max-ent Gaussian over the longer
+    horizon (its later controls integrate out of the sequential factorization).
     """
-    K = u.shape[0]
+    K_obs = u.shape[0]
+    K = a.shape[0]
     a11, a12, a21, a22 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
     b1, b2 = b[0], b[1]
     # P_K = Q, s_K = Q (r_K, 0), and their tangents with respect to q11 and q22
@@ -216,12 +232,14 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
     # ---- phase 1: Riccati with forward tangents, data step with forward tangents
     while k >= 0 and not stationary:
         S, iS, L1, L2, pb1, pb2, m11, m12, m21, m22 = riccati_gains(p11, p12, p22, a11, a12, a21, a22, b1, b2, R)
-        prod *= S
-        nprod += 1
-        if nprod == 16:
-            logs += math.log(prod)
-            prod = 1.0
-            nprod = 0
+        observed = k < K_obs
+        if observed:
+            prod *= S
+            nprod += 1
+            if nprod == 16:
+                logs += math.log(prod)
+                prod = 1.0
+                nprod = 0
         e1_0 = d11_0 * b1 + d12_0 * b2
         e2_0 = d12_0 * b1 + d22_0 * b2
         e1_1 = d11_1 * b1 + d12_1 * b2
@@ -234,26 +252,28 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
         dL2_1 = ((e1_1 * a12 + e2_1 * a22) - L2 * dS_1) * iS
         # data step k with forward tangents
         ak = a[k]
-        xk1 = x1[k]
-        xk2 = x2[k]
         rk = r[k]
         w1 = s1 - pb1 * ak
         w2 = s2 - pb2 * ak
         bw = b1 * w1 + b2 * w2
         f = bw * iS
-        v = u[k] + L1 * xk1 + L2 * xk2 - f
-        Sv = S * v
-        ll -= Sv * v
         dw1 = ds1_0 - e1_0 * ak
         dw2 = ds2_0 - e2_0 * ak
-        dv = dL1_0 * xk1 + dL2_0 * xk2 - (b1 * dw1 + b2 * dw2 - f * dS_0) * iS
-        g0 += 0.5 * dS_0 * iS - dS_0 * v * v - 2.0 * Sv * dv
+        if observed:
+            xk1 = x1[k]
+            xk2 = x2[k]
+            v = u[k] + L1 * xk1 + L2 * xk2 - f
+            Sv = S * v
+            ll -= Sv * v
+            dv = dL1_0 * xk1 + dL2_0 * xk2 - (b1 * dw1 + b2 * dw2 - f * dS_0) * iS
+            g0 += 0.5 * dS_0 * iS - dS_0 * v * v - 2.0 * Sv * dv
         ds1_0 = rk - dL1_0 * bw + m11 * dw1 + m21 * dw2
         ds2_0 = -dL2_0 * bw + m12 * dw1 + m22 * dw2
         dw1 = ds1_1 - e1_1 * ak
         dw2 = ds2_1 - e2_1 * ak
-        dv = dL1_1 * xk1 + dL2_1 * xk2 - (b1 * dw1 + b2 * dw2 - f * dS_1) * iS
-        g1 += 0.5 * dS_1 * iS - dS_1 * v * v - 2.0 * Sv * dv
+        if observed:
+            dv = dL1_1 * xk1 + dL2_1 * xk2 - (b1 * dw1 + b2 * dw2 - f * dS_1) * iS
+            g1 += 0.5 * dS_1 * iS - dS_1 * v * v - 2.0 * Sv * dv
         ds1_1 = -dL1_1 * bw + m11 * dw1 + m21 * dw2
         ds2_1 = -dL2_1 * bw + m12 * dw1 + m22 * dw2
         s1 = q11 * rk + m11 * w1 + m21 * w2
@@ -277,7 +297,7 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
         k -= 1
     logs += math.log(prod)
     if k < 0:
-        return _finish(K, q11, q22, R, ll, logs, g0, g1)
+        return _finish(K_obs, q11, q22, R, ll, logs, g0, g1)
     # ---- phase 2: steps k..0 with constant step quantities; primal backward.
     kf = k
     sv2 = 0.0  # sum v²
@@ -289,17 +309,19 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
         w1 = s1 - pb1 * ak
         w2 = s2 - pb2 * ak
         bw = b1 * w1 + b2 * w2
-        v = u[k] + L1 * x1[k] + L2 * x2[k] - bw * iS
-        sv2 += v * v
-        svx1 += v * x1[k]
-        svx2 += v * x2[k]
-        svbw += v * bw
+        v = 0.0
+        if k < K_obs:
+            v = u[k] + L1 * x1[k] + L2 * x2[k] - bw * iS
+            sv2 += v * v
+            svx1 += v * x1[k]
+            svx2 += v * x2[k]
+            svbw += v * bw
         wbuf[k, 0] = w1
         wbuf[k, 1] = w2
         vbuf[k] = v
         s1 = q11 * r[k] + m11 * w1 + m21 * w2
         s2 = m12 * w1 + m22 * w2
-    cnt = kf + 1
+    cnt = min(kf + 1, K_obs)
     ll -= S * sv2
     logs += cnt * math.log(S)
     # ---- phase 3: adjoint of s forward in time. lam = dF/ds_k (s_0 is unused: 0).
@@ -336,7 +358,7 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
     hS = gS - giS * iS * iS
     g0 += hL1 * dL1_0 + hL2 * dL2_0 + hS * dS_0 + gpb1 * e1_0 + gpb2 * e2_0 + gq + lam1 * ds1_0 + lam2 * ds2_0
     g1 += hL1 * dL1_1 + hL2 * dL2_1 + hS * dS_1 + gpb1 * e1_1 + gpb2 * e2_1 + lam1 * ds1_1 + lam2 * ds2_1
-    return _finish(K, q11, q22, R, ll, logs, g0, g1)
+    return _finish(K_obs, q11, q22, R, ll, logs, g0, g1)
 
 
 @njit(cache=True, inline="always")
@@ -400,8 +422,8 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: boo
     ll = np.empty(n)
     g = np.empty((3, n))
     # O(K) scratch for the adjoint sweep, reused across the batch.
-    wbuf = np.empty((batch.K, 2))
-    vbuf = np.empty(batch.K)
+    wbuf = np.empty((batch.a.shape[1], 2))
+    vbuf = np.empty(batch.a.shape[1])
     _batch_kernel(plant.A, plant.b, th, batch.x1, batch.x2, batch.r, batch.u, batch.a, bool(freeze), ll, g, wbuf, vbuf)
     return LoglikGrad(ll, g)
 
@@ -424,9 +446,9 @@ def loglik_segments(theta, segments, plant: DiscretePlant) -> LoglikGrad:
     th = np.broadcast_to(th.reshape(3, -1), (3, len(segs)))
     ll = np.empty(len(segs))
     g = np.empty((3, len(segs)))
-    by_len: dict[int, list[int]] = {}
+    by_len: dict[tuple[int, int], list[int]] = {}
     for i, s in enumerate(segs):
-        by_len.setdefault(int(np.shape(s.u_H)[0]), []).append(i)
+        by_len.setdefault((int(np.shape(s.u_H)[0]), int(np.shape(s.u_A)[0])), []).append(i)
     for idx in by_len.values():
         res = loglik_grad(th[:, idx], prepare_batch(plant, [segs[i] for i in idx]), plant)
         ll[idx] = res.loglik
@@ -494,6 +516,8 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bo
     """
     q11, q22, R = validate_theta(theta)
     seg = _check_segment(segment)
+    if seg.preview > 0:
+        return _loglik_dense_marginal(q11, q22, R, seg, plant)
     K = seg.K
     Phi, Gamma = lifted_matrices(plant, K)
     x = Phi @ seg.x0 + Gamma @ (seg.u_H + seg.u_A)
@@ -523,6 +547,24 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bo
             grad[j] = -dg @ y + Gy[j::2] @ Gy[j::2] + np.sum(col2[j::2])
         grad[2] = -2.0 * seg.u_H @ y + y @ y + np.sum(Linv * Linv)
     return DenseResult(float(ll), grad, g, H, seg.u_H - y)
+
+
+def _loglik_dense_marginal(q11, q22, R, seg: Segment, plant: DiscretePlant) -> DenseResult:
+    """Dense reference with preview: the max-ent Gaussian over all K + M controls
+    (Eq. 8 on the longer horizon), marginalized to the K observed ones. Value only."""
+    K, Kt = seg.K, seg.u_A.shape[0]
+    Phi, Gamma = lifted_matrices(plant, Kt)
+    xref = np.zeros(2 * Kt)
+    xref[0::2] = seg.angle_ref[1:]
+    qdiag = np.tile([q11, q22], Kt)
+    g0 = 2.0 * Gamma.T @ (qdiag * (Phi @ seg.x0 + Gamma @ seg.u_A - xref))  # g at u_H = 0
+    H = 2.0 * Gamma.T @ (qdiag[:, None] * Gamma) + 2.0 * R * np.eye(Kt)
+    Sigma = np.linalg.inv(H)
+    u_opt = -Sigma @ g0
+    c = cho_factor(Sigma[:K, :K], lower=True)
+    d = seg.u_H - u_opt[:K]
+    ll = -0.5 * d @ cho_solve(c, d) - np.sum(np.log(np.diag(c[0]))) - K * _HALF_LOG_2PI
+    return DenseResult(float(ll), np.full(3, np.nan), g0 + H @ np.concatenate([seg.u_H, u_opt[K:]]), H, u_opt)
 
 
 # --------------------------------------------------------------------------- generative side

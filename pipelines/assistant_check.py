@@ -13,8 +13,8 @@ from models.plant import DT_HUMAN, discretize
 from models.reference import reference_trajectory, window_slice
 
 
-def assistant_alone() -> dict:
-    """Closed-loop run of wheel + assistant with u_H = 0 over a whole 4-minute run.
+def assistant_alone(seconds: float = 240.0) -> dict:
+    """Closed-loop run of wheel + assistant with u_H = 0 over a whole run (default 4 minutes).
 
     Returns
     -------
@@ -24,12 +24,15 @@ def assistant_alone() -> dict:
         same error with nobody steering for comparison.
     """
     plant = discretize(DT_HUMAN)
-    ref = reference_trajectory()
+    ref = reference_trajectory(seconds)
     x0 = [ref.angle[0], 0.0]
     run = simulate_closed_loop(plant, design_assistant(), x0, ref.angle)
     passive = simulate_closed_loop(plant, None, x0, ref.angle)
     out = {}
-    for name, sl in (("run", slice(None)), ("window", window_slice())):
+    windows = [("run", slice(None))]
+    if window_slice().stop <= ref.t.shape[0]:
+        windows.append(("window", window_slice()))
+    for name, sl in windows:
         r = ref.angle[sl]
         e = run.x[sl, 0] - r
         u = run.u_A[sl][:-1] if sl.stop is not None else run.u_A
@@ -59,5 +62,6 @@ def format_assistant(res: dict) -> str:
         ("u_A_rms_Nm", "assistant torque RMS (N·m)"),
         ("u_A_peak_Nm", "assistant torque peak (N·m)"),
     ):
-        lines.append(f"{label:>30} {res['run'][key]:>10.3f} {res['window'][key]:>10.3f}")
+        window = f"{res['window'][key]:>10.3f}" if "window" in res else f"{'-':>10}"
+        lines.append(f"{label:>30} {res['run'][key]:>10.3f} {window}")
     return "\n".join(lines)

@@ -40,6 +40,75 @@ def _cmd_assistant(args) -> int:
     return 0
 
 
+def _window(args):
+    from pipelines.identify import IdentifySettings
+
+    if args.whole_run:
+        window = (None, None)
+    else:
+        try:
+            start, seconds = (float(v) for v in args.window.split(","))
+        except ValueError:
+            raise ValueError(f"--window needs START,SECONDS in s (e.g. 210,15); got {args.window!r}") from None
+        window = (start, seconds)
+    return IdentifySettings(window_start=window[0], window_seconds=window[1], preview=args.preview,
+                            reconstruct=args.reconstruct)
+
+
+def _cmd_simulate(args) -> int:
+    from models.simulate import Population
+    from pipelines.simulate import simulate_to_dir
+
+    paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed, population=Population(),
+                            seconds=args.seconds)
+    for k, v in paths.items():
+        print(f"{k}: {v}")
+    return 0
+
+
+def _cmd_identify(args) -> int:
+    from pipelines.identify import identify_to_dir
+
+    paths = identify_to_dir(args.study, args.out, _window(args))
+    for k, v in paths.items():
+        print(f"{k}: {v}")
+    return 0
+
+
+def _cmd_compare(args) -> int:
+    from pipelines.compare import compare_to_file, format_compare
+
+    out = args.out or str(__import__("pathlib").Path(args.estimates).parent / "compare.json")
+    res = compare_to_file(args.estimates, out, alpha=args.alpha)
+    print(format_compare(res))
+    print(f"wrote {out}")
+    return 0
+
+
+def _cmd_report(args) -> int:
+    from pipelines.report import build_report
+
+    print(build_report(args.run_dir, subject=args.subject))
+    return 0
+
+
+def _cmd_run(args) -> int:
+    from pipelines.run import run_all
+
+    run_all(args.out, n_subjects=args.subjects, seed=args.seed)
+    return 0
+
+
+def _add_window_options(p):
+    p.add_argument("--window", default="210,15", metavar="START,SECONDS",
+                   help="analysis window on the file's time axis, s (default: the paper's 210,15)")
+    p.add_argument("--whole-run", action="store_true", help="analyse each segment whole")
+    p.add_argument("--preview", type=float, default=2.0,
+                   help="seconds the human's plan looks past the window (default 2; 0 = the paper's model)")
+    p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
+                   help="reconstruct velocity and u_H from the angle when missing (auto) or always")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="scioc",
@@ -53,6 +122,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
     p.add_argument("--format", choices=("table", "json"), default="table")
     p.set_defaults(func=_cmd_loglik)
+
+    p = sub.add_parser("simulate", help="simulate the experiment: study table (angles only) + ground truth")
+    p.add_argument("--subjects", type=int, default=42)
+    p.add_argument("--seed", type=int, default=2018)
+    p.add_argument("--seconds", type=float, default=240.0, help="length of each run, s (default 240)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("identify", help="maximum-likelihood θ per subject × condition, like the paper")
+    p.add_argument("study", help="study file in the data convention")
+    p.add_argument("--out", required=True, metavar="DIR")
+    _add_window_options(p)
+    p.set_defaults(func=_cmd_identify)
+
+    p = sub.add_parser("compare", help="Wilcoxon matched-pairs signed-rank test of θ1 and θ2, MC vs SC")
+    p.add_argument("estimates", help="estimates.parquet written by `scioc identify`")
+    p.add_argument("--alpha", type=float, default=0.001, help="two-sided significance level (default 0.001)")
+    p.add_argument("--out", help="JSON path (default: compare.json beside ESTIMATES)")
+    p.set_defaults(func=_cmd_compare)
+
+    p = sub.add_parser("report", help="self-contained HTML report from a run folder's artifacts")
+    p.add_argument("run_dir", help="folder with data/, identify/, compare.json (as `scioc run` writes)")
+    p.add_argument("--subject", help="subject for the Fig. 6 trajectories (default: the third)")
+    p.set_defaults(func=_cmd_report)
+
+    p = sub.add_parser("run", help="the whole workflow on the built-in simulated study, ending with the report")
+    p.add_argument("--out", default="reports", metavar="DIR", help="where everything goes (default reports/)")
+    p.add_argument("--subjects", type=int, default=42)
+    p.add_argument("--seed", type=int, default=2018)
+    p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("assistant", help="the MPC assistant alone on the study reference: tracking and torques")
     p.add_argument("--format", choices=("table", "json"), default="table")

@@ -145,3 +145,34 @@ def test_empty_or_mismatched_segments_are_rejected(plant):
         prepare_batch(plant, [Segment(np.zeros(2), np.zeros(5), np.zeros(5), np.zeros(5))])
     with pytest.raises(ValueError, match="no segments"):
         prepare_batch(plant, [])
+
+
+@pytest.mark.parametrize("preview", [1, 30, 250])
+@pytest.mark.parametrize("shared", [False, True])
+def test_preview_equals_dense_marginal(plant, preview, shared):
+    # Planning past the observed window: the marginal of the longer-horizon max-ent Gaussian.
+    rng = np.random.default_rng([12, preview, shared])
+    long = random_segment(rng, 150 + preview, shared)
+    seg = Segment(long.x0, long.angle_ref, long.u_H[:150], long.u_A)
+    theta = random_theta(rng, False)
+    dense = loglik_dense(theta, seg, plant)
+    fast = loglik_grad(theta, prepare_batch(plant, [seg]), plant)
+    assert abs(fast.loglik[0] - dense.loglik) <= 1e-9 * abs(dense.loglik)
+    slow = loglik_grad(theta, prepare_batch(plant, [seg]), plant, freeze=False)
+    np.testing.assert_allclose(fast.grad, slow.grad, rtol=1e-10)
+
+
+def test_preview_gradient_matches_central_differences(plant):
+    rng = np.random.default_rng(13)
+    long = random_segment(rng, 600, True)
+    seg = Segment(long.x0, long.angle_ref, long.u_H[:400], long.u_A)
+    batch = prepare_batch(plant, [seg])
+    theta = random_theta(rng, False)
+    grad = loglik_grad(theta, batch, plant).grad[:, 0]
+    for j in range(3):
+        h = 1e-5 * theta[j]
+        tp, tm = theta.copy(), theta.copy()
+        tp[j] += h
+        tm[j] -= h
+        fd = (loglik_grad(tp, batch, plant).loglik[0] - loglik_grad(tm, batch, plant).loglik[0]) / (2 * h)
+        assert abs(fd - grad[j]) <= 1e-6 * abs(grad[j])

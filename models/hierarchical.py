@@ -1,0 +1,443 @@
+"""Hierarchical Bayesian model of the human cost parameters in manual and shared control.
+
+One *unit* is a subject i in a condition c (MC = manual, SC = shared control). Its cost
+θ = [q11, q22, R] (paper Eq. 6) enters the max-ent likelihood (paper Eq. 8) only through
+
+* θ1 = q11 / R and θ2 = q22 / R, which fix the optimal policy (scaling J keeps the
+  optimum, paper Section V-A), and
+* R, which scales the precision of the torques around it: given the state, the torque of
+  step k is Gaussian with variance 1 / (2 S_k) and S_k ∝ R at fixed θ1, θ2.
+
+so the model is written in (θ1, θ2, R)::
+
+    log θ1[i, MC] = μ + a_i                      a_i ~ N(0, σ)        subject intercept
+    log θ1[i, SC] = log θ1[i, MC] + β + b_i      b_i ~ N(0, σ_β)      SC change (β: the paper's question)
+    log R[i, MC]  = μ_R + a^R_i                  a^R_i ~ N(0, σ_R)
+    log R[i, SC]  = log R[i, MC] + β_R + b^R_i   b^R_i ~ N(0, σ_βR)
+    θ2[i, c]      ~ HalfNormal(τ)                (θ2 >= 0; τ -> 0 says "θ2 = 0 for everyone")
+    u_H[segment] ~ max-ent(q11 = θ1 R, q22 = θ2 R, R | x0, angle_ref, u_A)
+
+Several segments may belong to one unit (they share its θ); every subject needs at least
+one segment in each condition.
+
+Priors (:class:`Priors`; units: θ1, θ2 in rad⁻² and (rad/s)⁻² per (N·m)⁻², R in (N·m)⁻²)::
+
+    μ   ~ N(log 50, 1)     β   ~ N(0, 1)      σ   ~ HalfN(0.5)   σ_β  ~ HalfN(0.3)
+    μ_R ~ N(0, 1)          β_R ~ N(0, 0.5)    σ_R ~ HalfN(0.5)   σ_βR ~ HalfN(0.3)
+    τ   ~ HalfN(0.5)
+
+Prior predictive check (:func:`prior_predictive_summary` on the default simulated study,
+``pipelines.bench_fit.simulate_study(42, 1500, seed=0)``, 200 prior draws, seed 1; median
+and 90 % interval over draws × segments)::
+
+    PRIOR_PREDICTIVE_PLACEHOLDER
+
+Parameterization (:class:`Parameterization`) was chosen by measurement with
+``pipelines/bench_fit.py`` (divergences, tree depth, ESS per gradient evaluation), see
+PARAMETERIZATION_PLACEHOLDER.
+
+The pointwise log-likelihood of each segment is the element-wise log density of the
+observed variable ``u_H`` (dims segment × step, one value per segment), so
+``pm.compute_log_likelihood(idata, model=model)`` gives a ``log_likelihood`` group with
+dims (chain, draw, segment) for ``arviz.loo``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal, NamedTuple
+
+import numpy as np
+import pymc as pm
+import pytensor.tensor as pt
+from pytensor.graph.basic import Constant
+
+from models.likelihood_op import MaxEntLoglikOp
+from models.maxent import Segment, SegmentBatch, prepare_batch, sample_maxent
+from models.plant import DiscretePlant
+
+CONDITIONS = ("MC", "SC")
+
+Form = Literal["centred", "noncentred"]
+
+
+@dataclass(frozen=True)
+class Priors:
+    """Hyperprior parameters (see the module docstring for the model).
+
+    Attributes
+    ----------
+    mu_log_theta1 : (float, float)
+        Mean and SD of the Normal prior on μ, the MC population mean of log θ1.
+    beta_sd : float
+        SD of the Normal(0, ·) prior on β, the mean SC change of log θ1.
+    sigma_log_theta1 : float
+        Scale of the HalfNormal prior on σ (between-subject SD of log θ1 in MC).
+    sigma_beta : float
+        Scale of the HalfNormal prior on σ_β (between-subject SD of the SC change).
+    mu_log_R : (float, float)
+        Mean and SD of the Normal prior on μ_R.
+    beta_log_R_sd : float
+        SD of the Normal(0, ·) prior on β_R.
+    sigma_log_R : float
+        Scale of the HalfNormal prior on σ_R.
+    sigma_beta_log_R : float
+        Scale of the HalfNormal prior on σ_βR.
+    tau_theta2 : float
+        Scale of the HalfNormal prior on τ, the population scale of θ2.
+    """
+
+    mu_log_theta1: tuple[float, float] = (float(np.log(50.0)), 1.0)
+    beta_sd: float = 1.0
+    sigma_log_theta1: float = 0.5
+    sigma_beta: float = 0.3
+    mu_log_R: tuple[float, float] = (0.0, 1.0)
+    beta_log_R_sd: float = 0.5
+    sigma_log_R: float = 0.5
+    sigma_beta_log_R: float = 0.3
+    tau_theta2: float = 0.5
+
+
+@dataclass(frozen=True)
+class Parameterization:
+    """Centred or non-centred form of each block of unit parameters.
+
+    Attributes
+    ----------
+    theta1 : {"centred", "noncentred"}
+        ``centred`` samples log θ1[i, MC] and log θ1[i, SC] themselves; ``noncentred``
+        samples standard-normal a_i / σ and b_i / σ_β.
+    R : {"centred", "noncentred"}
+        The same for log R.
+    theta2 : {"centred", "noncentred"}
+        ``centred`` samples θ2[i, c] ~ HalfNormal(τ); ``noncentred`` samples
+        z ~ HalfNormal(1) and sets θ2 = τ z.
+    """
+
+    theta1: Form = "noncentred"
+    R: Form = "centred"
+    theta2: Form = "noncentred"
+
+    def __post_init__(self):
+        for name in ("theta1", "R", "theta2"):
+            if getattr(self, name) not in ("centred", "noncentred"):
+                raise ValueError(f"Parameterization.{name} must be 'centred' or 'noncentred'; got {getattr(self, name)!r}")
+
+
+class StudyIndex(NamedTuple):
+    """Which unit each segment belongs to.
+
+    Attributes
+    ----------
+    subjects : tuple of str
+        Subject labels in order of first appearance (the ``subject`` coordinate).
+    subject_idx : ndarray of int, shape (n,)
+    condition_idx : ndarray of int, shape (n,)
+        0 for MC, 1 for SC.
+    """
+
+    subjects: tuple[str, ...]
+    subject_idx: np.ndarray
+    condition_idx: np.ndarray
+
+
+def index_study(subjects: Sequence, conditions: Sequence) -> StudyIndex:
+    """Check the design and map each segment to its (subject, condition) unit.
+
+    Parameters
+    ----------
+    subjects : sequence, length n
+        Subject label of each segment (compared as strings).
+    conditions : sequence of {"MC", "SC"}, length n
+        Condition of each segment.
+
+    Returns
+    -------
+    StudyIndex
+
+    Raises
+    ------
+    ValueError
+        If the lengths differ, a condition is not MC or SC (naming the first such
+        segment), there are no SC (or no MC) segments at all (β would not be
+        identified; no fallback model is offered), or a subject lacks one condition
+        (naming the subjects).
+    """
+    subj = [str(s) for s in subjects]
+    cond = [str(c) for c in conditions]
+    if len(subj) != len(cond):
+        raise ValueError(f"subjects and conditions must have one entry per segment; got {len(subj)} and {len(cond)}")
+    if not subj:
+        raise ValueError("no segments given")
+    for j, c in enumerate(cond):
+        if c not in CONDITIONS:
+            raise ValueError(f"condition of segment {j} must be 'MC' or 'SC'; got {c!r}")
+    for c in CONDITIONS:
+        if c not in cond:
+            raise ValueError(
+                f"no {c} segments at all: the SC change β (and β_R) is not identified. "
+                "This model needs every subject in both conditions; fit a single-condition "
+                "model instead (none is provided here)."
+            )
+    labels = tuple(dict.fromkeys(subj))
+    have = {s: set() for s in labels}
+    for s, c in zip(subj, cond):
+        have[s].add(c)
+    missing = [(s, c) for s in labels for c in CONDITIONS if c not in have[s]]
+    if missing:
+        listed = ", ".join(f"subject {s!r} has no {c} segment" for s, c in missing)
+        raise ValueError(f"every subject needs segments in both MC and SC: {listed}")
+    pos = {s: i for i, s in enumerate(labels)}
+    return StudyIndex(
+        subjects=labels,
+        subject_idx=np.array([pos[s] for s in subj], dtype=np.int64),
+        condition_idx=np.array([CONDITIONS.index(c) for c in cond], dtype=np.int64),
+    )
+
+
+def _as_batch(segments, plant: DiscretePlant) -> SegmentBatch:
+    if isinstance(segments, SegmentBatch):
+        return segments
+    return prepare_batch(plant, list(segments))
+
+
+def _unit_block(name: str, mu, beta, sigma, sigma_beta, n_subjects: int, form: Form):
+    """log-parameter of every unit, (subject, condition), as MC intercept + SC change."""
+    if form == "centred":
+        mc = pm.Normal(f"{name}_MC", mu, sigma, dims="subject")
+        sc = pm.Normal(f"{name}_SC", mc + beta, sigma_beta, dims="subject")
+    else:
+        z_mc = pm.Normal(f"z_{name}_MC", 0.0, 1.0, dims="subject")
+        z_sc = pm.Normal(f"z_{name}_SC", 0.0, 1.0, dims="subject")
+        mc = mu + sigma * z_mc
+        sc = mc + beta + sigma_beta * z_sc
+    return pm.Deterministic(name, pt.stack([mc, sc], axis=1), dims=("subject", "condition"))
+
+
+def build_model(
+    subjects: Sequence,
+    conditions: Sequence,
+    segments,
+    plant: DiscretePlant,
+    *,
+    priors: Priors = Priors(),
+    parameterization: Parameterization = Parameterization(),
+    segment_ids: Sequence | None = None,
+) -> pm.Model:
+    """The hierarchical max-ent model of a study (see the module docstring).
+
+    Parameters
+    ----------
+    subjects : sequence, length n
+        Subject label of each segment.
+    conditions : sequence of {"MC", "SC"}, length n
+        Condition of each segment.
+    segments : SegmentBatch or sequence of Segment
+        The n demonstrations, all of the same length K (x0 in rad, rad/s; angle_ref in
+        rad; u_H, u_A in N·m).
+    plant : DiscretePlant
+        The 0.01-s wheel discretization.
+    priors : Priors
+    parameterization : Parameterization
+    segment_ids : sequence, length n, optional
+        Labels of the ``segment`` coordinate (default 0..n-1).
+
+    Returns
+    -------
+    pymc.Model
+        Coordinates ``subject``, ``condition`` (MC, SC), ``segment`` and ``step``
+        (0..K-1). Free variables: the population parameters ``mu_log_theta1``,
+        ``beta``, ``sigma_log_theta1``, ``sigma_beta``, ``mu_log_R``, ``beta_log_R``,
+        ``sigma_log_R``, ``sigma_beta_log_R``, ``tau_theta2`` and the unit parameters
+        in the chosen form. Deterministics ``log_theta1``, ``log_R``, ``theta1``,
+        ``R``, ``theta2`` (subject, condition). Observed ``u_H`` (segment, step),
+        whose element-wise log density is one log-likelihood per segment.
+
+    Raises
+    ------
+    ValueError
+        See :func:`index_study`; also if the number of segments does not match the
+        labels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from models.maxent import Segment
+    >>> from models.plant import discretize
+    >>> seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
+    >>> m = build_model(["a", "a"], ["MC", "SC"], [seg, seg], discretize(0.01))
+    >>> m.coords["condition"]
+    ('MC', 'SC')
+    """
+    index = index_study(subjects, conditions)
+    batch = _as_batch(segments, plant)
+    n, K = batch.n, batch.K
+    if n != index.subject_idx.shape[0]:
+        raise ValueError(f"got {n} segments but {index.subject_idx.shape[0]} subject/condition labels")
+    ids = list(range(n)) if segment_ids is None else list(segment_ids)
+    if len(ids) != n:
+        raise ValueError(f"segment_ids must have {n} entries; got {len(ids)}")
+    coords = {"subject": index.subjects, "condition": CONDITIONS, "segment": ids, "step": np.arange(K)}
+    s_idx, c_idx = index.subject_idx, index.condition_idx
+    n_subj = len(index.subjects)
+    op = MaxEntLoglikOp(batch, plant)
+    u_obs = op.u  # the Op's own read-only copy
+
+    def logp(value, q11, q22, R, u_A):
+        # The Op carries the observed data; refuse any other value rather than return
+        # the likelihood of the wrong torques.
+        if not (isinstance(value, Constant) and np.array_equal(value.data, u_obs)):
+            raise NotImplementedError("the max-ent likelihood of this model is bound to the observed torques")
+        ll, _ = op(pt.stack([q11, q22, R]))
+        return ll
+
+    x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
+    ref = batch.r
+
+    def random(q11, q22, R, u_A, rng=None, size=None):
+        # Exact max-ent draws given the recorded (open-loop) u_A, as the likelihood assumes.
+        shape = tuple(size) if size is not None else np.broadcast_shapes(q11.shape, q22.shape, R.shape, u_A.shape[:-1])
+        th = [np.broadcast_to(p, shape) for p in (q11, q22, R)]
+        a = np.broadcast_to(u_A, shape + (K,))
+        out = np.empty(shape + (K,))
+        for idx in np.ndindex(*shape):
+            j = idx[-1]
+            theta = [th[0][idx], th[1][idx], th[2][idx]]
+            out[idx] = sample_maxent(theta, x0[j], ref[j], a[idx], plant, rng).u_H
+        return out
+
+    form = parameterization
+    with pm.Model(coords=coords) as model:
+        mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
+        beta = pm.Normal("beta", 0.0, priors.beta_sd)
+        sigma = pm.HalfNormal("sigma_log_theta1", priors.sigma_log_theta1)
+        sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta)
+        mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
+        beta_R = pm.Normal("beta_log_R", 0.0, priors.beta_log_R_sd)
+        sigma_R = pm.HalfNormal("sigma_log_R", priors.sigma_log_R)
+        sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R)
+        tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
+
+        log_theta1 = _unit_block("log_theta1", mu, beta, sigma, sigma_b, n_subj, form.theta1)
+        log_R = _unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, n_subj, form.R)
+        if form.theta2 == "centred":
+            theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))
+        else:
+            z2 = pm.HalfNormal("z_theta2", 1.0, dims=("subject", "condition"))
+            theta2 = pm.Deterministic("theta2", tau * z2, dims=("subject", "condition"))
+        pm.Deterministic("theta1", pt.exp(log_theta1), dims=("subject", "condition"))
+        R = pm.Deterministic("R", pt.exp(log_R), dims=("subject", "condition"))
+
+        lt1_s = log_theta1[s_idx, c_idx]
+        lR_s = log_R[s_idx, c_idx]
+        R_s = R[s_idx, c_idx]
+        q11 = pt.exp(lt1_s + lR_s)
+        q22 = theta2[s_idx, c_idx] * R_s
+        pm.CustomDist(
+            "u_H",
+            q11,
+            q22,
+            R_s,
+            batch.a,
+            logp=logp,
+            random=random,
+            signature="(),(),(),(k)->(k)",
+            observed=u_obs,
+            dims=("segment", "step"),
+        )
+    return model
+
+
+class PriorPredictive(NamedTuple):
+    """Prior predictive torques and tracking errors, per condition.
+
+    Attributes
+    ----------
+    quantiles : ndarray, shape (5,)
+        The probabilities of the columns below: 0.05, 0.25, 0.5, 0.75, 0.95.
+    torque_rms : dict of str -> ndarray, shape (5,)
+        Quantiles over draws × segments of the RMS human torque of a segment, N·m.
+    error_rms : dict of str -> ndarray, shape (5,)
+        Quantiles of the RMS tracking error angle - angle_ref of a segment, rad.
+    observed_torque_rms, observed_error_rms : dict of str -> ndarray, shape (5,)
+        The same quantiles over the observed segments, for comparison.
+    """
+
+    quantiles: np.ndarray
+    torque_rms: dict
+    error_rms: dict
+    observed_torque_rms: dict
+    observed_error_rms: dict
+
+
+def prior_predictive_summary(
+    subjects: Sequence,
+    conditions: Sequence,
+    segments,
+    plant: DiscretePlant,
+    rng: np.random.Generator,
+    *,
+    draws: int = 200,
+    priors: Priors = Priors(),
+) -> PriorPredictive:
+    """Simulate the study's segments under prior draws and summarize torques and errors.
+
+    Each draw takes all unit parameters jointly from the prior (:func:`build_model`) and
+    simulates every segment exactly from the max-ent model with :func:`sample_maxent`
+    (x0, angle_ref and the recorded u_A of the segment); states follow from the drawn
+    torques.
+
+    Parameters
+    ----------
+    subjects, conditions, segments, plant
+        As for :func:`build_model`.
+    rng : numpy.random.Generator
+    draws : int
+        Number of prior draws.
+    priors : Priors
+
+    Returns
+    -------
+    PriorPredictive
+    """
+    batch = _as_batch(segments, plant)
+    index = index_study(subjects, conditions)
+    model = build_model(subjects, conditions, batch, plant, priors=priors)
+    seed = int(rng.integers(2**63))
+    lt1, lR, t2 = pm.draw([model["log_theta1"], model["log_R"], model["theta2"]], draws=draws, random_seed=seed)
+    x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
+    probs = np.array([0.05, 0.25, 0.5, 0.75, 0.95])
+    tq = np.empty((draws, batch.n))
+    er = np.empty((draws, batch.n))
+    s, c = index.subject_idx, index.condition_idx
+    for d in range(draws):
+        R = np.exp(lR[d, s, c])
+        th1 = np.exp(lt1[d, s, c])
+        for j in range(batch.n):
+            theta = [th1[j] * R[j], t2[d, s[j], c[j]] * R[j], R[j]]
+            demo = sample_maxent(theta, x0[j], batch.r[j], batch.a[j], plant, rng)
+            tq[d, j] = np.sqrt(np.mean(demo.u_H**2))
+            er[d, j] = np.sqrt(np.mean((demo.x[1:, 0] - batch.r[j, 1:]) ** 2))
+    obs_tq = np.sqrt(np.mean(batch.u**2, axis=1))
+    obs_er = np.sqrt(np.mean((batch.x1[:, 1:] - batch.r[:, 1:]) ** 2, axis=1))
+    out = {k: {} for k in ("tq", "er", "otq", "oer")}
+    for ci, cname in enumerate(CONDITIONS):
+        m = c == ci
+        out["tq"][cname] = np.quantile(tq[:, m], probs)
+        out["er"][cname] = np.quantile(er[:, m], probs)
+        out["otq"][cname] = np.quantile(obs_tq[m], probs)
+        out["oer"][cname] = np.quantile(obs_er[m], probs)
+    return PriorPredictive(probs, out["tq"], out["er"], out["otq"], out["oer"])
+
+
+__all__ = [
+    "CONDITIONS",
+    "Priors",
+    "Parameterization",
+    "StudyIndex",
+    "PriorPredictive",
+    "index_study",
+    "build_model",
+    "prior_predictive_summary",
+]

@@ -1,0 +1,173 @@
+"""Maximum-likelihood identification of θ for one demonstration (paper Eq. 17, Section IV-F).
+
+The search runs in ``z = (log θ1, θ2, log R)`` with θ1 = q11/R and θ2 = q22/R (the paper's
+normalized parameters, Section V-A): the optimal policy depends on θ1 and θ2 only, R sets
+how variable the torque is around it, and the log scale makes the Hessian well
+conditioned. θ2 >= 0 is a bound. The optimizer is SciPy's SLSQP (a sequential quadratic
+programming method, as in the paper) with the exact gradient of the linear-time
+likelihood.
+
+It starts from the best θ1 on a coarse grid with θ2 = 0, where R has a closed form: the
+likelihood is ``-R Σ S̃_k v_k² + (K/2) log R + const`` with S̃ = S/R independent of R, so
+``R̂ = K / (2 Σ S̃_k v_k²)``.
+
+Standard errors come from the observed information in z: central differences of the
+exact gradient. At the bound θ2 = 0 the information for θ2 is not a variance, so its
+standard error is reported as NaN and the others come from the (log θ1, log R) block.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import minimize
+
+from models.maxent import SegmentBatch, loglik_grad
+from models.plant import DiscretePlant
+
+#: Grid of θ1 = q11/R (1/rad²) for the starting point.
+START_GRID = np.geomspace(0.3, 3e4, 21)
+#: θ2 below this counts as on the bound (1/(rad/s)²).
+BOUND_TOL = 1e-8
+
+
+class Estimate(NamedTuple):
+    """Maximum-likelihood θ of one segment.
+
+    Attributes
+    ----------
+    theta : ndarray, shape (3,)
+        Raw [q11, q22, R].
+    theta1, theta2 : float
+        q11/R (1/rad²) and q22/R (1/(rad/s)²).
+    se_log_theta1, se_theta2, se_log_R : float
+        Standard errors from the observed information (NaN where undefined).
+    loglik : float
+        Maximized log-likelihood, nats.
+    converged : bool
+    iterations : int
+    grad_norm : float
+        Norm of the projected gradient in z at the solution.
+    message : str
+    """
+
+    theta: np.ndarray
+    theta1: float
+    theta2: float
+    se_log_theta1: float
+    se_theta2: float
+    se_log_R: float
+    loglik: float
+    converged: bool
+    iterations: int
+    grad_norm: float
+    message: str
+
+
+def _theta_from_z(z) -> np.ndarray:
+    R = np.exp(z[2])
+    return np.array([np.exp(z[0]) * R, max(z[1], 0.0) * R, R])
+
+
+def _ll_grad_z(z, batch: SegmentBatch, plant: DiscretePlant):
+    th = _theta_from_z(z)
+    res = loglik_grad(th, batch, plant)
+    g = res.grad[:, 0]
+    q11, q22, R = th
+    gz = np.array([q11 * g[0], R * g[1], q11 * g[0] + q22 * g[1] + R * g[2]])
+    return float(res.loglik[0]), gz
+
+
+def _start(batch: SegmentBatch, plant: DiscretePlant) -> np.ndarray:
+    K = batch.K
+    n = START_GRID.shape[0]
+    theta = np.vstack([START_GRID, np.zeros(n), np.ones(n)])
+    big = SegmentBatch(*(np.repeat(arr, n, axis=0) for arr in batch))
+    res = loglik_grad(theta, big, plant)
+    # At R = 1: Σ S̃ v² = -quad with quad = g_R + θ1 g_q11 - K/2 (Euler, see models.maxent._finish).
+    quad = res.grad[2] + START_GRID * res.grad[0] - 0.5 * K
+    R_hat = K / np.maximum(-2.0 * quad, 1e-300)
+    profiled = -R_hat * (-quad) + 0.5 * K * np.log(R_hat) + (res.loglik - quad)
+    i = int(np.argmax(profiled))
+    return np.array([np.log(START_GRID[i]), 0.0, np.log(R_hat[i])])
+
+
+def _observed_information(z, batch, plant, free) -> np.ndarray:
+    h = 1e-4
+    idx = np.flatnonzero(free)
+    H = np.empty((idx.size, idx.size))
+    for a, j in enumerate(idx):
+        zp, zm = z.copy(), z.copy()
+        step = h if j != 1 else h * max(abs(z[1]), 1e-3)
+        zp[j] += step
+        zm[j] -= step
+        gp = _ll_grad_z(zp, batch, plant)[1]
+        gm = _ll_grad_z(zm, batch, plant)[1]
+        H[a] = -(gp[idx] - gm[idx]) / (2 * step)
+    return 0.5 * (H + H.T)
+
+
+def identify_segment(batch: SegmentBatch, plant: DiscretePlant, *, maxiter: int = 200) -> Estimate:
+    """Maximize the max-ent likelihood of one segment over θ.
+
+    Parameters
+    ----------
+    batch : SegmentBatch
+        One segment (from :func:`models.maxent.prepare_batch`).
+    plant : DiscretePlant
+    maxiter : int
+
+    Returns
+    -------
+    Estimate
+    """
+    if batch.n != 1:
+        raise ValueError(f"identify_segment takes a batch of one segment; got {batch.n}")
+    K = batch.K
+    z0 = _start(batch, plant)
+    scale = 1.0 / K  # per-sample log-likelihood: O(1) numbers for SLSQP's tolerances
+
+    def fun(z):
+        ll, g = _ll_grad_z(z, batch, plant)
+        return -ll * scale, -g * scale
+
+    res = minimize(
+        fun,
+        z0,
+        jac=True,
+        method="SLSQP",
+        bounds=[(None, None), (0.0, None), (None, None)],
+        options={"maxiter": maxiter, "ftol": 1e-12},
+    )
+    z = np.array(res.x, dtype=float)
+    if z[1] <= BOUND_TOL:
+        z[1] = 0.0  # on the bound: report θ2 = 0 exactly, not the optimizer's 1e-18
+    ll, g = _ll_grad_z(z, batch, plant)
+    at_bound = z[1] <= BOUND_TOL
+    proj = g.copy()
+    if at_bound and proj[1] < 0:
+        proj[1] = 0.0  # KKT: a negative slope into the bound is allowed
+    free = np.array([True, not at_bound, True])
+    se = np.full(3, np.nan)
+    try:
+        H = _observed_information(z, batch, plant, free)
+        cov = np.linalg.inv(H)
+        if np.all(np.diag(cov) > 0):
+            se[free] = np.sqrt(np.diag(cov))
+    except np.linalg.LinAlgError:
+        pass
+    theta = _theta_from_z(z)
+    return Estimate(
+        theta=theta,
+        theta1=float(theta[0] / theta[2]),
+        theta2=float(theta[1] / theta[2]),
+        se_log_theta1=float(se[0]),
+        se_theta2=float(se[1]),
+        se_log_R=float(se[2]),
+        loglik=ll,
+        converged=bool(res.success),
+        iterations=int(res.nit),
+        grad_norm=float(np.linalg.norm(proj) / K),
+        message=str(res.message),
+    )

@@ -1,0 +1,247 @@
+"""``scioc identify``: per subject × condition maximum-likelihood θ, like the paper (Section IV-F).
+
+For each segment: take the analysis window (default the paper's 15 s from 3:30; any
+window or the whole run on request), reconstruct velocity and u_H from the angle where
+the file lacks them (:mod:`models.reconstruct`, over the window plus a margin), and
+maximize the max-ent likelihood (:mod:`models.identify`). The human's plan may look
+``preview`` seconds past the window (default 2 s, the time a point of the reference
+takes to cross the screen); ``--preview 0`` is the paper's model exactly.
+
+It also computes the model validation of Fig. 6: the trajectories that forward optimal
+control generates with θ_MC and with θ_SC of the same subject, and the RMSE of angle
+and torque when each condition's data are predicted with either.
+
+Artifacts in ``--out DIR``: ``estimates.parquet`` (one row per subject × condition),
+``trajectories.parquet`` (window samples: measured, reconstructed and predicted),
+``validation.parquet`` (cross-prediction RMSE) and ``identify.json`` (settings, timings,
+versions).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from models.identify import identify_segment
+from models.maxent import Segment, forward_optimal_control, prepare_batch
+from models.plant import DT_HUMAN, discretize
+from models.reconstruct import DEFAULT_RESOLUTION, reconstruct
+from models.reference import WINDOW_SECONDS, WINDOW_START
+from pipelines.io import Study, StudyFileError, SegmentData, load_study, write_table_atomic, write_text_atomic
+from pipelines.progress import progress
+from pipelines.provenance import versions
+
+
+@dataclass(frozen=True)
+class IdentifySettings:
+    """How to cut and treat each segment.
+
+    Attributes
+    ----------
+    window_start : float or None
+        Start of the analysis window, s on the file's time axis; None for the whole run.
+    window_seconds : float or None
+        Length of the window, s; None for the whole run.
+    preview : float
+        How far past the window the human plans, s (0: the paper's model).
+    margin : float
+        Extra seconds on each side of the window used by the reconstruction.
+    reconstruct : str
+        ``auto`` (only when velocity or u_H are missing) or ``always``.
+    resolution : float
+        Encoder increment, rad (sets the reconstruction's measurement noise).
+    """
+
+    window_start: float | None = WINDOW_START
+    window_seconds: float | None = WINDOW_SECONDS
+    preview: float = 2.0
+    margin: float = 1.0
+    reconstruct: str = "auto"
+    resolution: float = DEFAULT_RESOLUTION
+
+    def __post_init__(self):
+        if (self.window_start is None) != (self.window_seconds is None):
+            raise ValueError("give both window start and length, or neither (whole run)")
+        if self.window_seconds is not None and not self.window_seconds > 0:
+            raise ValueError(f"window length must be > 0 s; got {self.window_seconds!r}")
+        if not (self.preview >= 0 and self.margin >= 0):
+            raise ValueError("preview and margin must be >= 0 s")
+        if self.reconstruct not in ("auto", "always"):
+            raise ValueError(f"reconstruct must be 'auto' or 'always'; got {self.reconstruct!r}")
+
+
+@dataclass(frozen=True)
+class PreparedSegment:
+    """A segment cut to its window, with the arrays the likelihood needs."""
+
+    data: SegmentData
+    rows: slice  # window rows within the segment, k = 0..K
+    segment: Segment  # x0, reference and u_A with preview, u_H over the window
+    velocity: np.ndarray  # (K + 1,) used for x0 (recorded or reconstructed), rad/s
+    u_H: np.ndarray  # (K + 1,) recorded or reconstructed, N·m
+    angle_used: np.ndarray  # (K + 1,) angle the states start from (smoothed if reconstructed), rad
+    reconstructed: bool
+    sigma_eps: float
+    q: float
+
+
+def _window_rows(seg: SegmentData, settings: IdentifySettings, path) -> slice:
+    n = seg.t.shape[0]
+    if settings.window_start is None:
+        return slice(0, n)
+    i0 = int(np.searchsorted(seg.t, settings.window_start - 0.5 * DT_HUMAN))
+    K = int(round(settings.window_seconds / DT_HUMAN))
+    if i0 + K >= n or abs(seg.t[min(i0, n - 1)] - settings.window_start) > 0.5 * DT_HUMAN:
+        raise StudyFileError(
+            path,
+            f"segment ({seg.subject}, {seg.condition}) covers t = {seg.t[0]:g}..{seg.t[-1]:g} s, which does not "
+            f"contain the window {settings.window_start:g}..{settings.window_start + settings.window_seconds:g} s; "
+            "choose another --window or use --whole-run",
+            column="t",
+            row=seg.first_row,
+        )
+    return slice(i0, i0 + K + 1)
+
+
+def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<table>") -> PreparedSegment:
+    """Cut one recorded segment to its window, reconstructing velocity and u_H if needed."""
+    rows = _window_rows(seg, settings, path)
+    n = seg.t.shape[0]
+    i0, i1 = rows.start, rows.stop - 1  # window rows k = 0..K
+    K = i1 - i0
+    M = min(int(round(settings.preview / DT_HUMAN)), n - 1 - i1)
+    need = seg.velocity is None or seg.u_H is None or settings.reconstruct == "always"
+    if need:
+        m = int(round(settings.margin / DT_HUMAN))
+        j0, j1 = max(0, i0 - m), min(n, i1 + 1 + m)
+        rec = reconstruct(seg.angle[j0:j1], seg.u_A[j0:j1], plant, resolution=settings.resolution)
+        cut = slice(i0 - j0, i1 + 1 - j0)
+        angle, velocity, u_H = rec.angle[cut], rec.velocity[cut], rec.u_H[cut]
+        sigma_eps, q = rec.sigma_eps, rec.q
+    else:
+        angle, velocity, u_H = seg.angle[rows], seg.velocity[rows], seg.u_H[rows]
+        sigma_eps = q = float("nan")
+    segment = Segment(
+        x0=np.array([angle[0], velocity[0]]),
+        angle_ref=seg.angle_ref[i0 : i1 + M + 1],
+        u_H=u_H[:K],
+        u_A=seg.u_A[i0 : i1 + M],
+    )
+    return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q)
+
+
+def identify_study(study: Study, settings: IdentifySettings = IdentifySettings(), *, show_progress: bool = True):
+    """Identify θ for every segment of a study and cross-predict the conditions.
+
+    Returns
+    -------
+    estimates : DataFrame
+        One row per subject × condition.
+    trajectories : DataFrame
+        Window samples with measured, used and predicted angle, velocity and torque.
+    validation : DataFrame
+        RMSE of angle and u_H when each condition is predicted with θ_MC and θ_SC.
+    timing : dict
+        Seconds spent reconstructing and optimizing.
+    """
+    plant = discretize(DT_HUMAN)
+    prepared, t_rec = [], 0.0
+    for seg in progress(study.segments, desc="reconstruct", enabled=show_progress):
+        t0 = time.perf_counter()
+        prepared.append(prepare_segment(seg, settings, plant, study.path))
+        t_rec += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    estimates = [identify_segment(prepare_batch(plant, [p.segment]), plant) for p in prepared]
+    t_opt = time.perf_counter() - t0
+
+    rows = []
+    for p, e in zip(prepared, estimates):
+        rows.append({
+            "subject": p.data.subject,
+            "condition": p.data.condition,
+            "window_start": float(p.data.t[p.rows.start]),
+            "K": p.segment.K,
+            "preview": p.segment.preview,
+            "q11": e.theta[0],
+            "q22": e.theta[1],
+            "R": e.theta[2],
+            "theta1": e.theta1,
+            "theta2": e.theta2,
+            "se_log_theta1": e.se_log_theta1,
+            "se_theta2": e.se_theta2,
+            "se_log_R": e.se_log_R,
+            "loglik": e.loglik,
+            "converged": e.converged,
+            "iterations": e.iterations,
+            "grad_norm": e.grad_norm,
+            "message": e.message,
+            "reconstructed": p.reconstructed,
+            "recon_sigma_eps": p.sigma_eps,
+            "recon_q": p.q,
+        })
+    est = pd.DataFrame(rows)
+    traj, val = _cross_predict(prepared, est, plant)
+    return est, traj, val, {"reconstruct_s": t_rec, "optimize_s": t_opt, "segments": len(prepared)}
+
+
+def _cross_predict(prepared, est: pd.DataFrame, plant):
+    theta = {(r.subject, r.condition): np.array([r.q11, r.q22, r.R]) for r in est.itertuples()}
+    frames, val = [], []
+    for p in prepared:
+        s, K = p.segment, p.segment.K
+        d = p.data
+        frame = {
+            "subject": np.full(K + 1, d.subject, dtype=object),
+            "condition": np.full(K + 1, d.condition, dtype=object),
+            "t": d.t[p.rows],
+            "angle": d.angle[p.rows],
+            "angle_ref": d.angle_ref[p.rows],
+            "u_A": d.u_A[p.rows],
+            "velocity": p.velocity,
+            "u_H": p.u_H,
+        }
+        rmse = {"subject": d.subject, "condition": d.condition}
+        for c in ("MC", "SC"):
+            th = theta.get((d.subject, c))
+            key = c.lower()
+            if th is None:
+                for q in ("angle", "velocity", "u_H"):
+                    frame[f"pred_{key}_{q}"] = np.full(K + 1, np.nan)
+                rmse[f"rmse_angle_theta_{key}"] = rmse[f"rmse_uH_theta_{key}"] = np.nan
+                continue
+            demo = forward_optimal_control(th, s.x0, s.angle_ref, s.u_A, plant)
+            frame[f"pred_{key}_angle"] = demo.x[: K + 1, 0]
+            frame[f"pred_{key}_velocity"] = demo.x[: K + 1, 1]
+            frame[f"pred_{key}_u_H"] = np.append(demo.u_H[:K], np.nan)
+            rmse[f"rmse_angle_theta_{key}"] = float(np.sqrt(np.mean((demo.x[1 : K + 1, 0] - d.angle[p.rows][1:]) ** 2)))
+            rmse[f"rmse_uH_theta_{key}"] = float(np.sqrt(np.mean((demo.u_H[:K] - p.u_H[:K]) ** 2)))
+        frames.append(pd.DataFrame(frame))
+        val.append(rmse)
+    return pd.concat(frames, ignore_index=True), pd.DataFrame(val)
+
+
+def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettings(), *, show_progress=True) -> dict:
+    """Run :func:`identify_study` on a file and write its artifacts atomically."""
+    study = load_study(study_path)
+    est, traj, val, timing = identify_study(study, settings, show_progress=show_progress)
+    out = Path(out)
+    paths = {
+        "estimates": write_table_atomic(est, out / "estimates.parquet"),
+        "trajectories": write_table_atomic(traj, out / "trajectories.parquet"),
+        "validation": write_table_atomic(val, out / "validation.parquet"),
+    }
+    meta = {
+        "study": str(study_path),
+        "settings": {k: getattr(settings, k) for k in settings.__dataclass_fields__},
+        "timing_s": timing,
+        "converged": int(est["converged"].sum()),
+        "segments": int(len(est)),
+        "versions": versions(),
+    }
+    paths["meta"] = write_text_atomic(out / "identify.json", json.dumps(meta, indent=2) + "\n")
+    return {k: str(v) for k, v in paths.items()}

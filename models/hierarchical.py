@@ -103,24 +103,26 @@ class Priors:
 class Parameterization:
     """Centred or non-centred form of each block of unit parameters.
 
+    For log θ1 and log R there are two blocks: the MC value of each subject (the
+    subject intercept) and its SC change. ``centred`` samples the unit values
+    themselves (log θ1[i, MC] ~ N(μ, σ); log θ1[i, SC] ~ N(log θ1[i, MC] + β, σ_β));
+    ``noncentred`` samples standard-normal z and sets ``μ + σ z`` (intercept) or
+    ``log θ1[i, MC] + β + σ_β z`` (change). For θ2, ``centred`` samples
+    θ2 ~ HalfNormal(τ) and ``noncentred`` samples z ~ HalfNormal(1) with θ2 = τ z.
+
     Attributes
     ----------
-    theta1 : {"centred", "noncentred"}
-        ``centred`` samples log θ1[i, MC] and log θ1[i, SC] themselves; ``noncentred``
-        samples standard-normal a_i / σ and b_i / σ_β.
-    R : {"centred", "noncentred"}
-        The same for log R.
-    theta2 : {"centred", "noncentred"}
-        ``centred`` samples θ2[i, c] ~ HalfNormal(τ); ``noncentred`` samples
-        z ~ HalfNormal(1) and sets θ2 = τ z.
+    theta1_mc, theta1_sc, R_mc, R_sc, theta2 : {"centred", "noncentred"}
     """
 
-    theta1: Form = "noncentred"
-    R: Form = "centred"
+    theta1_mc: Form = "centred"
+    theta1_sc: Form = "noncentred"
+    R_mc: Form = "centred"
+    R_sc: Form = "centred"
     theta2: Form = "noncentred"
 
     def __post_init__(self):
-        for name in ("theta1", "R", "theta2"):
+        for name in ("theta1_mc", "theta1_sc", "R_mc", "R_sc", "theta2"):
             if getattr(self, name) not in ("centred", "noncentred"):
                 raise ValueError(f"Parameterization.{name} must be 'centred' or 'noncentred'; got {getattr(self, name)!r}")
 
@@ -202,16 +204,16 @@ def _as_batch(segments, plant: DiscretePlant) -> SegmentBatch:
     return prepare_batch(plant, list(segments))
 
 
-def _unit_block(name: str, mu, beta, sigma, sigma_beta, n_subjects: int, form: Form):
+def _unit_block(name: str, mu, beta, sigma, sigma_beta, form_mc: Form, form_sc: Form):
     """log-parameter of every unit, (subject, condition), as MC intercept + SC change."""
-    if form == "centred":
+    if form_mc == "centred":
         mc = pm.Normal(f"{name}_MC", mu, sigma, dims="subject")
+    else:
+        mc = mu + sigma * pm.Normal(f"z_{name}_MC", 0.0, 1.0, dims="subject")
+    if form_sc == "centred":
         sc = pm.Normal(f"{name}_SC", mc + beta, sigma_beta, dims="subject")
     else:
-        z_mc = pm.Normal(f"z_{name}_MC", 0.0, 1.0, dims="subject")
-        z_sc = pm.Normal(f"z_{name}_SC", 0.0, 1.0, dims="subject")
-        mc = mu + sigma * z_mc
-        sc = mc + beta + sigma_beta * z_sc
+        sc = mc + beta + sigma_beta * pm.Normal(f"z_{name}_SC", 0.0, 1.0, dims="subject")
     return pm.Deterministic(name, pt.stack([mc, sc], axis=1), dims=("subject", "condition"))
 
 
@@ -280,7 +282,6 @@ def build_model(
         raise ValueError(f"segment_ids must have {n} entries; got {len(ids)}")
     coords = {"subject": index.subjects, "condition": CONDITIONS, "segment": ids, "step": np.arange(K)}
     s_idx, c_idx = index.subject_idx, index.condition_idx
-    n_subj = len(index.subjects)
     op = MaxEntLoglikOp(batch, plant)
     u_obs = op.u  # the Op's own read-only copy
 
@@ -319,8 +320,8 @@ def build_model(
         sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R)
         tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
 
-        log_theta1 = _unit_block("log_theta1", mu, beta, sigma, sigma_b, n_subj, form.theta1)
-        log_R = _unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, n_subj, form.R)
+        log_theta1 = _unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc)
+        log_R = _unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form.R_mc, form.R_sc)
         if form.theta2 == "centred":
             theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))
         else:

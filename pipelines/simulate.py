@@ -27,6 +27,17 @@ DEFAULT_SEED = 2018
 DEFAULT_SUBJECTS = 42
 
 
+def study_table(t, segs) -> pd.DataFrame:
+    """The lab's view of simulated runs: subject, condition, t, angle (encoder), angle_ref, u_A."""
+    ref = reference_trajectory(float(t[-1])).angle
+    n = t.shape[0]
+    return pd.concat(
+        [pd.DataFrame({"subject": np.full(n, s.subject, dtype=object), "condition": np.full(n, s.condition, dtype=object),
+                       "t": t, "angle": s.run.angle, "angle_ref": ref, "u_A": s.run.u_A}) for s in segs],
+        ignore_index=True,
+    )
+
+
 def simulate_to_dir(
     out, *, n_subjects: int = DEFAULT_SUBJECTS, seed: int = DEFAULT_SEED, population: Population = Population(),
     seconds: float = 240.0,
@@ -56,13 +67,11 @@ def simulate_to_dir(
     out = Path(out)
     rng = np.random.default_rng(np.random.SeedSequence(int(seed)))
     t, segs = simulate_study(int(n_subjects), rng, population, seconds)
-    ref = reference_trajectory(seconds).angle
-    study, truth, traj = [], [], []
+    study = study_table(t, segs)
+    truth, traj = [], []
     for s in segs:
         n = t.shape[0]
         common = {"subject": np.full(n, s.subject, dtype=object), "condition": np.full(n, s.condition, dtype=object)}
-        study.append(pd.DataFrame({**common, "t": t, "angle": s.run.angle, "angle_ref": ref,
-                                   "u_A": s.run.u_A}))
         traj.append(pd.DataFrame({**common, "t": t, "angle": s.run.true_angle, "velocity": s.run.true_velocity,
                                   "u_H": s.run.u_H}))
         q11, q22, R = s.theta
@@ -70,7 +79,7 @@ def simulate_to_dir(
                       "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R,
                       "plan_iterations": s.run.plan_iterations})
     paths = {
-        "study": write_table_atomic(pd.concat(study, ignore_index=True), out / "study.parquet"),
+        "study": write_table_atomic(study, out / "study.parquet"),
         "truth": write_table_atomic(pd.DataFrame(truth), out / "truth.parquet"),
         "truth_trajectories": write_table_atomic(pd.concat(traj, ignore_index=True), out / "truth_trajectories.parquet"),
     }

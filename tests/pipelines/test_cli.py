@@ -81,4 +81,7 @@ def test_bench_quick_writes_json(tmp_path, capsys):
     assert [r["K"] for r in rows] == [50, 100]
     assert all(r["ratio"] > 1 for r in rows)
     assert res["likelihood"]["long"]["dense"] == "infeasible"
+    assert res["likelihood"]["batch"]["n"] == 4 and res["likelihood"]["batch"]["K"] == 1500
+    assert res["likelihood"]["batch_preview"]["preview_steps"] == 200
     assert np.isfinite(res["likelihood"]["batch"]["linear_s"])
+    assert res["identify"]["preview_2s"]["converged"] == 4

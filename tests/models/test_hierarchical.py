@@ -1,0 +1,272 @@
+"""The hierarchical model: its log density by hand, its design checks, numba compilation, a fit."""
+
+import warnings
+
+import arviz as az
+import numpy as np
+import pymc as pm
+import pytensor
+import pytest
+from scipy import stats
+
+from models.hierarchical import (
+    CONDITIONS,
+    Parameterization,
+    Priors,
+    build_model,
+    index_study,
+    prior_predictive_summary,
+)
+from models.likelihood_op import MaxEntLoglikOp
+from models.maxent import loglik_grad, prepare_batch
+from tests.conftest import random_segment
+
+FORMS = [
+    Parameterization(),
+    Parameterization("centred", "centred", "centred", "centred", "centred"),
+    Parameterization("noncentred", "noncentred", "noncentred", "noncentred", "noncentred"),
+]
+
+
+def small_study(plant, K=60, n_subjects=3, seed=30):
+    """Subjects S0.. in MC and SC; subject S0 has a second MC segment (two segments, one unit)."""
+    rng = np.random.default_rng(seed)
+    subjects, conditions, segs = [], [], []
+    for i in range(n_subjects):
+        for c in CONDITIONS:
+            subjects.append(f"S{i}")
+            conditions.append(c)
+            segs.append(random_segment(rng, K, c == "SC"))
+    subjects.append("S0")
+    conditions.append("MC")
+    segs.append(random_segment(rng, K, False))
+    return subjects, conditions, segs
+
+
+def _raw_point(rng, n_subj, form: Parameterization):
+    """Values of every free variable (untransformed), keyed by name."""
+    v = {
+        "mu_log_theta1": np.log(40.0) + 0.3 * rng.standard_normal(),
+        "beta": -0.5 + 0.1 * rng.standard_normal(),
+        "sigma_log_theta1": rng.uniform(0.2, 0.6),
+        "sigma_beta": rng.uniform(0.1, 0.4),
+        "mu_log_R": 0.2 * rng.standard_normal(),
+        "beta_log_R": 0.1 * rng.standard_normal(),
+        "sigma_log_R": rng.uniform(0.1, 0.5),
+        "sigma_beta_log_R": rng.uniform(0.05, 0.3),
+        "tau_theta2": rng.uniform(0.05, 0.5),
+    }
+    for name, f_mc, f_sc, centre in (
+        ("log_theta1", form.theta1_mc, form.theta1_sc, np.log(40.0)),
+        ("log_R", form.R_mc, form.R_sc, 0.0),
+    ):
+        v[f"{name}_MC" if f_mc == "centred" else f"z_{name}_MC"] = (
+            centre + 0.4 * rng.standard_normal(n_subj) if f_mc == "centred" else rng.standard_normal(n_subj)
+        )
+        v[f"{name}_SC" if f_sc == "centred" else f"z_{name}_SC"] = (
+            centre - 0.3 + 0.4 * rng.standard_normal(n_subj) if f_sc == "centred" else rng.standard_normal(n_subj)
+        )
+    v["theta2" if form.theta2 == "centred" else "z_theta2"] = np.abs(0.2 * rng.standard_normal((n_subj, 2)))
+    return v
+
+
+def _by_hand(v, priors: Priors, form: Parameterization, index, batch, plant):
+    """Σ prior log densities (scipy.stats) + Σ segment log-likelihoods (models.maxent), no Jacobians."""
+    N, HN = stats.norm.logpdf, stats.halfnorm.logpdf
+    lp = N(v["mu_log_theta1"], *priors.mu_log_theta1) + N(v["beta"], 0, priors.beta_sd)
+    lp += HN(v["sigma_log_theta1"], scale=priors.sigma_log_theta1) + HN(v["sigma_beta"], scale=priors.sigma_beta)
+    lp += N(v["mu_log_R"], *priors.mu_log_R) + N(v["beta_log_R"], 0, priors.beta_log_R_sd)
+    lp += HN(v["sigma_log_R"], scale=priors.sigma_log_R) + HN(v["sigma_beta_log_R"], scale=priors.sigma_beta_log_R)
+    lp += HN(v["tau_theta2"], scale=priors.tau_theta2)
+    units = {}
+    for name, f_mc, f_sc, mu, beta, s, sb in (
+        ("log_theta1", form.theta1_mc, form.theta1_sc, "mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta"),
+        ("log_R", form.R_mc, form.R_sc, "mu_log_R", "beta_log_R", "sigma_log_R", "sigma_beta_log_R"),
+    ):
+        if f_mc == "centred":
+            mc = v[f"{name}_MC"]
+            lp += N(mc, v[mu], v[s]).sum()
+        else:
+            z = v[f"z_{name}_MC"]
+            lp += N(z).sum()
+            mc = v[mu] + v[s] * z
+        if f_sc == "centred":
+            sc = v[f"{name}_SC"]
+            lp += N(sc, mc + v[beta], v[sb]).sum()
+        else:
+            z = v[f"z_{name}_SC"]
+            lp += N(z).sum()
+            sc = mc + v[beta] + v[sb] * z
+        units[name] = np.column_stack([mc, sc])
+    if form.theta2 == "centred":
+        theta2 = v["theta2"]
+        lp += HN(theta2, scale=v["tau_theta2"]).sum()
+    else:
+        lp += HN(v["z_theta2"]).sum()
+        theta2 = v["tau_theta2"] * v["z_theta2"]
+    s, c = index.subject_idx, index.condition_idx
+    R = np.exp(units["log_R"][s, c])
+    theta = np.array([np.exp(units["log_theta1"][s, c]) * R, theta2[s, c] * R, R])
+    return lp + loglik_grad(theta, batch, plant).loglik.sum()
+
+
+@pytest.mark.parametrize("form", FORMS, ids=["default", "centred", "noncentred"])
+def test_log_density_is_priors_plus_likelihood(plant, form):
+    subjects, conditions, segs = small_study(plant)
+    batch = prepare_batch(plant, segs)
+    index = index_study(subjects, conditions)
+    priors = Priors()
+    model = build_model(subjects, conditions, batch, plant, priors=priors, parameterization=form)
+    rng = np.random.default_rng(31)
+    for _ in range(3):
+        v = _raw_point(rng, len(index.subjects), form)
+        point, log_jac = {}, 0.0
+        for rv in model.free_RVs:
+            value_name = model.rvs_to_values[rv].name
+            if model.rvs_to_transforms.get(rv) is not None:
+                # Every positive variable here has the log transform.
+                assert value_name == f"{rv.name}_log__"
+                point[value_name] = np.log(v[rv.name])
+                log_jac += np.sum(np.log(v[rv.name]))
+            else:
+                point[value_name] = np.asarray(v[rv.name], dtype=float)
+        assert set(point) == set(model.initial_point())
+        expected = _by_hand(v, priors, form, index, batch, plant)
+        assert model.compile_logp(jacobian=False)(point) == pytest.approx(expected, rel=1e-12)
+        assert model.compile_logp(jacobian=True)(point) == pytest.approx(expected + log_jac, rel=1e-12)
+
+
+def test_model_gradient_matches_central_differences(plant):
+    subjects, conditions, segs = small_study(plant)
+    model = build_model(subjects, conditions, segs, plant)
+    logp = model.compile_logp()
+    dlogp = model.compile_dlogp()
+    point = model.initial_point()
+    g = dlogp(point)
+    names = [model.rvs_to_values[rv].name for rv in model.free_RVs]
+    flat = np.concatenate([np.ravel(point[n]) for n in names])
+    sizes = [np.size(point[n]) for n in names]
+
+    def at(x):
+        out, i = {}, 0
+        for n, sz in zip(names, sizes):
+            out[n] = x[i : i + sz].reshape(np.shape(point[n]))
+            i += sz
+        return out
+
+    h = 1e-6
+    fd = np.array([(logp(at(flat + h * e)) - logp(at(flat - h * e))) / (2 * h) for e in np.eye(flat.size)])
+    # O(h²) truncation and eps·|logp|/h rounding (|logp| ~ 1e3) are both below 1e-5 here.
+    np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-5)
+
+
+def test_numba_logp_and_gradient_have_one_kernel_node_and_no_object_mode(plant):
+    import nutpie
+
+    subjects, conditions, segs = small_study(plant)
+    model = build_model(subjects, conditions, segs, plant)
+    logp = model.logp()
+    grads = pytensor.grad(logp, model.value_vars)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        f = pytensor.function(model.value_vars, [logp, *grads], mode="NUMBA")
+        f(**{k: v for k, v in model.initial_point().items()})
+        nutpie.compile_pymc_model(model, backend="numba")
+    msgs = [str(w.message) for w in caught]
+    assert not [m for m in msgs if "object mode" in m], msgs
+    assert sum(isinstance(n.op, MaxEntLoglikOp) for n in f.maker.fgraph.apply_nodes) == 1
+
+
+def test_pointwise_log_likelihood_per_segment(plant):
+    subjects, conditions, segs = small_study(plant)
+    batch = prepare_batch(plant, segs)
+    index = index_study(subjects, conditions)
+    model = build_model(subjects, conditions, batch, plant)
+    names = [rv.name for rv in model.free_RVs]
+    draws = pm.draw(model.free_RVs, draws=3, random_seed=32)
+    det = pm.draw([model["log_theta1"], model["log_R"], model["theta2"]], draws=3, random_seed=32)
+    dims = {name: list(model.named_vars_to_dims.get(name, ())) for name in names}
+    idata = az.from_dict(
+        {"posterior": {n: d[None] for n, d in zip(names, draws)}},
+        dims=dims,
+        coords={k: list(v) for k, v in model.coords.items()},
+    )
+    pm.compute_log_likelihood(idata, model=model, progressbar=False)
+    ll = idata["log_likelihood"]["u_H"]
+    assert ll.dims == ("chain", "draw", "segment")
+    s, c = index.subject_idx, index.condition_idx
+    for d in range(3):
+        lt1, lR, t2 = det[0][d], det[1][d], det[2][d]
+        R = np.exp(lR[s, c])
+        theta = np.array([np.exp(lt1[s, c]) * R, t2[s, c] * R, R])
+        np.testing.assert_allclose(ll.values[0, d], loglik_grad(theta, batch, plant).loglik, rtol=1e-10)
+
+
+def test_design_errors_are_named(plant):
+    rng = np.random.default_rng(33)
+    segs = [random_segment(rng, 20, False) for _ in range(4)]
+    with pytest.raises(ValueError, match=r"subject 'b' has no SC segment"):
+        build_model(["a", "a", "b", "b"], ["MC", "SC", "MC", "MC"], segs, plant)
+    with pytest.raises(ValueError, match=r"no SC segments at all"):
+        build_model(["a", "b", "c", "d"], ["MC"] * 4, segs, plant)
+    with pytest.raises(ValueError, match=r"segment 2 must be 'MC' or 'SC'"):
+        build_model(["a", "a", "b", "b"], ["MC", "SC", "mc", "SC"], segs, plant)
+    with pytest.raises(ValueError, match=r"got 4 segments but 2"):
+        build_model(["a", "a"], ["MC", "SC"], segs, plant)
+    with pytest.raises(ValueError, match="centred"):
+        Parameterization(theta2="partial")
+
+
+def test_observed_draws_have_the_data_shape(plant):
+    subjects, conditions, segs = small_study(plant, K=40)
+    model = build_model(subjects, conditions, segs, plant)
+    with warnings.catch_warnings():
+        # Drawing u_H runs sample_maxent in Python (object mode under numba); only the
+        # log density has to be compiled.
+        warnings.simplefilter("ignore")
+        u = pm.draw(model["u_H"], random_seed=34)
+    assert u.shape == (len(segs), 40)
+    assert np.isfinite(u).all()
+
+
+def test_prior_predictive_summary_is_seeded_and_ordered(plant):
+    subjects, conditions, segs = small_study(plant, K=100)
+    a = prior_predictive_summary(subjects, conditions, segs, plant, np.random.default_rng(35), draws=20)
+    b = prior_predictive_summary(subjects, conditions, segs, plant, np.random.default_rng(35), draws=20)
+    for c in CONDITIONS:
+        np.testing.assert_array_equal(a.torque_rms[c], b.torque_rms[c])
+        assert np.all(np.diff(a.error_rms[c]) >= 0) and np.all(a.torque_rms[c] > 0)
+
+
+#: Units whose true log R must lie in their own 94 % HDI: with calibrated intervals, 16
+#: units and independent errors, fewer than 13 happens with probability 0.009.
+MIN_UNITS_COVERED = 13
+
+
+@pytest.mark.slow
+def test_small_fit_recovers_known_parameters(plant):
+    """8 subjects × {MC, SC} × K = 1500 (two chains of 300 draws): β, μ_R and the unit R.
+
+    Negative control: β = 0 (no SC change) must lie outside the 94 % HDI, i.e. the
+    interval is narrow enough to tell the simulated change from none.
+    """
+    import nutpie
+
+    from pipelines.bench_fit import TRUTH, simulate_study
+
+    study = simulate_study(n_subjects=8, K=1500, seed=3)
+    model = build_model(study.subjects, study.conditions, study.segments, plant)
+    compiled = nutpie.compile_pymc_model(model)
+    idata = nutpie.sample(compiled, draws=300, tune=300, chains=2, seed=4, progress_bar=False)
+    post = idata["posterior"].to_dataset()
+    assert int(idata["sample_stats"]["diverging"].sum()) == 0
+    assert float(az.rhat(post, var_names=["beta"])["beta"]) < 1.05
+    hdi = az.hdi(post, prob=0.94)
+    lo, hi = hdi["beta"].values
+    assert lo <= TRUTH["beta"] <= hi
+    assert not (lo <= 0.0 <= hi)
+    lo, hi = hdi["mu_log_R"].values
+    assert lo <= TRUTH["mu_log_R"] <= hi
+    lr = hdi["log_R"].transpose("subject", "condition", ...).values  # (subject, condition, 2)
+    covered = (lr[..., 0] <= study.log_R) & (study.log_R <= lr[..., 1])
+    assert covered.sum() >= MIN_UNITS_COVERED, covered

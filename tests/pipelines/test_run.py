@@ -1,0 +1,86 @@
+"""End-to-end: the whole workflow on a small simulated study, through the CLI."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipelines.cli import main
+from pipelines.identify import IdentifySettings, identify_study
+from pipelines.io import StudyFileError, load_study
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run")
+    assert main(["run", "--out", str(out), "--subjects", "6", "--seed", "11"]) == 0
+    return out / "default-study"
+
+
+def test_run_writes_every_artifact_and_the_report(small_run):
+    for rel in ("data/study.parquet", "data/truth.parquet", "data/simulation.json", "identify/estimates.parquet",
+                "identify/trajectories.parquet", "identify/validation.parquet", "identify_true_torque/estimates.parquet",
+                "compare.json", "index.html"):
+        assert (small_run / rel).exists(), rel
+    html = (small_run / "index.html").read_text()
+    assert html.count("data:image/png;base64,") >= 5  # self-contained: figures embedded
+    assert "Wilcoxon" in html and "Fig. 6" in html and "reconstruct" in html
+    assert "http://" not in html and "https://" not in html  # opens offline
+
+
+def test_study_table_has_only_what_a_lab_records(small_run):
+    study = pd.read_parquet(small_run / "data" / "study.parquet")
+    assert list(study.columns) == ["subject", "condition", "t", "angle", "angle_ref", "u_A"]
+    load_study(small_run / "data" / "study.parquet")  # valid in the data convention
+
+
+def test_estimates_are_sane(small_run):
+    est = pd.read_parquet(small_run / "identify" / "estimates.parquet")
+    assert len(est) == 12 and est.converged.all() and est.reconstructed.all()
+    cmp = json.loads((small_run / "compare.json").read_text())
+    assert cmp["theta1"]["n_pairs"] == 6 and cmp["theta1"]["w_minus"] > cmp["theta1"]["w_plus"]
+
+
+def test_same_seed_same_results(small_run, tmp_path):
+    assert main(["simulate", "--subjects", "6", "--seed", "11", "--out", str(tmp_path / "data")]) == 0
+    a = pd.read_parquet(small_run / "data" / "study.parquet")
+    b = pd.read_parquet(tmp_path / "data" / "study.parquet")
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    assert main(["identify", str(tmp_path / "data" / "study.parquet"), "--out", str(tmp_path / "id")]) == 0
+    ea = pd.read_parquet(small_run / "identify" / "estimates.parquet")
+    eb = pd.read_parquet(tmp_path / "id" / "estimates.parquet")
+    pd.testing.assert_frame_equal(ea, eb, check_exact=True)
+
+
+def test_report_command_rebuilds_from_artifacts(small_run, capsys):
+    assert main(["report", str(small_run), "--subject", "S01"]) == 0
+    assert "index.html" in capsys.readouterr().out
+
+
+def test_compare_command(small_run, capsys, tmp_path):
+    out = tmp_path / "cmp.json"
+    assert main(["compare", str(small_run / "identify" / "estimates.parquet"), "--out", str(out)]) == 0
+    assert "theta1" in capsys.readouterr().out and out.exists()
+
+
+def test_window_outside_the_recording_is_a_clear_error(small_run):
+    study = load_study(small_run / "data" / "study.parquet")
+    with pytest.raises(StudyFileError, match="does not contain the window") as info:
+        identify_study(study, IdentifySettings(window_start=235.0, window_seconds=15.0), show_progress=False)
+    assert "column 't'" in str(info.value)
+
+
+def test_whole_run_and_other_windows(small_run):
+    study = load_study(small_run / "data" / "study.parquet")
+    sub = type(study)(study.path, study.segments[:2])
+    est, *_ = identify_study(sub, IdentifySettings(window_start=60.0, window_seconds=20.0), show_progress=False)
+    assert (est.K == 2000).all() and (est.window_start == 60.0).all()
+    est, *_ = identify_study(sub, IdentifySettings(window_start=None, window_seconds=None), show_progress=False)
+    assert (est.K == 24000).all() and (est.preview == 0).all() and est.converged.all()
+    assert np.all(est.se_log_theta1 < 0.05)  # 4 minutes identify θ1 to a few percent
+
+
+def test_bad_simulate_options_exit_nonzero(tmp_path, capsys):
+    assert main(["simulate", "--subjects", "0", "--out", str(tmp_path)]) == 2
+    assert "subjects" in capsys.readouterr().err

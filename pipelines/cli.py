@@ -99,6 +99,14 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _cmd_calibrate(args) -> int:
+    from pipelines.calibrate import calibrate_level, format_summary
+
+    for summary in calibrate_level(args):
+        print(format_summary(summary))
+    return 0
+
+
 def _add_window_options(p):
     p.add_argument("--window", default="210,15", metavar="START,SECONDS",
                    help="analysis window on the file's time axis, s (default: the paper's 210,15)")
@@ -152,6 +160,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--subjects", type=int, default=42)
     p.add_argument("--seed", type=int, default=2018)
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("calibrate", help="simulation-based calibration (unit or study level), locally or on Dask")
+    p.add_argument("--level", choices=("unit", "study"), default="unit")
+    p.add_argument("--replications", type=int, help="default 1000 (unit) or 200 (study)")
+    p.add_argument("--seed", type=int, default=2018)
+    p.add_argument("--out", default="reports/calibration", metavar="DIR",
+                   help="results go to DIR/LEVEL and DIR/LEVEL-negative (default reports/calibration)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default 2)")
+    p.add_argument("--batch-size", type=int, help="replications per Dask task (default 10 unit, 2 study)")
+    p.add_argument("--negative-control", choices=("inertia", "ignore-uA", "none"), default="inertia",
+                   help="also run this wrong fit at the same size (default inertia; 'none' to skip)")
+    p.add_argument("--subjects", type=int, help="subjects per simulated study (study level; default 8)")
+    p.add_argument("--seconds", type=float, help="window length in s (default 15 unit, 3 study)")
+    p.set_defaults(func=_cmd_calibrate)
 
     p = sub.add_parser("assistant", help="the MPC assistant alone on the study reference: tracking and torques")
     p.add_argument("--format", choices=("table", "json"), default="table")

@@ -1,0 +1,84 @@
+"""Bayesian model of one unit (one subject in one condition): the per-unit posterior.
+
+Used by unit-level simulation-based calibration. θ = [q11, q22, R] is written in the
+normalized parameters of the paper (Section V-A)::
+
+    log θ1 ~ N(log 20, 0.75)      θ1 = q11 / R, 1/rad²
+    θ2     ~ HalfNormal(0.05)     θ2 = q22 / R, 1/(rad/s)²
+    log R  ~ N(log 20, 0.5)       R, 1/(N·m)²
+    u_H    ~ max-ent(θ | x0, angle_ref, u_A)          (paper Eq. 8)
+
+The prior is centred on the simulated study's population (:class:`models.simulate.Population`)
+and wide enough to cover it: θ1 from about 5 to 90 and R from 7 to 55 (central 95 %),
+i.e. torque variability per sample from about 0.1 to 0.27 N·m. The data enter through
+``pm.Data`` containers, so a model compiled once serves any data set of the same shape.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pymc as pm
+import pytensor.tensor as pt
+
+from models.likelihood_data_op import MaxEntLoglikDataOp
+from models.maxent import SegmentBatch
+from models.plant import DiscretePlant
+
+#: Names of the parameters SBC ranks.
+UNIT_PARAMETERS = ("theta1", "theta2", "R")
+
+
+@dataclass(frozen=True)
+class UnitPrior:
+    """Prior of one unit's normalized cost (see the module docstring)."""
+
+    log_theta1: tuple[float, float] = (float(np.log(20.0)), 0.75)
+    theta2_scale: float = 0.05
+    log_R: tuple[float, float] = (float(np.log(20.0)), 0.5)
+
+    def draw(self, rng: np.random.Generator) -> dict:
+        """One draw: ``theta1``, ``theta2``, ``R`` and the raw ``theta`` = [q11, q22, R]."""
+        t1 = float(np.exp(rng.normal(*self.log_theta1)))
+        t2 = float(abs(rng.normal(0.0, self.theta2_scale)))
+        R = float(np.exp(rng.normal(*self.log_R)))
+        return {"theta1": t1, "theta2": t2, "R": R, "theta": np.array([t1 * R, t2 * R, R])}
+
+    def variance(self, name: str, rng: np.random.Generator, n: int = 20000) -> float:
+        """Prior variance of a parameter (by simulation), for posterior contraction."""
+        draws = [self.draw(rng)[name] for _ in range(n)]
+        return float(np.var(draws))
+
+
+def build_unit_model(batch: SegmentBatch, plant: DiscretePlant, prior: UnitPrior = UnitPrior()) -> pm.Model:
+    """PyMC model of one or more segments sharing one θ, data in ``pm.Data``.
+
+    Parameters
+    ----------
+    batch : SegmentBatch
+        The unit's segments (n >= 1, equal K).
+    plant : DiscretePlant
+        The wheel the likelihood assumes (0.01 s).
+    prior : UnitPrior
+
+    Returns
+    -------
+    pymc.Model
+        Free variables ``log_theta1``, ``theta2``, ``log_R``; deterministics ``theta1``
+        and ``R``; data ``x1, x2, r, u, a`` (update with ``pm.set_data`` or nutpie's
+        ``with_data``); the likelihood as a potential.
+    """
+    op = MaxEntLoglikDataOp(plant)
+    with pm.Model() as model:
+        data = [pm.Data(name, getattr(batch, name)) for name in ("x1", "x2", "r", "u", "a")]
+        lt1 = pm.Normal("log_theta1", *prior.log_theta1)
+        t2 = pm.HalfNormal("theta2", prior.theta2_scale)
+        lR = pm.Normal("log_R", *prior.log_R)
+        pm.Deterministic("theta1", pt.exp(lt1))
+        R = pm.Deterministic("R", pt.exp(lR))
+        n = batch.n
+        theta = pt.stack([pt.exp(lt1 + lR) * pt.ones(n), t2 * R * pt.ones(n), R * pt.ones(n)])
+        ll, _ = op(theta, *data)
+        pm.Potential("loglik", ll.sum())
+    return model

@@ -85,9 +85,14 @@ class CalibrationConfig:
             raise ValueError(f"chains × draws = {self.chains * self.draws} cannot give L = {self.L} draws")
 
     def fingerprint(self) -> str:
-        """Hash of everything that changes a replication's result (not batch_size)."""
+        """Hash of everything that changes a replication's result.
+
+        Not ``batch_size`` (how work is grouped) nor ``replications`` (replication i is the
+        same in a run of 100 or of 1000, so a run can be extended).
+        """
         d = asdict(self)
         d.pop("batch_size")
+        d.pop("replications")
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 

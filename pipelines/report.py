@@ -335,7 +335,91 @@ def section_identification(est: pd.DataFrame, meta: dict | None) -> str:
     return txt + "<details><summary>All estimates</summary>" + _table(est[cols], left=("subject", "condition")) + "</details>"
 
 
-def build_report(root, *, subject: str | None = None, out=None) -> Path:
+def _sbc_pits(folder: Path, summary: dict) -> dict:
+    from models.sbc import pit_from_rank
+
+    n, L = summary["replications"], summary["L"]
+    reps = [json.loads((folder / "reps" / f"rep_{i:05d}.json").read_text()) for i in range(n)]
+    return {name: pit_from_rank([r["ranks"][name] for r in reps], L, [r["pit_u"][name] for r in reps])
+            for name in summary["parameters"]}
+
+
+def section_calibration(cal_dir: Path) -> str:
+    from models.sbc import ecdf_band
+
+    parts = []
+    for level in ("unit", "study"):
+        good_dir, bad_dir = cal_dir / level, cal_dir / f"{level}-negative"
+        good = _read(good_dir / "summary.json")
+        if good is None:
+            continue
+        bad = _read(bad_dir / "summary.json")
+        parts.append(f"<h3>{level.capitalize()} level</h3>")
+        cfg = good["config"]
+        design = (f"{cfg['n_subjects']} subjects × 2 conditions, " if level == "study" else "one unit, ") + \
+                 f"K = {cfg['K']} samples ({cfg['K'] / 100:g} s), {cfg['chains']} chains × {cfg['draws']} draws " \
+                 f"after {cfg['tune']} tuning, ranks against L = {good['L']} thinned draws"
+        verdict = lambda sm: ('<span class="ok">passes</span>' if sm["passed"]  # noqa: E731
+                              else '<span class="bad">fails</span>')
+        txt = (f"<p>{good['replications']} replications ({design}). Uniformity: Kolmogorov-Smirnov test of the "
+               f"randomized PIT per parameter at {good['family_alpha']:g}/{len(good['parameters'])} (family-wise "
+               f"false-failure rate {good['family_alpha']:g}). Correct model: {verdict(good)}")
+        if bad:
+            txt += f"; negative control ({html.escape(str(bad['negative_control']))}): {verdict(bad)}"
+            txt += " (it must fail)"
+        txt += (f". Total fitting time {good['fit_seconds_total']:.0f} s over all replications; wall time of the "
+                f"last invocation {good['wall_seconds_this_run']:.0f} s.</p>")
+        parts.append(txt)
+        rows = []
+        for tag, sm in (("correct", good), ("negative control", bad)):
+            if sm is None:
+                continue
+            for name, p in sm["parameters"].items():
+                rows.append({"fit": tag, "parameter": name, "KS p": p["p_value"], "α": p["alpha"],
+                             "uniform": "yes" if p["passed"] else "no",
+                             **{f"cov {k}": v for k, v in p["coverage"].items()},
+                             "contraction": p["contraction"], "ESS < L": p["low_ess"]})
+        parts.append(_table(pd.DataFrame(rows), fmt={"KS p": lambda v: f"{v:.3g}", "α": lambda v: f"{v:.3g}"},
+                            left=("fit", "parameter")))
+        pits = {"correct": _sbc_pits(good_dir, good)}
+        if bad:
+            pits["negative control"] = _sbc_pits(bad_dir, bad)
+        names = list(good["parameters"])
+        fig, axes = plt.subplots(2, len(names), figsize=(3.6 * len(names), 6), squeeze=False)
+        n = good["replications"]
+        z, lo, hi = ecdf_band(n, 0.05)
+        nb = 20
+        for j, name in enumerate(names):
+            ax = axes[0, j]
+            for (tag, d), col in zip(pits.items(), ("#1f77b4", "#b02a37")):
+                ax.hist(d[name], bins=nb, range=(0, 1), histtype="step", color=col, lw=1.4, label=tag)
+            # 99 % band of a bin count under uniformity
+            from scipy.stats import binom
+
+            ax.axhspan(binom.ppf(0.005, n, 1 / nb), binom.ppf(0.995, n, 1 / nb), color="#ddd", zorder=0)
+            ax.set_title(name)
+            ax.set_xlabel("normalized rank (PIT)")
+            ax.set_ylabel("replications per bin")
+            if j == 0:
+                ax.legend(fontsize=7)
+            ax = axes[1, j]
+            ax.fill_between(z, lo, hi, color="#ddd", label="95 % simultaneous band")
+            for (tag, d), col in zip(pits.items(), ("#1f77b4", "#b02a37")):
+                srt = np.sort(d[name])
+                ax.plot(z, np.searchsorted(srt, z, side="right") / len(srt) - z, color=col, lw=1.2, label=tag)
+            ax.axhline(0, color="#888", lw=0.6)
+            ax.set_xlabel("PIT")
+            ax.set_ylabel("ECDF − uniform CDF")
+            if j == 0:
+                ax.legend(fontsize=7)
+        parts.append(_fig_html(fig, f"{level.capitalize()}-level SBC: rank histograms (grey: 99 % band per bin) and "
+                                    "ECDF differences (grey: simultaneous 95 % band, Säilynoja et al. 2022)."))
+    if not parts:
+        return "<p class='note'>No calibration results yet: run <code>scioc calibrate</code>.</p>"
+    return "".join(parts)
+
+
+def build_report(root, *, subject: str | None = None, out=None, calibration=None) -> Path:
     """Assemble ``index.html`` from the artifacts under ``root``.
 
     Parameters
@@ -385,6 +469,8 @@ def build_report(root, *, subject: str | None = None, out=None) -> Path:
         body.append(section_truth(est, truth, est_true))
     body.append("<h2>Identification details</h2>")
     body.append(section_identification(est, meta))
+    body.append("<h2>Simulation-based calibration</h2>")
+    body.append(section_calibration(Path(calibration) if calibration else root.parent / "calibration"))
     if sim and "versions" in sim:
         v = sim["versions"]
         body.append("<h2>Provenance</h2><p class='note'>" + html.escape(

@@ -26,20 +26,67 @@ Priors (:class:`Priors`; units: θ1, θ2 in rad⁻² and (rad/s)⁻² per (N·m)
     μ_R ~ N(0, 1)          β_R ~ N(0, 0.5)    σ_R ~ HalfN(0.5)   σ_βR ~ HalfN(0.3)
     τ   ~ HalfN(0.5)
 
-Prior predictive check (:func:`prior_predictive_summary` on the default simulated study,
-``pipelines.bench_fit.simulate_study(42, 1500, seed=0)``, 200 prior draws, seed 1; median
-and 90 % interval over draws × segments)::
+Prior predictive check: :func:`prior_predictive_summary` on the default simulated study
+(``pipelines.bench_fit.simulate_study(42, 1500, seed=0)``, 15-s windows of the study
+reference), 200 joint prior draws, ``rng = default_rng(1)``; quantiles 5/25/50/75/95 % over
+draws × segments of the per-segment RMS human torque and RMS tracking error::
 
-    PRIOR_PREDICTIVE_PLACEHOLDER
+                        5 %    25 %   50 %   75 %   95 %
+    MC torque (N·m)    0.37   0.56   0.76   1.00   1.69
+    SC torque (N·m)    0.27   0.48   0.70   1.05   1.94
+    MC error (rad)    0.008  0.015  0.022  0.035  0.069
+    SC error (rad)    0.005  0.012  0.021  0.035  0.079
 
-Parameterization (:class:`Parameterization`) was chosen by measurement with
-``pipelines/bench_fit.py`` (divergences, tree depth, ESS per gradient evaluation), see
-PARAMETERIZATION_PLACEHOLDER.
+The priors thus allow anything from very tight (0.3°) to loose (4.5°) tracking with
+torques of a few tenths to about 2 N·m, and cover the simulated observations (MC torque
+0.63-0.88 N·m, error 0.015-0.032 rad, 5-95 %). Vague priors (all scales ×3 to ×20: μ, μ_R,
+β, β_R with SD 3, σ's HalfN(2), τ HalfN(10)) put 5 % of the segments above 11 N·m (MC) and
+38 N·m (SC) RMS torque and above 0.34 rad (MC) and 0.95 rad (SC) RMS error, i.e. worse
+than not steering at all (the reference itself has an RMS of 0.2 rad): those priors are
+rejected by the check.
+
+Parameterization (:class:`Parameterization`), chosen by measurement. Per unit at K = 1500
+the data pin log R down to about ±0.04 (prior spread σ_R ≈ 0.3: centred), but log θ1 only
+to about ±0.2 (comparable with σ ≈ 0.4 and σ_β ≈ 0.2) and θ2 to about ±0.1 on its own
+scale. ``pipelines.bench_fit.bench_fit`` on simulated studies of the default size
+(42 × 2 × 1500, 4 chains × 1000 draws after 500 tuning draws, nutpie on 2 cores); minimum
+over the nine population parameters of bulk/tail ESS, and the largest R-hat::
+
+    log θ1 MC/SC   log R MC/SC  θ2   seed  div  steps/draw  min ESS (parameter)  max R-hat
+    mean / NC      C / C        NC   0     0    15.0        615 (σ_β)            1.005  <- default
+    mean / NC      C / C        NC   1     0    15.0        607 (σ_β)            1.013 (σ_β)
+    mean / NC      C / C        NC   2     0    15.0        968 (σ_β)            1.007
+    C / NC         C / C        NC   0     0    15.0        616 (σ_β)            1.006
+    C / NC         C / C        NC   1     0    15.0        457 (σ_β)            1.012 (σ_β)
+    C / C          C / C        NC   0     0    15.0        570 (σ_β)            1.004
+    C / C          C / C        NC   1     819  16.9        4 (σ_β)              1.55
+    NC / NC        C / C        NC   0     0    15.0        747 (σ_β); μ 773     1.008
+    C / C          C / C        C    0     0    15.0        205 (τ)              1.009
+    C / NC         C / C        C    0     0    15.0        202 (τ)              1.011
+    C / NC         C / NC       NC   0     0    15.9        759 (β_R)            1.006
+    NC / NC        NC / NC      NC   0     0    21.1        96 (μ_R)             1.059
+
+(C centred, NC non-centred, mean: subject mean centred after a non-centred change.)
+θ2 must be non-centred: with θ2 = 0 for everyone the centred τ forms a funnel (ESS ≈ 200).
+log R must be centred: non-centred, it needs 40 % more leapfrog steps and μ_R gets ESS 96.
+The SC change of log θ1 must be non-centred: its data (±0.28 per subject) are weaker than
+its prior scale, and centred it trapped a chain in the σ_β funnel on seed 1 (819
+divergences). For the log θ1 intercept the three forms leave σ_β (the limiting parameter
+everywhere) within run-to-run scatter; the subject-mean form gives the best ESS for μ and
+β (seed 0: 4691 and 2368, against 3101 and 1622 with a centred MC intercept and 773 for μ
+non-centred). nutpie's low-rank mass matrix did not finish seed 1 in 8.5 minutes; a
+partially non-centred change (d = β + √σ_β e, e ~ N(0, √σ_β)) gave σ_β R-hat 1.004 but
+ESS 412 on seed 1, no better. σ_β, the between-subject spread of the SC change, is the
+hardest quantity: its posterior reaches down to about 0.03 and it mixes at about 0.15
+effective draws per draw in every form tried, so on some data sets (seed 1) its R-hat
+ends just above 1.01 after 4 × 1000 draws.
 
 The pointwise log-likelihood of each segment is the element-wise log density of the
 observed variable ``u_H`` (dims segment × step, one value per segment), so
 ``pm.compute_log_likelihood(idata, model=model)`` gives a ``log_likelihood`` group with
-dims (chain, draw, segment) for ``arviz.loo``.
+dims (chain, draw, segment) for ``arviz.loo``. With one segment per unit, leaving a segment
+out removes all data on that unit's θ, so expect large Pareto k: compare models with
+``loo`` only alongside its k diagnostics (or with K-fold by subject).
 """
 
 from __future__ import annotations
@@ -54,12 +101,12 @@ import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
 from models.likelihood_op import MaxEntLoglikOp
-from models.maxent import Segment, SegmentBatch, prepare_batch, sample_maxent
+from models.maxent import SegmentBatch, prepare_batch, sample_maxent
 from models.plant import DiscretePlant
 
 CONDITIONS = ("MC", "SC")
 
-Form = Literal["centred", "noncentred"]
+Form = Literal["centred", "noncentred", "mean"]
 
 
 @dataclass(frozen=True)
@@ -107,15 +154,20 @@ class Parameterization:
     subject intercept) and its SC change. ``centred`` samples the unit values
     themselves (log θ1[i, MC] ~ N(μ, σ); log θ1[i, SC] ~ N(log θ1[i, MC] + β, σ_β));
     ``noncentred`` samples standard-normal z and sets ``μ + σ z`` (intercept) or
-    ``log θ1[i, MC] + β + σ_β z`` (change). For θ2, ``centred`` samples
-    θ2 ~ HalfNormal(τ) and ``noncentred`` samples z ~ HalfNormal(1) with θ2 = τ z.
+    ``log θ1[i, MC] + β + σ_β z`` (change). ``mean`` (intercept only) samples the
+    subject mean m_i = (log θ1[i, MC] + log θ1[i, SC]) / 2 ~ N(μ + d_i / 2, σ) centred,
+    after the change d_i (in the form ``theta1_sc`` says, as d_i ~ N(β, σ_β) when
+    centred): the same model, with the data acting on nearly orthogonal coordinates. For
+    θ2, ``centred`` samples θ2 ~ HalfNormal(τ) and ``noncentred`` samples z ~
+    HalfNormal(1) with θ2 = τ z.
 
     Attributes
     ----------
-    theta1_mc, theta1_sc, R_mc, R_sc, theta2 : {"centred", "noncentred"}
+    theta1_mc, R_mc : {"centred", "noncentred", "mean"}
+    theta1_sc, R_sc, theta2 : {"centred", "noncentred"}
     """
 
-    theta1_mc: Form = "centred"
+    theta1_mc: Form = "mean"
     theta1_sc: Form = "noncentred"
     R_mc: Form = "centred"
     R_sc: Form = "centred"
@@ -123,8 +175,9 @@ class Parameterization:
 
     def __post_init__(self):
         for name in ("theta1_mc", "theta1_sc", "R_mc", "R_sc", "theta2"):
-            if getattr(self, name) not in ("centred", "noncentred"):
-                raise ValueError(f"Parameterization.{name} must be 'centred' or 'noncentred'; got {getattr(self, name)!r}")
+            allowed = ("centred", "noncentred", "mean") if name in ("theta1_mc", "R_mc") else ("centred", "noncentred")
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"Parameterization.{name} must be one of {allowed}; got {getattr(self, name)!r}")
 
 
 class StudyIndex(NamedTuple):
@@ -206,14 +259,25 @@ def _as_batch(segments, plant: DiscretePlant) -> SegmentBatch:
 
 def _unit_block(name: str, mu, beta, sigma, sigma_beta, form_mc: Form, form_sc: Form):
     """log-parameter of every unit, (subject, condition), as MC intercept + SC change."""
-    if form_mc == "centred":
-        mc = pm.Normal(f"{name}_MC", mu, sigma, dims="subject")
-    else:
-        mc = mu + sigma * pm.Normal(f"z_{name}_MC", 0.0, 1.0, dims="subject")
     if form_sc == "centred":
-        sc = pm.Normal(f"{name}_SC", mc + beta, sigma_beta, dims="subject")
+        change = None if form_mc != "mean" else pm.Normal(f"{name}_change", beta, sigma_beta, dims="subject")
     else:
-        sc = mc + beta + sigma_beta * pm.Normal(f"z_{name}_SC", 0.0, 1.0, dims="subject")
+        change = beta + sigma_beta * pm.Normal(f"z_{name}_SC", 0.0, 1.0, dims="subject")
+    if form_mc == "mean":
+        # log θ[i, MC] ~ N(μ, σ) and change d_i independent  <=>  d_i, then the subject
+        # mean m_i = log θ[i, MC] + d_i / 2 ~ N(μ + d_i / 2, σ). The MC and SC data inform
+        # m_i - d_i / 2 and m_i + d_i / 2, so (m_i, d_i) are nearly uncorrelated a posteriori.
+        m = pm.Normal(f"{name}_mean", mu + 0.5 * change, sigma, dims="subject")
+        mc, sc = m - 0.5 * change, m + 0.5 * change
+    else:
+        if form_mc == "centred":
+            mc = pm.Normal(f"{name}_MC", mu, sigma, dims="subject")
+        else:
+            mc = mu + sigma * pm.Normal(f"z_{name}_MC", 0.0, 1.0, dims="subject")
+        if form_sc == "centred":
+            sc = pm.Normal(f"{name}_SC", mc + beta, sigma_beta, dims="subject")
+        else:
+            sc = mc + change
     return pm.Deterministic(name, pt.stack([mc, sc], axis=1), dims=("subject", "condition"))
 
 
@@ -236,8 +300,8 @@ def build_model(
     conditions : sequence of {"MC", "SC"}, length n
         Condition of each segment.
     segments : SegmentBatch or sequence of Segment
-        The n demonstrations, all of the same length K (x0 in rad, rad/s; angle_ref in
-        rad; u_H, u_A in N·m).
+        The n demonstrations, all with K observed torques and the same preview M >= 0
+        (x0 in rad, rad/s; angle_ref (K + M + 1,) in rad; u_H (K,), u_A (K + M,) in N·m).
     plant : DiscretePlant
         The 0.01-s wheel discretization.
     priors : Priors
@@ -252,7 +316,8 @@ def build_model(
         (0..K-1). Free variables: the population parameters ``mu_log_theta1``,
         ``beta``, ``sigma_log_theta1``, ``sigma_beta``, ``mu_log_R``, ``beta_log_R``,
         ``sigma_log_R``, ``sigma_beta_log_R``, ``tau_theta2`` and the unit parameters
-        in the chosen form. Deterministics ``log_theta1``, ``log_R``, ``theta1``,
+        in the chosen form (by default ``log_theta1_mean``, ``z_log_theta1_SC``,
+        ``log_R_MC``, ``log_R_SC``, ``z_theta2``). Deterministics ``log_theta1``, ``log_R``, ``theta1``,
         ``R``, ``theta2`` (subject, condition). Observed ``u_H`` (segment, step),
         whose element-wise log density is one log-likelihood per segment.
 
@@ -294,18 +359,18 @@ def build_model(
         return ll
 
     x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
-    ref = batch.r
 
-    def random(q11, q22, R, u_A, rng=None, size=None):
-        # Exact max-ent draws given the recorded (open-loop) u_A, as the likelihood assumes.
-        shape = tuple(size) if size is not None else np.broadcast_shapes(q11.shape, q22.shape, R.shape, u_A.shape[:-1])
+    def random(q11, q22, R, u_A_window, rng=None, size=None):
+        # Exact max-ent draws given the recorded (open-loop) u_A, as the likelihood assumes:
+        # plan over the whole K + M steps, keep the K observed ones (the later torques
+        # integrate out of the sequential factorization). The last batch axis is the segment.
+        shape = tuple(size) if size is not None else np.broadcast_shapes(q11.shape, q22.shape, R.shape)
         th = [np.broadcast_to(p, shape) for p in (q11, q22, R)]
-        a = np.broadcast_to(u_A, shape + (K,))
         out = np.empty(shape + (K,))
         for idx in np.ndindex(*shape):
             j = idx[-1]
             theta = [th[0][idx], th[1][idx], th[2][idx]]
-            out[idx] = sample_maxent(theta, x0[j], ref[j], a[idx], plant, rng).u_H
+            out[idx] = sample_maxent(theta, x0[j], batch.r[j], batch.a[j], plant, rng).u_H[:K]
         return out
 
     form = parameterization
@@ -340,7 +405,9 @@ def build_model(
             q11,
             q22,
             R_s,
-            batch.a,
+            # u_A over the observed window: it gives the support its shape (K); the Op and
+            # `random` use the whole recorded u_A, preview included.
+            batch.a[:, :K],
             logp=logp,
             random=random,
             signature="(),(),(),(k)->(k)",
@@ -386,8 +453,8 @@ def prior_predictive_summary(
 
     Each draw takes all unit parameters jointly from the prior (:func:`build_model`) and
     simulates every segment exactly from the max-ent model with :func:`sample_maxent`
-    (x0, angle_ref and the recorded u_A of the segment); states follow from the drawn
-    torques.
+    (x0, angle_ref and the recorded u_A of the segment, preview included); states follow
+    from the drawn torques, and both are summarized over the K observed steps.
 
     Parameters
     ----------
@@ -408,6 +475,7 @@ def prior_predictive_summary(
     seed = int(rng.integers(2**63))
     lt1, lR, t2 = pm.draw([model["log_theta1"], model["log_R"], model["theta2"]], draws=draws, random_seed=seed)
     x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
+    K = batch.K
     probs = np.array([0.05, 0.25, 0.5, 0.75, 0.95])
     tq = np.empty((draws, batch.n))
     er = np.empty((draws, batch.n))
@@ -418,10 +486,11 @@ def prior_predictive_summary(
         for j in range(batch.n):
             theta = [th1[j] * R[j], t2[d, s[j], c[j]] * R[j], R[j]]
             demo = sample_maxent(theta, x0[j], batch.r[j], batch.a[j], plant, rng)
-            tq[d, j] = np.sqrt(np.mean(demo.u_H**2))
-            er[d, j] = np.sqrt(np.mean((demo.x[1:, 0] - batch.r[j, 1:]) ** 2))
+            # Over the observed window only (the plan may look M steps further).
+            tq[d, j] = np.sqrt(np.mean(demo.u_H[:K] ** 2))
+            er[d, j] = np.sqrt(np.mean((demo.x[1 : K + 1, 0] - batch.r[j, 1 : K + 1]) ** 2))
     obs_tq = np.sqrt(np.mean(batch.u**2, axis=1))
-    obs_er = np.sqrt(np.mean((batch.x1[:, 1:] - batch.r[:, 1:]) ** 2, axis=1))
+    obs_er = np.sqrt(np.mean((batch.x1[:, 1:] - batch.r[:, 1 : K + 1]) ** 2, axis=1))
     out = {k: {} for k in ("tq", "er", "otq", "oer")}
     for ci, cname in enumerate(CONDITIONS):
         m = c == ci

@@ -42,7 +42,8 @@ class MaxEntLoglikOp(Op):
     Parameters
     ----------
     batch : SegmentBatch
-        From :func:`models.maxent.prepare_batch`; n segments of K steps.
+        From :func:`models.maxent.prepare_batch`; n segments of K observed steps, whose
+        plan may look M >= 0 steps further (u_A and the reference of length K + M).
     plant : DiscretePlant
         The 0.01-s wheel discretization the batch was prepared with.
 
@@ -87,9 +88,12 @@ class MaxEntLoglikOp(Op):
         self.a = c(batch.a)
         self.n = int(self.u.shape[0])
         self.K = int(self.u.shape[1])
+        # The plan may look M >= 0 steps past the observed torques (u_A and the reference
+        # run on); the kernel's scratch covers the whole plan.
+        self.K_plan = int(self.a.shape[1])
 
     def __str__(self):
-        return f"MaxEntLoglik{{n={self.n}, K={self.K}}}"
+        return f"MaxEntLoglik{{n={self.n}, K={self.K}, M={self.K_plan - self.K}}}"
 
     def make_node(self, theta):
         theta = pt.as_tensor_variable(theta)
@@ -107,13 +111,13 @@ class MaxEntLoglikOp(Op):
         th = np.array(theta, dtype=np.float64, order="C")
         ll = np.empty(self.n)
         g = np.empty((3, self.n))
-        wbuf = np.empty((self.K, 2))
-        vbuf = np.empty(self.K)
+        wbuf = np.empty((self.K_plan, 2))
+        vbuf = np.empty(self.K_plan)
         _batch_kernel(self.A, self.b, th, self.x1, self.x2, self.r, self.u, self.a, True, ll, g, wbuf, vbuf)
         output_storage[0][0] = ll
         output_storage[1][0] = g
 
-    def infer_shape(self, fgraph, node, input_shapes):
+    def infer_shape(self, node, input_shapes):
         return [(self.n,), (3, self.n)]
 
     def pullback(self, inputs, outputs, cotangents):
@@ -140,7 +144,7 @@ def numba_funcify_MaxEntLoglikOp(op: MaxEntLoglikOp, node=None, **kwargs):
     compiled graph is not cached across sessions because the Op has no cache key.
     """
     A, b, x1, x2, r, u, a = op.A, op.b, op.x1, op.x2, op.r, op.u, op.a
-    n, K = op.n, op.K
+    n, K_plan = op.n, op.K_plan
     kernel = _batch_kernel
 
     @numba_basic.numba_njit
@@ -149,8 +153,8 @@ def numba_funcify_MaxEntLoglikOp(op: MaxEntLoglikOp, node=None, **kwargs):
         ll = np.empty(n)
         g = np.empty((3, n))
         # Scratch per call: nutpie evaluates chains in parallel threads.
-        wbuf = np.empty((K, 2))
-        vbuf = np.empty(K)
+        wbuf = np.empty((K_plan, 2))
+        vbuf = np.empty(K_plan)
         kernel(A, b, th, x1, x2, r, u, a, True, ll, g, wbuf, vbuf)
         return ll, g
 

@@ -10,20 +10,36 @@ from pytensor.graph.basic import Apply
 from pytensor.graph.op import Op
 
 from models.likelihood_op import MaxEntLoglikOp, maxent_loglik
-from models.maxent import loglik_grad, prepare_batch
+from models.maxent import Segment, loglik_grad, prepare_batch
 from tests.conftest import random_segment, random_theta
 
 OBJECT_MODE = "object mode"
 
 
-@pytest.fixture(scope="module")
-def setup(plant):
-    rng = np.random.default_rng(20)
-    segs = [random_segment(rng, 120, i % 2 == 1) for i in range(4)]
+def preview_segment(rng, K, M, shared):
+    """A segment with K observed torques whose plan looks M steps further (u_A, reference)."""
+    seg = random_segment(rng, K + M, shared)
+    return Segment(seg.x0, seg.angle_ref, seg.u_H[:K], seg.u_A)
+
+
+def _setup(plant, M):
+    rng = np.random.default_rng([20, M])
+    segs = [preview_segment(rng, 120, M, i % 2 == 1) for i in range(4)]
     batch = prepare_batch(plant, segs)
     theta = np.column_stack([random_theta(rng, i % 2 == 0) for i in range(4)])
     theta[1] = np.maximum(theta[1], 0.05)  # finite differences need room on both sides of q22
     return batch, theta
+
+
+@pytest.fixture(scope="module")
+def setup(plant):
+    return _setup(plant, 0)
+
+
+@pytest.fixture(scope="module", params=[0, 150], ids=["M=0", "M=150"])
+def setup_m(plant, request):
+    """Without and with a preview longer than the observed window (scratch must cover K + M)."""
+    return _setup(plant, request.param)
 
 
 def _compile_quietly(inputs, outputs, mode):
@@ -35,8 +51,8 @@ def _compile_quietly(inputs, outputs, mode):
 
 
 @pytest.mark.parametrize("mode", ["NUMBA", "FAST_COMPILE"])
-def test_outputs_are_the_kernels(plant, setup, mode):
-    batch, theta = setup
+def test_outputs_are_the_kernels(plant, setup_m, mode):
+    batch, theta = setup_m
     op = MaxEntLoglikOp(batch, plant)
     th = pt.dmatrix("theta")
     f, _ = _compile_quietly([th], list(op(th)), mode)
@@ -51,8 +67,8 @@ def test_outputs_are_the_kernels(plant, setup, mode):
     np.testing.assert_array_equal(ll_t, ll)
 
 
-def test_verify_grad(plant, setup):
-    batch, theta = setup
+def test_verify_grad(plant, setup_m):
+    batch, theta = setup_m
     op = MaxEntLoglikOp(batch, plant)
     pytensor.gradient.verify_grad(lambda th: op(th)[0], [theta], rng=np.random.default_rng(21), n_tests=3)
 

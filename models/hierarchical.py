@@ -100,6 +100,7 @@ import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
+from models.likelihood_data_op import MaxEntLoglikDataOp
 from models.likelihood_op import MaxEntLoglikOp
 from models.maxent import SegmentBatch, prepare_batch, sample_maxent
 from models.plant import DiscretePlant
@@ -290,6 +291,7 @@ def build_model(
     priors: Priors = Priors(),
     parameterization: Parameterization = Parameterization(),
     segment_ids: Sequence | None = None,
+    data_containers: bool = False,
 ) -> pm.Model:
     """The hierarchical max-ent model of a study (see the module docstring).
 
@@ -308,6 +310,13 @@ def build_model(
     parameterization : Parameterization
     segment_ids : sequence, length n, optional
         Labels of the ``segment`` coordinate (default 0..n-1).
+    data_containers : bool
+        Put the data in ``pm.Data`` containers ``x1, x2, r, u, a`` (a
+        :class:`models.maxent.SegmentBatch`'s arrays) and the likelihood in a potential
+        (:class:`models.likelihood_data_op.MaxEntLoglikDataOp`), so that one compiled
+        model refits new data of the same shape (``with_data``); used by
+        simulation-based calibration. No observed variable then, hence no pointwise
+        log-likelihood and no predictive draws.
 
     Returns
     -------
@@ -400,6 +409,11 @@ def build_model(
         R_s = R[s_idx, c_idx]
         q11 = pt.exp(lt1_s + lR_s)
         q22 = theta2[s_idx, c_idx] * R_s
+        if data_containers:
+            data = [pm.Data(name, getattr(batch, name)) for name in ("x1", "x2", "r", "u", "a")]
+            ll, _ = MaxEntLoglikDataOp(plant)(pt.stack([q11, q22, R_s]), *data)
+            pm.Potential("loglik", ll.sum())
+            return model
         pm.CustomDist(
             "u_H",
             q11,

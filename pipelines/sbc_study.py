@@ -1,0 +1,142 @@
+"""Study-level SBC replications: the hierarchical model against studies drawn from its own prior.
+
+Per replication: population and unit parameters are drawn from the prior of
+:func:`models.hierarchical.build_model` (by PyMC itself, from the model graph, so the
+draws follow exactly the model that is fitted); a whole study is simulated exactly from
+the max-ent model (``n_subjects`` × MC and SC, windows of K samples of the study
+reference from rest; in SC u_A is the assistant's response to the subject's plan,
+replayed as the known input the likelihood assumes); the model compiled once per
+worker (data in ``pm.Data`` containers) is refitted with nutpie; ranks of the population
+parameters and of the first subject's unit parameters are recorded.
+
+The negative controls are those of the unit level (:mod:`pipelines.sbc_replications`).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from models.maxent import Segment, prepare_batch, sample_maxent
+from models.plant import DT_HUMAN, discretize
+from models.sbc import central_coverage, rank, thin
+from pipelines.sbc_replications import _CACHE, _fit_plant, _reference
+
+#: Population parameters ranked.
+POPULATION = ("mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R",
+              "sigma_log_R", "sigma_beta_log_R", "tau_theta2")
+#: Unit parameters ranked (first subject), as (variable, condition index).
+UNITS = (("log_theta1", 0), ("log_theta1", 1), ("log_R", 0), ("theta2", 0))
+
+
+def _labels(n_subjects: int):
+    subjects = [f"S{i:02d}" for i in range(n_subjects) for _ in range(2)]
+    conditions = ["MC", "SC"] * n_subjects
+    return subjects, conditions
+
+
+def _template(config, negative_control):
+    key = ("study-model", config.K, config.n_subjects, negative_control)
+    if key not in _CACHE:
+        from models.hierarchical import build_model
+
+        plant = _fit_plant(negative_control)
+        ref = _reference(config.K)
+        seg = Segment(np.array([ref[0], 0.0]), ref, np.zeros(config.K), np.zeros(config.K))
+        batch = prepare_batch(plant, [seg] * (2 * config.n_subjects))
+        subjects, conditions = _labels(config.n_subjects)
+        _CACHE[key] = build_model(subjects, conditions, batch, plant, data_containers=True)
+    return _CACHE[key]
+
+
+def _compiled(config, negative_control):
+    key = ("study-compiled", config.K, config.n_subjects, negative_control)
+    if key not in _CACHE:
+        import nutpie
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _CACHE[key] = nutpie.compile_pymc_model(_template(config, negative_control), backend="numba")
+    return _CACHE[key]
+
+
+def _prior_draw(config, rng) -> dict:
+    import pymc as pm
+
+    model = _template(config, None)
+    names = list(POPULATION) + sorted({v for v, _ in UNITS} | {"theta1", "R"})
+    values = pm.draw([model[n] for n in names], random_seed=rng)
+    return {n: np.asarray(v, dtype=float) for n, v in zip(names, values)}
+
+
+def _prior_variances(config) -> dict:
+    key = ("study-prior-var", config.K, config.n_subjects)
+    if key not in _CACHE:
+        import pymc as pm
+
+        model = _template(config, None)
+        names = list(POPULATION) + sorted({v for v, _ in UNITS})
+        draws = pm.draw([model[n] for n in names], draws=4000, random_seed=np.random.default_rng(0))
+        var = {}
+        for n, d in zip(names, draws):
+            d = np.asarray(d, dtype=float)
+            if d.ndim == 1:
+                var[n] = float(d.var())
+            else:
+                for v, c in UNITS:
+                    if v == n:
+                        var[f"{n}[0,{c}]"] = float(d[:, 0, c].var())
+        _CACHE[key] = var
+    return _CACHE[key]
+
+
+def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
+    import nutpie
+
+    from models.assistant import design_assistant
+    from models.simulate import plan_against_assistant
+
+    rng = np.random.default_rng(seed)
+    truth = _prior_draw(config, rng)
+    plant = discretize(DT_HUMAN)
+    K = config.K
+    ref = _reference(K)
+    x0 = np.array([ref[0], 0.0])
+    if "assistant" not in _CACHE:
+        _CACHE["assistant"] = design_assistant()
+    segs = []
+    for s in range(config.n_subjects):
+        for c in (0, 1):
+            t1, t2, R = truth["theta1"][s, c], truth["theta2"][s, c], truth["R"][s, c]
+            theta = np.array([t1 * R, t2 * R, R])
+            u_A = np.zeros(K) if c == 0 else plan_against_assistant(theta, x0, ref, plant, _CACHE["assistant"]).expected_u_A
+            demo = sample_maxent(theta, x0, ref, u_A, plant, rng)
+            if config.negative_control == "ignore-uA":
+                segs.append(Segment(x0, ref, demo.u_H + u_A, np.zeros(K)))
+            else:
+                segs.append(Segment(x0, ref, demo.u_H, u_A))
+    batch = prepare_batch(_fit_plant(config.negative_control), segs)
+    compiled = _compiled(config, config.negative_control).with_data(
+        x1=batch.x1, x2=batch.x2, r=batch.r, u=batch.u, a=batch.a)
+    trace = nutpie.sample(compiled, chains=config.chains, tune=config.tune, draws=config.draws,
+                          seed=int(rng.integers(2**62)), progress_bar=False)
+    post = trace["posterior"]
+    prior_var = _prior_variances(config)
+    out = {"truth": {}, "ranks": {}, "pit_u": {}, "coverage": {}, "ess": {}, "contraction": {}}
+    targets = [(n, n, None) for n in POPULATION] + [(f"{v}[0,{c}]", v, c) for v, c in UNITS]
+    for label, var, c in targets:
+        draws = np.asarray(post[var].values, dtype=float)
+        true = truth[var]
+        if c is not None:
+            draws, true = draws[:, :, 0, c], true[0, c]
+        true = float(true)
+        kept, ess = thin(draws, config.L)
+        out["truth"][label] = true
+        out["ranks"][label] = rank(kept, true)
+        out["pit_u"][label] = float(rng.uniform())
+        out["coverage"][label] = central_coverage(kept, true).tolist()
+        out["ess"][label] = ess
+        out["contraction"][label] = float(1.0 - draws.var() / prior_var[label])
+    out["divergences"] = int(np.asarray(trace["sample_stats"]["diverging"].values).sum())
+    return out

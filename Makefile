@@ -7,7 +7,7 @@ PYTHON ?= $(shell for p in python3.12 python3.13 $$HOME/.pyenv/versions/3.12*/bi
 	$$p -c 'import sys; sys.exit(0 if sys.version_info >= (3, 12) else 1)' >/dev/null 2>&1 && { echo $$p; break; }; done)
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test bench clean
+.PHONY: setup run test bench calibrate clean
 
 $(STAMP): pyproject.toml
 	@test -n "$(PYTHON)" || { echo "error: no Python >= 3.12 found (PyMC 6 needs it); pass PYTHON=/path/to/python3.12" >&2; exit 1; }
@@ -26,6 +26,13 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/scioc bench
+
+# Full simulation-based calibration (unit: 1000 replications, study: 200, each with its
+# negative control), then the report again with its results.
+calibrate: $(STAMP)
+	$(VENV)/bin/scioc calibrate --level unit
+	$(VENV)/bin/scioc calibrate --level study
+	$(VENV)/bin/scioc report reports/default-study
 
 clean:
 	rm -rf $(VENV)

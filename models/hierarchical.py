@@ -22,30 +22,50 @@ one segment in each condition.
 
 Priors (:class:`Priors`; units: θ1, θ2 in rad⁻² and (rad/s)⁻² per (N·m)⁻², R in (N·m)⁻²)::
 
-    μ   ~ N(log 50, 1)     β   ~ N(0, 1)      σ   ~ HalfN(0.5)   σ_β  ~ HalfN(0.3)
-    μ_R ~ N(0, 1)          β_R ~ N(0, 0.5)    σ_R ~ HalfN(0.5)   σ_βR ~ HalfN(0.3)
+    μ   ~ N(3, 1)          β   ~ N(0, 1)      σ   ~ HalfN(0.5)   σ_β  ~ HalfN(0.3)
+    μ_R ~ N(3, 1)          β_R ~ N(0, 0.5)    σ_R ~ HalfN(0.5)   σ_βR ~ HalfN(0.3)
     τ   ~ HalfN(0.5)
 
-Prior predictive check: :func:`prior_predictive_summary` on the default simulated study
-(``pipelines.bench_fit.simulate_study(42, 1500, seed=0)``, 15-s windows of the study
-reference), 200 joint prior draws, ``rng = default_rng(1)``; quantiles 5/25/50/75/95 % over
-draws × segments of the per-segment RMS human torque and RMS tracking error::
+The centres say what the parameters mean physically. θ1 = e³ ≈ 20 rad⁻² weighs a 0.2-rad
+error (the RMS of the reference) like a 0.9 N·m torque. R sets the human's torque jitter:
+given the state the torque of one 10-ms step has SD 1 / √(2 S_k), and S_k = 1.08 R at
+θ1 = 20, θ2 = 0 (``models.lq.lq_policy`` on the study window), so log R = 3 ± 2 is a jitter
+of 0.06-0.41 N·m per sample around 0.15 N·m. (The first
+priors, μ ~ N(log 50, 1) and μ_R ~ N(0, 1), were chosen for the stand-in study of
+``pipelines.bench_fit``, whose R is about 1; on the simulated study of
+:mod:`models.simulate`, R about 20, the observed RMS torque lay at or below the 5 %
+quantile of their prior predictive: 5-95 % 0.37-1.70 N·m in MC against 0.27-0.32
+observed, 0.25-1.93 in SC against 0.13-0.20.)
+
+Prior predictive check: :func:`prior_predictive_summary` on the default study of ``scioc run``
+(``reports/default-study/data/study.parquet``, seed 2018, 42 subjects; every segment through
+``pipelines.identify.prepare_segment`` with the default ``IdentifySettings()``: the 15-s
+window, velocity and u_H reconstructed from the angle, 2-s preview), 200 joint prior
+draws, ``rng = default_rng(1)``; quantiles 5/25/50/75/95 % over draws × segments of the
+per-segment RMS human torque and RMS tracking error, and the same quantiles over the 42
+observed segments per condition (``observed_*``)::
 
                         5 %    25 %   50 %   75 %   95 %
-    MC torque (N·m)    0.37   0.56   0.76   1.00   1.69
-    SC torque (N·m)    0.27   0.48   0.70   1.05   1.94
-    MC error (rad)    0.008  0.015  0.022  0.035  0.069
-    SC error (rad)    0.005  0.012  0.021  0.035  0.079
+    MC torque (N·m)    0.246  0.281  0.304  0.339  0.447    observed 0.271-0.318
+    SC torque (N·m)    0.109  0.141  0.182  0.252  0.443    observed 0.127-0.200
+    MC error (rad)     0.005  0.010  0.019  0.033  0.073    observed 0.009-0.035
+    SC error (rad)     0.002  0.006  0.011  0.022  0.049    observed 0.007-0.023
 
-The priors thus allow anything from very tight (0.3°) to loose (4.5°) tracking with
-torques of a few tenths to about 2 N·m, and cover the simulated observations (MC torque
-0.63-0.88 N·m, error 0.015-0.032 rad, 5-95 %). Vague priors (all scales ×3 to ×20: μ, μ_R,
-β, β_R with SD 3, σ's HalfN(2), τ HalfN(10)) put 5 % of the segments above 11 N·m (MC) and
-38 N·m (SC) RMS torque and above 0.34 rad (MC) and 0.95 rad (SC) RMS error, i.e. worse
-than not steering at all (the reference itself has an RMS of 0.2 rad): those priors are
-rejected by the check.
+The priors thus allow anything from very tight (0.1°) to loose (4°) tracking with
+torques from about a tenth to half a N·m, and the observations sit inside the central
+part of each distribution. The torque's lower end is the deterministic torque that
+tracking the reference needs, which no prior on the jitter can lower. Vague priors (same
+centres; μ, μ_R, β, β_R with SD 3, σ's HalfN(2), τ HalfN(10)), through the same call,
+put 5 % of the segments above 2.4 N·m (MC) and 8.6 N·m (SC) RMS torque and above 0.25
+rad (MC) and 0.27 rad (SC) RMS error, i.e. worse than not steering at all (the
+reference itself has an RMS of 0.2 rad): those priors are rejected by the check.
 
-Parameterization (:class:`Parameterization`), chosen by measurement. Per unit at K = 1500
+Pooled model (``build_model(..., condition_effects=False)``), the alternative for the
+PSIS-LOO comparison: log θ1[i, SC] = log θ1[i, MC] = m_i ~ N(μ, σ) (β = σ_β = 0), with the
+log R and θ2 blocks unchanged, so that the two models differ only in the paper's question.
+
+Parameterization (:class:`Parameterization`), chosen by measurement (with the first
+priors above, on the stand-in study of ``pipelines.bench_fit``). Per unit at K = 1500
 the data pin log R down to about ±0.04 (prior spread σ_R ≈ 0.3: centred), but log θ1 only
 to about ±0.2 (comparable with σ ≈ 0.4 and σ_β ≈ 0.2) and θ2 to about ±0.1 on its own
 scale. ``pipelines.bench_fit.bench_fit`` on simulated studies of the default size
@@ -136,11 +156,11 @@ class Priors:
         Scale of the HalfNormal prior on τ, the population scale of θ2.
     """
 
-    mu_log_theta1: tuple[float, float] = (float(np.log(50.0)), 1.0)
+    mu_log_theta1: tuple[float, float] = (3.0, 1.0)
     beta_sd: float = 1.0
     sigma_log_theta1: float = 0.5
     sigma_beta: float = 0.3
-    mu_log_R: tuple[float, float] = (0.0, 1.0)
+    mu_log_R: tuple[float, float] = (3.0, 1.0)
     beta_log_R_sd: float = 0.5
     sigma_log_R: float = 0.5
     sigma_beta_log_R: float = 0.3
@@ -259,7 +279,17 @@ def _as_batch(segments, plant: DiscretePlant) -> SegmentBatch:
 
 
 def _unit_block(name: str, mu, beta, sigma, sigma_beta, form_mc: Form, form_sc: Form):
-    """log-parameter of every unit, (subject, condition), as MC intercept + SC change."""
+    """log-parameter of every unit, (subject, condition), as MC intercept + SC change.
+
+    ``beta is None``: the pooled block, one value per subject for both conditions.
+    """
+    if beta is None:
+        # No SC change: the subject value is its own mean, so "mean" is the centred form.
+        if form_mc == "noncentred":
+            m = mu + sigma * pm.Normal(f"z_{name}_mean", 0.0, 1.0, dims="subject")
+        else:
+            m = pm.Normal(f"{name}_mean", mu, sigma, dims="subject")
+        return pm.Deterministic(name, pt.stack([m, m], axis=1), dims=("subject", "condition"))
     if form_sc == "centred":
         change = None if form_mc != "mean" else pm.Normal(f"{name}_change", beta, sigma_beta, dims="subject")
     else:
@@ -292,6 +322,7 @@ def build_model(
     parameterization: Parameterization = Parameterization(),
     segment_ids: Sequence | None = None,
     data_containers: bool = False,
+    condition_effects: bool = True,
 ) -> pm.Model:
     """The hierarchical max-ent model of a study (see the module docstring).
 
@@ -317,6 +348,13 @@ def build_model(
         model refits new data of the same shape (``with_data``); used by
         simulation-based calibration. No observed variable then, hence no pointwise
         log-likelihood and no predictive draws.
+    condition_effects : bool
+        False builds the *pooled* model for the PSIS-LOO comparison: log θ1 of a subject
+        is the same in MC and SC (β = 0, σ_β = 0; no ``beta``, ``sigma_beta`` or SC change
+        variables), sampled as ``log_theta1_mean`` ~ N(μ, σ) (centred unless
+        ``parameterization.theta1_mc`` is ``noncentred``). The log R block and θ2 keep
+        their condition effects, so the comparison is about θ1 alone, the paper's
+        question. The design check (every subject in both conditions) is the same.
 
     Returns
     -------
@@ -385,16 +423,21 @@ def build_model(
     form = parameterization
     with pm.Model(coords=coords) as model:
         mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
-        beta = pm.Normal("beta", 0.0, priors.beta_sd)
+        if condition_effects:
+            beta = pm.Normal("beta", 0.0, priors.beta_sd)
         sigma = pm.HalfNormal("sigma_log_theta1", priors.sigma_log_theta1)
-        sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta)
+        if condition_effects:
+            sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta)
         mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
         beta_R = pm.Normal("beta_log_R", 0.0, priors.beta_log_R_sd)
         sigma_R = pm.HalfNormal("sigma_log_R", priors.sigma_log_R)
         sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R)
         tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
 
-        log_theta1 = _unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc)
+        if condition_effects:
+            log_theta1 = _unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc)
+        else:
+            log_theta1 = _unit_block("log_theta1", mu, None, sigma, None, form.theta1_mc, form.theta1_sc)
         log_R = _unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form.R_mc, form.R_sc)
         if form.theta2 == "centred":
             theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))

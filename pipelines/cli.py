@@ -170,10 +170,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler (default: a local cluster)")
     p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default 2)")
     p.add_argument("--batch-size", type=int, help="replications per Dask task (default 10 unit, 2 study)")
-    p.add_argument("--negative-control", choices=("inertia", "ignore-uA", "none"), default="inertia",
-                   help="also run this wrong fit at the same size (default inertia; 'none' to skip)")
+    p.add_argument("--negative-control", choices=("inertia", "ignore-uA", "none"),
+                   help="also run this wrong fit at the same size (default: inertia at the unit level, ignore-uA "
+                        "at the study level; 'none' to skip)")
     p.add_argument("--subjects", type=int, help="subjects per simulated study (study level; default 8)")
-    p.add_argument("--seconds", type=float, help="window length in s (default 15 unit, 3 study)")
+    p.add_argument("--seconds", type=float, help="window length in s (default 15 unit, 2 study)")
     p.set_defaults(func=_cmd_calibrate)
 
     p = sub.add_parser("assistant", help="the MPC assistant alone on the study reference: tracking and torques")

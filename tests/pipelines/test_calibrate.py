@@ -136,3 +136,22 @@ def test_dask_cluster_losing_a_worker_gives_the_local_result(tmp_path):
         b = json.loads(rep_path(tmp_path / "local", i).read_text())
         assert a["ranks"] == b["ranks"] and a["truth"] == b["truth"], i
     assert local["parameters"] == summary["parameters"]
+
+
+# Study level at a reduced design: 6 subjects × 2 conditions × 2-s windows. 30 replications.
+# False-failure budget FAMILY_ALPHA = 0.01 (KS per parameter at 0.01 / 13, Bonferroni).
+STUDY = dict(level="study", replications=30, K=200, n_subjects=6, chains=2, tune=300, draws=200, L=39,
+             batch_size=3, seed=5)
+
+
+@pytest.mark.slow
+def test_study_level_sbc_passes_for_the_correct_model(tmp_path):
+    summary = calibrate(CalibrationConfig(**STUDY), tmp_path / "study", show_progress=False)
+    assert summary["passed"], {k: v["p_value"] for k, v in summary["parameters"].items()}
+
+
+@pytest.mark.slow
+def test_study_level_sbc_catches_a_likelihood_that_ignores_u_A(tmp_path):
+    summary = calibrate(CalibrationConfig(**STUDY, negative_control="ignore-uA"), tmp_path / "neg",
+                        show_progress=False)
+    assert not summary["passed"]

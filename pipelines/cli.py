@@ -95,8 +95,14 @@ def _cmd_report(args) -> int:
 def _cmd_run(args) -> int:
     from pipelines.run import run_all
 
-    run_all(args.out, n_subjects=args.subjects, seed=args.seed)
+    run_all(args.out, n_subjects=args.subjects, seed=args.seed, fit=not args.skip_fit)
     return 0
+
+
+def _cmd_fit(args) -> int:
+    from pipelines.fit import cmd_fit  # imports PyMC: only when fitting
+
+    return cmd_fit(args)
 
 
 def _cmd_calibrate(args) -> int:
@@ -144,6 +150,21 @@ def build_parser() -> argparse.ArgumentParser:
     _add_window_options(p)
     p.set_defaults(func=_cmd_identify)
 
+    p = sub.add_parser("fit", help="hierarchical Bayesian fit (nutpie): β with HDI, diagnostics, LOO")
+    p.add_argument("study", help="study file in the data convention")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--seed", type=int, default=2018)
+    p.add_argument("--chains", type=int, default=4)
+    p.add_argument("--draws", type=int, default=1000, help="draws kept per chain (default 1000)")
+    p.add_argument("--tune", type=int, default=500, help="warm-up draws per chain (default 500)")
+    p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
+    p.add_argument("--estimates", metavar="PATH",
+                   help="estimates.parquet for the mixed-model check (default: ../identify/ beside the study's folder)")
+    p.add_argument("--truth", metavar="DIR",
+                   help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
+    _add_window_options(p)
+    p.set_defaults(func=_cmd_fit)
+
     p = sub.add_parser("compare", help="Wilcoxon matched-pairs signed-rank test of θ1 and θ2, MC vs SC")
     p.add_argument("estimates", help="estimates.parquet written by `scioc identify`")
     p.add_argument("--alpha", type=float, default=0.001, help="two-sided significance level (default 0.001)")
@@ -159,6 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="reports", metavar="DIR", help="where everything goes (default reports/)")
     p.add_argument("--subjects", type=int, default=42)
     p.add_argument("--seed", type=int, default=2018)
+    p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fit (minutes)")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("calibrate", help="simulation-based calibration (unit or study level), locally or on Dask")

@@ -124,11 +124,8 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, show_p
     import pymc as pm
 
     t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        # Observed-data conversion warns about the CustomDist's string dims; harmless.
-        warnings.simplefilter("ignore", UserWarning)
-        idata = pm.sample(draws=draws, tune=tune, chains=chains, random_seed=seed, nuts_sampler="nutpie",
-                          progressbar=show_progress, quiet=not show_progress, model=model)
+    idata = pm.sample(draws=draws, tune=tune, chains=chains, random_seed=seed, nuts_sampler="nutpie",
+                      progressbar=show_progress, quiet=not show_progress, model=model)
     t1 = time.perf_counter()
     pm.compute_log_likelihood(idata, model=model, progressbar=False)
     t2 = time.perf_counter()
@@ -262,14 +259,19 @@ def loo_comparison(idata, idata_pooled) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the k warning is reported below, with numbers
             res = az.loo(d, pointwise=True, var_name="u_H")
-        k = np.asarray(res.pareto_k).ravel()
+        k = np.asarray(res.pareto_k, dtype=float).ravel()
         good = float(res.good_k)
+        # A k that cannot be estimated (NaN: degenerate tail, e.g. repeated draws of a
+        # stuck chain) counts as above the threshold.
+        bad = ~(k <= good)
         pointwise[name] = np.asarray(res.elpd_i).ravel()
         out[name] = {
             "elpd_loo": float(res.elpd), "se": float(res.se), "p_loo": float(res.p),
-            "pareto_k": {"threshold": good, "max": float(k.max()), "median": float(np.median(k)),
-                         "n_le_0.5": int((k <= 0.5).sum()), f"n_gt_threshold": int((k > good).sum()),
-                         "n_gt_1": int((k > 1).sum()), "n": int(k.size)},
+            "pareto_k": {"threshold": good, "max": float(np.nanmax(k)) if np.isfinite(k).any() else float("nan"),
+                         "median": float(np.nanmedian(k)) if np.isfinite(k).any() else float("nan"),
+                         "n_le_0.5": int((k <= 0.5).sum()), "n_gt_threshold": int(bad.sum()),
+                         "n_gt_1": int((k > 1).sum()), "n_nan": int(np.isnan(k).sum()), "n": int(k.size),
+                         "by_segment": {str(s): float(v) for s, v in zip(res.pareto_k["segment"].values, k)}},
         }
     diff_i = pointwise["condition"] - pointwise["pooled"]
     n = diff_i.shape[0]
@@ -457,6 +459,21 @@ def _default_inputs(study_path: Path, estimates_path, truth_dir):
     return estimates_path, truth_dir
 
 
+def _json(obj) -> str:
+    """Strict JSON: non-finite numbers (an undefined k, a z of 0/0) become null."""
+
+    def clean(x):
+        if isinstance(x, float) and not np.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        return x
+
+    return json.dumps(clean(obj), indent=2, allow_nan=False) + "\n"
+
+
 def _write_netcdf(idata, path: Path) -> Path:
     with atomic_path(path) as tmp:
         idata.to_netcdf(tmp, engine="h5netcdf")
@@ -568,8 +585,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "note_timing": "wall-clock times on a shared machine: other jobs may have competed for the CPU",
         "versions": versions(),
     }
-    paths["sidecar"] = write_text_atomic(out / "posterior.json", json.dumps(sidecar, indent=2) + "\n")
-    paths["contrasts"] = write_text_atomic(out / "contrasts.json", json.dumps(res, indent=2) + "\n")
+    paths["sidecar"] = write_text_atomic(out / "posterior.json", _json(sidecar))
+    paths["contrasts"] = write_text_atomic(out / "contrasts.json", _json(res))
     return {k: str(v) for k, v in paths.items()}
 
 

@@ -367,8 +367,9 @@ def section_calibration(cal_dir: Path) -> str:
         if bad:
             txt += f"; negative control ({html.escape(str(bad['negative_control']))}): {verdict(bad)}"
             txt += " (it must fail)"
-        txt += (f". Total fitting time {good['fit_seconds_total']:.0f} s over all replications; wall time of the "
-                f"last invocation {good['wall_seconds_this_run']:.0f} s.</p>")
+        wall = good.get("wall_seconds_total", good["wall_seconds_this_run"])
+        txt += (f". Measured wall time {wall:.0f} s on the local cluster (sum of the per-replication fitting times "
+                f"{good['fit_seconds_total']:.0f} s); {good['divergences']} divergent transitions in all fits.</p>")
         parts.append(txt)
         rows = []
         for tag, sm in (("correct", good), ("negative control", bad)):
@@ -456,6 +457,11 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     body.append("<h2>Identified parameters and the paper's test</h2>")
     body.append(section_histogram(est))
     body.append(section_wilcoxon(cmp) if cmp else "<p class='note'>No compare.json: run `scioc compare`.</p>")
+    if (root / "fit").exists():
+        from pipelines.report_bayes import section_bayes
+
+        body.append("<h2>Hierarchical Bayesian model</h2>")
+        body.append(section_bayes(root))
     body.append("<h2>Model validation (Fig. 6)</h2>")
     if traj is not None:
         body.append(section_fig6(traj, subject))

@@ -40,21 +40,31 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
 
 
 def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int = DEFAULT_SUBJECTS,
-            seed: int = DEFAULT_SEED, settings: IdentifySettings = IdentifySettings()) -> Path:
-    """Run every stage on the simulated study; returns the report's path."""
+            seed: int = DEFAULT_SEED, settings: IdentifySettings = IdentifySettings(), fit: bool = True) -> Path:
+    """Run every stage on the simulated study; returns the report's path.
+
+    ``fit=False`` skips the hierarchical Bayesian fit (minutes) for quick looks.
+    """
     from pipelines.report import build_report
 
     root = Path(out) / name
+    steps = 6 if fit else 5
     t0 = time.perf_counter()
-    log(f"[1/5] simulating {n_subjects} subjects × 2 conditions × 4 min (seed {seed}) -> {root / 'data'}")
+    log(f"[1/{steps}] simulating {n_subjects} subjects × 2 conditions × 4 min (seed {seed}) -> {root / 'data'}")
     sim = simulate_to_dir(root / "data", n_subjects=n_subjects, seed=seed)
-    log("[2/5] identifying every subject × condition from the encoder angle")
+    log(f"[2/{steps}] identifying every subject × condition from the encoder angle")
     identify_to_dir(sim["study"], root / "identify", settings)
-    log("[3/5] identifying again from the true torques (the cost of reconstruction)")
+    log(f"[3/{steps}] identifying again from the true torques (the cost of reconstruction)")
     identify_with_truth(sim["study"], sim["truth_trajectories"], root / "identify_true_torque", settings)
-    log("[4/5] Wilcoxon matched-pairs test MC vs SC")
+    log(f"[4/{steps}] Wilcoxon matched-pairs test MC vs SC")
     compare_to_file(root / "identify" / "estimates.parquet", root / "compare.json")
-    log("[5/5] writing the report")
+    if fit:
+        from pipelines.fit import fit_to_dir
+
+        log(f"[5/{steps}] hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
+        fit_to_dir(sim["study"], root / "fit", seed=seed, settings=settings, truth_dir=root / "data",
+                   estimates_path=root / "identify" / "estimates.parquet", show_progress=True)
+    log(f"[{steps}/{steps}] writing the report")
     report = build_report(root)
     log(f"done in {time.perf_counter() - t0:.0f} s")
     log(f"report: {report}")

@@ -24,7 +24,7 @@ import numpy as np
 from models.maxent import Segment, prepare_batch, sample_maxent
 from models.plant import DT_HUMAN, WheelParameters, discretize
 from models.reference import WINDOW_START, reference_trajectory
-from models.sbc import central_coverage, rank, thin
+from models.sbc import rank, thin
 
 _CACHE: dict = {}
 #: Relative error of the inertia in the ``inertia`` negative control.
@@ -104,13 +104,12 @@ def unit_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     post = trace["posterior"]
     prior_var = _prior_variances(prior)
     out = {"condition": condition, "truth": {k: truth[k] for k in UNIT_PARAMETERS},
-           "ranks": {}, "pit_u": {}, "coverage": {}, "ess": {}, "contraction": {}}
+           "ranks": {}, "pit_u": {}, "ess": {}, "contraction": {}}
     for name in UNIT_PARAMETERS:
         draws = np.asarray(post[name].values, dtype=float)
         kept, ess = thin(draws, config.L)
         out["ranks"][name] = rank(kept, truth[name])
         out["pit_u"][name] = float(rng.uniform())
-        out["coverage"][name] = central_coverage(kept, truth[name]).tolist()
         out["ess"][name] = ess
         out["contraction"][name] = float(1.0 - draws.var() / prior_var[name])
     out["divergences"] = int(np.asarray(trace["sample_stats"]["diverging"].values).sum())

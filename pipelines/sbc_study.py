@@ -20,7 +20,7 @@ import numpy as np
 
 from models.maxent import Segment, prepare_batch, sample_maxent
 from models.plant import DT_HUMAN, discretize
-from models.sbc import central_coverage, rank, thin
+from models.sbc import rank, thin
 from pipelines.sbc_replications import _CACHE, _fit_plant, _reference
 
 #: Population parameters ranked.
@@ -123,7 +123,7 @@ def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
                           seed=int(rng.integers(2**62)), progress_bar=False)
     post = trace["posterior"]
     prior_var = _prior_variances(config)
-    out = {"truth": {}, "ranks": {}, "pit_u": {}, "coverage": {}, "ess": {}, "contraction": {}}
+    out = {"truth": {}, "ranks": {}, "pit_u": {}, "ess": {}, "contraction": {}}
     targets = [(n, n, None) for n in POPULATION] + [(f"{v}[0,{c}]", v, c) for v, c in UNITS]
     for label, var, c in targets:
         draws = np.asarray(post[var].values, dtype=float)
@@ -135,7 +135,6 @@ def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
         out["truth"][label] = true
         out["ranks"][label] = rank(kept, true)
         out["pit_u"][label] = float(rng.uniform())
-        out["coverage"][label] = central_coverage(kept, true).tolist()
         out["ess"][label] = ess
         out["contraction"][label] = float(1.0 - draws.var() / prior_var[label])
     out["divergences"] = int(np.asarray(trace["sample_stats"]["diverging"].values).sum())

@@ -304,3 +304,42 @@ def test_small_fit_recovers_known_parameters(plant):
     lr = hdi["log_R"].transpose("subject", "condition", ...).values  # (subject, condition, 2)
     covered = (lr[..., 0] <= study.log_R) & (study.log_R <= lr[..., 1])
     assert covered.sum() >= MIN_UNITS_COVERED, covered
+
+
+def test_pooled_model_is_priors_plus_likelihood_without_condition_effects(plant):
+    """condition_effects=False: no β, σ_β; log θ1 = m_i in both conditions; log R and θ2 as before."""
+    subjects, conditions, segs = small_study(plant)
+    batch = prepare_batch(plant, segs)
+    index = index_study(subjects, conditions)
+    priors = Priors()
+    model = build_model(subjects, conditions, batch, plant, priors=priors, condition_effects=False)
+    names = {rv.name for rv in model.free_RVs}
+    assert not names & {"beta", "sigma_beta", "z_log_theta1_SC"}
+    assert {"log_theta1_mean", "beta_log_R", "sigma_beta_log_R", "log_R_SC", "z_theta2"} <= names
+    n = len(index.subjects)
+    rng = np.random.default_rng(36)
+    v = _raw_point(rng, n, Parameterization())
+    v["log_theta1_mean"] = np.log(40.0) + 0.4 * rng.standard_normal(n)
+    point = {}
+    for rv in model.free_RVs:
+        value_name = model.rvs_to_values[rv].name
+        point[value_name] = np.log(v[rv.name]) if value_name.endswith("_log__") else np.asarray(v[rv.name], float)
+    N, HN = stats.norm.logpdf, stats.halfnorm.logpdf
+    lp = N(v["mu_log_theta1"], *priors.mu_log_theta1) + HN(v["sigma_log_theta1"], scale=priors.sigma_log_theta1)
+    lp += N(v["mu_log_R"], *priors.mu_log_R) + N(v["beta_log_R"], 0, priors.beta_log_R_sd)
+    lp += HN(v["sigma_log_R"], scale=priors.sigma_log_R) + HN(v["sigma_beta_log_R"], scale=priors.sigma_beta_log_R)
+    lp += HN(v["tau_theta2"], scale=priors.tau_theta2)
+    m = v["log_theta1_mean"]
+    lp += N(m, v["mu_log_theta1"], v["sigma_log_theta1"]).sum()
+    lp += N(v["log_R_MC"], v["mu_log_R"], v["sigma_log_R"]).sum()
+    lp += N(v["log_R_SC"], v["log_R_MC"] + v["beta_log_R"], v["sigma_beta_log_R"]).sum()
+    lp += HN(v["z_theta2"]).sum()
+    s, c = index.subject_idx, index.condition_idx
+    log_R = np.column_stack([v["log_R_MC"], v["log_R_SC"]])[s, c]
+    R = np.exp(log_R)
+    theta = np.array([np.exp(m[s]) * R, (v["tau_theta2"] * v["z_theta2"])[s, c] * R, R])
+    lp += loglik_grad(theta, batch, plant).loglik.sum()
+    # fastmath reassociation in the numba backend: a few 1e-12 relative (as above).
+    assert model.compile_logp(jacobian=False)(point) == pytest.approx(lp, rel=1e-10)
+    lt1 = pm.draw(model["log_theta1"], random_seed=37)
+    np.testing.assert_array_equal(lt1[:, 0], lt1[:, 1])

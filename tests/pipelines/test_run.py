@@ -14,7 +14,8 @@ from pipelines.io import StudyFileError, load_study
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("run")
-    assert main(["run", "--out", str(out), "--subjects", "6", "--seed", "11"]) == 0
+    # The Bayesian fit has its own end-to-end test (tests/pipelines/test_fit.py).
+    assert main(["run", "--out", str(out), "--subjects", "6", "--seed", "11", "--skip-fit"]) == 0
     return out / "default-study"
 
 

@@ -1,0 +1,149 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+#   kernelspec:
+#     display_name: Python 3 (ipykernel)
+#     language: python
+#     name: python3
+# ---
+
+# %% [markdown]
+# # Posterior diagnostics of the hierarchical fit
+#
+# Reads the artifacts of `scioc fit` (it never refits): `posterior.nc` (model with
+# condition effects), `posterior_pooled.nc` (β = 0) and the sidecar `posterior.json`
+# beside them. Set `SCIOC_POSTERIOR` to another `posterior.nc` to inspect that fit;
+# the default is the one `scioc fit` writes for the default study.
+#
+# Steps: the sampler's own statistics and the verdict, then trace, rank, energy, pair
+# and forest plots (ArviZ, matplotlib backend), then the PSIS-LOO comparison with its
+# Pareto k diagnostics.
+
+# %%
+import json
+import os
+import warnings
+from pathlib import Path
+
+import arviz as az
+import arviz_plots as azp
+import matplotlib.pyplot as plt
+import numpy as np
+
+POSTERIOR = Path(os.environ.get("SCIOC_POSTERIOR", "reports/default-study/fit/posterior.nc"))
+POOLED = POSTERIOR.with_name("posterior_pooled.nc")
+SIDECAR = POSTERIOR.with_name("posterior.json")
+POPULATION = ["mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R",
+              "sigma_log_R", "sigma_beta_log_R", "tau_theta2"]
+BACKEND = "matplotlib"
+
+idata = az.from_netcdf(POSTERIOR)
+print(f"posterior: {POSTERIOR}")
+print(idata)
+
+# %% [markdown]
+# ## Sampler statistics and the verdict
+#
+# The sidecar holds the verdict against the acceptance criteria (no divergence,
+# R-hat ≤ 1.01, bulk and tail ESS ≥ 400 for every population parameter). The table is
+# recomputed here from the draws. Select the variables *before* calling ArviZ (its
+# `var_names` filter on a Dataset changes later results in arviz-stats 1.x).
+
+# %%
+if SIDECAR.exists():
+    side = json.loads(SIDECAR.read_text())
+    print("seed", side["seed"], "| sampler", side["sampler"])
+    for name, verdict in side["verdict"].items():
+        print(f"{name}: {verdict}")
+post = idata["posterior"].to_dataset()[POPULATION]
+table = az.summary(post, ci_prob=0.94)
+print(table)
+ss = idata["sample_stats"].to_dataset()
+print("divergences:", int(ss["diverging"].sum()), "| max tree depth:", int(ss["depth"].max()),
+      "| E-BFMI per chain:", np.round(np.atleast_1d(az.bfmi(idata)["energy"].values), 3))
+
+# %% [markdown]
+# ## Trace plots
+#
+# Each chain's draws (right) and their densities (left) for the population parameters;
+# divergent transitions are marked on the draw axis.
+
+# %%
+azp.plot_trace_dist(idata, var_names=POPULATION, backend=BACKEND)
+plt.show()
+
+# %% [markdown]
+# ## Rank plots
+#
+# The ranks of every chain's draws among all chains should be uniform: the fractional
+# rank ECDF of each chain stays inside the envelope when the chains mix.
+
+# %%
+azp.plot_rank(idata, var_names=POPULATION, backend=BACKEND)
+plt.show()
+
+# %% [markdown]
+# ## Energy
+#
+# Marginal energy against energy transitions: similar widths (E-BFMI above 0.3) mean
+# the momentum resampling explores the energy levels the posterior needs.
+
+# %%
+azp.plot_energy(idata, backend=BACKEND)
+plt.show()
+
+# %% [markdown]
+# ## Pair plot
+#
+# β against the spread of the change σ_β and the MC mean μ: σ_β's lower end is the
+# funnel-shaped region the non-centred change is there to sample.
+
+# %%
+azp.plot_pair(idata, var_names=["beta", "sigma_beta", "mu_log_theta1"], backend=BACKEND)
+plt.show()
+
+# %% [markdown]
+# ## Forest plots
+#
+# The population parameters, then each subject's MC→SC change of log θ1
+# (log θ1[SC] − log θ1[MC]), with their 94 % HDIs.
+
+# %%
+azp.plot_forest(idata, var_names=["beta", "sigma_beta", "beta_log_R", "sigma_beta_log_R"], backend=BACKEND)
+plt.show()
+
+lt1 = idata["posterior"]["log_theta1"]
+change = (lt1.sel(condition="SC") - lt1.sel(condition="MC")).rename("change_log_theta1")
+azp.plot_forest(change.to_dataset(), backend=BACKEND)
+plt.show()
+
+# %% [markdown]
+# ## PSIS-LOO: condition effects against the pooled model
+#
+# One log-likelihood value per segment (a subject in one condition). Leaving a segment
+# out removes all the data on that unit's θ, so large Pareto k are expected: the k
+# plot says which segments' estimates to distrust, and the ELPD difference is
+# indicative only when many k exceed the threshold.
+
+# %%
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    loo_cond = az.loo(idata, pointwise=True, var_name="u_H")
+print(loo_cond)
+azp.plot_khat(loo_cond, backend=BACKEND)
+plt.show()
+
+if POOLED.exists():
+    pooled = az.from_netcdf(POOLED)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cmp = az.compare({"condition effects": idata, "pooled (beta = 0)": pooled})
+    print(cmp)
+    azp.plot_compare(cmp, backend=BACKEND)
+    plt.show()
+else:
+    print(f"no pooled fit at {POOLED}")

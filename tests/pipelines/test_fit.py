@@ -1,0 +1,217 @@
+"""``scioc fit`` end to end on a small simulated study: artifacts, sidecar, contrasts, seeds,
+the diagnostics notebook, the report section and the design errors."""
+
+import argparse
+import json
+import re
+from html import unescape
+from pathlib import Path
+
+import arviz as az
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipelines import cli
+from pipelines.fit import ESS_MIN, RHAT_MAX, add_fit_parser, fit_to_dir, mixedlm_check
+from pipelines.identify import identify_to_dir
+from pipelines.io import write_table_atomic
+from pipelines.report_bayes import section_bayes
+from pipelines.simulate import simulate_to_dir
+
+#: A fit small enough for the test suite: the samplers are not meant to converge here
+#: (the numbers are checked for consistency, not for quality).
+NOTEBOOK = Path(__file__).resolve().parents[2] / "reports" / "notebooks" / "posterior_diagnostics.py"
+SMALL = {"seed": 3, "chains": 2, "draws": 100, "tune": 200}
+N_SUBJECTS = 6
+
+
+@pytest.fixture(scope="module")
+def small_fit(tmp_path_factory):
+    """6 simulated subjects, identified (for the mixed model) and fitted, in the layout of ``scioc run``."""
+    root = tmp_path_factory.mktemp("fit") / "study"
+    sim = simulate_to_dir(root / "data", n_subjects=N_SUBJECTS, seed=11)
+    identify_to_dir(sim["study"], root / "identify", show_progress=False)
+    paths = fit_to_dir(sim["study"], root / "fit", **SMALL)
+    return root, sim, paths
+
+
+def _cli_main(argv):
+    """``scioc`` with ``fit`` added (as the lead wires it into pipelines/cli.py)."""
+    original = cli.build_parser
+
+    def build_parser():
+        parser = original()
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        if "fit" not in sub.choices:
+            add_fit_parser(sub)
+        return parser
+
+    cli.build_parser = build_parser
+    try:
+        return cli.main(argv)
+    finally:
+        cli.build_parser = original
+
+
+@pytest.mark.slow
+def test_fit_writes_posteriors_sidecar_and_contrasts(small_fit):
+    root, _, paths = small_fit
+    fit = root / "fit"
+    assert set(paths) == {"posterior", "posterior_pooled", "ppc", "sidecar", "contrasts"}
+    idata = az.from_netcdf(fit / "posterior.nc")
+    pooled = az.from_netcdf(fit / "posterior_pooled.nc")
+    for d in (idata, pooled):
+        assert {"posterior", "sample_stats", "log_likelihood", "observed_data"} <= set(d.children)
+        ll = d["log_likelihood"]["u_H"]
+        assert ll.dims == ("chain", "draw", "segment") and ll.shape == (2, 100, 2 * N_SUBJECTS)
+    assert "beta" in idata["posterior"] and "beta" not in pooled["posterior"]
+    lt1 = pooled["posterior"]["log_theta1"]
+    np.testing.assert_array_equal(lt1.sel(condition="MC").values, lt1.sel(condition="SC").values)
+
+    side = json.loads((fit / "posterior.json").read_text())
+    assert {"seed", "seeds", "sampler", "identify_settings", "criteria", "diagnostics", "verdict", "seconds",
+            "versions", "inputs"} <= set(side)
+    assert side["seed"] == SMALL["seed"] and side["sampler"]["draws"] == 100 and side["sampler"]["chains"] == 2
+    assert side["versions"]["nutpie"] and side["versions"]["pymc"]
+    for name in ("condition", "pooled"):
+        d = side["diagnostics"][name]
+        assert {"divergences", "ebfmi", "max_tree_depth", "mean_steps_per_draw"} <= set(d["sampler"])
+        assert len(d["sampler"]["ebfmi"]) == 2
+        pop = d["population"]
+        assert {"mu_log_theta1", "sigma_log_theta1", "mu_log_R", "tau_theta2"} <= set(pop)
+        assert ("beta" in pop) == (name == "condition")
+        # The verdict is exactly the three criteria applied to the numbers beside it.
+        expected = (d["sampler"]["divergences"] == 0
+                    and all(p["rhat"] <= RHAT_MAX for p in pop.values())
+                    and all(min(p["ess_bulk"], p["ess_tail"]) >= ESS_MIN for p in pop.values()))
+        assert d["passed"] == expected
+        assert side["verdict"][name] == d["verdict"] and d["verdict"].startswith("pass" if expected else "fail")
+        assert side["seconds"][name]["sample_s"] > 0
+    # 2 × 100 draws cannot give 400 effective draws: this fit must fail its verdict.
+    assert not side["diagnostics"]["condition"]["passed"]
+
+    res = json.loads((fit / "contrasts.json").read_text())
+    beta = idata["posterior"]["beta"].values.ravel()
+    b = res["beta"]
+    assert b["mean"] == pytest.approx(beta.mean(), rel=1e-12)
+    assert b["p_negative"] == pytest.approx((beta < 0).mean())
+    assert b["hdi"][0] < b["mean"] < b["hdi"][1]
+    # At least 94 % of the draws (rounded up) lie in the HDI.
+    assert ((beta >= b["hdi"][0]) & (beta <= b["hdi"][1])).sum() >= int(np.ceil(0.94 * beta.size))
+    assert np.exp(b["hdi"][0]) <= res["ratio"]["median"] <= np.exp(b["hdi"][1])
+    assert [s["subject"] for s in res["subjects"]] == [f"S{i:02d}" for i in range(1, N_SUBJECTS + 1)]
+    loo = res["loo"]
+    assert loo["condition"]["pareto_k"]["n"] == 2 * N_SUBJECTS
+    assert loo["difference"]["elpd_diff"] == pytest.approx(loo["condition"]["elpd_loo"] - loo["pooled"]["elpd_loo"])
+    assert isinstance(loo["difference"]["reliable"], bool)
+    mm = res["mixedlm"]
+    assert mm["ci95"][0] < mm["coef"] < mm["ci95"][1] and 0 <= mm["p_value"] <= 1 and mm["n_obs"] == 2 * N_SUBJECTS
+    tr = res["truth"]
+    assert tr["beta"]["truth"] == -0.7
+    assert tr["beta"]["in_hdi"] == (b["hdi"][0] <= -0.7 <= b["hdi"][1])
+    assert tr["subjects"]["n"] == N_SUBJECTS
+
+    ppc = pd.read_parquet(fit / "ppc.parquet")
+    assert res["ppc"]["subject"] == "S03" and set(ppc.subject) == {"S03"}
+    assert sorted(ppc.condition.unique()) == ["MC", "SC"] and len(ppc) == 2 * 1501
+    u = ppc.dropna(subset=["u_H_q05"])
+    assert len(u) == 2 * 1500
+    assert (u.u_H_q05 <= u.u_H_q50).all() and (u.u_H_q50 <= u.u_H_q95).all()
+    assert (ppc.angle_q05 <= ppc.angle_q95).all()
+
+
+@pytest.mark.slow
+def test_same_seed_same_results(small_fit, tmp_path):
+    root, sim, _ = small_fit
+    fit_to_dir(sim["study"], tmp_path / "again", **SMALL)
+    a, b = az.from_netcdf(root / "fit" / "posterior.nc"), az.from_netcdf(tmp_path / "again" / "posterior.nc")
+    for v in ("beta", "log_theta1", "log_R", "theta2"):
+        np.testing.assert_array_equal(a["posterior"][v].values, b["posterior"][v].values)
+    np.testing.assert_array_equal(a["log_likelihood"]["u_H"].values, b["log_likelihood"]["u_H"].values)
+    assert (json.loads((root / "fit" / "contrasts.json").read_text())
+            == json.loads((tmp_path / "again" / "contrasts.json").read_text()))
+    pd.testing.assert_frame_equal(pd.read_parquet(root / "fit" / "ppc.parquet"),
+                                  pd.read_parquet(tmp_path / "again" / "ppc.parquet"))
+
+
+@pytest.mark.slow
+def test_diagnostics_notebook_runs_on_the_fit(small_fit, tmp_path, monkeypatch):
+    import jupytext
+    from ipykernel.kernelspec import write_kernel_spec
+    from nbclient import NotebookClient
+
+    root, _, _ = small_fit
+    # A kernel spec for this very interpreter, whatever the machine has installed.
+    write_kernel_spec(tmp_path / "kernels" / "scioc-test", overrides={"display_name": "scioc test"})
+    monkeypatch.setenv("JUPYTER_PATH", str(tmp_path))
+    monkeypatch.setenv("SCIOC_POSTERIOR", str(root / "fit" / "posterior.nc"))
+    nb = jupytext.read(NOTEBOOK)
+    NotebookClient(nb, kernel_name="scioc-test", timeout=300, resources={"metadata": {"path": str(tmp_path)}}).execute()
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert not [o for o in outputs if o.output_type == "error"]
+    images = [o for o in outputs if o.output_type == "display_data" and "image/png" in o.get("data", {})]
+    # trace, rank, energy, pair, two forests, k-hat and the comparison
+    assert len(images) == 8
+    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    assert "elpd_loo" in text and "beta" in text
+
+
+@pytest.mark.slow
+def test_report_section_reads_the_fit(small_fit, tmp_path):
+    root, _, _ = small_fit
+    html = unescape(section_bayes(root))
+    for phrase in ("paper's test (Wilcoxon)", "Bayesian contrast", "mixed model", "Verdict", "PSIS-LOO",
+                   "Posterior predictive check", "Ground truth check", "true β = -0.7"):
+        assert phrase in html, phrase
+    assert html.count("<img") == 2  # the forest plot and the predictive bands
+    assert "No Bayesian fit" in section_bayes(tmp_path)
+
+
+def test_mixedlm_of_a_balanced_paired_design_is_the_paired_mean_difference():
+    """Closed form: with two observations per subject, the REML fixed effect of SC is the mean
+    paired difference of log θ1 and its SE is SD(d)/√n (the paired t-test), when the subject
+    variance is not at its boundary."""
+    rng = np.random.default_rng(7)
+    n = 30
+    a = rng.normal(3.0, 0.5, n)
+    d = rng.normal(-0.7, 0.2, n)
+    est = pd.DataFrame({"subject": np.repeat([f"S{i}" for i in range(n)], 2), "condition": ["MC", "SC"] * n,
+                        "theta1": np.exp(np.column_stack([a, a + d]).ravel())})
+    mm = mixedlm_check(est)
+    assert mm["coef"] == pytest.approx(d.mean(), rel=1e-6)
+    # The optimizer stops at a tolerance of its own: agreement to 1e-4 relative.
+    assert mm["se"] == pytest.approx(d.std(ddof=1) / np.sqrt(n), rel=1e-4)
+    assert mm["ratio"] == pytest.approx(np.exp(d.mean()), rel=1e-6)
+
+
+@pytest.fixture(scope="module")
+def tiny_study(tmp_path_factory):
+    root = tmp_path_factory.mktemp("bad")
+    sim = simulate_to_dir(root / "data", n_subjects=3, seed=12)
+    return pd.read_parquet(sim["study"]), root
+
+
+@pytest.mark.parametrize("drop, message", [
+    (lambda t: (t.subject == "S02") & (t.condition == "SC"), r"subject 'S02' has no SC segment"),
+    (lambda t: t.condition == "SC", r"no SC segments at all"),
+], ids=["one-subject-without-SC", "no-SC-at-all"])
+def test_bad_design_is_a_clear_cli_error(tiny_study, drop, message, capsys):
+    table, root = tiny_study
+    path = write_table_atomic(table[~drop(table)], root / "bad.parquet")
+    out = root / "out"
+    with pytest.raises(ValueError, match=message):
+        fit_to_dir(path, out, chains=1, draws=10, tune=10)
+    assert _cli_main(["fit", str(path), "--out", str(out), "--draws", "10", "--tune", "10"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("scioc fit: error:") and re.search(message, err)
+    assert not out.exists()
+
+
+def test_fit_options_are_validated(tiny_study):
+    table, root = tiny_study
+    with pytest.raises(ValueError, match="--draws must be an integer >= 1"):
+        fit_to_dir(root / "data" / "study.parquet", root / "x", draws=0)
+    with pytest.raises(ValueError, match="--subject 'S99' is not in the study"):
+        fit_to_dir(root / "data" / "study.parquet", root / "x", subject="S99", draws=1)
+    assert not (root / "x").exists()

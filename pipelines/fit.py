@@ -474,6 +474,16 @@ def _json(obj) -> str:
     return json.dumps(clean(obj), indent=2, allow_nan=False) + "\n"
 
 
+def _require_netcdf() -> None:
+    """Fail before minutes of sampling, not after, if NetCDF cannot be written."""
+    try:
+        import h5netcdf  # noqa: F401
+        import h5py  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(f"writing posterior.nc needs the packages h5netcdf and h5py ({exc}); "
+                          "install them with `pip install h5netcdf h5py`") from exc
+
+
 def _write_netcdf(idata, path: Path) -> Path:
     with atomic_path(path) as tmp:
         idata.to_netcdf(tmp, engine="h5netcdf")
@@ -521,6 +531,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         of :func:`models.hierarchical.index_study`), a malformed file, or an unknown
         ``subject``; nothing is written then.
     """
+    _require_netcdf()
     for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
         if int(v) != v or v < low:
             raise ValueError(f"--{name} must be an integer >= {low}; got {v!r}")

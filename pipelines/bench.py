@@ -209,8 +209,12 @@ def format_identify(res: dict) -> str:
     return "\n".join(lines)
 
 
-def bench_sbc(n_reps: int = 40, seed: int = 99) -> dict:
-    """Unit-level SBC throughput with one and with two local Dask workers (wall time incl. start-up)."""
+def bench_sbc(n_reps: int = 200, seed: int = 99) -> dict:
+    """Unit-level SBC throughput with one and with two local Dask workers.
+
+    Wall time includes starting the cluster and compiling the model once per worker (about
+    15 s), so ``n_reps`` is large enough for the fits to dominate.
+    """
     import tempfile
 
     from pipelines.calibrate import CalibrationConfig, calibrate

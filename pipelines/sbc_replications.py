@@ -1,7 +1,10 @@
 """One SBC replication per call: draw the truth, simulate exactly, fit, rank.
 
 Runs inside Dask workers. Compiled models are cached per worker process (compiling takes
-seconds, a unit fit a fraction of one), keyed by everything that changes the graph.
+seconds, a unit fit a fraction of one), keyed by everything that changes the graph. Each
+fit runs its chains one after the other (``cores=1``): the parallelism is across
+replications, one worker per core; nutpie's chains are seeded each on their own, so the
+draws do not depend on this.
 
 Unit level: θ ~ :class:`models.unit_model.UnitPrior`; one exact max-ent demonstration
 over the study's 15-s analysis window (the fixed reference) from rest at the reference;
@@ -100,7 +103,7 @@ def unit_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     compiled = _compiled_unit(K, config.negative_control).with_data(x1=batch.x1, x2=batch.x2, r=batch.r,
                                                                     u=batch.u, a=batch.a)
     trace = nutpie.sample(compiled, chains=config.chains, tune=config.tune, draws=config.draws,
-                          seed=int(rng.integers(2**62)), progress_bar=False)
+                          seed=int(rng.integers(2**62)), cores=1, progress_bar=False)
     post = trace["posterior"]
     prior_var = _prior_variances(prior)
     out = {"condition": condition, "truth": {k: truth[k] for k in UNIT_PARAMETERS},

@@ -120,7 +120,7 @@ def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     compiled = _compiled(config, config.negative_control).with_data(
         x1=batch.x1, x2=batch.x2, r=batch.r, u=batch.u, a=batch.a)
     trace = nutpie.sample(compiled, chains=config.chains, tune=config.tune, draws=config.draws,
-                          seed=int(rng.integers(2**62)), progress_bar=False)
+                          seed=int(rng.integers(2**62)), cores=1, progress_bar=False)
     post = trace["posterior"]
     prior_var = _prior_variances(config)
     out = {"truth": {}, "ranks": {}, "pit_u": {}, "ess": {}, "contraction": {}}

@@ -158,6 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--draws", type=int, default=1000, help="draws kept per chain (default 1000)")
     p.add_argument("--tune", type=int, default=500, help="warm-up draws per chain (default 500)")
     p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
+    p.add_argument("--cores", type=int, help="chains sampled in parallel (default: all CPUs)")
     p.add_argument("--estimates", metavar="PATH",
                    help="estimates.parquet for the mixed-model check (default: ../identify/ beside the study's folder)")
     p.add_argument("--truth", metavar="DIR",

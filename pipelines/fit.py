@@ -28,7 +28,6 @@ draws and numbers (file bytes differ only by the time stamps NetCDF attributes c
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import time
@@ -636,35 +635,13 @@ def format_fit(out) -> str:
 # --------------------------------------------------------------------------- CLI hook
 
 
-def add_fit_parser(subparsers) -> argparse.ArgumentParser:
-    """Add ``scioc fit`` to the subparsers of the ``scioc`` command line."""
-    from pipelines.cli import _add_window_options
-
-    p = subparsers.add_parser("fit", help="hierarchical Bayesian fit (nutpie): β with HDI, diagnostics, LOO")
-    p.add_argument("study", help="study file in the data convention")
-    p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--seed", type=int, default=2018)
-    p.add_argument("--chains", type=int, default=4)
-    p.add_argument("--draws", type=int, default=1000, help="draws kept per chain (default 1000)")
-    p.add_argument("--tune", type=int, default=500, help="warm-up draws per chain (default 500)")
-    p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
-    p.add_argument("--cores", type=int, help="chains sampled in parallel (default: all CPUs)")
-    p.add_argument("--estimates", metavar="PATH",
-                   help="estimates.parquet for the mixed-model check (default: ../identify/ beside the study's folder)")
-    p.add_argument("--truth", metavar="DIR",
-                   help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
-    _add_window_options(p)
-    p.set_defaults(func=cmd_fit)
-    return p
-
-
 def cmd_fit(args) -> int:
     """Run ``scioc fit``; errors (ValueError, OSError) propagate to ``scioc``'s exit code 2."""
     from pipelines.cli import _window
 
     paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
                        settings=_window(args), subject=args.subject, estimates_path=args.estimates,
-                       truth_dir=args.truth, cores=getattr(args, "cores", None), show_progress=True)
+                       truth_dir=args.truth, cores=args.cores, show_progress=True)
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")
@@ -672,5 +649,5 @@ def cmd_fit(args) -> int:
 
 
 __all__ = ["fit_to_dir", "prepare_study", "sample_model", "diagnostics", "contrasts", "loo_comparison",
-           "mixedlm_check", "truth_check", "posterior_predictive", "ppc_coverage", "add_fit_parser", "cmd_fit",
+           "mixedlm_check", "truth_check", "posterior_predictive", "ppc_coverage", "cmd_fit",
            "format_fit"]

@@ -1,7 +1,6 @@
 """``scioc fit`` end to end on a small simulated study: artifacts, sidecar, contrasts, seeds,
 the diagnostics notebook, the report section and the design errors."""
 
-import argparse
 import json
 import re
 from html import unescape
@@ -13,7 +12,7 @@ import pandas as pd
 import pytest
 
 from pipelines import cli
-from pipelines.fit import ESS_MIN, RHAT_MAX, add_fit_parser, fit_to_dir, mixedlm_check
+from pipelines.fit import ESS_MIN, RHAT_MAX, fit_to_dir, mixedlm_check
 from pipelines.identify import identify_to_dir
 from pipelines.io import write_table_atomic
 from pipelines.report_bayes import section_bayes
@@ -37,21 +36,8 @@ def small_fit(tmp_path_factory):
 
 
 def _cli_main(argv):
-    """``scioc`` with ``fit`` added (as the lead wires it into pipelines/cli.py)."""
-    original = cli.build_parser
-
-    def build_parser():
-        parser = original()
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        if "fit" not in sub.choices:
-            add_fit_parser(sub)
-        return parser
-
-    cli.build_parser = build_parser
-    try:
-        return cli.main(argv)
-    finally:
-        cli.build_parser = original
+    """The ``scioc`` command line, as a newcomer calls it."""
+    return cli.main(argv)
 
 
 @pytest.mark.slow

@@ -1,9 +1,15 @@
 """The MPC haptic assistant (paper Section IV-D) and the 100-Hz closed-loop simulator.
 
-Every ``T_C = 0.02`` s the assistant solves Eq. 19 over ``N_P = 50`` steps of the
-0.02-s discretization with θ_A = [5, 0, 1], predicting the wheel with u_H = 0 and
-previewing the reference ``r(t + j T_C)``, j = 1..N_P; it applies the first torque and
-holds it for two 10-ms samples.
+The assistant solves Eq. 19 over ``N_P = 50`` steps of the ``T_C = 0.02``-s
+discretization with θ_A = [5, 0, 1], predicting the wheel with u_H = 0 and previewing
+the reference ``r(t + j T_C)``, j = 1..N_P, and applies the first torque. The paper
+gives the prediction grid, not how often the real-time loop re-solves; we re-solve at
+every 10-ms sample of the 100-Hz loop (``period=0.01``, receding horizon). The
+assistant then acts on the wheel as a time-invariant state feedback plus a feedforward
+from the reference, which a human who knows it feels as a changed wheel (an added
+spring and damper) and which the human model of :mod:`models.maxent` can plan with
+exactly. ``period=0.02`` (compute every 20 ms, hold for two samples) is available for
+the simulator.
 
 Eq. 19 is an unconstrained LQ tracking problem whose horizon and weights never
 change, so its first optimal torque is a fixed linear function of the current state
@@ -25,6 +31,7 @@ from numba import njit
 
 from models.cost import validate_theta
 from models.lq import lq_policy
+from models.maxent import Feedback
 from models.plant import DT_ASSISTANT, DT_HUMAN, DiscretePlant, WheelParameters, discretize
 
 #: The assistant's cost θ_A = [q11, q22, R] (Section IV-D: "slight assistance").
@@ -43,7 +50,9 @@ class MPCAssistant(NamedTuple):
     preview_weights : ndarray, shape (N_P,)
         Weights on the previewed reference angles r(t + j T_C), j = 1..N_P, N·m/rad.
     hold : int
-        Human samples per assistant sample (T_C / dt = 2).
+        Samples between two solutions, for which the torque is held (1: every sample).
+    stride : int
+        Samples per prediction step (T_C / dt = 2): r(t + j T_C) is sample k + stride·j.
     theta : ndarray, shape (3,)
         θ_A.
     plant : DiscretePlant
@@ -53,6 +62,7 @@ class MPCAssistant(NamedTuple):
     gain: np.ndarray
     preview_weights: np.ndarray
     hold: int
+    stride: int
     theta: np.ndarray
     plant: DiscretePlant
 
@@ -63,6 +73,7 @@ def design_assistant(
     dt_assistant: float = DT_ASSISTANT,
     dt: float = DT_HUMAN,
     params: WheelParameters = WheelParameters(),
+    period: float = DT_HUMAN,
 ) -> MPCAssistant:
     """Precompute the MPC law of Eq. 19.
 
@@ -79,6 +90,9 @@ def design_assistant(
         a whole multiple of it.
     params : WheelParameters
         Table I by default (the assistant's internal model).
+    period : float
+        How often the assistant re-solves, s (default 0.01: every sample); a whole
+        multiple of ``dt``. The torque is held in between.
 
     Returns
     -------
@@ -87,9 +101,12 @@ def design_assistant(
     theta = validate_theta(theta_A, name="theta_A")
     if int(horizon) != horizon or horizon < 1:
         raise ValueError(f"horizon must be a positive integer; got {horizon!r}")
-    hold = round(dt_assistant / dt)
-    if hold < 1 or abs(hold * dt - dt_assistant) > 1e-12:
+    stride = round(dt_assistant / dt)
+    if stride < 1 or abs(stride * dt - dt_assistant) > 1e-12:
         raise ValueError(f"dt_assistant={dt_assistant} must be a whole multiple of dt={dt}")
+    hold = round(period / dt)
+    if hold < 1 or abs(hold * dt - period) > 1e-12:
+        raise ValueError(f"period={period} must be a whole multiple of dt={dt}")
     plant = discretize(dt_assistant, params)
     N = int(horizon)
     zeros_a = np.zeros(N)
@@ -101,7 +118,7 @@ def design_assistant(
         r = np.zeros(N + 1)
         r[j] = 1.0
         weights[j - 1] = lq_policy(plant, theta, r, zeros_a).f[0]
-    return MPCAssistant(gain=gain, preview_weights=weights, hold=int(hold), theta=theta, plant=plant)
+    return MPCAssistant(gain=gain, preview_weights=weights, hold=int(hold), stride=int(stride), theta=theta, plant=plant)
 
 
 def assistant_torque(assistant: MPCAssistant, x, r_preview) -> float:
@@ -116,6 +133,59 @@ def assistant_torque(assistant: MPCAssistant, x, r_preview) -> float:
         Reference angles at t + j T_C, j = 1..N_P, rad.
     """
     return float(-assistant.gain @ np.asarray(x, float) + assistant.preview_weights @ np.asarray(r_preview, float))
+
+
+def feedforward(assistant: MPCAssistant, angle_ref) -> np.ndarray:
+    """The reference part of the assistant's torque at every sample, N·m.
+
+    ``u_A,k = -gain @ x_k + feedforward[k]`` for an assistant that re-solves every sample
+    (``hold == 1``); the preview beyond the end of ``angle_ref`` repeats its last value,
+    as in :func:`simulate_closed_loop`.
+
+    Parameters
+    ----------
+    assistant : MPCAssistant
+    angle_ref : array_like, shape (K + 1,)
+        Reference angle on the 100-Hz grid, rad.
+
+    Returns
+    -------
+    ndarray, shape (K,)
+    """
+    r = np.asarray(angle_ref, dtype=float)
+    if r.ndim != 1 or r.shape[0] < 2:
+        raise ValueError(f"angle_ref must be a vector of at least two samples; got shape {r.shape}")
+    K = r.shape[0] - 1
+    last = K
+    out = np.zeros(K)
+    k = np.arange(K)
+    for j, w in enumerate(assistant.preview_weights, start=1):
+        out += w * r[np.minimum(k + assistant.stride * j, last)]
+    return out
+
+
+def human_feedback(assistant: MPCAssistant, angle_ref) -> Feedback:
+    """The assistant as the human who knows it plans with it (:class:`models.maxent.Feedback`).
+
+    Parameters
+    ----------
+    assistant : MPCAssistant
+        Must re-solve every sample (``hold == 1``): a held torque is not a state
+        feedback of the current sample.
+    angle_ref : array_like, shape (K + 1,)
+        Reference angle, rad, over the whole run (the preview looks 1 s ahead).
+
+    Returns
+    -------
+    Feedback
+        ``gain`` and ``feedforward`` of shape (K,).
+    """
+    if assistant.hold != 1:
+        raise ValueError(
+            f"the human can plan with the assistant's feedback only if it re-solves every sample; this one holds "
+            f"its torque for {assistant.hold} samples (design_assistant(period=...))"
+        )
+    return Feedback(np.array(assistant.gain, dtype=float), feedforward(assistant, angle_ref))
 
 
 class ClosedLoop(NamedTuple):
@@ -137,7 +207,7 @@ class ClosedLoop(NamedTuple):
 
 
 @njit(cache=True)
-def _closed_loop(A, b, gain, weights, hold, assist, x0, r, L, f, noise):
+def _closed_loop(A, b, gain, weights, hold, stride, assist, x0, r, L, f, noise):
     K = noise.shape[0]
     N = weights.shape[0]
     last = r.shape[0] - 1
@@ -151,7 +221,7 @@ def _closed_loop(A, b, gain, weights, hold, assist, x0, r, L, f, noise):
         if assist and k % hold == 0:
             ua = -(gain[0] * x[k, 0] + gain[1] * x[k, 1])
             for j in range(1, N + 1):
-                idx = k + hold * j
+                idx = k + stride * j
                 ua += weights[j - 1] * r[idx if idx < last else last]
         if assist:
             uA[k] = ua
@@ -205,8 +275,10 @@ def simulate_closed_loop(
     if L.shape != (K, 2) or f.shape != (K,) or noise.shape != (K,):
         raise ValueError(f"human policy arrays must have shapes ({K}, 2), ({K},), ({K},) for {K + 1} reference samples")
     if assistant is None:
-        gain, weights, hold, assist = np.zeros(2), np.zeros(1), 1, False
+        gain, weights, hold, stride, assist = np.zeros(2), np.zeros(1), 1, 1, False
     else:
-        gain, weights, hold, assist = assistant.gain, assistant.preview_weights, assistant.hold, True
-    x, uH, uA = _closed_loop(plant.A, plant.b, gain, weights, hold, assist, np.asarray(x0, float), r, L, f, noise)
+        gain, weights, hold, stride, assist = (assistant.gain, assistant.preview_weights, assistant.hold,
+                                               assistant.stride, True)
+    x, uH, uA = _closed_loop(plant.A, plant.b, gain, weights, hold, stride, assist, np.asarray(x0, float), r, L, f,
+                             noise)
     return ClosedLoop(x, uH, uA)

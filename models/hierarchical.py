@@ -120,9 +120,9 @@ import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
-from models.likelihood_data_op import MaxEntLoglikDataOp
+from models.likelihood_data_op import DATA_NAMES, MaxEntLoglikDataOp
 from models.likelihood_op import MaxEntLoglikOp
-from models.maxent import SegmentBatch, prepare_batch, sample_maxent
+from models.maxent import SegmentBatch, planning_plant, prepare_batch, sample_maxent
 from models.plant import DiscretePlant
 
 CONDITIONS = ("MC", "SC")
@@ -406,9 +406,11 @@ def build_model(
         return ll
 
     x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
+    plans = [planning_plant(plant, gain) for gain in batch.fb]
 
     def random(q11, q22, R, u_A_window, rng=None, size=None):
-        # Exact max-ent draws given the recorded (open-loop) u_A, as the likelihood assumes:
+        # Exact max-ent draws of the human the likelihood assumes (planning with the known
+        # u_A, or with the assistant's feedback law on the closed wheel):
         # plan over the whole K + M steps, keep the K observed ones (the later torques
         # integrate out of the sequential factorization). The last batch axis is the segment.
         shape = tuple(size) if size is not None else np.broadcast_shapes(q11.shape, q22.shape, R.shape)
@@ -417,7 +419,7 @@ def build_model(
         for idx in np.ndindex(*shape):
             j = idx[-1]
             theta = [th[0][idx], th[1][idx], th[2][idx]]
-            out[idx] = sample_maxent(theta, x0[j], batch.r[j], batch.a[j], plant, rng).u_H[:K]
+            out[idx] = sample_maxent(theta, x0[j], batch.r[j], batch.a[j], plans[j], rng).u_H[:K]
         return out
 
     form = parameterization
@@ -453,7 +455,7 @@ def build_model(
         q11 = pt.exp(lt1_s + lR_s)
         q22 = theta2[s_idx, c_idx] * R_s
         if data_containers:
-            data = [pm.Data(name, getattr(batch, name)) for name in ("x1", "x2", "r", "u", "a")]
+            data = [pm.Data(name, getattr(batch, name)) for name in DATA_NAMES]
             ll, _ = MaxEntLoglikDataOp(plant)(pt.stack([q11, q22, R_s]), *data)
             pm.Potential("loglik", ll.sum())
             return model
@@ -542,7 +544,7 @@ def prior_predictive_summary(
         th1 = np.exp(lt1[d, s, c])
         for j in range(batch.n):
             theta = [th1[j] * R[j], t2[d, s[j], c[j]] * R[j], R[j]]
-            demo = sample_maxent(theta, x0[j], batch.r[j], batch.a[j], plant, rng)
+            demo = sample_maxent(theta, x0[j], batch.r[j], batch.a[j], planning_plant(plant, batch.fb[j]), rng)
             # Over the observed window only (the plan may look M steps further).
             tq[d, j] = np.sqrt(np.mean(demo.u_H[:K] ** 2))
             er[d, j] = np.sqrt(np.mean((demo.x[1 : K + 1, 0] - batch.r[j, 1 : K + 1]) ** 2))

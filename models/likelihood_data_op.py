@@ -23,7 +23,7 @@ from pytensor.link.numba.dispatch.basic import numba_funcify
 from models.maxent import _batch_kernel
 from models.plant import DiscretePlant
 
-DATA_NAMES = ("x1", "x2", "r", "u", "a")
+DATA_NAMES = ("x1", "x2", "r", "u", "a", "fb")
 
 
 class MaxEntLoglikDataOp(Op):
@@ -37,7 +37,7 @@ class MaxEntLoglikDataOp(Op):
     Notes
     -----
     Inputs: ``theta`` (3, n), then ``x1``, ``x2`` (n, K + 1), ``r`` (n, K + M + 1),
-    ``u`` (n, K), ``a`` (n, K + M) as in :class:`models.maxent.SegmentBatch`.
+    ``u`` (n, K), ``a`` (n, K + M), ``fb`` (n, 2) as in :class:`models.maxent.SegmentBatch`.
     Outputs: ``loglik`` (n,) and ``grad`` (3, n).
     """
 
@@ -48,21 +48,21 @@ class MaxEntLoglikDataOp(Op):
         self.b = np.array(plant.b, dtype=np.float64, order="C")
         self.key = (tuple(self.A.ravel().tolist()), tuple(self.b.tolist()))
 
-    def make_node(self, theta, x1, x2, r, u, a):
+    def make_node(self, theta, x1, x2, r, u, a, fb):
         theta = pt.cast(pt.as_tensor_variable(theta), "float64")
-        data = [pt.cast(pt.as_tensor_variable(v), "float64") for v in (x1, x2, r, u, a)]
+        data = [pt.cast(pt.as_tensor_variable(v), "float64") for v in (x1, x2, r, u, a, fb)]
         if theta.type.ndim != 2 or any(d.type.ndim != 2 for d in data):
             raise TypeError("theta and every data input must be matrices")
         return Apply(self, [theta, *data], [pt.dvector(), pt.dmatrix()])
 
     def perform(self, node, inputs, output_storage):
-        theta, x1, x2, r, u, a = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs)
+        theta, x1, x2, r, u, a, fb = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs)
         n = u.shape[0]
         ll = np.empty(n)
         g = np.empty((3, n))
         wbuf = np.empty((a.shape[1], 2))
         vbuf = np.empty(a.shape[1])
-        _batch_kernel(self.A, self.b, theta, x1, x2, r, u, a, True, ll, g, wbuf, vbuf)
+        _batch_kernel(self.A, self.b, fb, theta, x1, x2, r, u, a, True, ll, g, wbuf, vbuf)
         output_storage[0][0] = ll
         output_storage[1][0] = g
 
@@ -92,14 +92,14 @@ def numba_funcify_MaxEntLoglikDataOp(op: MaxEntLoglikDataOp, node=None, **kwargs
     kernel = _batch_kernel
 
     @numba_basic.numba_njit
-    def maxent_loglik_data(theta, x1, x2, r, u, a):
+    def maxent_loglik_data(theta, x1, x2, r, u, a, fb):
         n = u.shape[0]
         ll = np.empty(n)
         g = np.empty((3, n))
         # Scratch per call: nutpie evaluates chains in parallel threads.
         wbuf = np.empty((a.shape[1], 2))
         vbuf = np.empty(a.shape[1])
-        kernel(A, b, np.ascontiguousarray(theta), np.ascontiguousarray(x1), np.ascontiguousarray(x2),
+        kernel(A, b, np.ascontiguousarray(fb), np.ascontiguousarray(theta), np.ascontiguousarray(x1), np.ascontiguousarray(x2),
                np.ascontiguousarray(r), np.ascontiguousarray(u), np.ascontiguousarray(a), True, ll, g, wbuf, vbuf)
         return ll, g
 

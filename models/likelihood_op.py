@@ -86,6 +86,7 @@ class MaxEntLoglikOp(Op):
         self.r = c(batch.r)
         self.u = c(batch.u)
         self.a = c(batch.a)
+        self.fb = c(batch.fb)
         self.n = int(self.u.shape[0])
         self.K = int(self.u.shape[1])
         # The plan may look M >= 0 steps past the observed torques (u_A and the reference
@@ -113,7 +114,7 @@ class MaxEntLoglikOp(Op):
         g = np.empty((3, self.n))
         wbuf = np.empty((self.K_plan, 2))
         vbuf = np.empty(self.K_plan)
-        _batch_kernel(self.A, self.b, th, self.x1, self.x2, self.r, self.u, self.a, True, ll, g, wbuf, vbuf)
+        _batch_kernel(self.A, self.b, self.fb, th, self.x1, self.x2, self.r, self.u, self.a, True, ll, g, wbuf, vbuf)
         output_storage[0][0] = ll
         output_storage[1][0] = g
 
@@ -143,7 +144,7 @@ def numba_funcify_MaxEntLoglikOp(op: MaxEntLoglikOp, node=None, **kwargs):
     constants and references large ones by address; the Op keeps them alive). The
     compiled graph is not cached across sessions because the Op has no cache key.
     """
-    A, b, x1, x2, r, u, a = op.A, op.b, op.x1, op.x2, op.r, op.u, op.a
+    A, b, fb, x1, x2, r, u, a = op.A, op.b, op.fb, op.x1, op.x2, op.r, op.u, op.a
     n, K_plan = op.n, op.K_plan
     kernel = _batch_kernel
 
@@ -155,7 +156,7 @@ def numba_funcify_MaxEntLoglikOp(op: MaxEntLoglikOp, node=None, **kwargs):
         # Scratch per call: nutpie evaluates chains in parallel threads.
         wbuf = np.empty((K_plan, 2))
         vbuf = np.empty(K_plan)
-        kernel(A, b, th, x1, x2, r, u, a, True, ll, g, wbuf, vbuf)
+        kernel(A, b, fb, th, x1, x2, r, u, a, True, ll, g, wbuf, vbuf)
         return ll, g
 
     return maxent_loglik

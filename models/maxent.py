@@ -47,6 +47,31 @@ from models.plant import DiscretePlant, propagate
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
+class Feedback(NamedTuple):
+    """The assistant as a feedback law the human knows and plans with.
+
+    ``u_A,k = -gain @ x_k + feedforward[k]``: to the human the assistant is part of the
+    wheel (closed by ``-gain``, an added spring and damper) plus a known input, the
+    feedforward. :func:`models.assistant.human_feedback` builds it for the MPC assistant.
+
+    Attributes
+    ----------
+    gain : ndarray, shape (2,)
+        N·m per (rad, rad/s).
+    feedforward : ndarray, shape (K + M,)
+        N·m.
+    """
+
+    gain: np.ndarray
+    feedforward: np.ndarray
+
+
+def planning_plant(plant: DiscretePlant, gain) -> DiscretePlant:
+    """The wheel closed by the assistant's state feedback: ``A - b gainᵀ``, same b and dt."""
+    g = np.asarray(gain, dtype=float).reshape(2)
+    return DiscretePlant(plant.A - np.outer(plant.b, g), plant.b, plant.dt)
+
+
 class Segment(NamedTuple):
     """One demonstration (a subject × condition window) in the data convention.
 
@@ -59,7 +84,14 @@ class Segment(NamedTuple):
     u_H : ndarray, shape (K,)
         Observed human torque, N·m, acting from t_k to t_{k+1}.
     u_A : ndarray, shape (K + M,)
-        Assistant torque, N·m (zeros in manual control).
+        Recorded assistant torque, N·m (zeros in manual control).
+    feedback : Feedback or None
+        How the human models the assistant. None is the paper's model (Eq. 15-16):
+        the recorded u_A is a known input sequence. A :class:`Feedback` is a human who
+        knows the assistant's law and plans with the wheel it closes and with its
+        feedforward; the recorded u_A still drives the observed states. The two differ
+        in closed loop: the recorded u_A reacts to the human's own variability, which
+        the paper's model lets the human anticipate.
 
     M >= 0 preview steps extend the human's planning horizon past the observed torques
     (the reference and u_A after the window are known from the recording); M = 0 is
@@ -70,6 +102,7 @@ class Segment(NamedTuple):
     angle_ref: np.ndarray
     u_H: np.ndarray
     u_A: np.ndarray
+    feedback: Feedback | None = None
 
     @property
     def K(self) -> int:
@@ -92,7 +125,11 @@ class SegmentBatch(NamedTuple):
     u : ndarray, shape (n, K)
         Human torque, N·m.
     a : ndarray, shape (n, K + M)
-        Assistant torque, N·m.
+        The known input of the human's plan, N·m: the recorded assistant torque, or the
+        assistant's feedforward for a segment with :class:`Feedback`.
+    fb : ndarray, shape (n, 2)
+        The assistant's state feedback the human plans with (zeros without Feedback);
+        the plan uses the wheel ``A - b fbᵀ``.
     """
 
     x1: np.ndarray
@@ -100,6 +137,7 @@ class SegmentBatch(NamedTuple):
     r: np.ndarray
     u: np.ndarray
     a: np.ndarray
+    fb: np.ndarray
 
     @property
     def n(self) -> int:
@@ -136,7 +174,33 @@ def _check_segment(seg: Segment) -> Segment:
         )
     if u.shape[0] < 1:
         raise ValueError("a segment needs at least two samples (K >= 1)")
-    return Segment(x0, r, u, a)
+    fb = seg.feedback
+    if fb is not None:
+        gain = np.asarray(fb.gain, dtype=float)
+        ff = np.asarray(fb.feedforward, dtype=float)
+        if gain.shape != (2,) or ff.shape != a.shape:
+            raise ValueError(
+                f"a segment's feedback needs gain of shape (2,) and feedforward of the shape of u_A {a.shape}; "
+                f"got {gain.shape}, {ff.shape}"
+            )
+        fb = Feedback(gain, ff)
+    return Segment(x0, r, u, a, fb)
+
+
+def plan_inputs(segment: Segment, plant: DiscretePlant) -> tuple[DiscretePlant, np.ndarray]:
+    """The wheel and the known input the human plans with for this segment.
+
+    Returns
+    -------
+    plant : DiscretePlant
+        ``plant`` itself, or the wheel closed by the assistant's feedback.
+    u_known : ndarray, shape (K + M,)
+        The recorded u_A, or the assistant's feedforward.
+    """
+    seg = _check_segment(segment)
+    if seg.feedback is None:
+        return plant, seg.u_A
+    return planning_plant(plant, seg.feedback.gain), seg.feedback.feedforward
 
 
 def prepare_batch(plant: DiscretePlant, segments) -> SegmentBatch:
@@ -167,14 +231,19 @@ def prepare_batch(plant: DiscretePlant, segments) -> SegmentBatch:
     r = np.empty((n, K + M + 1))
     u = np.empty((n, K))
     a = np.empty((n, K + M))
+    fb = np.zeros((n, 2))
     for i, s in enumerate(segs):
         x = propagate(plant, s.x0, s.u_H + s.u_A[:K])
         x1[i] = x[:, 0]
         x2[i] = x[:, 1]
         r[i] = s.angle_ref
         u[i] = s.u_H
-        a[i] = s.u_A
-    return SegmentBatch(x1, x2, r, u, a)
+        if s.feedback is None:
+            a[i] = s.u_A
+        else:
+            a[i] = s.feedback.feedforward
+            fb[i] = s.feedback.gain
+    return SegmentBatch(x1, x2, r, u, a, fb)
 
 
 # --------------------------------------------------------------------------- kernel
@@ -375,11 +444,17 @@ def _finish(K, q11, q22, R, quad, logs, g0, g1):
 
 
 @njit(cache=True)
-def _batch_kernel(A, b, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
+def _batch_kernel(A, b, fb, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
     n = u.shape[0]
+    Ai = np.empty((2, 2))
     for i in range(n):
+        # The plan's wheel: A - b fbᵀ (exactly A when fb = 0).
+        Ai[0, 0] = A[0, 0] - b[0] * fb[i, 0]
+        Ai[0, 1] = A[0, 1] - b[0] * fb[i, 1]
+        Ai[1, 0] = A[1, 0] - b[1] * fb[i, 0]
+        Ai[1, 1] = A[1, 1] - b[1] * fb[i, 1]
         ll[i], g[0, i], g[1, i], g[2, i] = _segment_kernel(
-            A, b, th[0, i], th[1, i], th[2, i], x1[i], x2[i], r[i], u[i], a[i], freeze, wbuf, vbuf
+            Ai, b, th[0, i], th[1, i], th[2, i], x1[i], x2[i], r[i], u[i], a[i], freeze, wbuf, vbuf
         )
 
 
@@ -424,7 +499,8 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: boo
     # O(K) scratch for the adjoint sweep, reused across the batch.
     wbuf = np.empty((batch.a.shape[1], 2))
     vbuf = np.empty(batch.a.shape[1])
-    _batch_kernel(plant.A, plant.b, th, batch.x1, batch.x2, batch.r, batch.u, batch.a, bool(freeze), ll, g, wbuf, vbuf)
+    _batch_kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, batch.x1, batch.x2,
+                  batch.r, batch.u, batch.a, bool(freeze), ll, g, wbuf, vbuf)
     return LoglikGrad(ll, g)
 
 
@@ -446,7 +522,7 @@ def loglik_segments(theta, segments, plant: DiscretePlant) -> LoglikGrad:
     th = np.broadcast_to(th.reshape(3, -1), (3, len(segs)))
     ll = np.empty(len(segs))
     g = np.empty((3, len(segs)))
-    by_len: dict[tuple[int, int], list[int]] = {}
+    by_len: dict[tuple[int, int], list[int]] = {}  # feedback and not may share a batch
     for i, s in enumerate(segs):
         by_len.setdefault((int(np.shape(s.u_H)[0]), int(np.shape(s.u_A)[0])), []).append(i)
     for idx in by_len.values():
@@ -498,7 +574,9 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bo
     """Max-ent log-likelihood by Eq. 8 with Eq. 11-16 literally (Cholesky of the K×K Hessian).
 
     The reference implementation: O(K²) memory and O(K³) time. Used by the tests and
-    the benchmark, nowhere else.
+    the benchmark, nowhere else. With :class:`Feedback` it plans on the closed wheel
+    with the feedforward as the known input, and so also propagates the states that
+    way: it equals :func:`loglik_grad` when the recorded u_A follows the law exactly.
 
     Parameters
     ----------
@@ -516,6 +594,9 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bo
     """
     q11, q22, R = validate_theta(theta)
     seg = _check_segment(segment)
+    if seg.feedback is not None:
+        plant, known = plan_inputs(seg, plant)
+        seg = Segment(seg.x0, seg.angle_ref, seg.u_H, known)
     if seg.preview > 0:
         return _loglik_dense_marginal(q11, q22, R, seg, plant)
     K = seg.K
@@ -640,8 +721,11 @@ def sample_maxent(theta, x0, angle_ref, u_A, plant: DiscretePlant, rng: np.rando
 
 
 __all__ = [
+    "Feedback",
     "Segment",
     "SegmentBatch",
+    "plan_inputs",
+    "planning_plant",
     "LoglikGrad",
     "DenseResult",
     "Demonstration",

@@ -5,14 +5,19 @@ Each subject performs two 4-minute runs at 100 Hz, manual control (MC) and share
 simulated human is the max-ent LQ agent of :mod:`models.maxent` with its own θ per
 subject and condition, drawn from :class:`Population`.
 
-Shared control closes two loops. The human plans the optimal torque against the
-assistance it expects: starting from no assistance, it plans, the assistant responds to
-the planned (noise-free) trajectory, the human re-plans against that response, and so
-on to a fixed point (:func:`plan_against_assistant`). The run itself then samples the
-human's max-ent variability from the linear-Gaussian policy of that plan
-(``u_H,k = -L_k x_k + f_k + ε_k``, ``ε_k ~ N(0, 1 / 2 S_k)``) while the assistant reacts
-to the actual state every 0.02 s. The recorded angle is quantized by the encoder
-(40000 increments per revolution).
+Shared control closes two loops. The assistant re-solves its MPC every sample, so it
+acts as a fixed state feedback plus a feedforward from the reference
+(:func:`models.assistant.human_feedback`). The simulated human knows it, as a
+practised subject feels the assistant's pull as part of the wheel: it plans its
+optimal torque on the wheel closed by the assistant's feedback, with the feedforward
+as a known input. The run samples the human's max-ent variability from the
+linear-Gaussian policy of that plan (``u_H,k = -L_k x_k + f_k + ε_k``,
+``ε_k ~ N(0, 1 / 2 S_k)``) while the assistant reacts to the actual state, so every
+SC torque sequence is an exact draw of the max-ent model with
+:class:`models.maxent.Feedback`. The paper's model, in which the human takes the
+recorded u_A as a known sequence, is then misspecified in SC: the recorded u_A
+reacts to the human's own variability. The recorded angle is quantized by the
+encoder (40000 increments per revolution).
 
 Only what a lab records goes into the study table: angle, reference and u_A. Velocity,
 u_H and θ are kept apart as ground truth.
@@ -25,8 +30,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from models.assistant import MPCAssistant, design_assistant, simulate_closed_loop
-from models.lq import Policy, lq_policy
+from models.assistant import MPCAssistant, design_assistant, human_feedback, simulate_closed_loop
+from models.lq import lq_policy
+from models.maxent import planning_plant
 from models.plant import DT_HUMAN, DiscretePlant, discretize
 from models.reference import reference_trajectory
 
@@ -134,73 +140,6 @@ def draw_subjects(population: Population, n_subjects: int, rng: np.random.Genera
     return out
 
 
-class Plan(NamedTuple):
-    """The human's plan against the assistance it expects.
-
-    Attributes
-    ----------
-    policy : Policy
-        Gains and feedforward of the final plan.
-    expected_u_A : ndarray, shape (K,)
-        The assistant's response to the planned trajectory, N·m.
-    iterations : int
-    change : float
-        Largest change of the expected u_A in the last iteration, N·m.
-    """
-
-    policy: Policy
-    expected_u_A: np.ndarray
-    iterations: int
-    change: float
-
-
-def plan_against_assistant(
-    theta,
-    x0,
-    angle_ref,
-    plant: DiscretePlant,
-    assistant: MPCAssistant,
-    *,
-    tol: float = 1e-10,
-    max_iter: int = 100,
-) -> Plan:
-    """Fixed point of "human plans against u_A" and "assistant responds to the plan".
-
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-        Human cost [q11, q22, R].
-    x0 : array_like, shape (2,)
-    angle_ref : array_like, shape (K + 1,)
-    plant : DiscretePlant
-    assistant : MPCAssistant
-    tol : float
-        Stop when the expected u_A changes by less than this (N·m) everywhere.
-    max_iter : int
-
-    Returns
-    -------
-    Plan
-
-    Raises
-    ------
-    RuntimeError
-        If the iteration does not settle within ``max_iter``.
-    """
-    ref = np.asarray(angle_ref, dtype=float)
-    K = ref.shape[0] - 1
-    u_A = np.zeros(K)
-    change = np.inf
-    for it in range(1, max_iter + 1):
-        pol = lq_policy(plant, theta, ref, u_A)
-        run = simulate_closed_loop(plant, assistant, x0, ref, pol.L, pol.f)
-        change = float(np.max(np.abs(run.u_A - u_A)))
-        u_A = run.u_A
-        if change < tol:
-            return Plan(lq_policy(plant, theta, ref, u_A), u_A, it, change)
-    raise RuntimeError(f"planning against the assistant did not settle in {max_iter} iterations (last change {change:.3g} N·m)")
-
-
 class Run(NamedTuple):
     """One simulated run with what the lab records and what only the simulator knows.
 
@@ -214,8 +153,6 @@ class Run(NamedTuple):
         rad, rad/s.
     u_H : ndarray, shape (K + 1,)
         Human torque, N·m; the last entry is unused (0).
-    plan_iterations : int
-        Fixed-point iterations of the SC plan (0 in MC).
     """
 
     angle: np.ndarray
@@ -223,7 +160,6 @@ class Run(NamedTuple):
     true_angle: np.ndarray
     true_velocity: np.ndarray
     u_H: np.ndarray
-    plan_iterations: int
 
 
 def quantize(angle, step: float = ENCODER_STEP) -> np.ndarray:
@@ -251,7 +187,7 @@ def simulate_run(
     plant : DiscretePlant
         0.01-s wheel.
     assistant : MPCAssistant
-        Used in SC only.
+        Used in SC only; it must re-solve every sample (``hold == 1``).
     rng : numpy.random.Generator
     x0 : array_like, shape (2,)
         Initial state (the wheel at rest by default).
@@ -264,10 +200,10 @@ def simulate_run(
     K = ref.shape[0] - 1
     x0 = np.asarray(x0, dtype=float)
     if condition == "MC":
-        pol, iters, asst = lq_policy(plant, theta, ref, np.zeros(K)), 0, None
+        pol, asst = lq_policy(plant, theta, ref, np.zeros(K)), None
     elif condition == "SC":
-        plan = plan_against_assistant(theta, x0, ref, plant, assistant)
-        pol, iters, asst = plan.policy, plan.iterations, assistant
+        fb = human_feedback(assistant, ref)
+        pol, asst = lq_policy(planning_plant(plant, fb.gain), theta, ref, fb.feedforward), assistant
     else:
         raise ValueError(f"condition must be 'MC' or 'SC'; got {condition!r}")
     noise = rng.standard_normal(K) / np.sqrt(2.0 * pol.S)
@@ -279,7 +215,6 @@ def simulate_run(
         true_angle=run.x[:, 0],
         true_velocity=run.x[:, 1],
         u_H=np.append(run.u_H, 0.0),
-        plan_iterations=iters,
     )
 
 

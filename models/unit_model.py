@@ -22,7 +22,7 @@ import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 
-from models.likelihood_data_op import MaxEntLoglikDataOp
+from models.likelihood_data_op import DATA_NAMES, MaxEntLoglikDataOp
 from models.maxent import SegmentBatch
 from models.plant import DiscretePlant
 
@@ -66,12 +66,12 @@ def build_unit_model(batch: SegmentBatch, plant: DiscretePlant, prior: UnitPrior
     -------
     pymc.Model
         Free variables ``log_theta1``, ``theta2``, ``log_R``; deterministics ``theta1``
-        and ``R``; data ``x1, x2, r, u, a`` (update with ``pm.set_data`` or nutpie's
+        and ``R``; data ``x1, x2, r, u, a, fb`` (update with ``pm.set_data`` or nutpie's
         ``with_data``); the likelihood as a potential.
     """
     op = MaxEntLoglikDataOp(plant)
     with pm.Model() as model:
-        data = [pm.Data(name, getattr(batch, name)) for name in ("x1", "x2", "r", "u", "a")]
+        data = [pm.Data(name, getattr(batch, name)) for name in DATA_NAMES]
         lt1 = pm.Normal("log_theta1", *prior.log_theta1)
         t2 = pm.HalfNormal("theta2", prior.theta2_scale)
         lR = pm.Normal("log_R", *prior.log_R)

@@ -52,7 +52,7 @@ def _window(args):
             raise ValueError(f"--window needs START,SECONDS in s (e.g. 210,15); got {args.window!r}") from None
         window = (start, seconds)
     return IdentifySettings(window_start=window[0], window_seconds=window[1], preview=args.preview,
-                            reconstruct=args.reconstruct)
+                            reconstruct=args.reconstruct, assistant_model=args.assistant_model)
 
 
 def _cmd_simulate(args) -> int:
@@ -118,7 +118,10 @@ def _add_window_options(p):
                    help="analysis window on the file's time axis, s (default: the paper's 210,15)")
     p.add_argument("--whole-run", action="store_true", help="analyse each segment whole")
     p.add_argument("--preview", type=float, default=2.0,
-                   help="seconds the human's plan looks past the window (default 2; 0 = the paper's model)")
+                   help="seconds the human's plan looks past the window (default 2; 0 = the paper's horizon)")
+    p.add_argument("--assistant-model", choices=("feedback", "exogenous"), default="feedback",
+                   help="in SC the human plans with the assistant's feedback law (default) or takes the recorded "
+                   "u_A as a known input sequence (exogenous: the paper's Eq. 15-16)")
     p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
                    help="reconstruct velocity and u_H from the angle when missing (auto) or always")
 

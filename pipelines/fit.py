@@ -18,8 +18,8 @@ Artifacts in ``--out DIR``:
   per-subject MC→SC contrasts of log θ1, the LOO comparison, the frequentist mixed-model
   cross-check on the per-segment ML estimates and, for a simulated study, the truth check.
 * ``ppc.parquet`` — posterior predictive angle and torque of one subject (both
-  conditions): 5/50/95 % bands over posterior draws, exact max-ent draws given the
-  recorded u_A (:func:`models.maxent.sample_maxent`), beside the data.
+  conditions): 5/50/95 % bands over posterior draws, exact max-ent draws of the human
+  the likelihood assumes (:func:`models.maxent.sample_maxent`), beside the data.
 
 Randomness: the root ``seed`` is split with ``SeedSequence(seed).spawn(3)`` into the seeds
 of the two samplers and of the posterior predictive draws; the same seed gives the same
@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from models.hierarchical import CONDITIONS, build_model, index_study
-from models.maxent import forward_optimal_control, prepare_batch, sample_maxent
+from models.maxent import forward_optimal_control, plan_inputs, prepare_batch, sample_maxent
 from models.plant import DT_HUMAN, discretize
 from pipelines.identify import IdentifySettings, prepare_segment
 from pipelines.io import atomic_path, load_study, write_table_atomic, write_text_atomic
@@ -389,8 +389,9 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
     """Posterior predictive angle and torque of one subject, both conditions.
 
     ``n_draws`` posterior draws, evenly spaced over chains × draws; for each, one exact
-    max-ent demonstration per segment given its x0, reference and recorded u_A (preview
-    included, the first K torques kept), as the likelihood assumes; then the 5/50/95 %
+    max-ent demonstration per segment given its x0 and reference, from the human the
+    likelihood assumes (planning with the recorded u_A, or in closed loop with the
+    assistant's law; preview included, the first K torques kept); then the 5/50/95 %
     quantiles per time step. Also the forward optimal control at the posterior median θ.
 
     Returns
@@ -415,16 +416,18 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
         lR = post["log_R"].sel(sel).values[ci, di]
         t2 = post["theta2"].sel(sel).values[ci, di]
         seg, K = p.segment, p.segment.K
+        # The human the likelihood assumes: with Feedback the draws run in closed loop.
+        plan_plant, known = plan_inputs(seg, plant)
         ang = np.empty((flat.size, K + 1))
         tq = np.empty((flat.size, K))
         for j in range(flat.size):
             R = np.exp(lR[j])
-            demo = sample_maxent([np.exp(lt1[j]) * R, t2[j] * R, R], seg.x0, seg.angle_ref, seg.u_A, plant, rng)
+            demo = sample_maxent([np.exp(lt1[j]) * R, t2[j] * R, R], seg.x0, seg.angle_ref, known, plan_plant, rng)
             ang[j] = demo.x[: K + 1, 0]
             tq[j] = demo.u_H[:K]
         R = np.exp(np.median(lR))
         opt = forward_optimal_control([np.exp(np.median(lt1)) * R, np.median(t2) * R, R], seg.x0, seg.angle_ref,
-                                      seg.u_A, plant)
+                                      known, plan_plant)
         qa = np.quantile(ang, [0.05, 0.5, 0.95], axis=0)
         qu = np.quantile(tq, [0.05, 0.5, 0.95], axis=0)
         pad = lambda x: np.append(x, np.nan)  # noqa: E731  torques act from k to k + 1: none at k = K
@@ -577,7 +580,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     res["truth"] = truth_check(fits["condition"], truth_dir, estimates) if truth_dir is not None else None
     ppc = posterior_predictive(fits["condition"], prepared, subject, np.random.default_rng(seeds["ppc"]))
     res["ppc"] = {"subject": subject, "draws": int(min(PPC_DRAWS, chains * draws)), "coverage_5_95": ppc_coverage(ppc),
-                  "note": "exact max-ent draws given the recorded u_A (open loop, as the likelihood assumes); "
+                  "note": "exact max-ent draws of the human the likelihood assumes (in SC: " + settings.assistant_model
+                          + " assistant model); "
                           "u_H is the reconstructed torque where the file has none"}
     timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
 

@@ -5,7 +5,16 @@ window or the whole run on request), reconstruct velocity and u_H from the angle
 the file lacks them (:mod:`models.reconstruct`, over the window plus a margin), and
 maximize the max-ent likelihood (:mod:`models.identify`). The human's plan may look
 ``preview`` seconds past the window (default 2 s, the time a point of the reference
-takes to cross the screen); ``--preview 0`` is the paper's model exactly.
+takes to cross the screen); ``--preview 0`` is the paper's horizon exactly.
+
+In SC the human may model the assistant two ways (``--assistant-model``). ``feedback``
+(default): the human knows the assistant's law (the paper's MPC, Section IV-D) and
+plans on the wheel it closes, with its reference feedforward as the known input
+(:class:`models.maxent.Feedback`); the simulator's humans do this. ``exogenous`` is the
+paper's Eq. 15-16: the recorded u_A is a known input sequence. In closed loop the
+recorded u_A reacts to the human's own torque noise, which the exogenous model lets
+the human anticipate; on the simulated study it biases θ1 in SC upward (measured in
+the report).
 
 It also computes the model validation of Fig. 6: the trajectories that forward optimal
 control generates with θ_MC and with θ_SC of the same subject, and the RMSE of angle
@@ -19,6 +28,7 @@ versions).
 
 from __future__ import annotations
 
+import functools
 import json
 import time
 from dataclasses import dataclass
@@ -28,7 +38,8 @@ import numpy as np
 import pandas as pd
 
 from models.identify import identify_segment
-from models.maxent import Segment, forward_optimal_control, prepare_batch
+from models.assistant import design_assistant, human_feedback
+from models.maxent import Feedback, Segment, forward_optimal_control, plan_inputs, prepare_batch
 from models.plant import DT_HUMAN, discretize
 from models.reconstruct import DEFAULT_RESOLUTION, reconstruct
 from models.reference import WINDOW_SECONDS, WINDOW_START
@@ -55,6 +66,9 @@ class IdentifySettings:
         ``auto`` (only when velocity or u_H are missing) or ``always``.
     resolution : float
         Encoder increment, rad (sets the reconstruction's measurement noise).
+    assistant_model : str
+        ``feedback`` (the human plans with the assistant's law; default) or
+        ``exogenous`` (the recorded u_A is a known input, the paper's Eq. 15-16).
     """
 
     window_start: float | None = WINDOW_START
@@ -63,6 +77,7 @@ class IdentifySettings:
     margin: float = 1.0
     reconstruct: str = "auto"
     resolution: float = DEFAULT_RESOLUTION
+    assistant_model: str = "feedback"
 
     def __post_init__(self):
         if (self.window_start is None) != (self.window_seconds is None):
@@ -73,6 +88,17 @@ class IdentifySettings:
             raise ValueError("preview and margin must be >= 0 s")
         if self.reconstruct not in ("auto", "always"):
             raise ValueError(f"reconstruct must be 'auto' or 'always'; got {self.reconstruct!r}")
+        if self.assistant_model not in ASSISTANT_MODELS:
+            raise ValueError(f"assistant model must be one of {ASSISTANT_MODELS}; got {self.assistant_model!r}")
+
+
+#: How the human in SC may model the assistant (see the module docstring).
+ASSISTANT_MODELS = ("feedback", "exogenous")
+
+
+@functools.lru_cache(maxsize=1)
+def _assistant():
+    return design_assistant()
 
 
 @dataclass(frozen=True)
@@ -126,11 +152,17 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
     else:
         angle, velocity, u_H = seg.angle[rows], seg.velocity[rows], seg.u_H[rows]
         sigma_eps = q = float("nan")
+    feedback = None
+    if settings.assistant_model == "feedback" and seg.condition == "SC":
+        # The assistant previews 1 s ahead: its feedforward comes from the whole run's reference.
+        full = human_feedback(_assistant(), seg.angle_ref)
+        feedback = Feedback(full.gain, full.feedforward[i0 : i1 + M])
     segment = Segment(
         x0=np.array([angle[0], velocity[0]]),
         angle_ref=seg.angle_ref[i0 : i1 + M + 1],
         u_H=u_H[:K],
         u_A=seg.u_A[i0 : i1 + M],
+        feedback=feedback,
     )
     return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q)
 
@@ -214,7 +246,9 @@ def _cross_predict(prepared, est: pd.DataFrame, plant):
                     frame[f"pred_{key}_{q}"] = np.full(K + 1, np.nan)
                 rmse[f"rmse_angle_theta_{key}"] = rmse[f"rmse_uH_theta_{key}"] = np.nan
                 continue
-            demo = forward_optimal_control(th, s.x0, s.angle_ref, s.u_A, plant)
+            # θ's plan against this segment's assistant (in closed loop under Feedback).
+            plan_plant, known = plan_inputs(s, plant)
+            demo = forward_optimal_control(th, s.x0, s.angle_ref, known, plan_plant)
             frame[f"pred_{key}_angle"] = demo.x[: K + 1, 0]
             frame[f"pred_{key}_velocity"] = demo.x[: K + 1, 1]
             frame[f"pred_{key}_u_H"] = np.append(demo.u_H[:K], np.nan)

@@ -8,10 +8,11 @@ draws do not depend on this.
 
 Unit level: θ ~ :class:`models.unit_model.UnitPrior`; one exact max-ent demonstration
 over the study's 15-s analysis window (the fixed reference) from rest at the reference;
-even replications are manual control (u_A = 0), odd ones shared control, where u_A is
-the assistant's response to the subject's plan (the fixed point of
-:func:`models.simulate.plan_against_assistant`), replayed as the known input the
-likelihood assumes; the posterior is sampled with nutpie.
+even replications are manual control (u_A = 0), odd ones shared control, where the
+human plans with the assistant's feedback law and the assistant reacts to the actual
+state (:func:`simulate_unit`, the simulator's SC human); the likelihood is the
+:class:`models.maxent.Feedback` model, as in the pipeline; the posterior is sampled with
+nutpie.
 
 Negative controls (same draws, same sizes, a wrong fit): ``inertia`` fits with the wheel
 inertia 10 % too high (0.044 instead of 0.04 kg·m²), ``ignore-uA`` attributes the
@@ -24,7 +25,8 @@ import warnings
 
 import numpy as np
 
-from models.maxent import Segment, prepare_batch, sample_maxent
+from models.likelihood_data_op import DATA_NAMES
+from models.maxent import Feedback, Segment, planning_plant, prepare_batch, sample_maxent
 from models.plant import DT_HUMAN, WheelParameters, discretize
 from models.reference import WINDOW_START, reference_trajectory
 from models.sbc import rank, thin
@@ -41,12 +43,43 @@ def _fit_plant(negative_control):
 
 
 def _reference(K: int) -> np.ndarray:
+    return _window_inputs(K)[0]
+
+
+def _window_inputs(K: int):
+    """The window's reference (K + 1,) and the assistant's feedback over it (gain, feedforward (K,))."""
     key = ("ref", K)
     if key not in _CACHE:
+        from models.assistant import design_assistant, human_feedback
+
         i0 = int(round(WINDOW_START / DT_HUMAN))
-        ref = reference_trajectory(WINDOW_START + K * DT_HUMAN + 1.0).angle
-        _CACHE[key] = np.ascontiguousarray(ref[i0 : i0 + K + 1])
+        ref = reference_trajectory(WINDOW_START + K * DT_HUMAN + 2.0).angle  # the assistant previews 1 s
+        fb = human_feedback(design_assistant(), ref)
+        _CACHE[key] = (np.ascontiguousarray(ref[i0 : i0 + K + 1]), Feedback(fb.gain, fb.feedforward[i0 : i0 + K]))
     return _CACHE[key]
+
+
+def simulate_unit(theta, condition: str, K: int, negative_control, rng: np.random.Generator) -> Segment:
+    """One exact max-ent demonstration over the analysis window, as the fit will see it.
+
+    MC: u_A = 0. SC: the human plans with the assistant's law on the closed wheel (the
+    simulator's human), the assistant's recorded torque is ``-gain @ x_k + feedforward_k``
+    along the sampled trajectory. The returned segment carries the Feedback the
+    likelihood plans with, except for ``ignore-uA``, which attributes the assistant's
+    torque to the human and plans without it.
+    """
+    ref, fb = _window_inputs(K)
+    plant = discretize(DT_HUMAN)
+    x0 = np.array([ref[0], 0.0])
+    if condition == "MC":
+        demo = sample_maxent(theta, x0, ref, np.zeros(K), plant, rng)
+        u_A, feedback = np.zeros(K), None
+    else:
+        demo = sample_maxent(theta, x0, ref, fb.feedforward, planning_plant(plant, fb.gain), rng)
+        u_A, feedback = fb.feedforward - demo.x[:K] @ fb.gain, fb
+    if negative_control == "ignore-uA":
+        return Segment(x0, ref, demo.u_H + u_A, np.zeros(K))
+    return Segment(x0, ref, demo.u_H, u_A, feedback)
 
 
 def _compiled_unit(K: int, negative_control):
@@ -65,6 +98,11 @@ def _compiled_unit(K: int, negative_control):
     return _CACHE[key]
 
 
+def batch_data(batch) -> dict:
+    """A batch's arrays by the names of the models' data containers."""
+    return {name: getattr(batch, name) for name in DATA_NAMES}
+
+
 def _prior_variances(prior) -> dict:
     key = ("prior_var", prior)
     if key not in _CACHE:
@@ -76,32 +114,16 @@ def _prior_variances(prior) -> dict:
 def unit_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     import nutpie
 
-    from models.assistant import design_assistant
-    from models.simulate import plan_against_assistant
     from models.unit_model import UNIT_PARAMETERS, UnitPrior
 
     rng = np.random.default_rng(seed)
     prior = UnitPrior()
     truth = prior.draw(rng)
     K = config.K
-    plant = discretize(DT_HUMAN)
-    ref = _reference(K)
-    x0 = np.array([ref[0], 0.0])
     condition = "MC" if i % 2 == 0 else "SC"
-    if condition == "SC":
-        if "assistant" not in _CACHE:
-            _CACHE["assistant"] = design_assistant()
-        u_A = plan_against_assistant(truth["theta"], x0, ref, plant, _CACHE["assistant"]).expected_u_A
-    else:
-        u_A = np.zeros(K)
-    demo = sample_maxent(truth["theta"], x0, ref, u_A, plant, rng)
-    if config.negative_control == "ignore-uA":
-        seg = Segment(x0, ref, demo.u_H + u_A, np.zeros(K))
-    else:
-        seg = Segment(x0, ref, demo.u_H, u_A)
+    seg = simulate_unit(truth["theta"], condition, K, config.negative_control, rng)
     batch = prepare_batch(_fit_plant(config.negative_control), [seg])
-    compiled = _compiled_unit(K, config.negative_control).with_data(x1=batch.x1, x2=batch.x2, r=batch.r,
-                                                                    u=batch.u, a=batch.a)
+    compiled = _compiled_unit(K, config.negative_control).with_data(**batch_data(batch))
     trace = nutpie.sample(compiled, chains=config.chains, tune=config.tune, draws=config.draws,
                           seed=int(rng.integers(2**62)), cores=1, progress_bar=False)
     post = trace["posterior"]

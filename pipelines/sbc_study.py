@@ -4,8 +4,9 @@ Per replication: population and unit parameters are drawn from the prior of
 :func:`models.hierarchical.build_model` (by PyMC itself, from the model graph, so the
 draws follow exactly the model that is fitted); a whole study is simulated exactly from
 the max-ent model (``n_subjects`` × MC and SC, windows of K samples of the study
-reference from rest; in SC u_A is the assistant's response to the subject's plan,
-replayed as the known input the likelihood assumes); the model compiled once per
+reference from rest; in SC the human plans with the assistant's law and the assistant
+reacts to the sampled trajectory, :func:`pipelines.sbc_replications.simulate_unit`);
+the model compiled once per
 worker (data in ``pm.Data`` containers) is refitted with nutpie; ranks of the population
 parameters and of the first subject's unit parameters are recorded.
 
@@ -18,10 +19,9 @@ import warnings
 
 import numpy as np
 
-from models.maxent import Segment, prepare_batch, sample_maxent
-from models.plant import DT_HUMAN, discretize
+from models.maxent import Segment, prepare_batch
 from models.sbc import rank, thin
-from pipelines.sbc_replications import _CACHE, _fit_plant, _reference
+from pipelines.sbc_replications import _CACHE, _fit_plant, _reference, batch_data, simulate_unit
 
 #: Population parameters ranked.
 POPULATION = ("mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R",
@@ -94,31 +94,17 @@ def _prior_variances(config) -> dict:
 def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     import nutpie
 
-    from models.assistant import design_assistant
-    from models.simulate import plan_against_assistant
-
     rng = np.random.default_rng(seed)
     truth = _prior_draw(config, rng)
-    plant = discretize(DT_HUMAN)
     K = config.K
-    ref = _reference(K)
-    x0 = np.array([ref[0], 0.0])
-    if "assistant" not in _CACHE:
-        _CACHE["assistant"] = design_assistant()
     segs = []
     for s in range(config.n_subjects):
         for c in (0, 1):
             t1, t2, R = truth["theta1"][s, c], truth["theta2"][s, c], truth["R"][s, c]
             theta = np.array([t1 * R, t2 * R, R])
-            u_A = np.zeros(K) if c == 0 else plan_against_assistant(theta, x0, ref, plant, _CACHE["assistant"]).expected_u_A
-            demo = sample_maxent(theta, x0, ref, u_A, plant, rng)
-            if config.negative_control == "ignore-uA":
-                segs.append(Segment(x0, ref, demo.u_H + u_A, np.zeros(K)))
-            else:
-                segs.append(Segment(x0, ref, demo.u_H, u_A))
+            segs.append(simulate_unit(theta, "MC" if c == 0 else "SC", K, config.negative_control, rng))
     batch = prepare_batch(_fit_plant(config.negative_control), segs)
-    compiled = _compiled(config, config.negative_control).with_data(
-        x1=batch.x1, x2=batch.x2, r=batch.r, u=batch.u, a=batch.a)
+    compiled = _compiled(config, config.negative_control).with_data(**batch_data(batch))
     trace = nutpie.sample(compiled, chains=config.chains, tune=config.tune, draws=config.draws,
                           seed=int(rng.integers(2**62)), cores=1, progress_bar=False)
     post = trace["posterior"]

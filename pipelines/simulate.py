@@ -76,8 +76,7 @@ def simulate_to_dir(
                                   "u_H": s.run.u_H}))
         q11, q22, R = s.theta
         truth.append({"subject": s.subject, "condition": s.condition, "run_index": s.run_index,
-                      "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R,
-                      "plan_iterations": s.run.plan_iterations})
+                      "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R})
     paths = {
         "study": write_table_atomic(study, out / "study.parquet"),
         "truth": write_table_atomic(pd.DataFrame(truth), out / "truth.parquet"),

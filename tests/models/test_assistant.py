@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from models.assistant import assistant_torque, design_assistant, simulate_closed_loop
+from models.assistant import assistant_torque, design_assistant, feedforward, human_feedback, simulate_closed_loop
 from models.lq import lq_policy
 from models.maxent import lifted_matrices
 from models.plant import discretize
@@ -38,7 +38,8 @@ def test_mpc_law_equals_solving_the_qp_every_sample(assistant):
 def test_assistant_defaults_follow_the_paper(assistant):
     np.testing.assert_array_equal(assistant.theta, [5.0, 0.0, 1.0])
     assert assistant.preview_weights.shape == (50,)
-    assert assistant.hold == 2
+    assert assistant.hold == 1  # re-solved every 10-ms sample ...
+    assert assistant.stride == 2  # ... on the 0.02-s prediction grid
     assert assistant.plant.dt == 0.02
 
 
@@ -63,11 +64,31 @@ def test_assistant_alone_tracks_but_not_perfectly(assistant):
     assert rms(alone.u_A) > 0.0
 
 
-def test_torque_is_held_for_two_samples(assistant):
+def test_torque_is_held_for_two_samples_when_solved_every_20_ms():
     plant = discretize(0.01)
     ref = _reference(200)
-    run = simulate_closed_loop(plant, assistant, [0.1, 0.0], ref)
+    slow = design_assistant(period=0.02)
+    run = simulate_closed_loop(plant, slow, [0.1, 0.0], ref)
     np.testing.assert_array_equal(run.u_A[0::2], run.u_A[1::2])
+    assert not np.array_equal(simulate_closed_loop(plant, design_assistant(), [0.1, 0.0], ref).u_A, run.u_A)
+    with pytest.raises(ValueError, match="every sample"):
+        human_feedback(slow, ref)
+
+
+def test_assistant_is_state_feedback_plus_reference_feedforward(assistant):
+    # What the human who knows the assistant plans with: u_A,k = -gain @ x_k + feedforward_k,
+    # with the preview clamped at the end of the reference exactly as in the closed loop.
+    plant = discretize(0.01)
+    ref = _reference(400)
+    pol = lq_policy(plant, (60.0, 0.0, 1.0), ref, np.zeros(400))
+    noise = np.random.default_rng(2).normal(0.0, 0.1, 400)
+    run = simulate_closed_loop(plant, assistant, [0.05, 0.0], ref, pol.L, pol.f, noise)
+    fb = human_feedback(assistant, ref)
+    np.testing.assert_allclose(run.u_A, -run.x[:-1] @ fb.gain + fb.feedforward, rtol=1e-12, atol=1e-13)
+    np.testing.assert_array_equal(fb.feedforward, feedforward(assistant, ref))
+    # The feedforward is the torque the assistant applies to a wheel at rest at zero.
+    r_preview = ref[np.minimum(7 + 2 * np.arange(1, 51), 400)]
+    assert fb.feedforward[7] == pytest.approx(assistant_torque(assistant, [0.0, 0.0], r_preview), rel=1e-12)
 
 
 def test_closed_loop_with_a_human_policy_matches_open_loop_replay(assistant):
@@ -85,5 +106,7 @@ def test_closed_loop_with_a_human_policy_matches_open_loop_replay(assistant):
 def test_bad_assistant_settings_are_rejected():
     with pytest.raises(ValueError, match="multiple"):
         design_assistant(dt_assistant=0.015)
+    with pytest.raises(ValueError, match="period"):
+        design_assistant(period=0.015)
     with pytest.raises(ValueError, match="R must be > 0"):
         design_assistant(theta_A=(5.0, 0.0, 0.0))

@@ -5,11 +5,13 @@ import pytest
 from scipy import stats
 
 from models.maxent import (
+    Feedback,
     Segment,
     forward_optimal_control,
     loglik_dense,
     loglik_grad,
     loglik_segments,
+    planning_plant,
     prepare_batch,
     sample_maxent,
 )
@@ -176,3 +178,75 @@ def test_preview_gradient_matches_central_differences(plant):
         tm[j] -= h
         fd = (loglik_grad(tp, batch, plant).loglik[0] - loglik_grad(tm, batch, plant).loglik[0]) / (2 * h)
         assert abs(fd - grad[j]) <= 1e-6 * abs(grad[j])
+
+
+def _closed_loop_segment(plant, rng, K, preview):
+    """A human planning with the MPC assistant's law, in closed loop with it (the simulator's SC)."""
+    from models.assistant import design_assistant, human_feedback
+    from models.reference import reference_trajectory
+
+    ref = reference_trajectory(0.01 * (K + preview) + 2.0).angle
+    fb = human_feedback(design_assistant(), ref)
+    ref, ff = ref[: K + preview + 1], fb.feedforward[: K + preview]
+    theta = random_theta(rng, False)
+    x0 = np.array([ref[0] + 0.02, -0.1])
+    demo = sample_maxent(theta, x0, ref, ff, planning_plant(plant, fb.gain), rng)
+    u_A = ff - demo.x[:-1] @ fb.gain  # what the assistant applied along the trajectory
+    seg = Segment(x0, ref, demo.u_H[:K], u_A, Feedback(fb.gain, ff))
+    return theta, seg
+
+
+@pytest.mark.parametrize("K, preview", [(1, 0), (60, 0), (500, 0), (150, 30)])
+def test_feedback_model_equals_dense_in_closed_loop(plant, K, preview):
+    # The fast kernel takes the states from the recorded u_A and plans on the closed wheel;
+    # the dense reference plans and propagates on the closed wheel. In closed loop they agree.
+    rng = np.random.default_rng([21, K, preview])
+    theta, seg = _closed_loop_segment(plant, rng, K, preview)
+    dense = loglik_dense(theta, seg, plant)
+    fast = loglik_grad(theta, prepare_batch(plant, [seg]), plant)
+    assert abs(fast.loglik[0] - dense.loglik) <= 1e-9 * abs(dense.loglik)
+    if preview == 0:
+        assert np.max(np.abs(fast.grad[:, 0] - dense.grad)) <= 1e-9 * np.max(np.abs(dense.grad))
+    slow = loglik_grad(theta, prepare_batch(plant, [seg]), plant, freeze=False)
+    np.testing.assert_allclose(fast.grad, slow.grad, rtol=1e-10)
+    # The paper's model on the same data is a different likelihood (for K = 1 the one step's
+    # assistant torque is already fixed by x_0, and the two coincide).
+    paper = loglik_grad(theta, prepare_batch(plant, [seg._replace(feedback=None)]), plant)
+    assert (abs(paper.loglik[0] - fast.loglik[0]) > 1e-6 * abs(fast.loglik[0])) == (K + preview > 1)
+
+
+def test_feedback_gradient_matches_central_differences(plant):
+    theta, seg = _closed_loop_segment(plant, np.random.default_rng(22), 400, 100)
+    batch = prepare_batch(plant, [seg])
+    grad = loglik_grad(theta, batch, plant).grad[:, 0]
+    for j in range(3):
+        h = 1e-5 * theta[j]
+        tp, tm = theta.copy(), theta.copy()
+        tp[j] += h
+        tm[j] -= h
+        fd = (loglik_grad(tp, batch, plant).loglik[0] - loglik_grad(tm, batch, plant).loglik[0]) / (2 * h)
+        assert abs(fd - grad[j]) <= 1e-6 * abs(grad[j])
+
+
+def test_zero_feedback_is_the_paper_model_bit_for_bit(plant):
+    # A Feedback with zero gain and the recorded u_A as feedforward is the exogenous model;
+    # mixed in one batch, each segment keeps its own plan.
+    rng = np.random.default_rng(23)
+    seg = random_segment(rng, 300, True)
+    theta = random_theta(rng, False)
+    plain = loglik_grad(theta, prepare_batch(plant, [seg]), plant)
+    zero = seg._replace(feedback=Feedback(np.zeros(2), seg.u_A.copy()))
+    _, fb_seg = _closed_loop_segment(plant, rng, 300, 0)
+    both = loglik_grad(theta, prepare_batch(plant, [zero, fb_seg]), plant)
+    assert both.loglik[0] == plain.loglik[0]
+    np.testing.assert_array_equal(both.grad[:, 0], plain.grad[:, 0])
+    alone = loglik_grad(theta, prepare_batch(plant, [fb_seg]), plant)
+    assert both.loglik[1] == alone.loglik[0]
+
+
+def test_feedback_of_the_wrong_shape_is_rejected(plant):
+    seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10), Feedback(np.zeros(2), np.zeros(9)))
+    with pytest.raises(ValueError, match="feedforward"):
+        prepare_batch(plant, [seg])
+    with pytest.raises(ValueError, match="gain"):
+        prepare_batch(plant, [seg._replace(feedback=Feedback(np.zeros(3), np.zeros(10)))])

@@ -1,14 +1,15 @@
 import numpy as np
 import pytest
 
-from models.assistant import design_assistant, simulate_closed_loop
+from models.assistant import design_assistant, human_feedback
+from models.lq import lq_policy
+from models.maxent import planning_plant
 from models.plant import discretize
 from models.reference import reference_trajectory
 from models.simulate import (
     ENCODER_STEP,
     Population,
     draw_subjects,
-    plan_against_assistant,
     quantize,
     simulate_run,
     simulate_study,
@@ -33,14 +34,20 @@ def test_draws_are_reproducible_and_shift_theta1():
     assert all(s.mc[1] == 0 and s.sc[1] == 0 for s in a)
 
 
-def test_plan_is_a_fixed_point():
+def test_shared_run_is_the_max_ent_human_planning_with_the_assistant():
+    # SC: u_H,k = -L_k x_k + f_k + eps_k with (L, f, S) the plan on the wheel closed by the
+    # assistant's feedback and its feedforward as known input; the assistant reacts to x.
     plant, asst = discretize(0.01), design_assistant()
-    ref = reference_trajectory(20.0).angle
-    plan = plan_against_assistant([400.0, 0.0, 20.0], [0.0, 0.0], ref, plant, asst)
-    # The assistant's response to the final plan is the assistance the plan assumed.
-    again = simulate_closed_loop(plant, asst, [0.0, 0.0], ref, plan.policy.L, plan.policy.f)
-    np.testing.assert_allclose(again.u_A, plan.expected_u_A, atol=1e-9)
-    assert 1 < plan.iterations < 100
+    ref = reference_trajectory(10.0).angle
+    theta = [400.0, 0.0, 20.0]
+    run = simulate_run(theta, "SC", ref, plant, asst, np.random.default_rng(4))
+    fb = human_feedback(asst, ref)
+    pol = lq_policy(planning_plant(plant, fb.gain), theta, ref, fb.feedforward)
+    x = np.column_stack([run.true_angle, run.true_velocity])
+    K = ref.shape[0] - 1
+    eps = np.random.default_rng(4).standard_normal(K) / np.sqrt(2.0 * pol.S)
+    np.testing.assert_allclose(run.u_H[:K], -np.sum(pol.L * x[:K], axis=1) + pol.f + eps, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(run.u_A[:K], -x[:K] @ fb.gain + fb.feedforward, rtol=1e-10, atol=1e-12)
 
 
 def test_quantization_error_is_within_half_an_increment():
@@ -56,7 +63,7 @@ def test_manual_run_has_no_assistance_and_shared_run_has_some():
     rng = np.random.default_rng(3)
     mc = simulate_run([400.0, 0.0, 20.0], "MC", ref, plant, asst, rng)
     sc = simulate_run([400.0, 0.0, 20.0], "SC", ref, plant, asst, rng)
-    assert np.all(mc.u_A == 0.0) and mc.plan_iterations == 0
+    assert np.all(mc.u_A == 0.0)
     assert np.sqrt(np.mean(sc.u_A**2)) > 0.05
     with pytest.raises(ValueError, match="condition"):
         simulate_run([400.0, 0.0, 20.0], "XC", ref, plant, asst, rng)

@@ -242,26 +242,48 @@ def format_sbc(res: dict) -> str:
     return "\n".join(lines)
 
 
-def run_bench(json_path=None, *, quick: bool = False) -> dict:
-    """Run every benchmark; print tables; optionally write JSON (atomically).
+#: The parts of ``scioc bench``, in the order they run.
+PARTS = ("likelihood", "identify", "fit", "sbc")
+
+
+def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
+    """Run the benchmarks; print tables; optionally write JSON (atomically).
 
     Parameters
     ----------
     json_path : str or Path, optional
     quick : bool
-        Smaller sizes (for tests of the command itself; not for quoting).
+        Smaller sizes (for tests of the command itself; not for quoting). Leaves out the
+        fit and SBC parts, which have no small version worth timing.
+    parts : sequence of str
+        Any of :data:`PARTS`. The fit's dense comparison needs the likelihood part.
     """
     from pipelines.io import write_text_atomic
 
+    unknown = set(parts) - set(PARTS)
+    if unknown:
+        raise ValueError(f"unknown benchmark part(s) {sorted(unknown)}; choose from {', '.join(PARTS)}")
     kw = {"dense_k": (50, 100), "long_k": 2000} if quick else {}
     study = default_study_segments(n_subjects=2 if quick else 42)
-    result = {"machine": machine_info(), "quick": quick, "likelihood": bench_likelihood(study, **kw)}
-    print(format_likelihood(result["likelihood"]))
-    result["identify"] = bench_identify(study)
-    print(format_identify(result["identify"]))
-    if not quick:
+    result = {"machine": machine_info(), "quick": quick}
+    if "likelihood" in parts:
+        result["likelihood"] = bench_likelihood(study, **kw)
+        print(format_likelihood(result["likelihood"]), flush=True)
+    if "identify" in parts:
+        result["identify"] = bench_identify(study)
+        print(format_identify(result["identify"]), flush=True)
+    if "fit" in parts and not quick:
+        from pipelines.bench_fit import bench_fit, format_fit
+
+        lik = result.get("likelihood", {})
+        dense = {r["K"]: r["dense_s"] for r in lik.get("rows", [])}
+        K = study[2.0][0].segment.K
+        result["fit"] = bench_fit(study, dense_s_per_segment=dense.get(K),
+                                  linear_s_per_batch=lik.get("batch_preview", {}).get("linear_s"))
+        print(format_fit(result["fit"]), flush=True)
+    if "sbc" in parts and not quick:
         result["sbc"] = bench_sbc()
-        print(format_sbc(result["sbc"]))
+        print(format_sbc(result["sbc"]), flush=True)
     if json_path is not None:
         write_text_atomic(json_path, json.dumps(result, indent=2) + "\n")
     return result

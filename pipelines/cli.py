@@ -26,7 +26,7 @@ def _cmd_loglik(args) -> int:
 def _cmd_bench(args) -> int:
     from pipelines.bench import run_bench
 
-    run_bench(args.json, quick=args.quick)
+    run_bench(args.json, quick=args.quick, parts=[p.strip() for p in args.parts.split(",") if p.strip()])
     if args.json:
         print(f"wrote {args.json}")
     return 0
@@ -207,9 +207,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--format", choices=("table", "json"), default="table")
     p.set_defaults(func=_cmd_assistant)
 
-    p = sub.add_parser("bench", help="measured speed of the kernels")
+    p = sub.add_parser("bench", help="measured speed of the kernels, the identification, the full fit and SBC")
     p.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
+    p.add_argument("--parts", default="likelihood,identify,fit,sbc", metavar="LIST",
+                   help="comma-separated subset of likelihood, identify, fit (the full default-study fit, about "
+                   "3 min) and sbc (default: all)")
     p.set_defaults(func=_cmd_bench)
     return parser
 

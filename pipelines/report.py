@@ -5,6 +5,7 @@ Reads what the stages wrote under a run folder and never refits:
 * ``data/`` — ``study.parquet``, ``simulation.json`` and, for simulated studies, ``truth*.parquet``
 * ``identify/`` — ``estimates.parquet``, ``trajectories.parquet``, ``validation.parquet``, ``identify.json``
 * ``identify_true_torque/`` — the same from the true torques (simulated studies only)
+* ``identify_true_torque_exogenous/`` — the same with the paper's exogenous-u_A likelihood
 * ``compare.json`` — the Wilcoxon tests
 
 Sections whose artifacts are missing are left out with a note.
@@ -267,13 +268,18 @@ def section_reconstruction(traj: pd.DataFrame, truth_traj: pd.DataFrame | None) 
              "resolution is not recovered; the reconstruction is smoother than the truth.")
 
 
-def section_truth(est: pd.DataFrame, truth: pd.DataFrame, est_true: pd.DataFrame | None) -> str:
+def section_truth(est: pd.DataFrame, truth: pd.DataFrame, est_true: pd.DataFrame | None,
+                  est_paper: pd.DataFrame | None = None) -> str:
     m = est.merge(truth, on=["subject", "condition"], suffixes=("", "_true"))
     sources = [("from encoder angle", m)]
     if est_true is not None:
         sources.append(("from true torques", est_true.merge(truth, on=["subject", "condition"], suffixes=("", "_true"))))
+    extra = []
+    if est_paper is not None:
+        extra.append(("from true torques, u_A exogenous (paper)",
+                      est_paper.merge(truth, on=["subject", "condition"], suffixes=("", "_true"))))
     rows = []
-    for label, d in sources:
+    for label, d in sources + extra:
         for c in ("MC", "SC"):
             s = d[d.condition == c]
             rows.append({
@@ -315,9 +321,10 @@ def section_truth(est: pd.DataFrame, truth: pd.DataFrame, est_true: pd.DataFrame
     txt = ("<p>The simulator's true parameters against the estimates (error bars: ±1 SE from the observed "
            "information). The row “SC − MC” gives the error of the mean log shift, the quantity the hypothesis is "
            "about. Estimates from the true torques show what the likelihood itself does; estimates from the angle "
-           "add what the reconstruction costs. In SC the likelihood treats the recorded u_A as known in advance, "
-           "although the assistant reacts to the human's own variability; that mismatch is visible in the SC "
-           "rows from true torques.</p>")
+           "add what the reconstruction costs. The simulated SC human plans with the assistant's feedback law, "
+           "and so does the likelihood by default. The rows “u_A exogenous (paper)” use the paper's Eq. 15-16 "
+           "instead, which takes the recorded u_A as known in advance although the assistant reacts to the "
+           "human's own variability: the shift of SC θ1 there is what that mismatch costs.</p>")
     return txt + _table(pd.DataFrame(rows), left=("estimates", "condition")) + _fig_html(
         fig, "True vs estimated θ1 per subject and condition.")
 
@@ -442,6 +449,7 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     val = _read(root / "identify" / "validation.parquet")
     meta = _read(root / "identify" / "identify.json")
     est_true = _read(root / "identify_true_torque" / "estimates.parquet")
+    est_paper = _read(root / "identify_true_torque_exogenous" / "estimates.parquet")
     cmp = _read(root / "compare.json")
     if est is None:
         raise FileNotFoundError(f"{root / 'identify' / 'estimates.parquet'}: no estimates; run `scioc identify` first")
@@ -472,7 +480,7 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
         body.append(section_reconstruction(traj, truth_traj))
     if truth is not None:
         body.append("<h2>Ground truth vs estimates</h2>")
-        body.append(section_truth(est, truth, est_true))
+        body.append(section_truth(est, truth, est_true, est_paper))
     body.append("<h2>Identification details</h2>")
     body.append(section_identification(est, meta))
     body.append("<h2>Simulation-based calibration</h2>")

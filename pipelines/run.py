@@ -2,13 +2,15 @@
 
 Stages (each writes its own artifacts, each also a command of its own):
 simulate → identify (from angles, like a lab) → identify from the true torques (what the
-reconstruction costs) → compare → report.
+reconstruction costs; and with the paper's exogenous-u_A likelihood, what that costs in
+SC) → compare → fit → report.
 """
 
 from __future__ import annotations
 
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -56,6 +58,9 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int = DEFAUL
     identify_to_dir(sim["study"], root / "identify", settings)
     log(f"[3/{steps}] identifying again from the true torques (the cost of reconstruction)")
     identify_with_truth(sim["study"], sim["truth_trajectories"], root / "identify_true_torque", settings)
+    # The paper's likelihood (recorded u_A as a known input) on the same torques: its SC bias.
+    identify_with_truth(sim["study"], sim["truth_trajectories"], root / "identify_true_torque_exogenous",
+                        replace(settings, assistant_model="exogenous"))
     log(f"[4/{steps}] Wilcoxon matched-pairs test MC vs SC")
     compare_to_file(root / "identify" / "estimates.parquet", root / "compare.json")
     if fit:

@@ -17,6 +17,10 @@ so the model is written in (θ1, θ2, R)::
     θ2[i, c]      ~ HalfNormal(τ)                (θ2 >= 0; τ -> 0 says "θ2 = 0 for everyone")
     u_H[segment] ~ max-ent(q11 = θ1 R, q22 = θ2 R, R | x0, angle_ref, u_A)
 
+(in SC the max-ent human plans with the assistant's feedback law when the segment
+carries :class:`models.maxent.Feedback`, as ``scioc fit`` does by default, or with the
+recorded u_A as a known input, the paper's model).
+
 Several segments may belong to one unit (they share its θ); every subject needs at least
 one segment in each condition.
 
@@ -47,9 +51,9 @@ observed segments per condition (``observed_*``)::
 
                         5 %    25 %   50 %   75 %   95 %
     MC torque (N·m)    0.246  0.281  0.304  0.339  0.447    observed 0.271-0.318
-    SC torque (N·m)    0.109  0.141  0.182  0.252  0.443    observed 0.127-0.200
-    MC error (rad)     0.005  0.010  0.019  0.033  0.073    observed 0.009-0.035
-    SC error (rad)     0.002  0.006  0.011  0.022  0.049    observed 0.007-0.023
+    SC torque (N·m)    0.097  0.138  0.180  0.250  0.445    observed 0.118-0.193
+    MC error (rad)     0.005  0.010  0.018  0.033  0.073    observed 0.009-0.035
+    SC error (rad)     0.003  0.008  0.015  0.027  0.044    observed 0.011-0.032
 
 The priors thus allow anything from very tight (0.1°) to loose (4°) tracking with
 torques from about a tenth to half a N·m, and the observations sit inside the central
@@ -512,7 +516,7 @@ def prior_predictive_summary(
 
     Each draw takes all unit parameters jointly from the prior (:func:`build_model`) and
     simulates every segment exactly from the max-ent model with :func:`sample_maxent`
-    (x0, angle_ref and the recorded u_A of the segment, preview included); states follow
+    (x0, angle_ref and the segment's known input and plan, preview included); states follow
     from the drawn torques, and both are summarized over the K observed steps.
 
     Parameters

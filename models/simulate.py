@@ -269,3 +269,50 @@ def simulate_study(
             run = simulate_run(theta, cond, ref.angle, plant, assistant, runs[cond])
             out.append(SimulatedSegment(name, cond, j, theta, run))
     return ref.t, out
+
+
+class Windows(NamedTuple):
+    """Simulated analysis windows with the true torques, ready for the likelihood.
+
+    Attributes
+    ----------
+    subjects, conditions : list of str
+    segments : list of Segment
+        True x0, u_H and recorded u_A; SC segments carry the assistant's Feedback.
+    theta : ndarray, shape (3, n)
+        True [q11, q22, R] per segment.
+    """
+
+    subjects: list
+    conditions: list
+    segments: list
+    theta: np.ndarray
+
+
+def simulate_windows(n_subjects: int, rng: np.random.Generator, population: Population = Population(), *,
+                     K: int = 1500, preview: int = 200) -> Windows:
+    """Small studies straight from the simulator: each subject's MC and SC runs, first K steps.
+
+    Each run is simulated over K + preview + 200 samples of the study reference (so the
+    simulated human plans past what the likelihood sees, as in a real run) and cut to
+    its first K observed steps plus ``preview`` planning steps. No encoder, no
+    reconstruction: the true state and torque, for tests and calibration.
+    """
+    from models.maxent import Feedback, Segment
+
+    plant = discretize(DT_HUMAN)
+    assistant = design_assistant()
+    ref = reference_trajectory(DT_HUMAN * (K + preview + 200)).angle
+    fb = human_feedback(assistant, ref)
+    subjects, conditions, segments, thetas = [], [], [], []
+    width = max(2, len(str(int(n_subjects))))
+    for i, sub in enumerate(draw_subjects(population, n_subjects, rng)):
+        for cond, theta in (("MC", sub.mc), ("SC", sub.sc)):
+            run = simulate_run(theta, cond, ref, plant, assistant, rng)
+            x0 = np.array([run.true_angle[0], run.true_velocity[0]])
+            feedback = Feedback(fb.gain, fb.feedforward[: K + preview]) if cond == "SC" else None
+            segments.append(Segment(x0, ref[: K + preview + 1], run.u_H[:K], run.u_A[: K + preview], feedback))
+            subjects.append(f"S{i + 1:0{width}d}")
+            conditions.append(cond)
+            thetas.append(theta)
+    return Windows(subjects, conditions, segments, np.column_stack(thetas))

@@ -15,6 +15,9 @@ dense evaluation of all segments.
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
+import json
 import os
 import time
 
@@ -28,7 +31,8 @@ FIT_GOAL_S = 180.0
 
 
 def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 500,
-              dense_s_per_segment: float | None = None, linear_s_per_batch: float | None = None) -> dict:
+              dense_s_per_segment: float | None = None, linear_s_per_batch: float | None = None,
+              parameterization=None) -> dict:
     """Fit the default study once and time it.
 
     Parameters
@@ -41,6 +45,8 @@ def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 10
         Measured dense likelihood-and-gradient time of one K = 1500 segment, s.
     linear_s_per_batch : float, optional
         Measured linear-time likelihood-and-gradient time of the whole batch, s.
+    parameterization : models.hierarchical.Parameterization, optional
+        The model's default if None.
 
     Returns
     -------
@@ -49,14 +55,15 @@ def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 10
         :func:`pipelines.fit.diagnostics`), ``beta`` (mean, 94 % HDI, truth, inside),
         ``grad_evals_after_tuning``, ``dense`` (projected time and ratio) and the goal check.
     """
-    from models.hierarchical import build_model
+    from models.hierarchical import Parameterization, build_model
     from pipelines.fit import _hdi, diagnostics, sample_model
 
+    form = parameterization or Parameterization()
     prepared = study[2.0]
     plant = discretize(DT_HUMAN)
     t0 = time.perf_counter()
     model = build_model([p.data.subject for p in prepared], [p.data.condition for p in prepared],
-                        [p.segment for p in prepared], plant)
+                        [p.segment for p in prepared], plant, parameterization=form)
     t1 = time.perf_counter()
     idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune)
     diag = diagnostics(idata, sec["sample"])
@@ -66,7 +73,8 @@ def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 10
     n_grad = int(np.asarray(idata["sample_stats"]["n_steps"].values).sum())
     out = {
         "settings": {"segments": len(prepared), "K": prepared[0].segment.K, "preview_steps": prepared[0].segment.preview,
-                     "chains": chains, "draws": draws, "tune": tune, "seed": seed},
+                     "chains": chains, "draws": draws, "tune": tune, "seed": seed,
+                     "parameterization": dataclasses.asdict(form)},
         "seconds": {"build": t1 - t0, "compile_and_sample": sec["compile_and_sample"], "sample": sec["sample"],
                     "fit": (t1 - t0) + sec["compile_and_sample"]},
         "diagnostics": diag,
@@ -111,4 +119,35 @@ def format_fit(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["bench_fit", "format_fit", "FIT_GOAL_S"]
+def main(argv=None) -> None:
+    """``python -m pipelines.bench_fit``: one fit of a simulated study in a chosen parameterization.
+
+    What the parameterization table of :mod:`models.hierarchical` was measured with::
+
+        python -m pipelines.bench_fit --study-seed 2018 --theta1-mc centred
+    """
+    from models.hierarchical import Parameterization
+    from pipelines.bench import default_study_segments
+
+    p = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
+    p.add_argument("--study-seed", type=int, default=2018, help="seed of the simulated study (default 2018, scioc run's)")
+    p.add_argument("--seed", type=int, default=2018, help="sampler seed")
+    for f in dataclasses.fields(Parameterization):
+        p.add_argument(f"--{f.name.replace('_', '-')}", choices=["centred", "noncentred", "mean"], default=f.default)
+    p.add_argument("--json", metavar="PATH")
+    a = p.parse_args(argv)
+    form = Parameterization(**{f.name: getattr(a, f.name) for f in dataclasses.fields(Parameterization)})
+    res = bench_fit(default_study_segments(seed=a.study_seed), seed=a.seed, parameterization=form)
+    res["settings"]["study_seed"] = a.study_seed
+    print(format_fit(res))
+    if a.json:
+        from pipelines.io import write_text_atomic
+
+        write_text_atomic(a.json, json.dumps(res, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
+
+
+__all__ = ["bench_fit", "format_fit", "main", "FIT_GOAL_S"]

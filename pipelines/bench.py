@@ -187,7 +187,7 @@ def format_likelihood(res: dict) -> str:
         f"  (dense K×K matrix: {lg['dense_matrix_bytes'] / 1e9:.1f} GB; linear peak memory "
         f"{lg['linear_peak_bytes'] / 1e6:.1f} MB)"
     )
-    for key, what in (("batch", "the paper's model, plan ends with the window"),
+    for key, what in (("batch", "the paper's horizon, plan ends with the window"),
                       ("batch_preview", "plan looks 2 s past the window (scioc's default)")):
         bt = res[key]
         lines += [

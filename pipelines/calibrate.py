@@ -32,6 +32,11 @@ from pipelines.io import write_text_atomic
 FAMILY_ALPHA = 0.01
 
 
+#: Version of how replications simulate and fit; part of every fingerprint. Bump it when
+#: the data-generating process or the fitted likelihood changes.
+GENERATOR = "2: SC human plans with the assistant's feedback law; assistant re-solves every sample"
+
+
 @dataclass(frozen=True)
 class CalibrationConfig:
     """What to calibrate and how.
@@ -93,6 +98,7 @@ class CalibrationConfig:
         d = asdict(self)
         d.pop("batch_size")
         d.pop("replications")
+        d["generator"] = GENERATOR  # results of an older simulator must not be resumed
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 

@@ -15,14 +15,17 @@ Artifacts in ``--out DIR``:
   verdict (no divergences, R-hat ≤ 1.01, bulk and tail ESS ≥ 400 for every population
   parameter), wall times, ESS per second, inputs and package versions.
 * ``contrasts.json`` — β (mean, SD, 94 % HDI, P(β < 0)), the ratio exp(β) with its HDI,
-  per-subject MC→SC contrasts of log θ1, the LOO comparison, the frequentist mixed-model
+  per-subject MC→SC contrasts of log θ1, the LOO comparisons (PSIS over segments, which
+  one segment per unit defeats, and integrated PSIS leaving out whole subjects,
+  :func:`subject_loo_comparison`), the frequentist mixed-model
   cross-check on the per-segment ML estimates and, for a simulated study, the truth check.
 * ``ppc.parquet`` — posterior predictive angle and torque of one subject (both
   conditions): 5/50/95 % bands over posterior draws, exact max-ent draws of the human
   the likelihood assumes (:func:`models.maxent.sample_maxent`), beside the data.
 
-Randomness: the root ``seed`` is split with ``SeedSequence(seed).spawn(3)`` into the seeds
-of the two samplers and of the posterior predictive draws; the same seed gives the same
+Randomness: the root ``seed`` is split with ``SeedSequence(seed).spawn(4)`` into the seeds
+of the two samplers, of the posterior predictive draws and of the leave-one-subject-out
+importance sampling; the same seed gives the same
 draws and numbers (file bytes differ only by the time stamps NetCDF attributes carry).
 """
 
@@ -106,9 +109,9 @@ def prepare_study(study_path, settings: IdentifySettings = IdentifySettings(), *
 
 
 def _child_seeds(seed: int) -> dict:
-    sampler, pooled, ppc = np.random.SeedSequence(int(seed)).spawn(3)
+    sampler, pooled, ppc, loso = np.random.SeedSequence(int(seed)).spawn(4)
     return {"condition": int(sampler.generate_state(1)[0]), "pooled": int(pooled.generate_state(1)[0]),
-            "ppc": int(ppc.generate_state(1)[0])}
+            "ppc": int(ppc.generate_state(1)[0]), "loso": int(loso.generate_state(1)[0])}
 
 
 def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
@@ -291,6 +294,67 @@ def loo_comparison(idata, idata_pooled) -> dict:
                  "segments' ELPD (and so the difference) is unreliable; with one segment per "
                  "unit this is expected, see the model docstring" if bad else "all Pareto k below the threshold"),
     }
+    return out
+
+
+#: Posterior draws kept (evenly thinned) for the leave-one-subject-out integrals.
+LOSO_DRAWS = 1000
+#: Importance-sampling points per subject for them.
+LOSO_POINTS = 2000
+
+
+def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, plant, rng: np.random.Generator) -> dict:
+    """Leave-one-subject-out ELPD of both models by integrated PSIS, and their difference.
+
+    The pointwise term is ``log p(y_i | ψ_s)``, subject i's data with its unit parameters
+    integrated out under population draw ψ_s (:mod:`models.subject_loo`); PSIS then
+    reweights only the population draws, which one subject of many barely moves, so the
+    Pareto k stay low where the segment-wise PSIS-LOO fails. The posterior is thinned
+    evenly to :data:`LOSO_DRAWS` draws over the chains.
+    """
+    import arviz as az
+    import xarray as xr
+
+    from models.hierarchical import index_study
+    from models.subject_loo import subject_loglik
+
+    index = index_study(subjects, conditions)
+    out, pointwise = {}, {}
+    for name, d, effects in (("condition", idata, True), ("pooled", idata_pooled, False)):
+        post = d["posterior"].to_dataset()
+        n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
+        step = max(1, (n_chain * n_draw) // LOSO_DRAWS)
+        keep = post.isel(draw=slice(0, None, step))
+        flat = {v: np.asarray(keep[v].transpose("chain", "draw", ...).values, dtype=float).reshape(
+            (-1,) + keep[v].shape[2:]) for v in keep.data_vars}
+        order = [str(x) for x in keep["log_theta1"].coords["subject"].values]
+        if order != [str(x) for x in index.subjects]:
+            raise ValueError("posterior subjects are not in the order of the study index")
+        t0 = time.perf_counter()
+        res = subject_loglik(flat, batch, index.subject_idx, index.condition_idx, plant, rng,
+                             condition_effects=effects, M=LOSO_POINTS)
+        seconds = time.perf_counter() - t0
+        ll = xr.DataArray(res.loglik.reshape(keep.sizes["chain"], keep.sizes["draw"], -1),
+                          dims=("chain", "draw", "subject"), coords={"subject": order})
+        tree = xr.DataTree.from_dict({"posterior": keep[["mu_log_theta1"]], "log_likelihood": xr.Dataset({"y": ll})})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            loo = az.loo(tree, pointwise=True, var_name="y")
+        k = np.asarray(loo.pareto_k, dtype=float).ravel()
+        good = float(loo.good_k)
+        pointwise[name] = np.asarray(loo.elpd_i).ravel()
+        out[name] = {"elpd_loo": float(loo.elpd), "se": float(loo.se), "p_loo": float(loo.p),
+                     "pareto_k": {"threshold": good, "max": float(np.nanmax(k)) if np.isfinite(k).any() else float("nan"),
+                                  "n_gt_threshold": int((~(k <= good)).sum()), "n": int(k.size)},
+                     "is_ess_min": float(res.is_ess.min()), "is_ess_median": float(np.median(res.is_ess)),
+                     "draws": int(res.loglik.shape[0]), "seconds": seconds}
+    diff_i = pointwise["condition"] - pointwise["pooled"]
+    n = diff_i.shape[0]
+    diff, se = float(diff_i.sum()), float(np.sqrt(n * diff_i.var(ddof=1)))
+    bad = out["condition"]["pareto_k"]["n_gt_threshold"] + out["pooled"]["pareto_k"]["n_gt_threshold"]
+    out["difference"] = {"elpd_diff": diff, "se": se, "z": diff / se if se > 0 else float("inf"),
+                         "preferred": "condition" if diff > 0 else "pooled", "reliable": bad == 0,
+                         "subjects_favouring_condition": int((diff_i > 0).sum()), "n": int(n)}
     return out
 
 
@@ -575,6 +639,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     res = {"model": "hierarchical max-ent, condition effects on log θ1 and log R (models.hierarchical)",
            **contrasts(fits["condition"])}
     res["loo"] = loo_comparison(fits["condition"], fits["pooled"])
+    res["loo_subject"] = subject_loo_comparison(fits["condition"], fits["pooled"], batch, prepared.subjects,
+                                                prepared.conditions, plant, np.random.default_rng(seeds["loso"]))
     estimates = pd.read_parquet(estimates_path) if estimates_path is not None else None
     res["mixedlm"] = mixedlm_check(estimates) if estimates is not None else None
     res["truth"] = truth_check(fits["condition"], truth_dir, estimates) if truth_dir is not None else None
@@ -629,6 +695,10 @@ def format_fit(out) -> str:
         f"LOO: elpd(condition) - elpd(pooled) = {loo['elpd_diff']:.1f} ± {loo['se']:.1f} "
         f"({'reliable' if loo['reliable'] else 'Pareto k high: unreliable'})",
     ]
+    if res.get("loo_subject"):
+        ls = res["loo_subject"]["difference"]
+        lines.append(f"leave-one-subject-out: elpd(condition) - elpd(pooled) = {ls['elpd_diff']:.1f} ± {ls['se']:.1f} "
+                     f"({'reliable' if ls['reliable'] else 'Pareto k high: unreliable'})")
     if res.get("truth"):
         t = res["truth"]["beta"]
         lines.append(f"true beta {t['truth']:g}: {'inside' if t['in_hdi'] else 'outside'} the HDI "

@@ -59,7 +59,7 @@ class IdentifySettings:
     window_seconds : float or None
         Length of the window, s; None for the whole run.
     preview : float
-        How far past the window the human plans, s (0: the paper's model).
+        How far past the window the human plans, s (0: the paper's horizon).
     margin : float
         Extra seconds on each side of the window used by the reconstruction.
     reconstruct : str

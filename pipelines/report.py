@@ -117,8 +117,11 @@ def section_design(root: Path, sim: dict | None, ident_meta: dict | None) -> str
                else f"{s['window_start']:g} s to {s['window_start'] + s['window_seconds']:g} s")
         parts.append(
             f"<p>Identification window: {win}; the human's plan looks {s['preview']:g} s past the window "
-            "(0 would be the paper's model exactly; see the README); velocity and torque reconstructed from the "
-            f"angle where missing (margin {s['margin']:g} s).</p>"
+            "(0 would be the paper's horizon exactly; see the README); in SC the human "
+            + ("plans with the assistant's feedback law (the simulated humans' own model)"
+               if s.get("assistant_model", "exogenous") == "feedback"
+               else "takes the recorded u_A as a known input (the paper's Eq. 15-16)")
+            + f"; velocity and torque reconstructed from the angle where missing (margin {s['margin']:g} s).</p>"
         )
     return "".join(parts)
 

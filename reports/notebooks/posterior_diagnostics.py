@@ -147,3 +147,25 @@ if POOLED.exists():
     plt.show()
 else:
     print(f"no pooled fit at {POOLED}")
+
+# %% [markdown]
+# ## Leaving out whole subjects
+#
+# The reliable comparison: each subject's own parameters integrated out by importance
+# sampling, then PSIS over the population draws only (`models/subject_loo.py`).
+# `scioc fit` stores it in `contrasts.json`; every Pareto k should lie below the threshold.
+
+# %%
+CONTRASTS = POSTERIOR.with_name("contrasts.json")
+if CONTRASTS.exists() and "loo_subject" in (res := json.loads(CONTRASTS.read_text())):
+    ls = res["loo_subject"]
+    for name in ("condition", "pooled"):
+        m = ls[name]
+        print(f"{name:>9}: ELPD {m['elpd_loo']:.1f} ± {m['se']:.1f}, max Pareto k {m['pareto_k']['max']:.2f} "
+              f"({m['pareto_k']['n_gt_threshold']} of {m['pareto_k']['n']} above {m['pareto_k']['threshold']:.2f}), "
+              f"importance-sampling ESS min {m['is_ess_min']:.0f}")
+    d = ls["difference"]
+    print(f"difference (condition - pooled): {d['elpd_diff']:.1f} ± {d['se']:.1f}; "
+          f"{d['subjects_favouring_condition']} of {d['n']} subjects better predicted with condition effects")
+else:
+    print(f"no leave-one-subject-out comparison at {CONTRASTS}")

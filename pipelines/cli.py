@@ -11,7 +11,7 @@ def _cmd_loglik(args) -> int:
     from pipelines.loglik import parse_theta, study_loglik
 
     theta = parse_theta(args.theta)
-    table = study_loglik(args.study, theta)
+    table = study_loglik(args.study, theta, args.assistant_model)
     if args.format == "json":
         records = [
             {"subject": r.subject, "condition": r.condition, "loglik": float(r.loglik)}
@@ -137,6 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("loglik", help="max-ent log-likelihood of every segment of a study file under one θ")
     p.add_argument("study", help="study file (Parquet or CSV) in the data convention")
     p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
+    p.add_argument("--assistant-model", choices=("feedback", "exogenous"), default="feedback",
+                   help="in SC the human plans with the assistant's law (default) or takes the recorded u_A as a "
+                   "known input (the paper's Eq. 15-16)")
     p.add_argument("--format", choices=("table", "json"), default="table")
     p.set_defaults(func=_cmd_loglik)
 

@@ -330,10 +330,8 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
         order = [str(x) for x in keep["log_theta1"].coords["subject"].values]
         if order != [str(x) for x in index.subjects]:
             raise ValueError("posterior subjects are not in the order of the study index")
-        t0 = time.perf_counter()
         res = subject_loglik(flat, batch, index.subject_idx, index.condition_idx, plant, rng,
                              condition_effects=effects, M=LOSO_POINTS)
-        seconds = time.perf_counter() - t0
         ll = xr.DataArray(res.loglik.reshape(keep.sizes["chain"], keep.sizes["draw"], -1),
                           dims=("chain", "draw", "subject"), coords={"subject": order})
         tree = xr.DataTree.from_dict({"posterior": keep[["mu_log_theta1"]], "log_likelihood": xr.Dataset({"y": ll})})
@@ -347,7 +345,7 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
                      "pareto_k": {"threshold": good, "max": float(np.nanmax(k)) if np.isfinite(k).any() else float("nan"),
                                   "n_gt_threshold": int((~(k <= good)).sum()), "n": int(k.size)},
                      "is_ess_min": float(res.is_ess.min()), "is_ess_median": float(np.median(res.is_ess)),
-                     "draws": int(res.loglik.shape[0]), "seconds": seconds}
+                     "draws": int(res.loglik.shape[0])}
     diff_i = pointwise["condition"] - pointwise["pooled"]
     n = diff_i.shape[0]
     diff, se = float(diff_i.sum()), float(np.sqrt(n * diff_i.var(ddof=1)))

@@ -97,8 +97,25 @@ ASSISTANT_MODELS = ("feedback", "exogenous")
 
 
 @functools.lru_cache(maxsize=1)
-def _assistant():
+def paper_assistant():
+    """The study's assistant (the paper's MPC, :func:`models.assistant.design_assistant`), built once."""
     return design_assistant()
+
+
+def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start: int, assistant_model: str) -> Segment:
+    """``segment`` (rows ``start``.. of its run) with the human's model of the assistant.
+
+    ``feedback`` in SC: the paper's MPC law, its feedforward from the run's whole reference
+    ``angle_ref_run`` (the assistant previews 1 s past the segment). Otherwise unchanged
+    (the recorded u_A as a known input).
+    """
+    if assistant_model not in ASSISTANT_MODELS:
+        raise ValueError(f"assistant model must be one of {ASSISTANT_MODELS}; got {assistant_model!r}")
+    if assistant_model != "feedback" or condition != "SC":
+        return segment
+    full = human_feedback(paper_assistant(), angle_ref_run)
+    n = segment.u_A.shape[0]
+    return segment._replace(feedback=Feedback(full.gain, full.feedforward[start : start + n]))
 
 
 @dataclass(frozen=True)
@@ -152,18 +169,13 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
     else:
         angle, velocity, u_H = seg.angle[rows], seg.velocity[rows], seg.u_H[rows]
         sigma_eps = q = float("nan")
-    feedback = None
-    if settings.assistant_model == "feedback" and seg.condition == "SC":
-        # The assistant previews 1 s ahead: its feedforward comes from the whole run's reference.
-        full = human_feedback(_assistant(), seg.angle_ref)
-        feedback = Feedback(full.gain, full.feedforward[i0 : i1 + M])
     segment = Segment(
         x0=np.array([angle[0], velocity[0]]),
         angle_ref=seg.angle_ref[i0 : i1 + M + 1],
         u_H=u_H[:K],
         u_A=seg.u_A[i0 : i1 + M],
-        feedback=feedback,
     )
+    segment = with_assistant_model(segment, seg.condition, seg.angle_ref, i0, settings.assistant_model)
     return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q)
 
 

@@ -8,6 +8,7 @@ import pandas as pd
 from models.cost import validate_theta
 from models.maxent import loglik_segments
 from models.plant import DT_HUMAN, discretize
+from pipelines.identify import with_assistant_model
 from pipelines.io import load_study, to_maxent_segment
 
 
@@ -23,7 +24,7 @@ def parse_theta(text: str) -> np.ndarray:
     return validate_theta(values, name="--theta")
 
 
-def study_loglik(path, theta) -> pd.DataFrame:
+def study_loglik(path, theta, assistant_model: str = "feedback") -> pd.DataFrame:
     """Log-likelihood (nats) of each (subject, condition) segment of a study file.
 
     Parameters
@@ -32,6 +33,8 @@ def study_loglik(path, theta) -> pd.DataFrame:
         Study file in the data convention with ``velocity`` and ``u_H``.
     theta : array_like, shape (3,)
         [q11, q22, R].
+    assistant_model : {"feedback", "exogenous"}
+        How the SC human models the assistant (:mod:`pipelines.identify`).
 
     Returns
     -------
@@ -41,7 +44,8 @@ def study_loglik(path, theta) -> pd.DataFrame:
     """
     th = validate_theta(theta)
     study = load_study(path)
-    segs = [to_maxent_segment(s, study.path) for s in study.segments]
+    segs = [with_assistant_model(to_maxent_segment(s, study.path), s.condition, s.angle_ref, 0, assistant_model)
+            for s in study.segments]
     res = loglik_segments(th, segs, discretize(DT_HUMAN))
     return pd.DataFrame(
         {

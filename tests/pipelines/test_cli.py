@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.maxent import loglik_dense
+from models.maxent import loglik_dense, loglik_grad, prepare_batch
 from models.plant import discretize
 from pipelines.cli import main
+from pipelines.identify import with_assistant_model
 from pipelines.io import load_study, to_maxent_segment, write_table_atomic
 from tests.pipelines.test_io import small_table
 
@@ -21,7 +22,9 @@ def study_file(tmp_path):
 
 
 def test_loglik_json_matches_dense_reference(study_file, capsys):
-    assert main(["loglik", str(study_file), "--theta", "60,0.1,1", "--format", "json"]) == 0
+    # The paper's model: the recorded u_A as a known input, against Eq. 11-16 literally.
+    assert main(["loglik", str(study_file), "--theta", "60,0.1,1", "--format", "json",
+                 "--assistant-model", "exogenous"]) == 0
     records = json.loads(capsys.readouterr().out)
     assert [set(r) for r in records] == [{"subject", "condition", "loglik"}] * 4
     study = load_study(study_file)
@@ -30,6 +33,17 @@ def test_loglik_json_matches_dense_reference(study_file, capsys):
         assert (rec["subject"], rec["condition"]) == (seg.subject, seg.condition)
         ref = loglik_dense([60, 0.1, 1], to_maxent_segment(seg), plant, with_grad=False).loglik
         assert rec["loglik"] == pytest.approx(ref, rel=1e-10)
+    # The default plans with the assistant's law in SC: MC unchanged, SC its own likelihood.
+    assert main(["loglik", str(study_file), "--theta", "60,0.1,1", "--format", "json"]) == 0
+    default = json.loads(capsys.readouterr().out)
+    for rec, dflt, seg in zip(records, default, study.segments):
+        if seg.condition == "MC":
+            assert dflt["loglik"] == rec["loglik"]
+        else:
+            fb = with_assistant_model(to_maxent_segment(seg), "SC", seg.angle_ref, 0, "feedback")
+            assert fb.feedback is not None
+            ref = loglik_grad([60, 0.1, 1], prepare_batch(plant, [fb]), plant).loglik[0]
+            assert dflt["loglik"] == pytest.approx(ref, rel=1e-12) and dflt["loglik"] != rec["loglik"]
 
 
 def test_loglik_table_output(study_file, capsys):

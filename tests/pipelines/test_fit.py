@@ -91,6 +91,11 @@ def test_fit_writes_posteriors_sidecar_and_contrasts(small_fit):
     assert loo["condition"]["pareto_k"]["n"] == 2 * N_SUBJECTS
     assert loo["difference"]["elpd_diff"] == pytest.approx(loo["condition"]["elpd_loo"] - loo["pooled"]["elpd_loo"])
     assert isinstance(loo["difference"]["reliable"], bool)
+    ls = res["loo_subject"]
+    for name in ("condition", "pooled"):
+        assert ls[name]["pareto_k"]["n"] == N_SUBJECTS and ls[name]["is_ess_min"] > 1.0
+    assert ls["difference"]["elpd_diff"] == pytest.approx(ls["condition"]["elpd_loo"] - ls["pooled"]["elpd_loo"])
+    assert ls["difference"]["n"] == N_SUBJECTS
     mm = res["mixedlm"]
     assert mm["ci95"][0] < mm["coef"] < mm["ci95"][1] and 0 <= mm["p_value"] <= 1 and mm["n_obs"] == 2 * N_SUBJECTS
     tr = res["truth"]

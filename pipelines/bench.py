@@ -18,6 +18,7 @@ from threadpoolctl import threadpool_limits
 
 from models.maxent import Segment, loglik_dense, loglik_grad, prepare_batch, sample_maxent
 from models.plant import DT_HUMAN, discretize
+from models.reference import WINDOW_SECONDS
 
 #: Segment lengths compared against the dense reference.
 DENSE_K = (250, 500, 1000, 1500)
@@ -116,11 +117,12 @@ def bench_likelihood(study: dict, *, dense_k=DENSE_K, long_k: int = LONG_K, seed
     return out
 
 
-def default_study_segments(n_subjects: int = 42, seed: int = 2018) -> dict:
+def default_study_segments(n_subjects: int = 42, seed: int = 2018, window_seconds: float = WINDOW_SECONDS) -> dict:
     """The default simulated study's analysis windows, reconstructed from the angle as ``scioc run`` does.
 
-    Returns a dict with the prepared segments for preview 0 s and 2 s, the true θ per
-    segment (3, n) and the reconstruction time.
+    ``window_seconds`` shortens the window (from its usual start) for studies with less
+    data per unit. Returns a dict with the prepared segments for preview 0 s and 2 s, the
+    true θ per segment (3, n) and the reconstruction time.
     """
     from models.simulate import simulate_study
     from pipelines.identify import IdentifySettings, prepare_segment
@@ -133,7 +135,8 @@ def default_study_segments(n_subjects: int = 42, seed: int = 2018) -> dict:
     out = {"theta": np.column_stack([s.theta for s in sim])}
     for preview in (0.0, 2.0):
         t0 = time.perf_counter()
-        out[preview] = [prepare_segment(seg, IdentifySettings(preview=preview), plant) for seg in study.segments]
+        settings = IdentifySettings(preview=preview, window_seconds=window_seconds)
+        out[preview] = [prepare_segment(seg, settings, plant) for seg in study.segments]
         out[f"reconstruct_s_{preview}"] = time.perf_counter() - t0
     return out
 

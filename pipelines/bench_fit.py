@@ -124,7 +124,7 @@ def main(argv=None) -> None:
 
     What the parameterization table of :mod:`models.hierarchical` was measured with::
 
-        python -m pipelines.bench_fit --study-seed 2018 --theta1-mc centred
+        python -m pipelines.bench_fit --study-seed 2018 --theta1-mc centred [--window-seconds 3]
     """
     from models.hierarchical import Parameterization
     from pipelines.bench import default_study_segments
@@ -132,13 +132,17 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
     p.add_argument("--study-seed", type=int, default=2018, help="seed of the simulated study (default 2018, scioc run's)")
     p.add_argument("--seed", type=int, default=2018, help="sampler seed")
+    p.add_argument("--window-seconds", type=float, default=15.0,
+                   help="analysis window, s (default the paper's 15; shorter gives less data per unit)")
     for f in dataclasses.fields(Parameterization):
         p.add_argument(f"--{f.name.replace('_', '-')}", choices=["centred", "noncentred", "mean"], default=f.default)
     p.add_argument("--json", metavar="PATH")
     a = p.parse_args(argv)
     form = Parameterization(**{f.name: getattr(a, f.name) for f in dataclasses.fields(Parameterization)})
-    res = bench_fit(default_study_segments(seed=a.study_seed), seed=a.seed, parameterization=form)
+    res = bench_fit(default_study_segments(seed=a.study_seed, window_seconds=a.window_seconds), seed=a.seed,
+                    parameterization=form)
     res["settings"]["study_seed"] = a.study_seed
+    res["settings"]["window_seconds"] = a.window_seconds
     print(format_fit(res))
     if a.json:
         from pipelines.io import write_text_atomic

@@ -13,8 +13,8 @@ plans on the wheel it closes, with its reference feedforward as the known input
 (:class:`models.maxent.Feedback`); the simulator's humans do this. ``exogenous`` is the
 paper's Eq. 15-16: the recorded u_A is a known input sequence. In closed loop the
 recorded u_A reacts to the human's own torque noise, which the exogenous model lets
-the human anticipate; on the simulated study it biases θ1 in SC upward (measured in
-the report).
+the human anticipate; on the simulated study, from the true torques, it puts log θ1 in
+SC about 0.55 too low (measured in the report's ground-truth section).
 
 It also computes the model validation of Fig. 6: the trajectories that forward optimal
 control generates with θ_MC and with θ_SC of the same subject, and the RMSE of angle

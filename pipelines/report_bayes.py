@@ -265,8 +265,9 @@ def section_truth_check(tr: dict) -> str:
     txt += (" Known causes of misses: the reconstructed torque is smoother than the true one, and R is the "
             "precision of the torque's variability, so log R (μ_R) comes out too high from angles (the ground-truth "
             "section measures it; θ1 and β are ratios within a unit and barely affected). With the paper's "
-            "exogenous-u_A likelihood (<code>--assistant-model exogenous</code>) the SC θ1 would also be biased "
-            "upward, i.e. β towards 0, because the recorded u_A reacts to the human's own variability.</p>")
+            "exogenous-u_A likelihood (<code>--assistant-model exogenous</code>) the SC θ1, and so β, would be "
+            "biased as well, because the recorded u_A reacts to the human's own variability; the ground-truth "
+            "section's rows “u_A exogenous (paper)” measure by how much.</p>")
     return txt + _table(pd.DataFrame(rows), left=("parameter", "interval", "kind"))
 
 

@@ -670,7 +670,9 @@ def forward_optimal_control(theta, x0, angle_ref, u_A, plant: DiscretePlant) -> 
     """The human's optimal torques and states for θ (the dashed trajectories of Fig. 6).
 
     The mean of the max-ent distribution: ``u_k = -L_k x_k + f_k`` against the known
-    assistant torque sequence ``u_A``.
+    assistant torque sequence ``u_A``. For a human who plans with the assistant's law pass
+    the wheel and known input of :func:`plan_inputs`; the states are then those of the
+    closed loop with the assistant.
 
     Parameters
     ----------
@@ -705,7 +707,8 @@ def sample_maxent(theta, x0, angle_ref, u_A, plant: DiscretePlant, rng: np.rando
     x0 : array_like, shape (2,)
     angle_ref : array_like, shape (K + 1,)
     u_A : array_like, shape (K,)
-        Known assistant torques (an open-loop sequence).
+        Known assistant torques (an open-loop sequence); with :func:`plan_inputs`, the
+        assistant's feedforward on the closed wheel (a draw in closed loop).
     plant : DiscretePlant
     rng : numpy.random.Generator
 

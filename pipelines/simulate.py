@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from models.assistant import HORIZON, THETA_ASSISTANT
+from models.plant import DT_ASSISTANT, DT_HUMAN
 from models.reference import reference_trajectory
 from models.simulate import ENCODER_COUNTS, Population, simulate_study
 from pipelines.assistant_check import assistant_alone
@@ -89,6 +91,9 @@ def simulate_to_dir(
         "sample_time_s": 0.01,
         "encoder_counts_per_revolution": ENCODER_COUNTS,
         "population": asdict(population),
+        "assistant": {"theta_A": list(THETA_ASSISTANT), "horizon_steps": HORIZON, "prediction_step_s": DT_ASSISTANT,
+                      "resolved_every_s": DT_HUMAN},
+        "sc_human": "plans with the assistant's feedback law (models.maxent.Feedback), in closed loop",
         "assistant_alone": assistant_alone(seconds),
         "versions": versions(),
     }

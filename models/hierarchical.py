@@ -35,11 +35,11 @@ error (the RMS of the reference) like a 0.9 N·m torque. R sets the human's torq
 given the state the torque of one 10-ms step has SD 1 / √(2 S_k), and S_k = 1.08 R at
 θ1 = 20, θ2 = 0 (``models.lq.lq_policy`` on the study window), so log R = 3 ± 2 is a jitter
 of 0.06-0.41 N·m per sample around 0.15 N·m. (The first
-priors, μ ~ N(log 50, 1) and μ_R ~ N(0, 1), were chosen for the stand-in study of
-``pipelines.bench_fit``, whose R is about 1; on the simulated study of
-:mod:`models.simulate`, R about 20, the observed RMS torque lay at or below the 5 %
-quantile of their prior predictive: 5-95 % 0.37-1.70 N·m in MC against 0.27-0.32
-observed, 0.25-1.93 in SC against 0.13-0.20.)
+priors, μ ~ N(log 50, 1) and μ_R ~ N(0, 1), were chosen for an earlier stand-in
+simulator whose R was about 1; on the simulated study of :mod:`models.simulate`, R about
+20, the observed RMS torque lies at or below the 5 % quantile of their prior predictive,
+through the same call as below: 5-95 % 0.37-1.70 N·m in MC against 0.27-0.32 observed,
+0.25-1.94 in SC against 0.12-0.19.)
 
 Prior predictive check: :func:`prior_predictive_summary` on the default study of ``scioc run``
 (``reports/default-study/data/study.parquet``, seed 2018, 42 subjects; every segment through
@@ -60,50 +60,44 @@ torques from about a tenth to half a N·m, and the observations sit inside the c
 part of each distribution. The torque's lower end is the deterministic torque that
 tracking the reference needs, which no prior on the jitter can lower. Vague priors (same
 centres; μ, μ_R, β, β_R with SD 3, σ's HalfN(2), τ HalfN(10)), through the same call,
-put 5 % of the segments above 2.4 N·m (MC) and 8.6 N·m (SC) RMS torque and above 0.25
-rad (MC) and 0.27 rad (SC) RMS error, i.e. worse than not steering at all (the
-reference itself has an RMS of 0.2 rad): those priors are rejected by the check.
+put 5 % of the segments above 2.4 N·m (MC) and 8.5 N·m (SC) RMS torque and above 0.25
+rad (MC) and 0.20 rad (SC) RMS error, i.e. as bad as or worse than not steering at all
+(the reference itself has an RMS of 0.2 rad): those priors are rejected by the check.
 
 Pooled model (``build_model(..., condition_effects=False)``), the alternative for the
 PSIS-LOO comparison: log θ1[i, SC] = log θ1[i, MC] = m_i ~ N(μ, σ) (β = σ_β = 0), with the
 log R and θ2 blocks unchanged, so that the two models differ only in the paper's question.
 
-Parameterization (:class:`Parameterization`), chosen by measurement (with the first
-priors above, on the stand-in study of ``pipelines.bench_fit``). Per unit at K = 1500
-the data pin log R down to about ±0.04 (prior spread σ_R ≈ 0.3: centred), but log θ1 only
-to about ±0.2 (comparable with σ ≈ 0.4 and σ_β ≈ 0.2) and θ2 to about ±0.1 on its own
-scale. ``pipelines.bench_fit.bench_fit`` on simulated studies of the default size
-(42 × 2 × 1500, 4 chains × 1000 draws after 500 tuning draws, nutpie on 2 cores); minimum
-over the nine population parameters of bulk/tail ESS, and the largest R-hat::
+Parameterization (:class:`Parameterization`), chosen by measurement. Per unit at K = 1500
+the data pin log R down to about ±0.04 (prior spread σ_R ≈ 0.3: centred suits it) and
+log θ1 to about ±0.05-0.09, comparable with σ_β ≈ 0.2. Measured with
+``python -m pipelines.bench_fit`` (the default simulated study of ``scioc run``, 42 × 2
+segments reconstructed from the angle, 2-s preview; 4 chains × 1000 draws after 500
+tuning draws, nutpie on 2 cores, sampler seed 2018; ``--study-seed``, ``--window-seconds``
+and the form options as in the rows); minimum over the nine population parameters of
+bulk/tail ESS, and the largest R-hat::
 
-    log θ1 MC/SC   log R MC/SC  θ2   seed  div  steps/draw  min ESS (parameter)  max R-hat
-    mean / NC      C / C        NC   0     0    15.0        615 (σ_β)            1.005  <- default
-    mean / NC      C / C        NC   1     0    15.0        607 (σ_β)            1.013 (σ_β)
-    mean / NC      C / C        NC   2     0    15.0        968 (σ_β)            1.007
-    C / NC         C / C        NC   0     0    15.0        616 (σ_β)            1.006
-    C / NC         C / C        NC   1     0    15.0        457 (σ_β)            1.012 (σ_β)
-    C / C          C / C        NC   0     0    15.0        570 (σ_β)            1.004
-    C / C          C / C        NC   1     819  16.9        4 (σ_β)              1.55
-    NC / NC        C / C        NC   0     0    15.0        747 (σ_β); μ 773     1.008
-    C / C          C / C        C    0     0    15.0        205 (τ)              1.009
-    C / NC         C / C        C    0     0    15.0        202 (τ)              1.011
-    C / NC         C / NC       NC   0     0    15.9        759 (β_R)            1.006
-    NC / NC        NC / NC      NC   0     0    21.1        96 (μ_R)             1.059
+    log θ1 MC/SC   log R MC/SC  θ2   study           div   steps/draw  min ESS (parameter)  max R-hat
+    mean / NC      C / C        NC   2018            0     15.0        855 (β)              1.006 (σ_β)   <- default
+    mean / NC      C / C        NC   2019            0     15.0        511 (β)              1.008 (β)
+    mean / NC      C / C        NC   2018, 3-s win.  0     15.0        713 (σ_β)            1.003 (σ_β)
+    C / NC         C / C        NC   2018            0     15.0        489 (β)              1.011 (β)
+    C / C          C / C        NC   2018            0     15.0        2170 (τ)             1.001 (σ_R)
+    C / C          C / C        NC   2019            0     15.0        1709 (τ)             1.003 (μ)
+    C / C          C / C        NC   2018, 3-s win.  1000  17.2        4 (σ_β)              1.532 (σ_β)
+    mean / NC      C / C        C    2018            0     15.0        47 (τ)               1.038 (τ)
+    mean / NC      NC / NC      NC   2018            0     21.2        97 (μ_R)             1.028 (σ_R)
 
-(C centred, NC non-centred, mean: subject mean centred after a non-centred change.)
-θ2 must be non-centred: with θ2 = 0 for everyone the centred τ forms a funnel (ESS ≈ 200).
-log R must be centred: non-centred, it needs 40 % more leapfrog steps and μ_R gets ESS 96.
-The SC change of log θ1 must be non-centred: its data (±0.28 per subject) are weaker than
-its prior scale, and centred it trapped a chain in the σ_β funnel on seed 1 (819
-divergences). For the log θ1 intercept the three forms leave σ_β (the limiting parameter
-everywhere) within run-to-run scatter; the subject-mean form gives the best ESS for μ and
-β (seed 0: 4691 and 2368, against 3101 and 1622 with a centred MC intercept and 773 for μ
-non-centred). nutpie's low-rank mass matrix did not finish seed 1 in 8.5 minutes; a
-partially non-centred change (d = β + √σ_β e, e ~ N(0, √σ_β)) gave σ_β R-hat 1.004 but
-ESS 412 on seed 1, no better. σ_β, the between-subject spread of the SC change, is the
-hardest quantity: its posterior reaches down to about 0.03 and it mixes at about 0.15
-effective draws per draw in every form tried, so on some data sets (seed 1) its R-hat
-ends just above 1.01 after 4 × 1000 draws.
+(C centred, NC non-centred, mean: subject mean centred after a non-centred change; every
+run put the true β in its 94 % HDI.) θ2 must be non-centred: with θ2 = 0 for everyone the
+centred τ forms a funnel (ESS 47). log R must be centred: non-centred it needs 40 % more
+leapfrog steps and μ_R gets ESS 97. The SC change of log θ1 is the delicate block. Centred
+(C / C) it mixes best on the 15-s windows, whose data outweigh σ_β, but with less data per
+unit (3-s windows) every transition of every chain diverged in the σ_β funnel. The
+default keeps the change non-centred, which passes on all three data sets, at about half
+the ESS of C / C where that works; pass ``Parameterization(theta1_mc="centred",
+theta1_sc="centred")`` for long windows when speed matters. (Session 1 measured the same
+pattern on an earlier stand-in simulator, no longer in the repository.)
 
 The pointwise log-likelihood of each segment is the element-wise log density of the
 observed variable ``u_H`` (dims segment × step, one value per segment), so

@@ -87,8 +87,9 @@ def section_design(root: Path, sim: dict | None, ident_meta: dict | None) -> str
             f"<p>Simulated experiment: {sim['n_subjects']} subjects, each a {sim['run_seconds'] / 60:g}-minute run in "
             "manual control (MC) and one in shared control (SC) in random order, sampled at 100 Hz; encoder "
             f"{sim['encoder_counts_per_revolution']} increments per revolution; seed {sim['seed']}. The simulated "
-            "human is the max-ent LQ agent; in SC it plans against the assistance it expects (fixed point of plan "
-            "and assistant response) while the assistant reacts to the actual state.</p>"
+            "human is the max-ent LQ agent; in SC it knows the assistant's law and plans on the wheel the "
+            "assistant's state feedback closes, with its reference feedforward as a known input, while the "
+            "assistant (re-solved every 10 ms) reacts to the actual state.</p>"
         )
         rows = [
             ("median θ1 = q11/R in MC (1/rad²)", np.exp(pop["log_theta1_mc"])),

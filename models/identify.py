@@ -83,7 +83,7 @@ def _start(batch: SegmentBatch, plant: DiscretePlant) -> np.ndarray:
     K = batch.K
     n = START_GRID.shape[0]
     theta = np.vstack([START_GRID, np.zeros(n), np.ones(n)])
-    big = SegmentBatch(*(np.repeat(arr, n, axis=0) for arr in batch))
+    big = batch.repeat(0, n)
     res = loglik_grad(theta, big, plant)
     # At R = 1: Σ S̃ v² = -quad with quad = g_R + θ1 g_q11 - K/2 (Euler, see models.maxent._finish).
     quad = res.grad[2] + START_GRID * res.grad[0] - 0.5 * K

@@ -65,6 +65,10 @@ class Feedback(NamedTuple):
     gain: np.ndarray
     feedforward: np.ndarray
 
+    def window(self, start: int, n: int) -> "Feedback":
+        """The same law over samples ``start .. start + n - 1`` of the run it was built for."""
+        return Feedback(self.gain, self.feedforward[start : start + n])
+
 
 def planning_plant(plant: DiscretePlant, gain) -> DiscretePlant:
     """The wheel closed by the assistant's state feedback: ``A - b gainᵀ``, same b and dt."""
@@ -142,6 +146,10 @@ class SegmentBatch(NamedTuple):
     @property
     def n(self) -> int:
         return int(self.u.shape[0])
+
+    def repeat(self, j: int, n: int) -> "SegmentBatch":
+        """A batch of ``n`` copies of segment ``j`` (to evaluate it under n θ in one call)."""
+        return SegmentBatch(*(np.repeat(arr[j : j + 1], n, axis=0) for arr in self))
 
     @property
     def K(self) -> int:

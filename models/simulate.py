@@ -298,7 +298,7 @@ def simulate_windows(n_subjects: int, rng: np.random.Generator, population: Popu
     its first K observed steps plus ``preview`` planning steps. No encoder, no
     reconstruction: the true state and torque, for tests and calibration.
     """
-    from models.maxent import Feedback, Segment
+    from models.maxent import Segment
 
     plant = discretize(DT_HUMAN)
     assistant = design_assistant()
@@ -310,7 +310,7 @@ def simulate_windows(n_subjects: int, rng: np.random.Generator, population: Popu
         for cond, theta in (("MC", sub.mc), ("SC", sub.sc)):
             run = simulate_run(theta, cond, ref, plant, assistant, rng)
             x0 = np.array([run.true_angle[0], run.true_velocity[0]])
-            feedback = Feedback(fb.gain, fb.feedforward[: K + preview]) if cond == "SC" else None
+            feedback = fb.window(0, K + preview) if cond == "SC" else None
             segments.append(Segment(x0, ref[: K + preview + 1], run.u_H[:K], run.u_A[: K + preview], feedback))
             subjects.append(f"S{i + 1:0{width}d}")
             conditions.append(cond)

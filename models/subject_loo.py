@@ -94,7 +94,7 @@ def _segment_loglik(batch: SegmentBatch, j: int, plant: DiscretePlant, lt1, lR, 
     for a in range(0, M, chunk):
         b = min(M, a + chunk)
         n = b - a
-        rep = SegmentBatch(*(np.repeat(arr[j : j + 1], n, axis=0) for arr in batch))
+        rep = batch.repeat(j, n)
         R = np.exp(lR[a:b])
         theta = np.vstack([np.exp(lt1[a:b]) * R, t2[a:b] * R, R])
         out[a:b] = loglik_grad(theta, rep, plant).loglik
@@ -140,6 +140,9 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
     tau = post["tau_theta2"][:, None]
     if condition_effects:
         beta, sigb = post["beta"][:, None], post["sigma_beta"][:, None]
+    # The τ grid of the θ2 proposal's prior half (the same for every subject).
+    tau_lo, tau_hi = np.min(post["tau_theta2"]) + 1e-300, np.max(post["tau_theta2"]) + 1e-300
+    taus = np.geomspace(tau_lo, max(tau_hi, tau_lo), TAU_GRID)
     out = np.empty((S, n_subj))
     ess = np.empty(n_subj)
     for i in range(n_subj):
@@ -154,10 +157,8 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         cov = np.cov(draws, rowvar=False) * INFLATE**2 + 1e-12 * np.eye(draws.shape[1])
         x, chol = _mvt_draw(rng, mean, cov, M)
         logq = _mvt_logpdf(x, mean, chol)
-        # θ2 >= 0, both conditions: defensive mixture of fitted half-t's and the prior at τ quantiles.
+        # θ2 >= 0, both conditions: defensive mixture of fitted half-t's and the prior on the τ grid.
         scales = INFLATE * np.sqrt(np.mean(t2_all[:, i, :] ** 2, axis=0)) + 1e-300
-        tau_lo, tau_hi = np.min(post["tau_theta2"]) + 1e-300, np.max(post["tau_theta2"]) + 1e-300
-        taus = np.geomspace(tau_lo, max(tau_hi, tau_lo), TAU_GRID)
         from_fit = rng.uniform(size=M) < 0.5
         k = rng.integers(0, TAU_GRID, M)
         t2 = np.where(from_fit[:, None], np.abs(scales * rng.standard_t(NU, (M, 2))),

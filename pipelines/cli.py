@@ -113,15 +113,20 @@ def _cmd_calibrate(args) -> int:
     return 0
 
 
+def _add_assistant_model_option(p):
+    # The choices of pipelines.identify.ASSISTANT_MODELS, spelled out so parsing imports no model code.
+    p.add_argument("--assistant-model", choices=("feedback", "exogenous"), default="feedback",
+                   help="in SC the human plans with the assistant's feedback law (default) or takes the recorded "
+                   "u_A as a known input sequence (exogenous: the paper's Eq. 15-16)")
+
+
 def _add_window_options(p):
     p.add_argument("--window", default="210,15", metavar="START,SECONDS",
                    help="analysis window on the file's time axis, s (default: the paper's 210,15)")
     p.add_argument("--whole-run", action="store_true", help="analyse each segment whole")
     p.add_argument("--preview", type=float, default=2.0,
                    help="seconds the human's plan looks past the window (default 2; 0 = the paper's horizon)")
-    p.add_argument("--assistant-model", choices=("feedback", "exogenous"), default="feedback",
-                   help="in SC the human plans with the assistant's feedback law (default) or takes the recorded "
-                   "u_A as a known input sequence (exogenous: the paper's Eq. 15-16)")
+    _add_assistant_model_option(p)
     p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
                    help="reconstruct velocity and u_H from the angle when missing (auto) or always")
 
@@ -137,9 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("loglik", help="max-ent log-likelihood of every segment of a study file under one θ")
     p.add_argument("study", help="study file (Parquet or CSV) in the data convention")
     p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
-    p.add_argument("--assistant-model", choices=("feedback", "exogenous"), default="feedback",
-                   help="in SC the human plans with the assistant's law (default) or takes the recorded u_A as a "
-                   "known input (the paper's Eq. 15-16)")
+    _add_assistant_model_option(p)
     p.add_argument("--format", choices=("table", "json"), default="table")
     p.set_defaults(func=_cmd_loglik)
 

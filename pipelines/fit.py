@@ -115,9 +115,10 @@ def _child_seeds(seed: int) -> dict:
 
 
 def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
-                 show_progress: bool = False):
+                 show_progress: bool = False, log_likelihood: bool = True):
     """Sample ``model`` with nutpie (through ``pm.sample``) and add the pointwise log-likelihood.
 
+    ``log_likelihood=False`` skips the pointwise log-likelihood (for timing the fit alone).
     ``cores`` (chains run in parallel) defaults to ``os.cpu_count()``. It is passed
     explicitly because PyMC's own default halves the CPU count (it assumes hardware
     threads): on a 2-core machine nutpie then ran the chains one at a time, measured
@@ -136,7 +137,8 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1, random_seed=seed,
                       nuts_sampler="nutpie", progressbar=show_progress, quiet=not show_progress, model=model)
     t1 = time.perf_counter()
-    pm.compute_log_likelihood(idata, model=model, progressbar=False)
+    if log_likelihood:
+        pm.compute_log_likelihood(idata, model=model, progressbar=False)
     t2 = time.perf_counter()
     return idata, {"compile_and_sample": t1 - t0, "sample": float(idata["posterior"].attrs["sampling_time"]),
                    "log_likelihood": t2 - t1}
@@ -254,6 +256,43 @@ def contrasts(idata) -> dict:
     }
 
 
+def _psis_summary(data, var_name: str, dim: str) -> tuple[dict, np.ndarray]:
+    """PSIS-LOO of one model: ELPD, SE, p_loo and the Pareto k summary; and the pointwise ELPD.
+
+    ``dim`` names the left-out unit (the k of each are listed under ``by_<dim>``). A k that
+    cannot be estimated (NaN: degenerate tail, e.g. repeated draws of a stuck chain)
+    counts as above the threshold.
+    """
+    import arviz as az
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the k warning is reported with numbers instead
+        res = az.loo(data, pointwise=True, var_name=var_name)
+    k = np.asarray(res.pareto_k, dtype=float).ravel()
+    good = float(res.good_k)
+    finite = np.isfinite(k).any()
+    summary = {
+        "elpd_loo": float(res.elpd), "se": float(res.se), "p_loo": float(res.p),
+        "pareto_k": {"threshold": good, "max": float(np.nanmax(k)) if finite else float("nan"),
+                     "median": float(np.nanmedian(k)) if finite else float("nan"),
+                     "n_le_0.5": int((k <= 0.5).sum()), "n_gt_threshold": int((~(k <= good)).sum()),
+                     "n_gt_1": int((k > 1).sum()), "n_nan": int(np.isnan(k).sum()), "n": int(k.size),
+                     f"by_{dim}": {str(u): float(v) for u, v in zip(res.pareto_k[dim].values, k)}},
+    }
+    return summary, np.asarray(res.elpd_i).ravel()
+
+
+def _elpd_difference(out: dict, pointwise: dict) -> dict:
+    """ELPD(condition) − ELPD(pooled) ± SE from the pointwise values, the preference and its reliability."""
+    diff_i = pointwise["condition"] - pointwise["pooled"]
+    n = diff_i.shape[0]
+    diff, se = float(diff_i.sum()), float(np.sqrt(n * diff_i.var(ddof=1)))
+    bad = out["condition"]["pareto_k"]["n_gt_threshold"] + out["pooled"]["pareto_k"]["n_gt_threshold"]
+    return {"elpd_diff": diff, "se": se, "z": diff / se if se > 0 else float("inf"),
+            "preferred": "condition" if diff > 0 else "pooled", "reliable": bad == 0,
+            "n_favouring_condition": int((diff_i > 0).sum()), "n": int(n)}
+
+
 def loo_comparison(idata, idata_pooled) -> dict:
     """PSIS-LOO of both models and their ELPD difference (condition − pooled) ± SE.
 
@@ -261,39 +300,15 @@ def loo_comparison(idata, idata_pooled) -> dict:
     on that unit's θ, so the importance ratios are heavy-tailed and many Pareto k exceed
     the threshold: the comparison is then unreliable and says so (``reliable``).
     """
-    import arviz as az
-
     out, pointwise = {}, {}
     for name, d in (("condition", idata), ("pooled", idata_pooled)):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the k warning is reported below, with numbers
-            res = az.loo(d, pointwise=True, var_name="u_H")
-        k = np.asarray(res.pareto_k, dtype=float).ravel()
-        good = float(res.good_k)
-        # A k that cannot be estimated (NaN: degenerate tail, e.g. repeated draws of a
-        # stuck chain) counts as above the threshold.
-        bad = ~(k <= good)
-        pointwise[name] = np.asarray(res.elpd_i).ravel()
-        out[name] = {
-            "elpd_loo": float(res.elpd), "se": float(res.se), "p_loo": float(res.p),
-            "pareto_k": {"threshold": good, "max": float(np.nanmax(k)) if np.isfinite(k).any() else float("nan"),
-                         "median": float(np.nanmedian(k)) if np.isfinite(k).any() else float("nan"),
-                         "n_le_0.5": int((k <= 0.5).sum()), "n_gt_threshold": int(bad.sum()),
-                         "n_gt_1": int((k > 1).sum()), "n_nan": int(np.isnan(k).sum()), "n": int(k.size),
-                         "by_segment": {str(s): float(v) for s, v in zip(res.pareto_k["segment"].values, k)}},
-        }
-    diff_i = pointwise["condition"] - pointwise["pooled"]
-    n = diff_i.shape[0]
-    diff, se = float(diff_i.sum()), float(np.sqrt(n * diff_i.var(ddof=1)))
-    bad = out["condition"]["pareto_k"]["n_gt_threshold"] + out["pooled"]["pareto_k"]["n_gt_threshold"]
-    out["difference"] = {
-        "elpd_diff": diff, "se": se, "z": diff / se if se > 0 else float("inf"),
-        "preferred": "condition" if diff > 0 else "pooled",
-        "reliable": bad == 0,
-        "note": ("Pareto k above the threshold for some segments: the PSIS estimate of those "
-                 "segments' ELPD (and so the difference) is unreliable; with one segment per "
-                 "unit this is expected, see the model docstring" if bad else "all Pareto k below the threshold"),
-    }
+        out[name], pointwise[name] = _psis_summary(d, "u_H", "segment")
+    out["difference"] = _elpd_difference(out, pointwise)
+    out["difference"]["note"] = (
+        "Pareto k above the threshold for some segments: the PSIS estimate of those "
+        "segments' ELPD (and so the difference) is unreliable; with one segment per "
+        "unit this is expected, see the model docstring" if not out["difference"]["reliable"]
+        else "all Pareto k below the threshold")
     return out
 
 
@@ -312,7 +327,6 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
     Pareto k stay low where the segment-wise PSIS-LOO fails. The posterior is thinned
     evenly to :data:`LOSO_DRAWS` draws over the chains.
     """
-    import arviz as az
     import xarray as xr
 
     from models.hierarchical import index_study
@@ -335,24 +349,10 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
         ll = xr.DataArray(res.loglik.reshape(keep.sizes["chain"], keep.sizes["draw"], -1),
                           dims=("chain", "draw", "subject"), coords={"subject": order})
         tree = xr.DataTree.from_dict({"posterior": keep[["mu_log_theta1"]], "log_likelihood": xr.Dataset({"y": ll})})
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            loo = az.loo(tree, pointwise=True, var_name="y")
-        k = np.asarray(loo.pareto_k, dtype=float).ravel()
-        good = float(loo.good_k)
-        pointwise[name] = np.asarray(loo.elpd_i).ravel()
-        out[name] = {"elpd_loo": float(loo.elpd), "se": float(loo.se), "p_loo": float(loo.p),
-                     "pareto_k": {"threshold": good, "max": float(np.nanmax(k)) if np.isfinite(k).any() else float("nan"),
-                                  "n_gt_threshold": int((~(k <= good)).sum()), "n": int(k.size)},
-                     "is_ess_min": float(res.is_ess.min()), "is_ess_median": float(np.median(res.is_ess)),
-                     "draws": int(res.loglik.shape[0])}
-    diff_i = pointwise["condition"] - pointwise["pooled"]
-    n = diff_i.shape[0]
-    diff, se = float(diff_i.sum()), float(np.sqrt(n * diff_i.var(ddof=1)))
-    bad = out["condition"]["pareto_k"]["n_gt_threshold"] + out["pooled"]["pareto_k"]["n_gt_threshold"]
-    out["difference"] = {"elpd_diff": diff, "se": se, "z": diff / se if se > 0 else float("inf"),
-                         "preferred": "condition" if diff > 0 else "pooled", "reliable": bad == 0,
-                         "subjects_favouring_condition": int((diff_i > 0).sum()), "n": int(n)}
+        out[name], pointwise[name] = _psis_summary(tree, "y", "subject")
+        out[name].update(is_ess_min=float(res.is_ess.min()), is_ess_median=float(np.median(res.is_ess)),
+                         draws=int(res.loglik.shape[0]))
+    out["difference"] = _elpd_difference(out, pointwise)
     return out
 
 

@@ -39,7 +39,7 @@ import pandas as pd
 
 from models.identify import identify_segment
 from models.assistant import design_assistant, human_feedback
-from models.maxent import Feedback, Segment, forward_optimal_control, plan_inputs, prepare_batch
+from models.maxent import Segment, forward_optimal_control, plan_inputs, prepare_batch
 from models.plant import DT_HUMAN, discretize
 from models.reconstruct import DEFAULT_RESOLUTION, reconstruct
 from models.reference import WINDOW_SECONDS, WINDOW_START
@@ -88,12 +88,16 @@ class IdentifySettings:
             raise ValueError("preview and margin must be >= 0 s")
         if self.reconstruct not in ("auto", "always"):
             raise ValueError(f"reconstruct must be 'auto' or 'always'; got {self.reconstruct!r}")
-        if self.assistant_model not in ASSISTANT_MODELS:
-            raise ValueError(f"assistant model must be one of {ASSISTANT_MODELS}; got {self.assistant_model!r}")
+        _check_assistant_model(self.assistant_model)
 
 
 #: How the human in SC may model the assistant (see the module docstring).
 ASSISTANT_MODELS = ("feedback", "exogenous")
+
+
+def _check_assistant_model(name: str) -> None:
+    if name not in ASSISTANT_MODELS:
+        raise ValueError(f"assistant model must be one of {ASSISTANT_MODELS}; got {name!r}")
 
 
 @functools.lru_cache(maxsize=1)
@@ -109,13 +113,11 @@ def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start:
     ``angle_ref_run`` (the assistant previews 1 s past the segment). Otherwise unchanged
     (the recorded u_A as a known input).
     """
-    if assistant_model not in ASSISTANT_MODELS:
-        raise ValueError(f"assistant model must be one of {ASSISTANT_MODELS}; got {assistant_model!r}")
+    _check_assistant_model(assistant_model)
     if assistant_model != "feedback" or condition != "SC":
         return segment
     full = human_feedback(paper_assistant(), angle_ref_run)
-    n = segment.u_A.shape[0]
-    return segment._replace(feedback=Feedback(full.gain, full.feedforward[start : start + n]))
+    return segment._replace(feedback=full.window(start, segment.u_A.shape[0]))
 
 
 @dataclass(frozen=True)

@@ -197,7 +197,7 @@ def section_loo_subject(loso: dict) -> str:
            "(importance sampling per subject, then PSIS over the population draws only, which one subject of "
            f"many barely moves): difference <b>{d['elpd_diff']:.1f} ± {d['se']:.1f}</b> (z = {d['z']:.1f}) in favour "
            f"of the {'model with condition effects' if d['preferred'] == 'condition' else 'pooled model'}, "
-           f"{d['subjects_favouring_condition']} of {d['n']} subjects predicted better by it. Reliable: "
+           f"{d['n_favouring_condition']} of {d['n']} subjects predicted better by it. Reliable: "
            f"{_ok(d['reliable'])} (every Pareto k below the threshold). “IS ESS” is the effective sample size of "
            "the inner integral, its smallest over the population draws (min and median over subjects).</p>")
     return txt + _table(pd.DataFrame(rows), fmt={"ELPD (LOSO)": lambda v: f"{v:.1f}", "SE": lambda v: f"{v:.1f}"},

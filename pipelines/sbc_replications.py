@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 
 from models.likelihood_data_op import DATA_NAMES
-from models.maxent import Feedback, Segment, planning_plant, prepare_batch, sample_maxent
+from models.maxent import Segment, planning_plant, prepare_batch, sample_maxent
 from models.plant import DT_HUMAN, WheelParameters, discretize
 from models.reference import WINDOW_START, reference_trajectory
 from models.sbc import rank, thin
@@ -55,7 +55,7 @@ def _window_inputs(K: int):
         i0 = int(round(WINDOW_START / DT_HUMAN))
         ref = reference_trajectory(WINDOW_START + K * DT_HUMAN + 2.0).angle  # the assistant previews 1 s
         fb = human_feedback(design_assistant(), ref)
-        _CACHE[key] = (np.ascontiguousarray(ref[i0 : i0 + K + 1]), Feedback(fb.gain, fb.feedforward[i0 : i0 + K]))
+        _CACHE[key] = (np.ascontiguousarray(ref[i0 : i0 + K + 1]), fb.window(i0, K))
     return _CACHE[key]
 
 

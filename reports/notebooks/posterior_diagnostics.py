@@ -166,6 +166,6 @@ if CONTRASTS.exists() and "loo_subject" in (res := json.loads(CONTRASTS.read_tex
               f"importance-sampling ESS min {m['is_ess_min']:.0f}")
     d = ls["difference"]
     print(f"difference (condition - pooled): {d['elpd_diff']:.1f} ± {d['se']:.1f}; "
-          f"{d['subjects_favouring_condition']} of {d['n']} subjects better predicted with condition effects")
+          f"{d['n_favouring_condition']} of {d['n']} subjects better predicted with condition effects")
 else:
     print(f"no leave-one-subject-out comparison at {CONTRASTS}")

@@ -33,6 +33,19 @@ def test_linear_time_equals_dense(plant, K, shared, q22_zero):
         assert np.max(np.abs(fast.grad[:, 0] - dense.grad)) <= 1e-9 * np.max(np.abs(dense.grad))
 
 
+def _assert_gradient_matches_central_differences(theta, batch, plant):
+    """Each component of the one-segment gradient against a central difference with h = 1e-5 θ_j."""
+    grad = loglik_grad(theta, batch, plant).grad[:, 0]
+    for j in range(3):
+        h = 1e-5 * theta[j]
+        tp, tm = theta.copy(), theta.copy()
+        tp[j] += h
+        tm[j] -= h
+        fd = (loglik_grad(tp, batch, plant).loglik[0] - loglik_grad(tm, batch, plant).loglik[0]) / (2 * h)
+        # Each component on its own: O(h²) truncation and eps·|ll|/h rounding are both < 1e-8 here.
+        assert abs(fd - grad[j]) <= 1e-6 * abs(grad[j]), (j, fd, grad[j])
+
+
 @pytest.mark.parametrize("shared", [False, True])
 @pytest.mark.parametrize("q22_zero", [True, False])
 def test_gradient_matches_central_differences(plant, shared, q22_zero):
@@ -41,16 +54,7 @@ def test_gradient_matches_central_differences(plant, shared, q22_zero):
     batch = prepare_batch(plant, [seg])
     theta = random_theta(rng, q22_zero)
     theta[1] = max(theta[1], 0.05)  # a central difference needs room on both sides of q22
-    grad = loglik_grad(theta, batch, plant).grad[:, 0]
-    fd = np.empty(3)
-    for j in range(3):
-        h = 1e-5 * theta[j]
-        tp, tm = theta.copy(), theta.copy()
-        tp[j] += h
-        tm[j] -= h
-        fd[j] = (loglik_grad(tp, batch, plant).loglik[0] - loglik_grad(tm, batch, plant).loglik[0]) / (2 * h)
-        # Each component on its own: O(h²) truncation and eps·|ll|/h rounding are both < 1e-8 here.
-        assert abs(fd[j] - grad[j]) <= 1e-6 * abs(grad[j]), (j, fd[j], grad[j])
+    _assert_gradient_matches_central_differences(theta, batch, plant)
 
 
 def test_freeze_shortcut_agrees_with_tangents_through_every_step(plant):
@@ -170,14 +174,7 @@ def test_preview_gradient_matches_central_differences(plant):
     seg = Segment(long.x0, long.angle_ref, long.u_H[:400], long.u_A)
     batch = prepare_batch(plant, [seg])
     theta = random_theta(rng, False)
-    grad = loglik_grad(theta, batch, plant).grad[:, 0]
-    for j in range(3):
-        h = 1e-5 * theta[j]
-        tp, tm = theta.copy(), theta.copy()
-        tp[j] += h
-        tm[j] -= h
-        fd = (loglik_grad(tp, batch, plant).loglik[0] - loglik_grad(tm, batch, plant).loglik[0]) / (2 * h)
-        assert abs(fd - grad[j]) <= 1e-6 * abs(grad[j])
+    _assert_gradient_matches_central_differences(theta, batch, plant)
 
 
 def _closed_loop_segment(plant, rng, K, preview):
@@ -218,14 +215,7 @@ def test_feedback_model_equals_dense_in_closed_loop(plant, K, preview):
 def test_feedback_gradient_matches_central_differences(plant):
     theta, seg = _closed_loop_segment(plant, np.random.default_rng(22), 400, 100)
     batch = prepare_batch(plant, [seg])
-    grad = loglik_grad(theta, batch, plant).grad[:, 0]
-    for j in range(3):
-        h = 1e-5 * theta[j]
-        tp, tm = theta.copy(), theta.copy()
-        tp[j] += h
-        tm[j] -= h
-        fd = (loglik_grad(tp, batch, plant).loglik[0] - loglik_grad(tm, batch, plant).loglik[0]) / (2 * h)
-        assert abs(fd - grad[j]) <= 1e-6 * abs(grad[j])
+    _assert_gradient_matches_central_differences(theta, batch, plant)
 
 
 def test_zero_feedback_is_the_paper_model_bit_for_bit(plant):

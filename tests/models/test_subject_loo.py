@@ -50,7 +50,7 @@ def test_integral_matches_plain_monte_carlo_over_the_prior(plant, condition_effe
             c = c_idx[j]
             R = np.exp(lr_b[:, i, c])
             theta = np.vstack([np.exp(lt_b[:, i, c]) * R, t2_b[:, i, c] * R, R])
-            rep = type(batch)(*(np.repeat(a[j : j + 1], N, axis=0) for a in batch))
+            rep = batch.repeat(j, N)
             ll += loglik_grad(theta, rep, plant).loglik
         brute = special.logsumexp(ll) - np.log(N)
         w = np.exp(ll - ll.max())

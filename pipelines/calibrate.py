@@ -313,12 +313,21 @@ def calibrate_level(args) -> list[dict]:
     return out
 
 
+def as_expected(summary: dict) -> bool:
+    """Did the check come out as it must: passed for the correct model, failed for a negative control?"""
+    return summary["passed"] == (summary["negative_control"] is None)
+
+
 def format_summary(summary: dict) -> str:
     nc = summary["negative_control"]
     head = f"SBC {summary['level']} level" + (f", negative control '{nc}'" if nc else "")
+    verdict = "PASSED" if summary["passed"] else "FAILED (non-uniform ranks)"
+    if nc and summary["passed"]:
+        verdict += " -- but a negative control must fail: at this size the check cannot tell the wrong model"
+    elif nc:
+        verdict += ", as a negative control must"
     lines = [f"{head}: {summary['replications']} replications, L = {summary['L']}, "
-             f"family false-failure rate {summary['family_alpha']:g} -> "
-             + ("PASSED" if summary["passed"] else "FAILED (non-uniform ranks)")]
+             f"family false-failure rate {summary['family_alpha']:g} -> {verdict}"]
     for name, p in summary["parameters"].items():
         cov = ", ".join(f"{k}: {v:.2f}" for k, v in p["coverage"].items())
         lines.append(f"  {name:>18}: KS p = {p['p_value']:.3g} (alpha {p['alpha']:.3g}) "

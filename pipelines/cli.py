@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import sys
+
+#: Shortest analysis window, s. Shorter windows leave θ unidentified: measured on a simulated
+#: study, 0.02 s drives the optimizer to θ = ∞ and 0.05 s gives θ1 ≈ 1800 where longer
+#: windows give 10-30.
+MIN_WINDOW_SECONDS = 0.1
 
 
 def _cmd_loglik(args) -> int:
@@ -106,11 +113,50 @@ def _cmd_fit(args) -> int:
 
 
 def _cmd_calibrate(args) -> int:
-    from pipelines.calibrate import calibrate_level, format_summary
+    from pipelines.calibrate import as_expected, calibrate_level, format_summary
 
-    for summary in calibrate_level(args):
+    summaries = calibrate_level(args)
+    for summary in summaries:
         print(format_summary(summary))
-    return 0
+    return 0 if all(as_expected(s) for s in summaries) else 1
+
+
+def _number(kind, accept, wanted: str):
+    """An argparse ``type`` that parses with ``kind`` and rejects values ``accept`` refuses (exit 2)."""
+
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {wanted}; got {text!r}") from None
+        if not accept(value):
+            raise argparse.ArgumentTypeError(f"expected {wanted}; got {text!r}")
+        return value
+
+    return parse
+
+
+_positive_int = _number(int, lambda v: v >= 1, "a positive integer")
+_nonnegative_int = _number(int, lambda v: v >= 0, "an integer >= 0")
+_seconds = _number(float, lambda v: math.isfinite(v) and v > 0, "a finite number of seconds > 0")
+_nonnegative_seconds = _number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number of seconds >= 0")
+_level = _number(float, lambda v: 0 < v < 1, "a significance level between 0 and 1")
+
+
+def _window_spec(text: str) -> str:
+    """Check ``--window START,SECONDS`` at parse time; ``_window`` splits it later."""
+    usage = f"expected START,SECONDS in s (e.g. 210,15); got {text!r}"
+    try:
+        start, seconds = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(usage) from None
+    if not (math.isfinite(start) and math.isfinite(seconds)):
+        raise argparse.ArgumentTypeError(f"start and length must be finite numbers of seconds; got {text!r}")
+    if seconds < MIN_WINDOW_SECONDS:
+        raise argparse.ArgumentTypeError(
+            f"a {seconds:g}-s window is too short to identify θ: it needs at least {MIN_WINDOW_SECONDS:g} s "
+            f"({round(MIN_WINDOW_SECONDS / 0.01)} samples of 0.01 s); got {text!r}")
+    return text
 
 
 def _add_assistant_model_option(p):
@@ -121,14 +167,14 @@ def _add_assistant_model_option(p):
 
 
 def _add_window_options(p):
-    p.add_argument("--window", default="210,15", metavar="START,SECONDS",
+    p.add_argument("--window", type=_window_spec, default="210,15", metavar="START,SECONDS",
                    help="analysis window on the file's time axis, s (default: the paper's 210,15)")
     p.add_argument("--whole-run", action="store_true", help="analyse each segment whole")
-    p.add_argument("--preview", type=float, default=2.0,
+    p.add_argument("--preview", type=_nonnegative_seconds, default=2.0,
                    help="seconds the human's plan looks past the window (default 2; 0 = the paper's horizon)")
     _add_assistant_model_option(p)
     p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
-                   help="reconstruct velocity and u_H from the angle when missing (auto) or always")
+                   help="reconstruct velocity and u_H from the angle when missing (auto, the default) or always")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -136,20 +182,23 @@ def build_parser() -> argparse.ArgumentParser:
         prog="scioc",
         description="Shared-control inverse optimal control: identify human steering cost functions "
         "in manual and shared control (Inga et al., SMC 2018).",
+        epilog="exit status: 0 success, 1 a failing verdict or check, 2 a usage error, 3 bad input data, "
+        "130 interrupted (README: Errors and exit codes)",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("loglik", help="max-ent log-likelihood of every segment of a study file under one θ")
     p.add_argument("study", help="study file (Parquet or CSV) in the data convention")
     p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
     _add_assistant_model_option(p)
-    p.add_argument("--format", choices=("table", "json"), default="table")
+    p.add_argument("--format", choices=("table", "json"), default="table", help="output format (default table)")
     p.set_defaults(func=_cmd_loglik)
 
     p = sub.add_parser("simulate", help="simulate the experiment: study table (angles only) + ground truth")
     p.add_argument("--subjects", type=int, default=42)
     p.add_argument("--seed", type=int, default=2018)
-    p.add_argument("--seconds", type=float, default=240.0, help="length of each run, s (default 240)")
+    p.add_argument("--seconds", type=_seconds, default=240.0, help="length of each run, s (default 240)")
     p.add_argument("--out", required=True, metavar="DIR")
     p.set_defaults(func=_cmd_simulate)
 
@@ -161,13 +210,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("fit", help="hierarchical Bayesian fit (nutpie): β with HDI, diagnostics, LOO")
     p.add_argument("study", help="study file in the data convention")
-    p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--seed", type=int, default=2018)
-    p.add_argument("--chains", type=int, default=4)
-    p.add_argument("--draws", type=int, default=1000, help="draws kept per chain (default 1000)")
-    p.add_argument("--tune", type=int, default=500, help="warm-up draws per chain (default 500)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (required)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="sampler seed (default 2018)")
+    p.add_argument("--chains", type=_positive_int, default=4, help="Markov chains (default 4)")
+    p.add_argument("--draws", type=_positive_int, default=1000, help="draws kept per chain (default 1000)")
+    p.add_argument("--tune", type=_nonnegative_int, default=500, help="warm-up draws per chain (default 500)")
     p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
-    p.add_argument("--cores", type=int, help="chains sampled in parallel (default: all CPUs)")
+    p.add_argument("--cores", type=_positive_int, help="chains sampled in parallel (default: all CPUs)")
     p.add_argument("--estimates", metavar="PATH",
                    help="estimates.parquet for the mixed-model check (default: ../identify/ beside the study's folder)")
     p.add_argument("--truth", metavar="DIR",
@@ -177,8 +226,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="Wilcoxon matched-pairs signed-rank test of θ1 and θ2, MC vs SC")
     p.add_argument("estimates", help="estimates.parquet written by `scioc identify`")
-    p.add_argument("--alpha", type=float, default=0.001, help="two-sided significance level (default 0.001)")
-    p.add_argument("--out", help="JSON path (default: compare.json beside ESTIMATES)")
+    p.add_argument("--alpha", type=_level, default=0.001, help="two-sided significance level (default 0.001)")
+    p.add_argument("--out", help="JSON path (default: compare.json beside ESTIMATES); never ESTIMATES itself")
+    p.add_argument("--include-nonconverged", action="store_true",
+                   help="test units whose identification did not converge too (default: leave them out, listed)")
     p.set_defaults(func=_cmd_compare)
 
     p = sub.add_parser("report", help="self-contained HTML report from a run folder's artifacts")
@@ -188,29 +239,30 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="the whole workflow on the built-in simulated study, ending with the report")
     p.add_argument("--out", default="reports", metavar="DIR", help="where everything goes (default reports/)")
-    p.add_argument("--subjects", type=int, default=42)
-    p.add_argument("--seed", type=int, default=2018)
+    p.add_argument("--subjects", type=_positive_int, default=42, help="simulated subjects (default 42)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the whole workflow (default 2018)")
     p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fit (minutes)")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("calibrate", help="simulation-based calibration (unit or study level), locally or on Dask")
-    p.add_argument("--level", choices=("unit", "study"), default="unit")
-    p.add_argument("--replications", type=int, help="default 1000 (unit) or 200 (study)")
-    p.add_argument("--seed", type=int, default=2018)
+    p.add_argument("--level", choices=("unit", "study"), default="unit",
+                   help="one subject × condition per replication, or a whole study (default unit)")
+    p.add_argument("--replications", type=_positive_int, help="replications (default 1000 unit, 200 study)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the replications (default 2018)")
     p.add_argument("--out", default="reports/calibration", metavar="DIR",
                    help="results go to DIR/LEVEL and DIR/LEVEL-negative (default reports/calibration)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default 2)")
-    p.add_argument("--batch-size", type=int, help="replications per Dask task (default 10 unit, 2 study)")
+    p.add_argument("--workers", type=_positive_int, default=2, help="workers of the local cluster (default 2)")
+    p.add_argument("--batch-size", type=_positive_int, help="replications per Dask task (default 10 unit, 3 study)")
     p.add_argument("--negative-control", choices=("inertia", "ignore-uA", "none"),
                    help="also run this wrong fit at the same size (default: inertia at the unit level, ignore-uA "
                         "at the study level; 'none' to skip)")
-    p.add_argument("--subjects", type=int, help="subjects per simulated study (study level; default 8)")
-    p.add_argument("--seconds", type=float, help="window length in s (default 15 unit, 2 study)")
+    p.add_argument("--subjects", type=_positive_int, help="subjects per simulated study (study level; default 6)")
+    p.add_argument("--seconds", type=_seconds, help="window length in s (default 15 unit, 2 study)")
     p.set_defaults(func=_cmd_calibrate)
 
     p = sub.add_parser("assistant", help="the MPC assistant alone on the study reference: tracking and torques")
-    p.add_argument("--format", choices=("table", "json"), default="table")
+    p.add_argument("--format", choices=("table", "json"), default="table", help="output format (default table)")
     p.set_defaults(func=_cmd_assistant)
 
     p = sub.add_parser("bench", help="measured speed of the kernels, the identification, the full fit and SBC")
@@ -223,14 +275,40 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("scioc")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
+#: Exit statuses (README "Errors and exit codes"). Usage errors found by argparse exit 2 too.
+EXIT_OK, EXIT_FAILED_CHECK, EXIT_USAGE, EXIT_BAD_DATA, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: What a shell reports for a process ended by SIGPIPE (128 + 13).
+EXIT_BROKEN_PIPE = 141
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.func(args)
+    except BrokenPipeError:
+        # The reader of stdout went away (`scioc loglik ... | head`): end quietly. Output still
+        # buffered goes to /dev/null, so the interpreter's final flush cannot fail again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+    except KeyboardInterrupt:
+        print(f"scioc {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
+        from pipelines.io import InputDataError
+
         print(f"scioc {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_DATA if isinstance(exc, InputDataError) else EXIT_USAGE
 
 
 if __name__ == "__main__":

@@ -34,8 +34,15 @@ DT = 0.01
 DT_TOL = 1e-6
 
 
-class StudyFileError(ValueError):
-    """A study file that does not follow the data convention.
+class InputDataError(ValueError):
+    """Input data scioc cannot use: a file that is missing, unreadable or implausible.
+
+    The ``scioc`` command exits with status 3 on these, and with 2 on usage errors.
+    """
+
+
+class StudyFileError(InputDataError):
+    """A study file (or another input table) that does not follow the data convention.
 
     Attributes
     ----------

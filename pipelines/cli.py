@@ -7,6 +7,7 @@ import json
 import math
 import os
 import sys
+from pathlib import Path
 
 #: Shortest analysis window, s. Shorter windows leave θ unidentified: measured on a simulated
 #: study, 0.02 s drives the optimizer to θ = ∞ and 0.05 s gives θ1 ≈ 1800 where longer
@@ -85,8 +86,8 @@ def _cmd_identify(args) -> int:
 def _cmd_compare(args) -> int:
     from pipelines.compare import compare_to_file, format_compare
 
-    out = args.out or str(__import__("pathlib").Path(args.estimates).parent / "compare.json")
-    res = compare_to_file(args.estimates, out, alpha=args.alpha)
+    out = args.out or str(Path(args.estimates).parent / "compare.json")
+    res = compare_to_file(args.estimates, out, alpha=args.alpha, include_nonconverged=args.include_nonconverged)
     print(format_compare(res))
     print(f"wrote {out}")
     return 0

@@ -2,12 +2,18 @@
 
 Wilcoxon matched-pairs signed-rank test of θ1 = q11/R (and θ2 = q22/R) between MC and
 SC over subjects with both conditions: N non-zero differences, W+ and W−, T = min(W+,
-W−), the exact two-sided p-value and the critical value at the chosen α from the exact
-null distribution of T (Siegel & Castellan 1988; for N = 42 and α = 0.1 % two-sided it is
-195, the paper's P(0.1; 42)), and the matched-pairs rank-biserial effect size
+W−), the exact two-sided p-value (scipy's ``wilcoxon(method="exact")``) and the critical
+value at the chosen α from the exact null distribution of T (Siegel & Castellan 1988; for
+N = 42 and α = 0.1 % two-sided it is 195, the paper's P(0.1; 42); scipy has no critical
+values, hence the table here), and the matched-pairs rank-biserial effect size
 r = (W+ − W−) / (W+ + W−). Zero differences are dropped (Wilcoxon's convention); tied
 absolute differences get average ranks, in which case the exact null (which assumes
-no ties) is approximate.
+no ties) is approximate and scipy's p-value takes the conservative side (T rounded up).
+
+The estimates enter through :func:`check_estimates`: one row per subject × condition,
+and every unit left out of the test (θ1 not finite and positive, θ2 not finite and
+non-negative, identification not converged, partner condition missing or left out) is
+listed with its reason.
 """
 
 from __future__ import annotations
@@ -16,11 +22,14 @@ import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import math
+import os
+
 import numpy as np
 import pandas as pd
-from scipy.stats import rankdata
+from scipy.stats import rankdata, wilcoxon
 
-from pipelines.io import StudyFileError, read_table, write_text_atomic
+from pipelines.io import CONDITIONS, StudyFileError, read_table, write_text_atomic
 
 #: Default significance level (two-sided), as in the paper.
 ALPHA = 0.001
@@ -108,8 +117,7 @@ def wilcoxon_signed_rank(mc, sc, *, parameter: str = "theta1", alpha: float = AL
     w_plus = float(ranks[nz > 0].sum())
     w_minus = float(ranks[nz < 0].sum())
     T = min(w_plus, w_minus)
-    cdf = null_cdf(n)
-    p = min(1.0, 2.0 * cdf[int(np.floor(T))])
+    p = wilcoxon(nz, method="exact").pvalue
     crit = critical_value(n, alpha)
     return WilcoxonResult(
         parameter=parameter,
@@ -128,6 +136,93 @@ def wilcoxon_signed_rank(mc, sc, *, parameter: str = "theta1", alpha: float = AL
     )
 
 
+def _converged(values: pd.Series) -> np.ndarray:
+    """``converged`` as booleans, whether stored as bool (Parquet) or text (CSV)."""
+    if values.dtype == bool:
+        return values.to_numpy()
+    return values.astype(str).str.strip().str.lower().isin(("true", "1", "1.0")).to_numpy()
+
+
+def _shown(value) -> str:
+    try:
+        return f"{float(value):g}"
+    except (TypeError, ValueError):
+        return repr(value)
+
+
+def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconverged: bool = False):
+    """Validate an estimates table and choose the units the matched-pairs test may use.
+
+    Parameters
+    ----------
+    estimates : DataFrame
+        One row per subject × condition with ``theta1``, ``theta2`` and optionally
+        ``converged`` (and ``message``), as ``scioc identify`` writes.
+    path : str
+        Named in error messages.
+    include_nonconverged : bool
+        Keep units whose identification did not converge (default: leave them out).
+
+    Returns
+    -------
+    usable : DataFrame
+        Rows of the subjects whose MC and SC units are both usable.
+    excluded : list of dict
+        ``{"subject", "condition", "reason"}`` for every unit left out, in table order.
+
+    Raises
+    ------
+    StudyFileError
+        A missing column, an unknown condition label, or a subject × condition that
+        appears more than once (naming the rows).
+    """
+    for col in ("subject", "condition", "theta1", "theta2"):
+        if col not in estimates.columns:
+            raise StudyFileError(path, "required column is missing", column=col)
+    df = estimates.reset_index(drop=True).copy()
+    df["subject"] = df["subject"].astype(str).str.strip()
+    df["condition"] = df["condition"].astype(str).str.strip()
+    bad = ~df["condition"].isin(CONDITIONS).to_numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise StudyFileError(path, f"unknown condition label '{df['condition'][i]}' (expected MC or SC)",
+                             column="condition", row=i)
+    dup = df.duplicated(["subject", "condition"], keep=False).to_numpy()
+    if dup.any():
+        i = int(np.flatnonzero(dup)[0])
+        key = (df["subject"][i], df["condition"][i])
+        rows = np.flatnonzero(dup & (df["subject"] == key[0]).to_numpy() & (df["condition"] == key[1]).to_numpy())
+        raise StudyFileError(path, f"subject {key[0]}, condition {key[1]} appears in rows "
+                             f"{', '.join(map(str, rows))}; each subject × condition needs exactly one estimate")
+    theta1 = pd.to_numeric(df["theta1"], errors="coerce").to_numpy(dtype=float)
+    theta2 = pd.to_numeric(df["theta2"], errors="coerce").to_numpy(dtype=float)
+    converged = _converged(df["converged"]) if "converged" in df.columns else np.ones(len(df), bool)
+    reasons = {}
+    for i in range(len(df)):
+        if not (np.isfinite(theta1[i]) and theta1[i] > 0):
+            reasons[i] = f"theta1 = {_shown(df['theta1'][i])} is not a finite positive number"
+        elif not (np.isfinite(theta2[i]) and theta2[i] >= 0):
+            reasons[i] = f"theta2 = {_shown(df['theta2'][i])} is not a finite number >= 0"
+        elif not converged[i] and not include_nonconverged:
+            msg = str(df["message"][i]) if "message" in df.columns else ""
+            reasons[i] = "identification did not converge" + (f" ({msg})" if msg else "")
+    ok = np.array([i not in reasons for i in range(len(df))])
+    usable_keys = set(zip(df["subject"][ok], df["condition"][ok]))
+    all_keys = set(zip(df["subject"], df["condition"]))
+    for i in np.flatnonzero(ok):
+        subject, condition = df["subject"][i], df["condition"][i]
+        other = "SC" if condition == "MC" else "MC"
+        if (subject, other) not in all_keys:
+            reasons[int(i)] = f"no {other} estimate for this subject"
+        elif (subject, other) not in usable_keys:
+            reasons[int(i)] = f"its {other} estimate is left out"
+    excluded = [{"subject": df["subject"][i], "condition": df["condition"][i], "reason": reasons[i]}
+                for i in sorted(reasons)]
+    keep = np.array([i not in reasons for i in range(len(df))], dtype=bool)
+    usable = df[keep].assign(theta1=theta1[keep], theta2=theta2[keep])
+    return usable, excluded
+
+
 def paired(estimates: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """MC and SC values of ``column`` for subjects that have both conditions."""
     wide = estimates.pivot_table(index="subject", columns="condition", values=column, aggfunc="first")
@@ -138,31 +233,57 @@ def paired(estimates: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray
     return wide["MC"].to_numpy(), wide["SC"].to_numpy(), list(wide.index)
 
 
-def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA) -> dict:
-    """Signed-rank tests of θ1 and θ2 between MC and SC.
+def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_nonconverged: bool = False,
+                      path="<table>") -> dict:
+    """Signed-rank tests of θ1 and θ2 between MC and SC on the units :func:`check_estimates` keeps.
 
     Returns
     -------
     dict
-        ``theta1`` and ``theta2`` results and the subjects left out for lacking a condition.
+        ``theta1`` and ``theta2`` results, ``excluded`` (every unit left out, with its
+        reason), ``unpaired_subjects`` (subjects with one condition only in the table)
+        and ``include_nonconverged``.
     """
+    usable, excluded = check_estimates(estimates, path, include_nonconverged=include_nonconverged)
+    for c in CONDITIONS:
+        if not (estimates["condition"].astype(str).str.strip() == c).any():
+            raise ValueError(f"no {c} estimates: the matched-pairs test needs both conditions")
     out = {}
-    subjects_all = sorted(estimates["subject"].unique())
     for col in ("theta1", "theta2"):
-        mc, sc, subjects = paired(estimates, col)
-        out[col] = asdict(wilcoxon_signed_rank(mc, sc, parameter=col, alpha=alpha))
-    out["unpaired_subjects"] = sorted(set(subjects_all) - set(subjects))
+        mc, sc, _ = paired(usable, col) if len(usable) else (np.array([]), np.array([]), [])
+        out[col] = {k: _finite_or_none(v) for k, v in asdict(wilcoxon_signed_rank(mc, sc, parameter=col,
+                                                                                 alpha=alpha)).items()}
+    counts = estimates.assign(subject=estimates["subject"].astype(str).str.strip()).groupby("subject").size()
+    out["unpaired_subjects"] = sorted(counts.index[counts < 2])
+    out["excluded"] = excluded
+    out["include_nonconverged"] = bool(include_nonconverged)
     return out
 
 
-def compare_to_file(estimates_path, out_path, *, alpha: float = ALPHA) -> dict:
-    """Read ``estimates.parquet``, test, write ``compare.json`` atomically."""
+def _finite_or_none(value):
+    """JSON has no NaN: an undefined statistic (no non-zero differences) is stored as null."""
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if a.resolve() == b.resolve():
+        return True
+    return a.exists() and b.exists() and os.path.samefile(a, b)
+
+
+def compare_to_file(estimates_path, out_path, *, alpha: float = ALPHA, include_nonconverged: bool = False) -> dict:
+    """Read ``estimates.parquet``, test, write ``compare.json`` atomically.
+
+    Raises
+    ------
+    ValueError
+        If ``out_path`` is the estimates file itself (it would be replaced by the JSON).
+    """
+    if _same_file(Path(out_path), Path(estimates_path)):
+        raise ValueError(f"--out {out_path} is the estimates file itself; write the result elsewhere")
     df = read_table(estimates_path)
-    for col in ("subject", "condition", "theta1", "theta2"):
-        if col not in df.columns:
-            raise StudyFileError(estimates_path, "required column is missing", column=col)
-    res = compare_estimates(df, alpha=alpha)
-    write_text_atomic(Path(out_path), json.dumps(res, indent=2) + "\n")
+    res = compare_estimates(df, alpha=alpha, include_nonconverged=include_nonconverged, path=estimates_path)
+    write_text_atomic(Path(out_path), json.dumps(res, indent=2, allow_nan=False) + "\n")
     return res
 
 
@@ -172,11 +293,16 @@ def format_compare(res: dict) -> str:
     for col in ("theta1", "theta2"):
         r = res[col]
         crit = "-" if r["critical_value"] is None else str(r["critical_value"])
+        r_rb = "-" if r["rank_biserial"] is None else f"{r['rank_biserial']:.3f}"
         lines.append(
             f"{col:>10} {r['n']:>4} {r['w_plus']:>8.1f} {r['w_minus']:>8.1f} {r['T']:>8.1f} {r['p_value']:>10.3g} "
-            f"{crit:>6} {str(r['reject']):>7} {r['rank_biserial']:>7.3f}"
+            f"{crit:>6} {str(r['reject']):>7} {r_rb:>7}"
         )
     lines.append(f"α = {res['theta1']['alpha']:g}; reject H0 when T <= crit")
-    if res["unpaired_subjects"]:
-        lines.append(f"left out (one condition only): {', '.join(res['unpaired_subjects'])}")
+    excluded = res.get("excluded", [])
+    if excluded:
+        lines.append(f"left out of the test ({len(excluded)} units):")
+        lines.extend(f"  {e['subject']} {e['condition']}: {e['reason']}" for e in excluded)
+    if res.get("include_nonconverged"):
+        lines.append("units whose identification did not converge are included (--include-nonconverged)")
     return "\n".join(lines)

@@ -16,16 +16,20 @@ MIN_WINDOW_SECONDS = 0.1
 
 
 def _cmd_loglik(args) -> int:
-    from pipelines.loglik import parse_theta, study_loglik
+    from pipelines.loglik import NonFiniteLoglik, parse_theta, study_loglik
 
     theta = parse_theta(args.theta)
-    table = study_loglik(args.study, theta, args.assistant_model)
+    try:
+        table = study_loglik(args.study, theta, args.assistant_model)
+    except NonFiniteLoglik as exc:
+        print(f"scioc loglik: error: {exc}", file=sys.stderr)
+        return 1
     if args.format == "json":
         records = [
             {"subject": r.subject, "condition": r.condition, "loglik": float(r.loglik)}
             for r in table.itertuples(index=False)
         ]
-        print(json.dumps(records, indent=2))
+        print(json.dumps(records, indent=2, allow_nan=False))
     else:
         print(table.to_string(index=False, float_format=lambda v: f"{v:.6f}"))
     return 0

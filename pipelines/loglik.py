@@ -12,6 +12,13 @@ from pipelines.identify import with_assistant_model
 from pipelines.io import load_study, to_maxent_segment
 
 
+class NonFiniteLoglik(ArithmeticError):
+    """A log-likelihood that double precision cannot represent (θ far outside the data's scale).
+
+    ``scioc loglik`` exits with status 1 on it.
+    """
+
+
 def parse_theta(text: str) -> np.ndarray:
     """Parse ``"q11,q22,R"`` into a validated θ, with a clear error."""
     parts = [p.strip() for p in str(text).split(",")]
@@ -41,12 +48,24 @@ def study_loglik(path, theta, assistant_model: str = "feedback") -> pd.DataFrame
     DataFrame
         Columns ``subject``, ``condition``, ``K`` (torque samples) and ``loglik``,
         in file order.
+
+    Raises
+    ------
+    NonFiniteLoglik
+        If any segment's log-likelihood is not finite, naming the first such segment.
     """
     th = validate_theta(theta)
     study = load_study(path)
     segs = [with_assistant_model(to_maxent_segment(s, study.path), s.condition, s.angle_ref, 0, assistant_model)
             for s in study.segments]
     res = loglik_segments(th, segs, discretize(DT_HUMAN))
+    bad = ~np.isfinite(res.loglik)
+    if bad.any():
+        seg = study.segments[int(np.flatnonzero(bad)[0])]
+        raise NonFiniteLoglik(
+            f"{study.path}: the log-likelihood of {int(bad.sum())} of {bad.size} segments is not finite under "
+            f"θ = [{', '.join(f'{v:g}' for v in th)}] (first: segment ({seg.subject}, {seg.condition}), "
+            f"{res.loglik[bad][0]:g}); θ is beyond what double precision can evaluate for these data")
     return pd.DataFrame(
         {
             "subject": [s.subject for s in study.segments],

@@ -190,3 +190,11 @@ def test_broken_pipe_ends_quietly(study_file):
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141
     assert err == ""
+
+
+@pytest.mark.parametrize("theta", ["1e300,0,1e-300", "1e300,0,1", "1e-300,0,1e300"])
+def test_non_finite_loglik_is_a_failed_check_not_infinity(study_file, theta, capsys):
+    assert main(["loglik", str(study_file), f"--theta={theta}", "--format", "json"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "not finite" in captured.err and "segment (s1, MC)" in captured.err

@@ -1,4 +1,4 @@
-"""Reading and validating study files in the data convention; atomic writes.
+"""Reading and validating study files in the data convention; atomic writes of files and folders.
 
 The data convention (README "Data format"): a long table, one row per 10-ms sample,
 with columns ``subject``, ``condition`` (MC or SC), ``t`` (s), ``angle`` (rad),
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -289,11 +290,19 @@ def segments_to_table(segments) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
+def _umask() -> int:
+    # The only portable way to read the umask is to set it; set it straight back.
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_path(path):
     """Yield a temporary path beside ``path``; rename it onto ``path`` only on success.
 
-    Nothing already at ``path`` is lost or half-written if the writer fails.
+    Nothing already at ``path`` is lost or half-written if the writer fails. The file gets
+    the permissions of a plainly created one (0o666 less the umask), not ``mkstemp``'s 0o600.
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -301,10 +310,71 @@ def atomic_path(path):
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def staged_dir(out, *, force: bool = False):
+    """Yield a fresh temporary folder beside ``out``; on success it replaces ``out`` as a whole.
+
+    A stage writes all its outputs into the yielded folder. When the ``with`` block ends
+    without an exception, an existing ``out`` is renamed aside, the new folder renamed to
+    ``out`` and the old one deleted, so ``out`` never mixes two runs. On an exception
+    (``KeyboardInterrupt`` included) the temporary folder is removed and ``out`` is left
+    as it was; a run killed outright (SIGKILL) leaves ``out`` intact too, plus a hidden
+    ``.NAME.*.tmp`` folder beside it.
+
+    Parameters
+    ----------
+    out : str or Path
+        The output folder.
+    force : bool
+        Replace an existing non-empty ``out``. Without it such a folder is refused.
+
+    Yields
+    ------
+    Path
+        The temporary folder to write into.
+
+    Raises
+    ------
+    FileExistsError
+        If ``out`` is a non-empty folder and ``force`` is false, or is not a folder.
+
+    Examples
+    --------
+    >>> with staged_dir("results/identify", force=True) as tmp:  # doctest: +SKIP
+    ...     write_table_atomic(estimates, tmp / "estimates.parquet")
+    """
+    target = Path(out)
+    if target.exists() and not target.is_dir():
+        raise FileExistsError(f"{target} exists and is not a folder; choose another output folder")
+    if target.is_dir() and any(target.iterdir()) and not force:
+        raise FileExistsError(f"{target} already holds results; use --force to replace them as a whole, "
+                              "or choose another output folder")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    try:
+        os.chmod(tmp, 0o777 & ~_umask())
+        yield tmp
+        if target.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+            os.replace(target, old)  # renames over the empty placeholder folder
+            try:
+                os.replace(tmp, target)
+            except BaseException:
+                os.replace(old, target)
+                raise
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
         raise
 
 

@@ -1,8 +1,16 @@
+import os
+import signal
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.io import StudyFileError, load_study, segments_to_table, write_table_atomic, write_text_atomic
+from pipelines.io import (StudyFileError, load_study, segments_to_table, staged_dir, write_table_atomic,
+                          write_text_atomic)
 
 
 def small_table(K=20, with_state=True):
@@ -118,3 +126,96 @@ def test_atomic_write_keeps_old_file_on_failure(tmp_path):
         write_table_atomic(Boom({"a": [1]}), target)
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]
+
+
+@pytest.fixture()
+def umask():
+    """Set the process umask for one test and restore it afterwards."""
+    old = os.umask(0o022)
+    yield lambda mask: os.umask(mask)
+    os.umask(old)
+
+
+@pytest.mark.parametrize("mask, mode", [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
+def test_written_files_follow_the_umask(tmp_path, umask, mask, mode):
+    umask(mask)
+    text = write_text_atomic(tmp_path / "a.json", "{}")
+    table = write_table_atomic(small_table(K=3), tmp_path / "t.parquet")
+    assert stat.S_IMODE(text.stat().st_mode) == mode
+    assert stat.S_IMODE(table.stat().st_mode) == mode
+
+
+def _folder(path):
+    return {p.name: p.read_text() for p in sorted(path.iterdir())}
+
+
+def test_staged_dir_creates_and_replaces_a_folder_as_a_whole(tmp_path, umask):
+    umask(0o022)
+    out = tmp_path / "identify"
+    with staged_dir(out) as tmp:
+        (tmp / "estimates.txt").write_text("run 1")
+        (tmp / "compare.json").write_text("run 1")
+        assert not out.exists()  # nothing visible until the stage succeeds
+    assert _folder(out) == {"compare.json": "run 1", "estimates.txt": "run 1"}
+    assert stat.S_IMODE(out.stat().st_mode) == 0o755
+    with staged_dir(out, force=True) as tmp:
+        (tmp / "estimates.txt").write_text("run 2")
+    assert _folder(out) == {"estimates.txt": "run 2"}  # the stale compare.json went with run 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["identify"]
+
+
+def test_staged_dir_refuses_an_existing_folder_without_force(tmp_path):
+    out = tmp_path / "fit"
+    out.mkdir()
+    with staged_dir(out) as tmp:  # an empty folder holds nothing to lose
+        (tmp / "posterior.json").write_text("new")
+    with pytest.raises(FileExistsError, match="already holds results; use --force"):
+        with staged_dir(out):
+            pass
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(FileExistsError, match="not a folder"):
+        with staged_dir(tmp_path / "file", force=True):
+            pass
+
+
+@pytest.mark.parametrize("error", [RuntimeError("disk full"), KeyboardInterrupt()])
+def test_staged_dir_keeps_the_old_folder_when_the_stage_fails(tmp_path, error):
+    out = tmp_path / "fit"
+    with staged_dir(out) as tmp:
+        (tmp / "posterior.json").write_text("old")
+    with pytest.raises(type(error)):
+        with staged_dir(out, force=True) as tmp:
+            (tmp / "posterior.json").write_text("new")
+            raise error
+    assert _folder(out) == {"posterior.json": "old"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit"]
+
+
+_KILLED_WRITER = """
+import sys, time
+from pathlib import Path
+from pipelines.io import staged_dir
+with staged_dir(sys.argv[1], force=True) as tmp:
+    (tmp / "posterior.nc").write_text("new seed")
+    print("writing", flush=True)
+    time.sleep(60)  # killed here, mid-write
+    (tmp / "posterior.json").write_text("new seed")
+"""
+
+
+def test_a_run_killed_mid_write_leaves_the_old_folder_intact(tmp_path):
+    out = tmp_path / "fit"
+    with staged_dir(out) as tmp:
+        for name in ("posterior.nc", "posterior.json", "ppc.parquet"):
+            (tmp / name).write_text("old seed")
+    root = Path(__file__).resolve().parents[2]
+    proc = subprocess.Popen([sys.executable, "-c", _KILLED_WRITER, str(out)], stdout=subprocess.PIPE, cwd=root,
+                            env={**os.environ, "PYTHONPATH": str(root)})
+    try:
+        assert proc.stdout.readline().strip() == b"writing"
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=30)
+    assert _folder(out) == {"posterior.json": "old seed", "posterior.nc": "old seed", "ppc.parquet": "old seed"}
+    leftovers = [p.name for p in tmp_path.iterdir() if p.name != "fit"]
+    assert len(leftovers) == 1 and leftovers[0].startswith(".fit.") and leftovers[0].endswith(".tmp")

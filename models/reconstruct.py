@@ -64,36 +64,41 @@ class Reconstruction(NamedTuple):
     loglik: float
 
 
-@njit(cache=True)
-def _filter(A, b, y, a, var_eps, q, r, smooth):
-    """Kalman filter (and RTS smoother means) for z = (φ, φ̇, s)."""
-    n = y.shape[0]
+def _transition(A, b, var_eps, q):
+    """State transition F and process noise of z = (φ, φ̇, s) over one sample."""
     F = np.zeros((3, 3))
-    F[0, 0], F[0, 1], F[1, 0], F[1, 1] = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    F[:2, :2] = A
     F[0, 2], F[1, 2], F[2, 2] = b[0], b[1], 1.0
     Qn = np.zeros((3, 3))
-    Qn[0, 0] = b[0] * b[0] * var_eps
-    Qn[0, 1] = Qn[1, 0] = b[0] * b[1] * var_eps
-    Qn[1, 1] = b[1] * b[1] * var_eps
+    Qn[:2, :2] = np.outer(b, b) * var_eps
     Qn[2, 2] = q
-    zf = np.empty((n, 3))
+    return F, Qn
+
+
+@njit(cache=True)
+def _gains(F, Qn, r, n, smooth):
+    """The data-independent half of the Kalman filter and RTS smoother over n samples.
+
+    With the variances fixed, the covariances, the Kalman gains and the smoother gains do
+    not depend on the angles: they are computed here once, and :func:`smooth_means` applies them
+    to any number of angle records (the reconstruction is then a linear filter).
+
+    Returns
+    -------
+    Kg : (n, 3) Kalman gains; Sv : (n,) innovation variances; C : (n, 3, 3) smoother gains
+    ``Pf[k] Fᵀ Pp[k+1]⁻¹`` (row n - 1 unused; zeros unless ``smooth``).
+    """
+    Kg = np.empty((n, 3))
+    Sv = np.empty(n)
+    C = np.zeros((n, 3, 3))
     Pf = np.empty((n, 3, 3))
-    zp = np.empty((n, 3))
     Pp = np.empty((n, 3, 3))
-    z = np.array([y[0], 0.0, 0.0])
     P = np.zeros((3, 3))
     P[0, 0] = r
     P[1, 1] = 1.0  # rad/s: a wheel at rest or turning slowly
     P[2, 2] = 1.0  # N·m
-    ll = 0.0
     for k in range(n):
         if k > 0:
-            zn = np.zeros(3)
-            for i in range(3):
-                for j in range(3):
-                    zn[i] += F[i, j] * z[j]
-            zn[0] += b[0] * a[k - 1]
-            zn[1] += b[1] * a[k - 1]
             FP = np.zeros((3, 3))
             for i in range(3):
                 for j in range(3):
@@ -104,39 +109,132 @@ def _filter(A, b, y, a, var_eps, q, r, smooth):
                 for j in range(3):
                     for m in range(3):
                         Pn[i, j] += FP[i, m] * F[j, m]
-            z = zn
             P = Pn
-        zp[k] = z
         Pp[k] = P
         S = P[0, 0] + r
-        nu = y[k] - z[0]
-        ll += -0.5 * (math.log(2.0 * math.pi * S) + nu * nu / S)
-        Kg = P[:, 0] / S
-        z = z + Kg * nu
+        Sv[k] = S
+        for i in range(3):
+            Kg[k, i] = P[i, 0] / S
         Pnew = np.empty((3, 3))
         for i in range(3):
             for j in range(3):
-                Pnew[i, j] = P[i, j] - Kg[i] * P[0, j]
+                Pnew[i, j] = P[i, j] - Kg[k, i] * P[0, j]
         P = 0.5 * (Pnew + Pnew.T)
-        zf[k] = z
         Pf[k] = P
-    zs = zf.copy()
     if smooth:
         for k in range(n - 2, -1, -1):
-            # C = Pf[k] Fᵀ Pp[k+1]⁻¹
             PFt = np.zeros((3, 3))
             for i in range(3):
                 for j in range(3):
                     for m in range(3):
                         PFt[i, j] += Pf[k, i, m] * F[j, m]
-            C = PFt @ np.linalg.inv(Pp[k + 1])
-            d = zs[k + 1] - zp[k + 1]
+            C[k] = PFt @ np.linalg.inv(Pp[k + 1])
+    return Kg, Sv, C
+
+
+@njit(cache=True)
+def smooth_means(F, b, y, a, Kg, Sv, C, smooth):
+    """Filter (and RTS smoother) means of one angle record with precomputed gains (:func:`_gains`).
+
+    Returns the marginal log-likelihood of ``y`` and the smoothed (or filtered) means (n, 3).
+    Written out for the 3-state model (no allocation per step): the adequacy bootstrap
+    runs it for every replicate.
+    """
+    n = y.shape[0]
+    zf = np.empty((n, 3))
+    zp = np.empty((n, 3))
+    z0 = y[0]
+    z1 = 0.0
+    z2 = 0.0
+    ll = 0.0
+    for k in range(n):
+        if k > 0:
+            n0 = F[0, 0] * z0 + F[0, 1] * z1 + F[0, 2] * z2 + b[0] * a[k - 1]
+            n1 = F[1, 0] * z0 + F[1, 1] * z1 + F[1, 2] * z2 + b[1] * a[k - 1]
+            n2 = F[2, 0] * z0 + F[2, 1] * z1 + F[2, 2] * z2
+            z0, z1, z2 = n0, n1, n2
+        zp[k, 0], zp[k, 1], zp[k, 2] = z0, z1, z2
+        S = Sv[k]
+        nu = y[k] - z0
+        ll += -0.5 * (math.log(2.0 * math.pi * S) + nu * nu / S)
+        z0 += Kg[k, 0] * nu
+        z1 += Kg[k, 1] * nu
+        z2 += Kg[k, 2] * nu
+        zf[k, 0], zf[k, 1], zf[k, 2] = z0, z1, z2
+    zs = zf.copy()
+    if smooth:
+        for k in range(n - 2, -1, -1):
+            d0 = zs[k + 1, 0] - zp[k + 1, 0]
+            d1 = zs[k + 1, 1] - zp[k + 1, 1]
+            d2 = zs[k + 1, 2] - zp[k + 1, 2]
             for i in range(3):
-                acc = 0.0
-                for j in range(3):
-                    acc += C[i, j] * d[j]
-                zs[k, i] = zf[k, i] + acc
+                zs[k, i] = zf[k, i] + C[k, i, 0] * d0 + C[k, i, 1] * d1 + C[k, i, 2] * d2
     return ll, zs
+
+
+def _filter(A, b, y, a, var_eps, q, r, smooth):
+    """Kalman filter (and RTS smoother means) for z = (φ, φ̇, s): marginal log-likelihood and means."""
+    F, Qn = _transition(A, b, var_eps, q)
+    Kg, Sv, C = _gains(F, Qn, r, y.shape[0], smooth)
+    return smooth_means(F, b, y, a, Kg, Sv, C, smooth)
+
+
+class FixedReconstruction(NamedTuple):
+    """The reconstruction with its variances held fixed: a linear filter for records of one length.
+
+    Build it with :func:`fixed_reconstruction`; apply it with :func:`apply_reconstruction`.
+    """
+
+    F: np.ndarray
+    b: np.ndarray
+    A: np.ndarray
+    Kg: np.ndarray
+    Sv: np.ndarray
+    C: np.ndarray
+
+
+def fixed_reconstruction(plant: DiscretePlant, n: int, sigma_eps: float, q: float, *,
+                         resolution: float = DEFAULT_RESOLUTION) -> FixedReconstruction:
+    """Precompute the smoother of :func:`reconstruct` for records of ``n`` angles at fixed variances.
+
+    Parameters
+    ----------
+    plant : DiscretePlant
+    n : int
+        Number of angle samples per record (K + 1).
+    sigma_eps : float
+        White-torque SD, N·m.
+    q : float
+        Smooth-torque random-walk variance, (N·m)² per sample.
+    resolution : float
+        Encoder increment, rad.
+    """
+    F, Qn = _transition(plant.A, plant.b, sigma_eps**2, q)
+    Kg, Sv, C = _gains(F, Qn, resolution**2 / 12.0, int(n), True)
+    return FixedReconstruction(F, np.asarray(plant.b, dtype=float), np.asarray(plant.A, dtype=float), Kg, Sv, C)
+
+
+@njit(cache=True)
+def torque_from_means(A, b, zs, a):
+    """u_H from smoothed means: smooth torque plus the white part from the velocity row (b2 > 0)."""
+    n = zs.shape[0]
+    u = np.empty(n)
+    for k in range(n - 1):
+        pred = A[1, 0] * zs[k, 0] + A[1, 1] * zs[k, 1] + b[1] * (zs[k, 2] + a[k])
+        u[k] = zs[k, 2] + (zs[k + 1, 1] - pred) / b[1]
+    u[n - 1] = zs[n - 1, 2]
+    return u
+
+
+@njit(cache=True)
+def apply_reconstruction(F, b, A, Kg, Sv, C, y, a):
+    """Reconstruct angle, velocity and u_H of one record with a :class:`FixedReconstruction`'s arrays.
+
+    Returns ``(angle, velocity, u_H)``, each of shape (n,); numba-compiled so that callers
+    may apply it to many records in a loop.
+    """
+    _, zs = smooth_means(F, b, y, a, Kg, Sv, C, True)
+    return zs[:, 0].copy(), zs[:, 1].copy(), torque_from_means(A, b, zs, a)
 
 
 def reconstruct(
@@ -198,9 +296,5 @@ def reconstruct(
             z[i] = v
         sigma_eps, q = math.exp(z[0]), math.exp(2 * z[1])
     ll, zs = _filter(plant.A, plant.b, y, a, sigma_eps**2, q, r, True)
-    # White torque component from the smoothed transition (velocity row; b2 > 0).
-    x = zs[:, :2]
-    pred = x[:-1] @ plant.A.T + np.outer(zs[:-1, 2] + a, plant.b)
-    eps = (x[1:, 1] - pred[:, 1]) / plant.b[1]
-    u_H = np.append(zs[:-1, 2] + eps, zs[-1, 2])
+    u_H = torque_from_means(np.asarray(plant.A, dtype=float), np.asarray(plant.b, dtype=float), zs, a)
     return Reconstruction(zs[:, 0].copy(), zs[:, 1].copy(), u_H, float(sigma_eps), float(q), float(ll))

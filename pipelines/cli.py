@@ -64,7 +64,8 @@ def _window(args):
             raise ValueError(f"--window needs START,SECONDS in s (e.g. 210,15); got {args.window!r}") from None
         window = (start, seconds)
     return IdentifySettings(window_start=window[0], window_seconds=window[1], preview=args.preview,
-                            reconstruct=args.reconstruct, assistant_model=args.assistant_model)
+                            reconstruct=args.reconstruct, assistant_model=args.assistant_model,
+                            adequacy_boot=args.adequacy_boot, adequacy_seed=args.adequacy_seed)
 
 
 def _cmd_simulate(args) -> int:
@@ -79,12 +80,15 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_identify(args) -> int:
-    from pipelines.identify import identify_to_dir
+    from pipelines.identify import format_identify, identify_to_dir
 
     paths = identify_to_dir(args.study, args.out, _window(args))
+    print(format_identify(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")
-    return 0
+    # Exit 1 when the human model fails its adequacy checks: the estimates are written, but
+    # no conclusion about costs should be drawn from them unexamined.
+    return 1 if json.loads(Path(paths["meta"]).read_text())["adequacy"]["verdict"] == "fail" else 0
 
 
 def _cmd_compare(args) -> int:
@@ -180,6 +184,9 @@ def _add_window_options(p):
     _add_assistant_model_option(p)
     p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
                    help="reconstruct velocity and u_H from the angle when missing (auto, the default) or always")
+    p.add_argument("--adequacy-boot", type=int, default=99, metavar="B",
+                   help="bootstrap data sets per segment for the model-adequacy checks (default 99; 0 skips them)")
+    p.add_argument("--adequacy-seed", type=int, default=2018, help="seed of the adequacy bootstrap (default 2018)")
 
 
 def build_parser() -> argparse.ArgumentParser:

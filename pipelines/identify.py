@@ -33,6 +33,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -43,6 +44,7 @@ from models.maxent import Segment, forward_optimal_control, plan_inputs, prepare
 from models.plant import DT_HUMAN, discretize
 from models.reconstruct import DEFAULT_RESOLUTION, reconstruct
 from models.reference import WINDOW_SECONDS, WINDOW_START
+from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.io import Study, StudyFileError, SegmentData, load_study, write_table_atomic, write_text_atomic
 from pipelines.progress import progress
 from pipelines.provenance import versions
@@ -69,6 +71,12 @@ class IdentifySettings:
     assistant_model : str
         ``feedback`` (the human plans with the assistant's law; default) or
         ``exogenous`` (the recorded u_A is a known input, the paper's Eq. 15-16).
+    adequacy_boot : int
+        Bootstrap data sets per segment for the model-adequacy checks
+        (:mod:`pipelines.adequacy`; default 99; 0 skips them and the verdict reads
+        "not checked").
+    adequacy_seed : int
+        Root seed of the adequacy bootstrap.
     """
 
     window_start: float | None = WINDOW_START
@@ -78,6 +86,8 @@ class IdentifySettings:
     reconstruct: str = "auto"
     resolution: float = DEFAULT_RESOLUTION
     assistant_model: str = "feedback"
+    adequacy_boot: int = 99
+    adequacy_seed: int = 2018
 
     def __post_init__(self):
         if (self.window_start is None) != (self.window_seconds is None):
@@ -89,6 +99,10 @@ class IdentifySettings:
         if self.reconstruct not in ("auto", "always"):
             raise ValueError(f"reconstruct must be 'auto' or 'always'; got {self.reconstruct!r}")
         _check_assistant_model(self.assistant_model)
+        if int(self.adequacy_boot) != self.adequacy_boot or self.adequacy_boot < 0:
+            raise ValueError(f"adequacy bootstrap size must be an integer >= 0; got {self.adequacy_boot!r}")
+        if int(self.adequacy_seed) != self.adequacy_seed or self.adequacy_seed < 0:
+            raise ValueError(f"adequacy seed must be an integer >= 0; got {self.adequacy_seed!r}")
 
 
 #: How the human in SC may model the assistant (see the module docstring).
@@ -133,6 +147,8 @@ class PreparedSegment:
     reconstructed: bool
     sigma_eps: float
     q: float
+    span: slice  # rows of the segment the reconstruction saw (the window rows without reconstruction)
+    span_state0: np.ndarray  # (2,) angle (rad) and velocity (rad/s) used at the span's first row
 
 
 def _window_rows(seg: SegmentData, settings: IdentifySettings, path) -> slice:
@@ -168,9 +184,11 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
         cut = slice(i0 - j0, i1 + 1 - j0)
         angle, velocity, u_H = rec.angle[cut], rec.velocity[cut], rec.u_H[cut]
         sigma_eps, q = rec.sigma_eps, rec.q
+        span, state0 = slice(j0, j1), np.array([rec.angle[0], rec.velocity[0]])
     else:
         angle, velocity, u_H = seg.angle[rows], seg.velocity[rows], seg.u_H[rows]
         sigma_eps = q = float("nan")
+        span, state0 = rows, np.array([angle[0], velocity[0]])
     segment = Segment(
         x0=np.array([angle[0], velocity[0]]),
         angle_ref=seg.angle_ref[i0 : i1 + M + 1],
@@ -178,23 +196,36 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
         u_A=seg.u_A[i0 : i1 + M],
     )
     segment = with_assistant_model(segment, seg.condition, seg.angle_ref, i0, settings.assistant_model)
-    return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q)
+    return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q, span, state0)
 
 
-def identify_study(study: Study, settings: IdentifySettings = IdentifySettings(), *, show_progress: bool = True):
-    """Identify θ for every segment of a study and cross-predict the conditions.
+class Identification(NamedTuple):
+    """What :func:`identify_study` returns.
 
-    Returns
-    -------
+    Attributes
+    ----------
     estimates : DataFrame
-        One row per subject × condition.
+        One row per subject × condition, with the per-segment adequacy columns.
     trajectories : DataFrame
         Window samples with measured, used and predicted angle, velocity and torque.
     validation : DataFrame
         RMSE of angle and u_H when each condition is predicted with θ_MC and θ_SC.
     timing : dict
-        Seconds spent reconstructing and optimizing.
+        Seconds spent reconstructing, optimizing and checking adequacy.
+    adequacy : dict
+        The model-adequacy verdict (:func:`pipelines.adequacy.assess_study`).
     """
+
+    estimates: pd.DataFrame
+    trajectories: pd.DataFrame
+    validation: pd.DataFrame
+    timing: dict
+    adequacy: dict
+
+
+def identify_study(study: Study, settings: IdentifySettings = IdentifySettings(), *,
+                   show_progress: bool = True) -> Identification:
+    """Identify θ for every segment of a study, check the model's adequacy, cross-predict the conditions."""
     plant = discretize(DT_HUMAN)
     prepared, t_rec = [], 0.0
     for seg in progress(study.segments, desc="reconstruct", enabled=show_progress):
@@ -231,8 +262,19 @@ def identify_study(study: Study, settings: IdentifySettings = IdentifySettings()
             "recon_q": p.q,
         })
     est = pd.DataFrame(rows)
+    t0 = time.perf_counter()
+    if settings.adequacy_boot > 0:
+        cols, adequacy = assess_study(prepared, [e.theta for e in estimates], plant,
+                                      assistant_model=settings.assistant_model, resolution=settings.resolution,
+                                      n_boot=settings.adequacy_boot, seed=settings.adequacy_seed,
+                                      assistant=paper_assistant())
+        est = pd.concat([est, cols], axis=1)
+    else:
+        adequacy = not_checked("switched off (adequacy bootstrap size 0)")
+    t_adq = time.perf_counter() - t0
     traj, val = _cross_predict(prepared, est, plant)
-    return est, traj, val, {"reconstruct_s": t_rec, "optimize_s": t_opt, "segments": len(prepared)}
+    timing = {"reconstruct_s": t_rec, "optimize_s": t_opt, "adequacy_s": t_adq, "segments": len(prepared)}
+    return Identification(est, traj, val, timing, adequacy)
 
 
 def _cross_predict(prepared, est: pd.DataFrame, plant):
@@ -276,7 +318,7 @@ def _cross_predict(prepared, est: pd.DataFrame, plant):
 def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettings(), *, show_progress=True) -> dict:
     """Run :func:`identify_study` on a file and write its artifacts atomically."""
     study = load_study(study_path)
-    est, traj, val, timing = identify_study(study, settings, show_progress=show_progress)
+    est, traj, val, timing, adequacy = identify_study(study, settings, show_progress=show_progress)
     out = Path(out)
     paths = {
         "estimates": write_table_atomic(est, out / "estimates.parquet"),
@@ -289,7 +331,20 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         "timing_s": timing,
         "converged": int(est["converged"].sum()),
         "segments": int(len(est)),
+        "not_converged": [{"subject": r.subject, "condition": r.condition, "message": r.message}
+                          for r in est.itertuples() if not r.converged],
+        "adequacy": adequacy,
         "versions": versions(),
     }
     paths["meta"] = write_text_atomic(out / "identify.json", json.dumps(meta, indent=2) + "\n")
     return {k: str(v) for k, v in paths.items()}
+
+
+def format_identify(out) -> str:
+    """The console summary of an identify folder: convergence, the segments that did not converge, adequacy."""
+    meta = json.loads((Path(out) / "identify.json").read_text())
+    lines = [f"identified {meta['segments']} segments; {meta['converged']} converged"]
+    for r in meta.get("not_converged", []):
+        lines.append(f"  NOT CONVERGED: {r['subject']} {r['condition']}: {r['message']}")
+    lines.append(format_adequacy(meta["adequacy"]))
+    return "\n".join(lines)

@@ -33,11 +33,11 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
     truth = pd.read_parquet(truth_traj_path)
     df = study.assign(velocity=truth["velocity"].to_numpy(), u_H=truth["u_H"].to_numpy(),
                       angle=truth["angle"].to_numpy())
-    est, traj, val, timing = identify_study(validate_table(df, f"{study_path} + true torques"), settings)
+    est, traj, val, timing, adequacy = identify_study(validate_table(df, f"{study_path} + true torques"), settings)
     out = Path(out)
     write_table_atomic(est, out / "estimates.parquet")
     write_table_atomic(val, out / "validation.parquet")
-    write_text_atomic(out / "identify.json", json.dumps({"timing_s": timing, "source": "true velocity and u_H"}) + "\n")
+    write_text_atomic(out / "identify.json", json.dumps({"timing_s": timing, "source": "true velocity and u_H", "adequacy": adequacy}) + "\n")
     return {"estimates": str(out / "estimates.parquet")}
 
 

@@ -1,0 +1,439 @@
+"""Model adequacy: does the fitted human model describe the recorded data?
+
+Every cost scioc reports assumes that the human *is* the model it was fitted with. This
+module checks that assumption per segment, at the fitted θ, by a parametric bootstrap
+through the same acquisition chain (Gelman, Meng & Stern 1996 call the plug-in version of
+this a posterior predictive check at the point estimate).
+
+Statistics
+----------
+Each is computed for the recorded segment and for ``B`` data sets drawn from the fitted
+model with the same reference, the same assistant, the same encoder and the same
+reconstruction (or, for recorded torques, the same exact measurement):
+
+``whiteness``
+    Autocorrelation of the standardized policy residuals ``z_k = v_k √(2 S_k)`` at lags
+    1..:data:`WHITENESS_LAGS` (a portmanteau statistic). ``v_k`` is the deviation of the
+    torque from the optimal law at the state driven by the observed torques
+    (:mod:`models.maxent`), so under the model and for the true torque the z_k are iid
+    N(0, 1). A reconstructed torque is smoothed, which makes z autocorrelated even under
+    the model (lag 1 about 0.3 on the default study); that is why the null comes from the
+    bootstrap and the statistic is the standardized distance of the autocorrelation
+    vector from the bootstrap's, ``Σ_l ((ρ_l − m_l) / s_l)²`` (Ljung-Box is the special
+    case m = 0, s = 1/√n).
+``variance``
+    ``log mean z²``: the policy noise is as large as R says.
+``xcorr``
+    Cross-correlation of tracking error (angle − reference) and torque at lags
+    0..:data:`XCORR_LAGS` samples (0-300 ms at 100 Hz): how long after an error the torque
+    reacts, which is where a perceptual delay shows.
+``spectrum``
+    Log power of the torque in the bands :data:`BANDS_HZ`.
+``coverage_angle``, ``coverage_torque``
+    Plug-in predictive coverage: the fraction of samples at which the recorded angle
+    (torque) lies inside the pointwise central :data:`COVERAGE` band of all data sets.
+
+Calibration
+-----------
+The recorded data set and the B replicates are treated alike: a vector statistic becomes
+``T = Σ_j ((s_j − mean_j) / sd_j)²`` with mean and SD over all ``B + 1`` data sets, a
+scalar one ``T = |s − mean|``, and each data set's p-value is the fraction of the B + 1
+data sets with a T at least as large. If the recorded data are exchangeable with the
+replicates (the model holds at θ), that p-value is uniform on {1/(B+1), …, 1} up to ties
+(which only make it larger). The per-segment p-value is the single-step min-P
+combination over the statistics (Westfall & Young 1993), calibrated by the same B + 1
+data sets, so it accounts for the statistics' correlation: a segment is flagged when it
+is ≤ :data:`SEGMENT_ALPHA` (false-alarm rate ≤ 5 % per segment). The study verdict
+combines the segments per statistic by Fisher's method and fails when any statistic's
+combined p-value is ≤ :data:`STUDY_ALPHA` / (number of statistics) (Bonferroni:
+family-wise false-alarm rate ≤ 1 %). Fisher's χ² reference is conservative for p-values
+on a grid (their mean −log is below 1).
+
+Shortcuts, and why the null stays honest
+----------------------------------------
+* θ is not refitted on each replicate (plug-in). The recorded data were used to choose θ
+  and the replicates were not, so the recorded data look, if anything, a little better
+  than the replicates: the test is conservative, by about 3 parameters in 1500 samples.
+* The reconstruction's two variances are held at the values chosen for the recorded
+  segment; with them fixed the Kalman/RTS smoother is a linear filter whose gains are
+  computed once per segment and applied to every replicate. The recorded segment passes
+  through exactly the same filter.
+* Replicates start at the reconstructed state at the start of the reconstruction span.
+* For a reconstructed torque the fitted R is biased upward (the smoother removes torque
+  variability below the encoder's resolution, so the torque looks less variable), and
+  replicates drawn with it would be smoother still after their own reconstruction. They
+  are therefore drawn with the fitted θ1 and θ2 but with the policy noise the
+  reconstruction measured (its white-torque SD σ_ε, within 2 % of the true policy noise
+  on the default study; ``noise_scale``), and they are standardized with the fitted S
+  like the recorded data. Recorded torques use the fitted R as it is.
+
+Both are checked where it matters, by the false-alarm rate measured on data from the
+model (``scioc power``, README).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from scipy import stats as sps
+
+from models.reconstruct import apply_reconstruction
+
+#: Autocorrelation lags of the residuals, samples.
+WHITENESS_LAGS = 10
+#: Cross-correlation lags of tracking error -> torque, samples (0..300 ms at 100 Hz).
+XCORR_LAGS = 30
+#: Torque spectrum bands, Hz.
+BANDS_HZ = ((0.0, 0.5), (0.5, 1.5), (1.5, 4.0), (4.0, 10.0), (10.0, 50.0))
+#: Central probability of the pointwise predictive bands.
+COVERAGE = 0.9
+#: Per-segment false-alarm budget of the min-P combined p-value.
+SEGMENT_ALPHA = 0.05
+#: Family-wise false-alarm budget of the study verdict (Fisher per statistic, Bonferroni across).
+STUDY_ALPHA = 0.01
+#: Default number of bootstrap data sets per segment.
+N_BOOT = 99
+#: The statistics, in report order.
+STATISTICS = ("whiteness", "variance", "xcorr", "spectrum", "coverage_angle", "coverage_torque")
+
+
+class Records(NamedTuple):
+    """What the statistics see of B + 1 data sets of one segment (row 0: the recorded one).
+
+    Attributes
+    ----------
+    angle : ndarray, shape (n, K + 1)
+        Recorded (encoder) angle over the window, rad.
+    error : ndarray, shape (n, K + 1)
+        Tracking error of the angle the likelihood uses (smoothed if reconstructed), rad.
+    torque : ndarray, shape (n, K)
+        Human torque the likelihood uses, N·m.
+    z : ndarray, shape (n, K)
+        Standardized policy residuals.
+    """
+
+    angle: np.ndarray
+    error: np.ndarray
+    torque: np.ndarray
+    z: np.ndarray
+
+
+class Chain(NamedTuple):
+    """A fitted segment and how its data were acquired, for :func:`bootstrap_records`.
+
+    Times are samples of the reconstruction span (row 0 = its first sample); the window
+    starts at ``w0`` and has K steps.
+
+    Attributes
+    ----------
+    A, b : ndarray
+        The wheel (2, 2), (2,).
+    gain : ndarray, shape (2,)
+        The assistant's state feedback the human plans with (zeros: none).
+    known : ndarray, shape (n - 1,)
+        The known input of the plan over the span: the assistant's feedforward (with a
+        gain) or the recorded u_A, N·m.
+    L, f, S : ndarray, shapes (n - 1, 2), (n - 1,), (n - 1,)
+        The fitted model's policy over the span (its plan within the window).
+    x0 : ndarray, shape (2,)
+        State at the span's start, rad, rad/s.
+    angle, velocity, u_H, u_A : ndarray, shape (n,)
+        The recorded span: angle (encoder), and, without reconstruction, the recorded
+        velocity and u_H (else unused); u_A's last entry is unused.
+    ref : ndarray, shape (n,)
+        Angle reference, rad.
+    w0, K : int
+    recon : tuple or None
+        ``(F, Kg, Sv, C)`` of a :class:`models.reconstruct.FixedReconstruction`, or None
+        when velocity and u_H were recorded.
+    resolution : float
+        Encoder increment, rad (0: not quantized).
+    noise_scale : float
+        The replicates' policy noise is ``noise_scale / √(2 S_k)`` (1: the fitted model's).
+    """
+
+    A: np.ndarray
+    b: np.ndarray
+    gain: np.ndarray
+    known: np.ndarray
+    L: np.ndarray
+    f: np.ndarray
+    S: np.ndarray
+    x0: np.ndarray
+    angle: np.ndarray
+    velocity: np.ndarray
+    u_H: np.ndarray
+    u_A: np.ndarray
+    ref: np.ndarray
+    w0: int
+    K: int
+    recon: tuple | None
+    resolution: float
+    noise_scale: float = 1.0
+
+
+# --------------------------------------------------------------------------- the chain
+
+
+@njit(cache=True)
+def _measure(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, L, f, S, angle_out, err_out, u_out, z_out):
+    """One data set through the acquisition chain and the residual pass (writes the out rows)."""
+    if recon_on:
+        # The reconstruction of models.reconstruct with its variances fixed: a linear smoother.
+        ang, v, u = apply_reconstruction(F, b, A, Kg, Sv, C, y, a)
+    else:
+        ang = y
+        v = vel
+        u = uh
+    x1 = ang[w0]
+    x2 = v[w0]
+    for k in range(K + 1):
+        angle_out[k] = y[w0 + k]
+        err_out[k] = ang[w0 + k] - ref[w0 + k]
+    for k in range(K):
+        j = w0 + k
+        uk = u[j]
+        u_out[k] = uk
+        dev = uk + L[j, 0] * x1 + L[j, 1] * x2 - f[j]
+        z_out[k] = dev * np.sqrt(2.0 * S[j])
+        tot = uk + a[j]
+        n1 = A[0, 0] * x1 + A[0, 1] * x2 + b[0] * tot
+        x2 = A[1, 0] * x1 + A[1, 1] * x2 + b[1] * tot
+        x1 = n1
+
+
+@njit(cache=True)
+def _replicates(A, b, gain, known, L, f, S, x0, ref, noise, scale, step, recon_on, F, Kg, Sv, C, w0, K,
+                angle_out, err_out, u_out, z_out):
+    """Draw B data sets from the fitted model in closed loop and measure each (rows 1..B of the outs)."""
+    B, m = noise.shape
+    n = m + 1
+    y = np.empty(n)
+    vel = np.empty(n)
+    uh = np.empty(n)
+    ua = np.empty(n)
+    for i in range(B):
+        x1 = x0[0]
+        x2 = x0[1]
+        for k in range(m):
+            y[k] = x1
+            vel[k] = x2
+            # The assistant reacts to the actual state; the human's plan knows its law.
+            ua[k] = known[k] - (gain[0] * x1 + gain[1] * x2)
+            uh[k] = -(L[k, 0] * x1 + L[k, 1] * x2) + f[k] + scale * noise[i, k] / np.sqrt(2.0 * S[k])
+            tot = uh[k] + ua[k]
+            n1 = A[0, 0] * x1 + A[0, 1] * x2 + b[0] * tot
+            x2 = A[1, 0] * x1 + A[1, 1] * x2 + b[1] * tot
+            x1 = n1
+        y[m] = x1
+        vel[m] = x2
+        uh[m] = 0.0
+        ua[m] = 0.0
+        if step > 0.0:
+            for k in range(n):
+                y[k] = np.round(y[k] / step) * step
+        _measure(A, b, y, vel, uh, ua, ref, recon_on, F, Kg, Sv, C, w0, K, L, f, S,
+                 angle_out[i + 1], err_out[i + 1], u_out[i + 1], z_out[i + 1])
+
+
+def bootstrap_records(chain: Chain, n_boot: int, rng: np.random.Generator) -> Records:
+    """The recorded segment (row 0) and ``n_boot`` draws of the fitted model, through the same chain.
+
+    Parameters
+    ----------
+    chain : Chain
+    n_boot : int
+        B >= 1.
+    rng : numpy.random.Generator
+        The replicates' only source of randomness.
+
+    Returns
+    -------
+    Records
+        ``n_boot + 1`` rows.
+    """
+    c = chain
+    n = c.angle.shape[0]
+    if n_boot < 1:
+        raise ValueError(f"the bootstrap needs at least one replicate; got {n_boot!r}")
+    if c.w0 < 0 or c.w0 + c.K > n - 1:
+        raise ValueError(f"window {c.w0}..{c.w0 + c.K} does not fit a span of {n} samples")
+    rows = n_boot + 1
+    angle = np.empty((rows, c.K + 1))
+    err = np.empty((rows, c.K + 1))
+    torque = np.empty((rows, c.K))
+    z = np.empty((rows, c.K))
+    if c.recon is None:
+        F = Kg = Sv = np.zeros((1, 3))
+        Cm = np.zeros((1, 3, 3))
+        recon_on = False
+    else:
+        F, Kg, Sv, Cm = c.recon
+        recon_on = True
+    args = (np.asarray(F, dtype=float), np.asarray(Kg, dtype=float), np.asarray(Sv, dtype=float),
+            np.asarray(Cm, dtype=float), int(c.w0), int(c.K), c.L, c.f, c.S)
+    vel = c.velocity if c.velocity is not None else np.zeros(n)
+    uh = c.u_H if c.u_H is not None else np.zeros(n)
+    _measure(c.A, c.b, c.angle, vel, uh, c.u_A, c.ref, recon_on, *args, angle[0], err[0], torque[0], z[0])
+    noise = rng.standard_normal((n_boot, n - 1))
+    step = float(c.resolution) if recon_on else 0.0
+    F, Kg, Sv, Cm = args[:4]
+    _replicates(c.A, c.b, c.gain, c.known, c.L, c.f, c.S, c.x0, c.ref, noise, float(c.noise_scale), step, recon_on, F, Kg, Sv, Cm,
+                int(c.w0), int(c.K), angle, err, torque, z)
+    return Records(angle, err, torque, z)
+
+
+# --------------------------------------------------------------------------- statistics
+
+
+def autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
+    """Sample autocorrelation at lags 1..``lags`` of each row (the biased estimator, as statsmodels' acf)."""
+    xc = x - x.mean(axis=-1, keepdims=True)
+    den = np.sum(xc * xc, axis=-1)
+    return np.stack([np.sum(xc[..., l:] * xc[..., :-l], axis=-1) / den for l in range(1, lags + 1)], axis=-1)
+
+
+def cross_correlation(e: np.ndarray, u: np.ndarray, lags: int) -> np.ndarray:
+    """``corr(e_{k-l}, u_k)`` at lags 0..``lags`` of each row pair (normalized by the full sums).
+
+    Computed for all lags at once with a zero-padded FFT (no circular wrap-around).
+    """
+    ec = e - e.mean(axis=-1, keepdims=True)
+    uc = u - u.mean(axis=-1, keepdims=True)
+    den = np.sqrt(np.sum(ec * ec, axis=-1) * np.sum(uc * uc, axis=-1))
+    n = u.shape[-1]
+    m = 1 << int(np.ceil(np.log2(2 * n)))
+    c = np.fft.irfft(np.fft.rfft(uc, m, axis=-1) * np.conj(np.fft.rfft(ec, m, axis=-1)), m, axis=-1)
+    return c[..., : lags + 1] / den[..., None]
+
+
+def band_log_power(u: np.ndarray, dt: float, bands=BANDS_HZ) -> np.ndarray:
+    """Log of the periodogram's power of each row in each band (demeaned; one-sided, unnormalized sums)."""
+    uc = u - u.mean(axis=-1, keepdims=True)
+    power = np.abs(np.fft.rfft(uc, axis=-1)) ** 2
+    freq = np.fft.rfftfreq(u.shape[-1], dt)
+    out = []
+    for lo, hi in bands:
+        sel = (freq > lo) & (freq <= hi) if lo > 0 else (freq > 0) & (freq <= hi)
+        out.append(np.log(np.sum(power[..., sel], axis=-1) / u.shape[-1] + 1e-300))
+    return np.stack(out, axis=-1)
+
+
+def coverage(x: np.ndarray, prob: float = COVERAGE) -> np.ndarray:
+    """Fraction of samples at which each row lies inside the pointwise central band of all rows.
+
+    The band at each sample runs from the ``lo``-th to the ``(n - 1 - lo)``-th smallest of
+    the n rows, ``lo = ⌊(1 - prob) n / 2⌋``. Every row is judged by the same band, a
+    symmetric function of all rows, so under exchangeability the rows' coverages are
+    exchangeable too (ties, as of encoder angles, only widen the band for everyone).
+    """
+    n = x.shape[0]
+    lo = int(np.floor(0.5 * (1.0 - prob) * n + 1e-9))
+    part = np.partition(x, (lo, n - 1 - lo), axis=0)
+    inside = (x >= part[lo]) & (x <= part[n - 1 - lo])
+    return inside.mean(axis=1)
+
+
+def statistics(rec: Records, dt: float) -> dict:
+    """Every statistic of every row: arrays of shape (n,) or (n, d)."""
+    return {
+        "whiteness": autocorrelation(rec.z, WHITENESS_LAGS),
+        "variance": np.log(np.mean(rec.z * rec.z, axis=1)),
+        "xcorr": cross_correlation(rec.error[:, :-1], rec.torque, XCORR_LAGS),
+        "spectrum": band_log_power(rec.torque, dt),
+        "coverage_angle": coverage(rec.angle),
+        "coverage_torque": coverage(rec.torque),
+    }
+
+
+def discrepancy(s: np.ndarray) -> np.ndarray:
+    """T per row: the standardized squared distance from the mean over rows (|·| for scalars)."""
+    s = np.asarray(s, dtype=float)
+    mean = s.mean(axis=0)
+    if s.ndim == 1:
+        return np.abs(s - mean)
+    sd = s.std(axis=0, ddof=1)
+    sd = np.where(sd > 0, sd, 1.0)
+    return np.sum(((s - mean) / sd) ** 2, axis=1)
+
+
+def exceedance(T: np.ndarray) -> np.ndarray:
+    """p per row: the fraction of rows whose T is at least as large (each row counts itself)."""
+    srt = np.sort(T)
+    return (T.shape[0] - np.searchsorted(srt, T, side="left")) / T.shape[0]
+
+
+class SegmentAdequacy(NamedTuple):
+    """Adequacy of one segment.
+
+    Attributes
+    ----------
+    p : dict
+        Bootstrap p-value of each statistic for the recorded data.
+    p_segment : float
+        Min-P combined p-value (flag when <= :data:`SEGMENT_ALPHA`).
+    observed : dict
+        The recorded data's statistics (scalars or lists), for the report.
+    null_mean : dict
+        Their mean over the B + 1 data sets.
+    """
+
+    p: dict
+    p_segment: float
+    observed: dict
+    null_mean: dict
+
+
+def segment_adequacy(rec: Records, dt: float) -> SegmentAdequacy:
+    """Per-statistic and combined p-values of row 0 of ``rec`` against the other rows."""
+    st = statistics(rec, dt)
+    P = np.column_stack([exceedance(discrepancy(st[name])) for name in STATISTICS])
+    minp = P.min(axis=1)
+    p_seg = float(np.mean(minp <= minp[0]))
+    return SegmentAdequacy(
+        p={name: float(P[0, j]) for j, name in enumerate(STATISTICS)},
+        p_segment=p_seg,
+        observed={name: np.asarray(st[name][0]).tolist() for name in STATISTICS},
+        null_mean={name: np.asarray(st[name].mean(axis=0)).tolist() for name in STATISTICS},
+    )
+
+
+def fisher(p) -> float:
+    """Fisher's combined p-value of independent p-values (χ² with 2n degrees of freedom)."""
+    p = np.asarray(p, dtype=float)
+    return float(sps.chi2.sf(-2.0 * np.sum(np.log(p)), 2 * p.shape[0]))
+
+
+def study_verdict(p_by_stat: dict, p_segment, *, study_alpha: float = STUDY_ALPHA,
+                  segment_alpha: float = SEGMENT_ALPHA) -> dict:
+    """Combine segments: Fisher per statistic, Bonferroni across statistics.
+
+    Parameters
+    ----------
+    p_by_stat : dict of str -> array_like, shape (n_segments,)
+    p_segment : array_like, shape (n_segments,)
+
+    Returns
+    -------
+    dict
+        ``verdict`` ("pass" or "fail"), ``failed_checks``, per-statistic combined p-values
+        and thresholds, the number of flagged segments and how many are expected by chance.
+    """
+    names = list(p_by_stat)
+    level = study_alpha / len(names)
+    combined = {name: fisher(p_by_stat[name]) for name in names}
+    failed = [name for name in names if combined[name] <= level]
+    ps = np.asarray(p_segment, dtype=float)
+    return {
+        "verdict": "fail" if failed else "pass",
+        "failed_checks": failed,
+        "combined_p": combined,
+        "study_alpha": study_alpha,
+        "per_check_level": level,
+        "segment_alpha": segment_alpha,
+        "segments": int(ps.shape[0]),
+        "segments_flagged": int(np.sum(ps <= segment_alpha)),
+        "segments_flagged_expected_by_chance": float(segment_alpha * ps.shape[0]),
+    }

@@ -164,3 +164,123 @@ def rollout(A, b, L, f, x0, a, noise):
         x[k + 1, 0] = A[0, 0] * x[k, 0] + A[0, 1] * x[k, 1] + b[0] * tot
         x[k + 1, 1] = A[1, 0] * x[k, 0] + A[1, 1] * x[k, 1] + b[1] * tot
     return x, u
+
+
+@njit(cache=True)
+def _general_policy_kernel(A, b_c, b_a, Q, R, x_ref, a):
+    n = A.shape[0]
+    K = a.shape[0]
+    L = np.empty((K, n))
+    f = np.empty(K)
+    Sv = np.empty(K)
+    P = Q.copy()
+    s = np.zeros(n)
+    for i in range(n):
+        for j in range(n):
+            s[i] += Q[i, j] * x_ref[K, j]
+    Pb = np.empty(n)
+    Pa = np.empty(n)
+    w = np.empty(n)
+    M = np.empty((n, n))
+    PM = np.empty((n, n))
+    for k in range(K - 1, -1, -1):
+        for i in range(n):
+            Pb[i] = 0.0
+            Pa[i] = 0.0
+            for j in range(n):
+                Pb[i] += P[i, j] * b_c[j]
+                Pa[i] += P[i, j] * b_a[j]
+        S = R
+        for i in range(n):
+            S += b_c[i] * Pb[i]
+        fk = 0.0
+        for i in range(n):
+            w[i] = s[i] - Pa[i] * a[k]
+            fk += b_c[i] * w[i]
+        f[k] = fk / S
+        Sv[k] = S
+        for j in range(n):
+            acc = 0.0
+            for i in range(n):
+                acc += Pb[i] * A[i, j]
+            L[k, j] = acc / S
+        for i in range(n):
+            for j in range(n):
+                M[i, j] = A[i, j] - b_c[i] * L[k, j]
+        # s_k = Q x_ref_k + Mᵀ w;  P_k = Q + R L Lᵀ + Mᵀ P M (Joseph form, as riccati_update)
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += Q[i, j] * x_ref[k, j] + M[j, i] * w[j]
+            s[i] = acc
+        for i in range(n):
+            for j in range(n):
+                acc = 0.0
+                for m in range(n):
+                    acc += P[i, m] * M[m, j]
+                PM[i, j] = acc
+        for i in range(n):
+            for j in range(i, n):
+                acc = Q[i, j] + R * L[k, i] * L[k, j]
+                for m in range(n):
+                    acc += M[m, i] * PM[m, j]
+                P[i, j] = acc
+                P[j, i] = acc
+    return L, f, Sv
+
+
+def lq_tracking_policy(A, b_c, b_a, Q, R: float, x_ref, a) -> Policy:
+    """Finite-horizon LQ tracking for an n-state plant with a command and a known input.
+
+    The same recursion as :func:`lq_policy`, with the command ``c`` and the known input
+    ``a`` entering through different vectors::
+
+        min_c  sum_{k=1..K} e_kᵀ Q e_k + sum_{k=0..K-1} R c_k²
+        s.t.   z_{k+1} = A z_k + b_c c_k + b_a a_k,   e_k = z_k - x_ref_k
+
+    One backward step: ``S_k = R + b_cᵀ P b_c``, ``L_k = b_cᵀ P A / S_k``,
+    ``w = s_{k+1} - P b_a a_k``, ``f_k = b_cᵀ w / S_k``, ``M_k = A - b_c L_k``,
+    ``s_k = Q x_ref_k + M_kᵀ w``, ``P_k = Q + R L_kᵀ L_k + M_kᵀ P M_k``. Used for the
+    human with a neuromuscular lag (:func:`models.plant.discretize_lagged`, n = 3); with
+    ``b_c = b_a = b`` and n = 2 it is :func:`lq_policy`.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+    b_c : array_like, shape (n,)
+        Input vector of the command (N·m).
+    b_a : array_like, shape (n,)
+        Input vector of the known input (N·m).
+    Q : array_like, shape (n, n)
+        Symmetric, positive semi-definite state weight.
+    R : float
+        Command weight, 1/(N·m)², > 0.
+    x_ref : array_like, shape (K + 1, n)
+        State reference (row 0 is not used by the cost).
+    a : array_like, shape (K,)
+        Known input a_0..a_{K-1}, N·m.
+
+    Returns
+    -------
+    Policy
+        ``L`` of shape (K, n) (for this function), ``f`` and ``S`` of shape (K,):
+        ``c_k = -L_k z_k + f_k``; under max-ent ``c_k | z_k ~ N(., 1 / (2 S_k))``.
+    """
+    A = np.ascontiguousarray(A, dtype=float)
+    n = A.shape[0] if A.ndim == 2 else -1
+    b_c = np.ascontiguousarray(b_c, dtype=float)
+    b_a = np.ascontiguousarray(b_a, dtype=float)
+    Q = np.ascontiguousarray(Q, dtype=float)
+    x_ref = np.ascontiguousarray(x_ref, dtype=float)
+    a = np.ascontiguousarray(a, dtype=float)
+    if A.shape != (n, n) or b_c.shape != (n,) or b_a.shape != (n,) or Q.shape != (n, n):
+        raise ValueError(f"A must be (n, n), b_c and b_a (n,), Q (n, n); got {A.shape}, {b_c.shape}, {b_a.shape}, "
+                         f"{Q.shape}")
+    if a.ndim != 1 or x_ref.shape != (a.shape[0] + 1, n):
+        raise ValueError(f"x_ref must have shape (K + 1, {n}) and a shape (K,); got {x_ref.shape} and {a.shape}")
+    if not np.allclose(Q, Q.T) or np.linalg.eigvalsh(Q).min() < -1e-12 * max(1.0, np.abs(Q).max()):
+        raise ValueError("Q must be symmetric positive semi-definite")
+    if not (np.isfinite(R) and R > 0):
+        raise ValueError(f"R must be > 0; got {R!r}")
+    L, f, S = _general_policy_kernel(A, b_c, b_a, Q, float(R), x_ref, a)
+    return Policy(L=L, f=f, S=S)

@@ -151,3 +151,77 @@ def _propagate(A, b, phi0, omega0, u):
         x[k + 1, 0] = A[0, 0] * x[k, 0] + A[0, 1] * x[k, 1] + b[0] * u[k]
         x[k + 1, 1] = A[1, 0] * x[k, 0] + A[1, 1] * x[k, 1] + b[1] * u[k]
     return x
+
+
+class LaggedPlant(NamedTuple):
+    """The wheel driven through a first-order neuromuscular lag, sampled with ZOH.
+
+    State ``z = (phi, phi_dot, tau)`` in (rad, rad/s, N·m), where ``tau`` is the torque
+    the arm applies to the wheel::
+
+        z[k+1] = A z[k] + b_c c[k] + b_a u_A[k]
+
+    Attributes
+    ----------
+    A : ndarray, shape (3, 3)
+    b_c : ndarray, shape (3,)
+        Input vector of the command ``c`` into the lag (N·m, held over the sample).
+    b_a : ndarray, shape (3,)
+        Input vector of a torque acting on the wheel directly (the assistant's u_A);
+        equal to ``(b, 0)`` of the plain wheel.
+    dt : float
+        Sample time, s.
+    tau_nm : float
+        Time constant of the lag, s.
+    """
+
+    A: np.ndarray
+    b_c: np.ndarray
+    b_a: np.ndarray
+    dt: float
+    tau_nm: float
+
+
+def discretize_lagged(tau_nm: float, dt: float = DT_HUMAN, params: WheelParameters = WheelParameters()) -> LaggedPlant:
+    """Exact ZOH discretization of the wheel with a neuromuscular lag on the human torque.
+
+    Continuous dynamics (J, c, d of Table I)::
+
+        J phi'' = -c phi - d phi' + tau + u_A,      tau_nm tau' = c_cmd - tau
+
+    Both inputs (the command ``c_cmd`` and ``u_A``) are held over each sample; the
+    block matrix exponential of the 3-state system gives A, b_c and b_a at once.
+
+    Parameters
+    ----------
+    tau_nm : float
+        Neuromuscular time constant, s (> 0).
+    dt : float
+        Sample time, s (default 0.01).
+    params : WheelParameters
+        Table I by default.
+
+    Returns
+    -------
+    LaggedPlant
+
+    Examples
+    --------
+    >>> lp = discretize_lagged(0.1)
+    >>> lp.A.shape, lp.b_c.shape, float(lp.b_a[2])
+    ((3, 3), (3,), 0.0)
+    """
+    if not (np.isfinite(tau_nm) and tau_nm > 0):
+        raise ValueError(f"neuromuscular time constant tau_nm must be a positive number of seconds; got {tau_nm!r}")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"sample time dt must be a positive number of seconds; got {dt!r}")
+    A_c, b_w = continuous_matrices(params)
+    M = np.zeros((5, 5))
+    M[:2, :2] = A_c
+    M[:2, 2] = b_w  # the arm's torque drives the wheel like u_A does
+    M[2, 2] = -1.0 / tau_nm
+    M[2, 3] = 1.0 / tau_nm  # command into the lag
+    M[:2, 4] = b_w  # u_A
+    E = expm(M * dt)
+    return LaggedPlant(A=np.ascontiguousarray(E[:3, :3]), b_c=np.ascontiguousarray(E[:3, 3]),
+                       b_a=np.ascontiguousarray(E[:3, 4]), dt=float(dt), tau_nm=float(tau_nm))

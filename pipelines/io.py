@@ -8,7 +8,11 @@ give x_k = (angle_k, velocity_k); u_H,k and u_A,k act from t_k to t_{k+1}; the l
 row's torques are unused.
 
 Validation happens here, once, and every error names the file, the column and the
-first bad row (0-based position in the table; for CSV also the line number).
+first bad row (0-based position in the table; for CSV also the line number). Besides the
+format, values must be plausible for a hand-turned wheel (:data:`MAX_ANGLE`,
+:data:`MAX_VELOCITY`, :data:`MAX_TORQUE`), which catches degrees given for radians and
+torques in N·cm or N·mm. A datetime or timedelta ``t`` is converted to seconds from the
+start of its segment; ``t`` stored as float32 gets a step tolerance that fits float32.
 """
 
 from __future__ import annotations
@@ -33,6 +37,15 @@ CONDITIONS = ("MC", "SC")
 DT = 0.01
 #: Allowed deviation of a time step from DT, s (recording clocks print rounded times).
 DT_TOL = 1e-6
+#: Largest plausible |angle| and |angle_ref|, rad: one full turn. The study's reference peaks
+#: at about ±0.6 rad; the same in degrees (±34) lies far beyond.
+MAX_ANGLE = 2 * np.pi
+#: Largest plausible |velocity|, rad/s (about 1700 °/s, beyond the fastest steering people
+#: reach, around 1000 °/s); the study's wheel turns at under 1 rad/s.
+MAX_VELOCITY = 30.0
+#: Largest plausible |u_H| and |u_A|, N·m: more than a person exerts on a steering wheel
+#: with both hands; the study's wheel (spring 1.146 N·m/rad) needs 7.2 N·m to hold a full turn.
+MAX_TORQUE = 50.0
 
 
 class InputDataError(ValueError):
@@ -120,6 +133,8 @@ def read_table(path) -> pd.DataFrame:
     p = Path(path)
     if not p.exists():
         raise StudyFileError(p, "no such file")
+    if p.is_dir():
+        raise StudyFileError(p, "is a directory, not a file; give the path of the study file")
     suffix = p.suffix.lower()
     try:
         if suffix in (".parquet", ".pq"):
@@ -194,19 +209,26 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
     bad = cols["subject"] == ""
     if bad.any():
         fail("empty value", column="subject", row=_first(bad))
+    # Segments: rows of one (subject, condition) in file order.
+    keys = pd.MultiIndex.from_arrays([cols["subject"], cols["condition"]])
+    codes, uniques = pd.factorize(keys)
     present = [c for c in NUMERIC if c in df.columns]
     for col in present:
-        values = pd.to_numeric(df[col], errors="coerce").to_numpy(dtype=float)
+        raw = df[col]
+        if col == "t" and (pd.api.types.is_datetime64_any_dtype(raw) or pd.api.types.is_timedelta64_dtype(raw)):
+            raw = _seconds_from_segment_start(raw, codes)
+        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
         bad = ~np.isfinite(values)
         if bad.any():
             i = _first(bad)
             fail(f"not a finite number: {df[col].iloc[i]!r}", column=col, row=i)
         cols[col] = values
+    _check_plausible(cols, fail)
     has_opt = {c: c in df.columns for c in OPTIONAL}
-
-    # Segments: rows of one (subject, condition) in file order.
-    keys = pd.MultiIndex.from_arrays([cols["subject"], cols["condition"]])
-    codes, uniques = pd.factorize(keys)
+    # float32 cannot hold t = 240.01 s to 1e-6 s: allow its own rounding (two ulps at the largest |t|).
+    dt_tol = DT_TOL
+    if df["t"].dtype == np.float32:
+        dt_tol += 2 * float(np.spacing(np.float32(np.abs(cols["t"]).max())))
     segments = []
     for code in range(len(uniques)):
         rows = np.flatnonzero(codes == code)
@@ -216,12 +238,12 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
             fail(f"{label} has a single sample; a segment needs at least two", column="t", row=int(rows[0]))
         t = cols["t"][rows]
         steps = np.diff(t)
-        bad = np.abs(steps - DT) > DT_TOL
+        bad = np.abs(steps - DT) > dt_tol
         if bad.any():
             j = _first(bad)
             fail(
                 f"{label}: time step {steps[j]:.6g} s from the previous row; samples must be "
-                f"uniform {DT} s apart in increasing order",
+                f"uniform {DT} s apart in increasing order{_unit_hint(steps)}",
                 column="t",
                 row=int(rows[j + 1]),
             )
@@ -244,6 +266,38 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
             )
         )
     return Study(path=str(path), segments=tuple(segments))
+
+
+def _seconds_from_segment_start(t: pd.Series, codes: np.ndarray) -> pd.Series:
+    """A datetime ``t`` as seconds since its segment's first sample; a timedelta ``t`` as seconds."""
+    if pd.api.types.is_datetime64_any_dtype(t):
+        t = t - t.groupby(codes).transform("first")
+    return t.dt.total_seconds()
+
+
+def _unit_hint(steps: np.ndarray) -> str:
+    """Name the unit of ``t`` when its steps are DT in ms, µs or ns."""
+    step = float(np.median(steps))
+    for unit, factor in (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9)):
+        if abs(step / (DT * factor) - 1) < 0.01:
+            return f" (the median step is {step:g}: is t in {unit}? t must be in seconds)"
+    return ""
+
+
+def _check_plausible(cols: dict, fail) -> None:
+    """Refuse values no hand-turned wheel produces: usually degrees for radians, or N·mm for N·m."""
+    limits = (("angle", MAX_ANGLE, "rad", "radians (not degrees)"),
+              ("angle_ref", MAX_ANGLE, "rad", "radians (not degrees)"),
+              ("velocity", MAX_VELOCITY, "rad/s", "rad/s (not degrees/s)"),
+              ("u_H", MAX_TORQUE, "N·m", "N·m (not N·cm or N·mm)"),
+              ("u_A", MAX_TORQUE, "N·m", "N·m (not N·cm or N·mm)"))
+    for col, limit, unit, wanted in limits:
+        if col in cols:
+            bad = np.abs(cols[col]) > limit
+            if bad.any():
+                i = _first(bad)
+                fail(f"{cols[col][i]:g} {unit} is beyond the plausible ±{limit:.4g} {unit} for a steering wheel; "
+                     f"the column must be in {wanted}", column=col, row=i)
 
 
 def to_maxent_segment(seg: SegmentData, path="<table>") -> Segment:

@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.io import (StudyFileError, load_study, segments_to_table, staged_dir, write_table_atomic,
-                          write_text_atomic)
+from pipelines.io import (MAX_ANGLE, MAX_TORQUE, MAX_VELOCITY, StudyFileError, load_study, segments_to_table,
+                          staged_dir, write_table_atomic, write_text_atomic)
 
 
 def small_table(K=20, with_state=True):
@@ -219,3 +219,73 @@ def test_a_run_killed_mid_write_leaves_the_old_folder_intact(tmp_path):
     assert _folder(out) == {"posterior.json": "old seed", "posterior.nc": "old seed", "ppc.parquet": "old seed"}
     leftovers = [p.name for p in tmp_path.iterdir() if p.name != "fit"]
     assert len(leftovers) == 1 and leftovers[0].startswith(".fit.") and leftovers[0].endswith(".tmp")
+
+
+def _degrees(df, *cols):
+    return df.assign(**{c: np.degrees(df[c]) for c in cols})
+
+
+def _wide_table():
+    """small_table with study-sized angles (peaks ±0.6 rad), so that degrees exceed one turn."""
+    df = small_table()
+    return df.assign(angle=6 * df["angle"], angle_ref=6 * df["angle_ref"])
+
+
+@pytest.mark.parametrize("cols, column", [(("angle", "angle_ref"), "angle"), (("angle",), "angle"),
+                                          (("angle_ref",), "angle_ref")])
+def test_angles_in_degrees_are_refused(tmp_path, cols, column):
+    df = _degrees(_wide_table(), *cols)
+    row = int(np.flatnonzero(np.abs(df[column]) > 2 * np.pi)[0])
+    msg = _expect_error(tmp_path, df, column, row, "beyond the plausible")
+    assert "radians (not degrees)" in msg
+
+
+# velocity: ten times the table's in degrees/s; torques in N·mm (u_A made study-sized first, peaks ±0.4 N·m)
+@pytest.mark.parametrize("column, factor, unit", [("velocity", 57.3 * 10, "rad/s"), ("u_H", 1000, "N·m"),
+                                                  ("u_A", 8 * 1000, "N·m")])
+def test_implausible_velocity_and_torque_are_refused(tmp_path, column, factor, unit):
+    df = small_table()
+    df[column] = df[column] * factor
+    bound = {"velocity": MAX_VELOCITY, "u_H": MAX_TORQUE, "u_A": MAX_TORQUE}[column]
+    row = int(np.flatnonzero(np.abs(df[column]) > bound)[0])
+    msg = _expect_error(tmp_path, df, column, row, "beyond the plausible")
+    assert f"±{bound:g} {unit}" in msg
+
+
+def test_plausible_bounds_hold_the_simulated_study():
+    # The bounds sit far outside what the study produces (reference peaks about ±0.6 rad).
+    from models.reference import reference_trajectory
+
+    assert np.abs(reference_trajectory().angle).max() < MAX_ANGLE / 5
+
+
+@pytest.mark.parametrize("kind", ["datetime", "datetime-tz", "timedelta"])
+def test_datetime_time_is_converted_to_seconds_from_the_segment_start(tmp_path, kind):
+    df = small_table()
+    start = pd.Timestamp("2026-03-01 09:30:00", tz="Europe/Berlin" if kind == "datetime-tz" else None)
+    seconds = pd.to_timedelta(df["t"], unit="s").dt.round("ms")
+    df["t"] = seconds if kind == "timedelta" else start + seconds + pd.to_timedelta(np.repeat([0, 60, 120, 180], 21),
+                                                                                    unit="s")
+    study = load_study(write_table_atomic(df, tmp_path / "dt.parquet"))
+    for seg in study.segments:
+        np.testing.assert_allclose(seg.t, np.arange(21) * 0.01, atol=1e-12)
+
+
+def test_time_in_milliseconds_is_named(tmp_path):
+    df = small_table().assign(t=lambda d: d["t"] * 1000)
+    _expect_error(tmp_path, df, "t", 1, "is t in milliseconds")
+
+
+def test_float32_time_on_a_perfect_grid_is_accepted(tmp_path):
+    df = small_table(K=24000)  # 240 s: float32 resolves t only to about 1.5e-5 s there
+    df["t"] = df["t"].astype(np.float32)
+    study = load_study(write_table_atomic(df, tmp_path / "f32.parquet"))
+    assert study.segments[0].K == 24000
+    df.loc[500, "t"] += np.float32(0.004)  # a real glitch is still caught
+    _expect_error(tmp_path, df, "t", 500, "uniform 0.01 s")
+
+
+def test_a_directory_is_named_as_one(tmp_path):
+    (tmp_path / "x.parquet").mkdir()
+    with pytest.raises(StudyFileError, match=r"x.parquet: is a directory"):
+        load_study(tmp_path / "x.parquet")

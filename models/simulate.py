@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from models.assistant import MPCAssistant, design_assistant, human_feedback, simulate_closed_loop
+from models.humans import HUMANS, simulate_human
 from models.lq import lq_policy
 from models.maxent import planning_plant
 from models.plant import DT_HUMAN, DiscretePlant, discretize
@@ -228,11 +229,30 @@ class SimulatedSegment(NamedTuple):
     run: Run
 
 
+def simulate_human_run(human: str, theta, condition: str, angle_ref, plant: DiscretePlant, assistant: MPCAssistant,
+                       rng: np.random.Generator) -> Run:
+    """One run of the named human of :data:`models.humans.HUMANS`, recorded like :func:`simulate_run`.
+
+    ``maxent`` is :func:`simulate_run` itself (the paper's agent, bit for bit); every other
+    name is a human the max-ent likelihood does not describe (negative controls).
+    """
+    spec = HUMANS.get(human)
+    if spec is None:
+        raise ValueError(f"unknown human {human!r}; choose one of {', '.join(HUMANS)}")
+    if human == "maxent":
+        return simulate_run(theta, condition, angle_ref, plant, assistant, rng)
+    run = simulate_human(spec, theta, condition, angle_ref, plant, assistant if condition == "SC" else None, rng)
+    K = run.u_H.shape[0]
+    return Run(angle=quantize(run.x[:, 0]), u_A=np.append(run.u_A, run.u_A[-1] if K > 0 else 0.0),
+               true_angle=run.x[:, 0], true_velocity=run.x[:, 1], u_H=np.append(run.u_H, 0.0))
+
+
 def simulate_study(
     n_subjects: int,
     rng: np.random.Generator,
     population: Population = Population(),
     seconds: float = 240.0,
+    human: str = "maxent",
 ) -> tuple[np.ndarray, list[SimulatedSegment]]:
     """Simulate the whole experiment.
 
@@ -245,6 +265,9 @@ def simulate_study(
     population : Population
     seconds : float
         Length of each run, s (240: 4 minutes).
+    human : str
+        Which simulated human (:data:`models.humans.HUMANS`); ``maxent`` is the paper's
+        agent, the others are negative controls the likelihood does not describe.
 
     Returns
     -------
@@ -266,7 +289,7 @@ def simulate_study(
         runs = dict(zip(("MC", "SC"), child.spawn(2)))
         for j, cond in enumerate(order):
             theta = sub.mc if cond == "MC" else sub.sc
-            run = simulate_run(theta, cond, ref.angle, plant, assistant, runs[cond])
+            run = simulate_human_run(human, theta, cond, ref.angle, plant, assistant, runs[cond])
             out.append(SimulatedSegment(name, cond, j, theta, run))
     return ref.t, out
 

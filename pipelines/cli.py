@@ -35,6 +35,18 @@ def _cmd_loglik(args) -> int:
     return 0
 
 
+def _cmd_power(args) -> int:
+    from pipelines.power import format_power, power_study
+
+    humans = [h.strip() for h in args.humans.split(",") if h.strip()]
+    summary = power_study(args.out, humans=humans, studies=args.studies, seed=args.seed, n_subjects=args.subjects,
+                          beta=args.beta, n_boot=args.adequacy_boot, workers=args.workers,
+                          log=lambda m: print(m, file=sys.stderr, flush=True))
+    print(format_power(summary))
+    print(f"wrote {Path(args.out) / 'power.json'}")
+    return 0
+
+
 def _cmd_bench(args) -> int:
     from pipelines.bench import run_bench
 
@@ -72,8 +84,8 @@ def _cmd_simulate(args) -> int:
     from models.simulate import Population
     from pipelines.simulate import simulate_to_dir
 
-    paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed, population=Population(),
-                            seconds=args.seconds)
+    paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed,
+                            population=Population(beta=args.beta), seconds=args.seconds, human=args.human)
     for k, v in paths.items():
         print(f"{k}: {v}")
     return 0
@@ -111,8 +123,13 @@ def _cmd_report(args) -> int:
 def _cmd_run(args) -> int:
     from pipelines.run import run_all
 
-    run_all(args.out, n_subjects=args.subjects, seed=args.seed, fit=not args.skip_fit)
-    return 0
+    from models.simulate import Population
+
+    report = run_all(args.out, n_subjects=args.subjects, seed=args.seed, fit=not args.skip_fit, human=args.human,
+                     population=Population(beta=args.beta), name=args.name)
+    # The workflow ran; a human model that fails its adequacy checks is a failed check (exit 1).
+    verdict = json.loads((report.parent / "identify" / "identify.json").read_text())["adequacy"]["verdict"]
+    return 1 if verdict == "fail" else 0
 
 
 def _cmd_fit(args) -> int:
@@ -150,6 +167,7 @@ _nonnegative_int = _number(int, lambda v: v >= 0, "an integer >= 0")
 _seconds = _number(float, lambda v: math.isfinite(v) and v > 0, "a finite number of seconds > 0")
 _nonnegative_seconds = _number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number of seconds >= 0")
 _level = _number(float, lambda v: 0 < v < 1, "a significance level between 0 and 1")
+_finite_float = _number(float, math.isfinite, "a finite number")
 
 
 def _window_spec(text: str) -> str:
@@ -184,9 +202,21 @@ def _add_window_options(p):
     _add_assistant_model_option(p)
     p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
                    help="reconstruct velocity and u_H from the angle when missing (auto, the default) or always")
-    p.add_argument("--adequacy-boot", type=int, default=99, metavar="B",
+    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=99, metavar="B",
                    help="bootstrap data sets per segment for the model-adequacy checks (default 99; 0 skips them)")
-    p.add_argument("--adequacy-seed", type=int, default=2018, help="seed of the adequacy bootstrap (default 2018)")
+    p.add_argument("--adequacy-seed", type=_nonnegative_int, default=2018, help="seed of the adequacy bootstrap (default 2018)")
+
+
+# The names of models.humans.HUMANS, spelled out so parsing imports no model code (a test holds them equal).
+HUMAN_NAMES = ("maxent", "delay", "lag", "coloured", "combined", "crossover")
+
+
+def _add_human_options(p):
+    p.add_argument("--human", choices=HUMAN_NAMES, default="maxent",
+                   help="the simulated human: maxent (the paper's agent, default) or a negative control the "
+                        "max-ent likelihood does not describe (see models/humans.py)")
+    p.add_argument("--beta", type=_finite_float, default=-0.7,
+                   help="mean SC shift of log θ1 in the simulated population (default -0.7; 0: no change)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -211,6 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--subjects", type=int, default=42)
     p.add_argument("--seed", type=int, default=2018)
     p.add_argument("--seconds", type=_seconds, default=240.0, help="length of each run, s (default 240)")
+    _add_human_options(p)
     p.add_argument("--out", required=True, metavar="DIR")
     p.set_defaults(func=_cmd_simulate)
 
@@ -254,6 +285,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--subjects", type=_positive_int, default=42, help="simulated subjects (default 42)")
     p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the whole workflow (default 2018)")
     p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fit (minutes)")
+    _add_human_options(p)
+    p.add_argument("--name", default="default-study",
+                   help="subfolder of --out for this run (default default-study)")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("calibrate", help="simulation-based calibration (unit or study level), locally or on Dask")
@@ -276,6 +310,21 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("assistant", help="the MPC assistant alone on the study reference: tracking and torques")
     p.add_argument("--format", choices=("table", "json"), default="table", help="output format (default table)")
     p.set_defaults(func=_cmd_assistant)
+
+    p = sub.add_parser("power", help="how often the adequacy verdict fails per simulated human (false alarms on "
+                       "maxent, power on the others), beside the paper's Wilcoxon test; resumable")
+    p.add_argument("--humans", default=",".join(HUMAN_NAMES),
+                   help=f"comma-separated simulated humans (default: all, {','.join(HUMAN_NAMES)})")
+    p.add_argument("--studies", type=_positive_int, default=20, help="simulated studies per human (default 20)")
+    p.add_argument("--subjects", type=_positive_int, default=42, help="subjects per study (default 42)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="root seed (default 2018)")
+    p.add_argument("--beta", type=_finite_float, default=0.0,
+                   help="true mean SC shift of log θ1 (default 0: the cost does not change)")
+    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=99, metavar="B",
+                   help="bootstrap data sets per segment (default 99)")
+    p.add_argument("--workers", type=_positive_int, default=1, help="studies run in parallel processes (default 1)")
+    p.add_argument("--out", default="reports/power", metavar="DIR", help="results folder (default reports/power)")
+    p.set_defaults(func=_cmd_power)
 
     p = sub.add_parser("bench", help="measured speed of the kernels, the identification, the full fit and SBC")
     p.add_argument("--json", metavar="PATH", help="also write the results as JSON")

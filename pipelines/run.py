@@ -16,8 +16,9 @@ from pathlib import Path
 import pandas as pd
 
 from pipelines.compare import compare_to_file
-from pipelines.identify import IdentifySettings, identify_study, identify_to_dir
+from pipelines.identify import IdentifySettings, format_identify, identify_study, identify_to_dir
 from pipelines.io import load_study, validate_table, write_table_atomic, write_text_atomic
+from models.simulate import Population
 from pipelines.simulate import DEFAULT_SEED, DEFAULT_SUBJECTS, simulate_to_dir
 
 DEFAULT_NAME = "default-study"
@@ -42,20 +43,25 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
 
 
 def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int = DEFAULT_SUBJECTS,
-            seed: int = DEFAULT_SEED, settings: IdentifySettings = IdentifySettings(), fit: bool = True) -> Path:
+            seed: int = DEFAULT_SEED, settings: IdentifySettings = IdentifySettings(), fit: bool = True,
+            human: str = "maxent", population: Population = Population()) -> Path:
     """Run every stage on the simulated study; returns the report's path.
 
-    ``fit=False`` skips the hierarchical Bayesian fit (minutes) for quick looks.
+    ``fit=False`` skips the hierarchical Bayesian fit (minutes) for quick looks. ``human``
+    and ``population`` choose the simulated study (:func:`pipelines.simulate.simulate_to_dir`):
+    a negative-control human shows what the report says when the model does not fit.
     """
     from pipelines.report import build_report
 
     root = Path(out) / name
     steps = 6 if fit else 5
     t0 = time.perf_counter()
-    log(f"[1/{steps}] simulating {n_subjects} subjects × 2 conditions × 4 min (seed {seed}) -> {root / 'data'}")
-    sim = simulate_to_dir(root / "data", n_subjects=n_subjects, seed=seed)
+    log(f"[1/{steps}] simulating {n_subjects} subjects × 2 conditions × 4 min (seed {seed}, human {human}) "
+        f"-> {root / 'data'}")
+    sim = simulate_to_dir(root / "data", n_subjects=n_subjects, seed=seed, human=human, population=population)
     log(f"[2/{steps}] identifying every subject × condition from the encoder angle")
     identify_to_dir(sim["study"], root / "identify", settings)
+    log(format_identify(root / "identify"))
     log(f"[3/{steps}] identifying again from the true torques (the cost of reconstruction)")
     identify_with_truth(sim["study"], sim["truth_trajectories"], root / "identify_true_torque", settings)
     # The paper's likelihood (recorded u_A as a known input) on the same torques: its SC bias.

@@ -20,6 +20,7 @@ import pandas as pd
 from models.assistant import HORIZON, THETA_ASSISTANT
 from models.plant import DT_ASSISTANT, DT_HUMAN
 from models.reference import reference_trajectory
+from models.humans import HUMANS
 from models.simulate import ENCODER_COUNTS, Population, simulate_study
 from pipelines.assistant_check import assistant_alone
 from pipelines.io import write_table_atomic, write_text_atomic
@@ -42,7 +43,7 @@ def study_table(t, segs) -> pd.DataFrame:
 
 def simulate_to_dir(
     out, *, n_subjects: int = DEFAULT_SUBJECTS, seed: int = DEFAULT_SEED, population: Population = Population(),
-    seconds: float = 240.0,
+    seconds: float = 240.0, human: str = "maxent",
 ) -> dict:
     """Simulate the experiment and write its artifacts.
 
@@ -56,6 +57,10 @@ def simulate_to_dir(
     population : Population
     seconds : float
         Length of each run, s.
+    human : str
+        The simulated human (:data:`models.humans.HUMANS`): ``maxent`` is the paper's
+        agent; the others are negative controls the likelihood does not describe. The
+        crossover operator has no cost θ: its truth rows carry NaN.
 
     Returns
     -------
@@ -68,7 +73,8 @@ def simulate_to_dir(
         raise ValueError(f"--seed must be a non-negative integer; got {seed!r}")
     out = Path(out)
     rng = np.random.default_rng(np.random.SeedSequence(int(seed)))
-    t, segs = simulate_study(int(n_subjects), rng, population, seconds)
+    t, segs = simulate_study(int(n_subjects), rng, population, seconds, human=human)
+    spec = HUMANS[human]
     study = study_table(t, segs)
     truth, traj = [], []
     for s in segs:
@@ -76,7 +82,7 @@ def simulate_to_dir(
         common = {"subject": np.full(n, s.subject, dtype=object), "condition": np.full(n, s.condition, dtype=object)}
         traj.append(pd.DataFrame({**common, "t": t, "angle": s.run.true_angle, "velocity": s.run.true_velocity,
                                   "u_H": s.run.u_H}))
-        q11, q22, R = s.theta
+        q11, q22, R = s.theta if spec.kind == "lq" else (np.nan, np.nan, np.nan)
         truth.append({"subject": s.subject, "condition": s.condition, "run_index": s.run_index,
                       "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R})
     paths = {
@@ -93,6 +99,7 @@ def simulate_to_dir(
         "population": asdict(population),
         "assistant": {"theta_A": list(THETA_ASSISTANT), "horizon_steps": HORIZON, "prediction_step_s": DT_ASSISTANT,
                       "resolved_every_s": DT_HUMAN},
+        "human": {"name": human, **asdict(spec)},
         "sc_human": "plans with the assistant's feedback law (models.maxent.Feedback), in closed loop",
         "assistant_alone": assistant_alone(seconds),
         "versions": versions(),

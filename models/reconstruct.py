@@ -54,6 +54,9 @@ class Reconstruction(NamedTuple):
         Chosen random-walk variance of the smooth torque, (N·m)² per sample.
     loglik : float
         Marginal log-likelihood of the angles at the chosen variances.
+    smoother : FixedReconstruction
+        The smoother at the chosen variances, to pass other records of the same length
+        through the same linear filter (:func:`apply_reconstruction`).
     """
 
     angle: np.ndarray
@@ -62,6 +65,7 @@ class Reconstruction(NamedTuple):
     sigma_eps: float
     q: float
     loglik: float
+    smoother: "FixedReconstruction"
 
 
 def _transition(A, b, var_eps, q):
@@ -295,6 +299,7 @@ def reconstruct(
         for i, v in zip(free, res.x):
             z[i] = v
         sigma_eps, q = math.exp(z[0]), math.exp(2 * z[1])
-    ll, zs = _filter(plant.A, plant.b, y, a, sigma_eps**2, q, r, True)
-    u_H = torque_from_means(np.asarray(plant.A, dtype=float), np.asarray(plant.b, dtype=float), zs, a)
-    return Reconstruction(zs[:, 0].copy(), zs[:, 1].copy(), u_H, float(sigma_eps), float(q), float(ll))
+    fixed = fixed_reconstruction(plant, y.shape[0], float(sigma_eps), float(q), resolution=resolution)
+    ll, zs = smooth_means(fixed.F, fixed.b, y, a, fixed.Kg, fixed.Sv, fixed.C, True)
+    u_H = torque_from_means(fixed.A, fixed.b, zs, a)
+    return Reconstruction(zs[:, 0].copy(), zs[:, 1].copy(), u_H, float(sigma_eps), float(q), float(ll), fixed)

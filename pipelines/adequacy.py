@@ -22,7 +22,6 @@ from models.assistant import human_feedback
 from models.lq import lq_policy
 from models.maxent import planning_plant
 from models.plant import DT_HUMAN
-from models.reconstruct import fixed_reconstruction
 
 #: What each check asks, for the CLI and the report.
 CHECK_TEXT = {
@@ -64,7 +63,7 @@ def segment_chain(p, theta, plant, *, assistant_model: str, resolution: float, a
         S = np.concatenate([S, tail.S[end - j0 :]])
     recon, scale = None, 1.0
     if p.reconstructed:
-        r = fixed_reconstruction(plant, n, p.sigma_eps, p.q, resolution=resolution)
+        r = p.smoother  # the very filter the recorded segment went through
         recon = (r.F, r.Kg, r.Sv, r.C)
         # Draw the policy noise at the level the reconstruction measured (models.adequacy).
         scale = p.sigma_eps * np.sqrt(2.0 * S[i0 - j0])

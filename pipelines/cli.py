@@ -202,8 +202,8 @@ def _add_window_options(p):
     _add_assistant_model_option(p)
     p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
                    help="reconstruct velocity and u_H from the angle when missing (auto, the default) or always")
-    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=99, metavar="B",
-                   help="bootstrap data sets per segment for the model-adequacy checks (default 99; 0 skips them)")
+    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=49, metavar="B",
+                   help="bootstrap data sets per segment for the model-adequacy checks (default 49; 0 skips them)")
     p.add_argument("--adequacy-seed", type=_nonnegative_int, default=2018, help="seed of the adequacy bootstrap (default 2018)")
 
 
@@ -320,8 +320,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_nonnegative_int, default=2018, help="root seed (default 2018)")
     p.add_argument("--beta", type=_finite_float, default=0.0,
                    help="true mean SC shift of log θ1 (default 0: the cost does not change)")
-    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=99, metavar="B",
-                   help="bootstrap data sets per segment (default 99)")
+    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=49, metavar="B",
+                   help="bootstrap data sets per segment (default 49)")
     p.add_argument("--workers", type=_positive_int, default=1, help="studies run in parallel processes (default 1)")
     p.add_argument("--out", default="reports/power", metavar="DIR", help="results folder (default reports/power)")
     p.set_defaults(func=_cmd_power)

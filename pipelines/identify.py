@@ -42,8 +42,9 @@ from models.identify import identify_segment
 from models.assistant import design_assistant, human_feedback
 from models.maxent import Segment, forward_optimal_control, plan_inputs, prepare_batch
 from models.plant import DT_HUMAN, discretize
-from models.reconstruct import DEFAULT_RESOLUTION, reconstruct
+from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, reconstruct
 from models.reference import WINDOW_SECONDS, WINDOW_START
+from models.adequacy import N_BOOT
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.io import Study, StudyFileError, SegmentData, load_study, write_table_atomic, write_text_atomic
 from pipelines.progress import progress
@@ -73,7 +74,7 @@ class IdentifySettings:
         ``exogenous`` (the recorded u_A is a known input, the paper's Eq. 15-16).
     adequacy_boot : int
         Bootstrap data sets per segment for the model-adequacy checks
-        (:mod:`pipelines.adequacy`; default 99; 0 skips them and the verdict reads
+        (:mod:`pipelines.adequacy`; default 49; 0 skips them and the verdict reads
         "not checked").
     adequacy_seed : int
         Root seed of the adequacy bootstrap.
@@ -86,7 +87,7 @@ class IdentifySettings:
     reconstruct: str = "auto"
     resolution: float = DEFAULT_RESOLUTION
     assistant_model: str = "feedback"
-    adequacy_boot: int = 99
+    adequacy_boot: int = N_BOOT
     adequacy_seed: int = 2018
 
     def __post_init__(self):
@@ -149,6 +150,7 @@ class PreparedSegment:
     q: float
     span: slice  # rows of the segment the reconstruction saw (the window rows without reconstruction)
     span_state0: np.ndarray  # (2,) angle (rad) and velocity (rad/s) used at the span's first row
+    smoother: FixedReconstruction | None  # the reconstruction's linear smoother over the span (None: measured)
 
 
 def _window_rows(seg: SegmentData, settings: IdentifySettings, path) -> slice:
@@ -184,11 +186,11 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
         cut = slice(i0 - j0, i1 + 1 - j0)
         angle, velocity, u_H = rec.angle[cut], rec.velocity[cut], rec.u_H[cut]
         sigma_eps, q = rec.sigma_eps, rec.q
-        span, state0 = slice(j0, j1), np.array([rec.angle[0], rec.velocity[0]])
+        span, state0, smoother = slice(j0, j1), np.array([rec.angle[0], rec.velocity[0]]), rec.smoother
     else:
         angle, velocity, u_H = seg.angle[rows], seg.velocity[rows], seg.u_H[rows]
         sigma_eps = q = float("nan")
-        span, state0 = rows, np.array([angle[0], velocity[0]])
+        span, state0, smoother = rows, np.array([angle[0], velocity[0]]), None
     segment = Segment(
         x0=np.array([angle[0], velocity[0]]),
         angle_ref=seg.angle_ref[i0 : i1 + M + 1],
@@ -196,7 +198,7 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
         u_A=seg.u_A[i0 : i1 + M],
     )
     segment = with_assistant_model(segment, seg.condition, seg.angle_ref, i0, settings.assistant_model)
-    return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q, span, state0)
+    return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q, span, state0, smoother)
 
 
 class Identification(NamedTuple):

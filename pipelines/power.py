@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from models.adequacy import N_BOOT
 from models.humans import HUMANS
 from models.simulate import Population, simulate_study
 from pipelines.compare import compare_estimates
@@ -69,7 +70,7 @@ def _fingerprint(seed, n_subjects, beta, n_boot) -> str:
 
 
 def power_study(out, *, humans=DEFAULT_HUMANS, studies: int = 20, seed: int = 2018, n_subjects: int = 42,
-                beta: float = 0.0, n_boot: int = 99, workers: int = 1, log=print) -> dict:
+                beta: float = 0.0, n_boot: int = N_BOOT, workers: int = 1, log=print) -> dict:
     """Run the power study (see the module docstring); returns the summary written to ``power.json``."""
     unknown = [h for h in humans if h not in HUMANS]
     if unknown:

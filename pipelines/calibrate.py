@@ -11,11 +11,18 @@ exists, so an interrupted run resumes and a worker that dies costs only the
 replications it had not finished.
 
 The statistics (ranks, PIT, uniformity tests, coverage, contraction) are computed from
-the replication files by :func:`summarize`, in replication order.
+the replication files by :func:`summarize`, in replication order. ``OUT/summary.json``
+names how many replications it summarizes; a rerun with fewer replications into a folder
+holding a larger summary is refused rather than replacing it.
+
+An existing scheduler is first asked who it is (:func:`check_scheduler`), under one hard
+deadline: distributed's connect timeout stops applying once TCP connects, so an address
+that accepts connections but is no scheduler would otherwise hang the client for good.
 """
 
 from __future__ import annotations
 
+import asyncio
 import hashlib
 import json
 import os
@@ -25,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipelines.io import write_text_atomic
+from pipelines.io import InputDataError, write_text_atomic
 
 #: Family-wise false-failure rate of the uniformity tests of one calibration run
 #: (Bonferroni over the parameters tested).
@@ -111,6 +118,14 @@ def rep_path(out_dir, i: int) -> Path:
     return Path(out_dir) / "reps" / f"rep_{i:05d}.json"
 
 
+def read_json(path, what: str = "replication") -> dict:
+    """Read one of the calibration's JSON files; a damaged one is named, with the way out."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
+        raise InputDataError(f"{path}: damaged {what} file ({exc}); delete it and rerun to recompute it") from None
+
+
 def _run_one(config: CalibrationConfig, i: int) -> dict:
     from pipelines import sbc_replications
 
@@ -129,7 +144,7 @@ def run_batch(indices, config_dict: dict, out_dir: str) -> list[dict]:
     for i in indices:
         path = rep_path(out_dir, i)
         if path.exists():
-            out.append(json.loads(path.read_text()))
+            out.append(read_json(path))
             continue
         res = _run_one(config, i)
         write_text_atomic(path, json.dumps(res) + "\n")
@@ -137,10 +152,41 @@ def run_batch(indices, config_dict: dict, out_dir: str) -> list[dict]:
     return out
 
 
+async def _identity(address: str, timeout: float):
+    from distributed.comm import connect
+
+    comm = await connect(address, timeout=timeout)
+    try:
+        await comm.write({"op": "identity"})
+        return await comm.read()
+    finally:
+        comm.abort()
+
+
+def check_scheduler(address: str, timeout: float) -> None:
+    """Return within ``timeout`` s if ``address`` answers as a Dask scheduler, else raise OSError.
+
+    Connecting, distributed's handshake and the reply to an ``identity`` request share
+    one deadline, so a server that accepts and never answers (an HTTP server) or answers
+    garbage (which distributed reads as a frame of exabytes) fails quickly and clearly.
+    """
+    try:
+        reply = asyncio.run(asyncio.wait_for(_identity(address, timeout), timeout))
+    except (OSError, TimeoutError) as exc:
+        raise OSError(f"cannot reach the Dask scheduler at {address} within {timeout:g} s: "
+                      f"{str(exc) or 'no answer (is it a Dask scheduler?)'}") from None
+    except Exception as exc:  # e.g. MemoryError: distributed took an HTTP reply for a frame length
+        raise OSError(f"{address} is not a Dask scheduler: it answered what distributed cannot read "
+                      f"({type(exc).__name__})") from None
+    if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
+        raise OSError(f"{address} is not a Dask scheduler: it answered as {str(reply)[:80]!r}")
+
+
 def _connect(scheduler: str | None, n_workers: int, timeout: float):
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
+        check_scheduler(scheduler, timeout)
         try:
             return Client(scheduler, timeout=timeout), None
         except (OSError, TimeoutError) as exc:
@@ -153,7 +199,7 @@ def _prepare_out(config: CalibrationConfig, out_dir: Path) -> None:
     cfg_path = out_dir / "config.json"
     d = asdict(config)
     if cfg_path.exists():
-        old = json.loads(cfg_path.read_text())
+        old = read_json(cfg_path, "configuration")
         old_fp = old.get("fingerprint")
         if old_fp != config.fingerprint():
             raise ValueError(
@@ -162,6 +208,24 @@ def _prepare_out(config: CalibrationConfig, out_dir: Path) -> None:
             )
         return
     write_text_atomic(cfg_path, json.dumps({**d, "fingerprint": config.fingerprint()}, indent=2) + "\n")
+
+
+def earlier_summary(config: CalibrationConfig, out_dir) -> dict:
+    """The summary already in ``out_dir`` ({} if none); refuses a run smaller than it.
+
+    Raises
+    ------
+    ValueError
+        If the folder's summary covers more replications than ``config`` asks for.
+    """
+    path = Path(out_dir) / "summary.json"
+    earlier = read_json(path, "summary") if path.exists() else {}
+    if earlier.get("replications", 0) > config.replications:
+        raise ValueError(
+            f"{path} summarizes {earlier['replications']} replications; this run asks for "
+            f"{config.replications} and would replace it: use --replications {earlier['replications']} "
+            "(or more), or another --out")
+    return earlier
 
 
 def calibrate(config: CalibrationConfig, out_dir, *, scheduler: str | None = None, n_workers: int = 2,
@@ -192,6 +256,7 @@ def calibrate(config: CalibrationConfig, out_dir, *, scheduler: str | None = Non
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     _prepare_out(config, out_dir)
+    earlier = earlier_summary(config, out_dir)
     todo = [i for i in range(config.replications) if not rep_path(out_dir, i).exists()]
     t0 = time.perf_counter()
     if todo:
@@ -212,8 +277,7 @@ def calibrate(config: CalibrationConfig, out_dir, *, scheduler: str | None = Non
             if cluster is not None:
                 cluster.close()
     wall = time.perf_counter() - t0
-    previous = out_dir / "summary.json"
-    total = json.loads(previous.read_text()).get("wall_seconds_total", 0.0) if previous.exists() else 0.0
+    total = earlier.get("wall_seconds_total", 0.0)
     summary = summarize(out_dir, config)
     summary["wall_seconds_this_run"] = wall
     # Wall time of every invocation that ran replications (a resume adds to it).
@@ -227,7 +291,12 @@ def load_replications(out_dir, n: int) -> list[dict]:
     missing = [i for i in range(n) if not rep_path(out_dir, i).exists()]
     if missing:
         raise FileNotFoundError(f"{out_dir}: {len(missing)} replications missing (first {missing[0]}); rerun to resume")
-    return [json.loads(rep_path(out_dir, i).read_text()) for i in range(n)]
+    reps = [read_json(rep_path(out_dir, i)) for i in range(n)]
+    for i, rep in enumerate(reps):
+        if not (isinstance(rep, dict) and {"ranks", "pit_u", "ess", "contraction", "seconds"} <= rep.keys()):
+            raise InputDataError(f"{rep_path(out_dir, i)}: damaged replication file (fields missing); "
+                                 "delete it and rerun to recompute it")
+    return reps
 
 
 def summarize(out_dir, config: CalibrationConfig) -> dict:
@@ -307,6 +376,8 @@ def calibrate_level(args) -> list[dict]:
     if nc != "none":
         runs.append((f"{args.level}-negative", nc))
     configs = [(name, config_from_args(args, nc)) for name, nc in runs]  # validate all before running
+    for name, cfg in configs:
+        earlier_summary(cfg, Path(args.out) / name)
     out = []
     for name, cfg in configs:
         out.append(calibrate(cfg, Path(args.out) / name, scheduler=args.scheduler, n_workers=args.workers))

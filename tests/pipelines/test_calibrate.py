@@ -1,6 +1,8 @@
 """Simulation-based calibration: the check passes for the right model, fails for a wrong one,
 and runs the same on a real Dask cluster that loses a worker."""
 
+import contextlib
+import http.server
 import json
 import os
 import signal
@@ -11,9 +13,11 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from pipelines.calibrate import FAMILY_ALPHA, CalibrationConfig, calibrate, rep_path
+from pipelines.calibrate import FAMILY_ALPHA, CalibrationConfig, calibrate, check_scheduler, format_summary, rep_path
+from pipelines.cli import main
 
 # A unit-level run at a reduced size: 100 replications of one 15-s window each (about a
 # minute on two workers). At 40 replications the inertia control was missed for some seeds.
@@ -155,3 +159,119 @@ def test_study_level_sbc_catches_a_likelihood_that_ignores_u_A(tmp_path):
     summary = calibrate(CalibrationConfig(**STUDY, negative_control="ignore-uA"), tmp_path / "neg",
                         show_progress=False)
     assert not summary["passed"]
+
+
+def _fake_replications(out_dir, n, L, seed=0):
+    """Replication files with uniform ranks, as a calibrated fit would give (no sampling)."""
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        rep = {"index": i, "seconds": 0.1, "divergences": 0,
+               "ranks": {p: int(rng.integers(L + 1)) for p in ("theta1", "theta2", "R")},
+               "pit_u": {p: float(rng.uniform()) for p in ("theta1", "theta2", "R")},
+               "ess": {p: 1000.0 for p in ("theta1", "theta2", "R")},
+               "contraction": {p: 0.5 for p in ("theta1", "theta2", "R")}}
+        path = rep_path(out_dir, i)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(rep))
+
+
+def test_a_smaller_rerun_does_not_replace_a_larger_summary(tmp_path):
+    cfg = CalibrationConfig(**{**UNIT, "replications": 40})
+    _fake_replications(tmp_path, 40, cfg.L)
+    summary = calibrate(cfg, tmp_path, show_progress=False)
+    assert summary["replications"] == 40 and "40 replications" in format_summary({**summary})
+    before = (tmp_path / "summary.json").read_text()
+    with pytest.raises(ValueError, match="summarizes 40 replications; this run asks for 10"):
+        calibrate(CalibrationConfig(**{**UNIT, "replications": 10}), tmp_path, show_progress=False)
+    assert (tmp_path / "summary.json").read_text() == before
+    assert calibrate(cfg, tmp_path, show_progress=False)["replications"] == 40  # the same size may rerun
+
+
+def test_a_damaged_replication_file_is_named(tmp_path, capsys):
+    out = tmp_path / "cal"
+    _fake_replications(out / "unit", 4, 99)
+    rep_path(out / "unit", 2).write_text('{"ranks": ')  # cut short, as by a full disk
+    assert main(["calibrate", "--replications", "4", "--negative-control", "none", "--out", str(out)]) == 3
+    err = capsys.readouterr().err
+    assert str(rep_path(out / "unit", 2)) in err and "damaged replication file" in err
+    rep_path(out / "unit", 2).write_text("{}")
+    assert main(["calibrate", "--replications", "4", "--negative-control", "none", "--out", str(out)]) == 3
+    assert str(rep_path(out / "unit", 2)) in capsys.readouterr().err
+
+
+def test_exit_status_and_wording_say_whether_the_calibration_came_out_as_it_must(tmp_path, capsys):
+    out = tmp_path / "cal"
+    for name in ("unit", "unit-negative"):
+        _fake_replications(out / name, 40, 99)  # uniform ranks: both pass, the negative control wrongly
+    assert main(["calibrate", "--replications", "40", "--out", str(out)]) == 1
+    text = capsys.readouterr().out
+    assert "negative control 'inertia'" in text and "a negative control must fail" in text
+    assert main(["calibrate", "--replications", "40", "--negative-control", "none", "--out", str(out)]) == 0
+
+
+def _silent_tcp_server():
+    """Accepts connections and never says a word."""
+    srv = socket.create_server(("127.0.0.1", 0))
+    accepted = []
+
+    def serve():
+        with contextlib.suppress(OSError):
+            while True:
+                accepted.append(srv.accept()[0])
+
+    threading.Thread(target=serve, daemon=True).start()
+
+    def stop():
+        srv.close()
+        for conn in accepted:
+            conn.close()
+
+    return srv.getsockname()[1], stop
+
+
+def _http_server():
+    srv = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    srv.RequestHandlerClass.log_message = lambda *a: None
+    threading.Thread(target=srv.serve_forever, daemon=True).start()
+
+    def stop():
+        srv.shutdown()
+        srv.server_close()
+
+    return srv.server_address[1], stop
+
+
+def _replies_and_closes():
+    """Answers every connection with an HTTP error and hangs up (distributed reads a frame of exabytes)."""
+    srv = socket.create_server(("127.0.0.1", 0))
+
+    def serve():
+        with contextlib.suppress(OSError):
+            while True:
+                conn = srv.accept()[0]
+                conn.sendall(b"HTTP/1.0 400 Bad Request\r\n\r\n")
+                conn.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    return srv.getsockname()[1], srv.close
+
+
+@pytest.mark.parametrize("server", [_silent_tcp_server, _http_server, _replies_and_closes])
+def test_a_server_that_is_not_a_scheduler_fails_within_15_s(tmp_path, server):
+    port, stop = server()
+    try:
+        cfg = CalibrationConfig(**{**UNIT, "replications": 1})
+        t0 = time.perf_counter()
+        with pytest.raises(OSError, match=f"127.0.0.1:{port}") as info:
+            calibrate(cfg, tmp_path, scheduler=f"tcp://127.0.0.1:{port}", show_progress=False)  # default timeout
+        assert time.perf_counter() - t0 < 15
+        assert "Dask scheduler" in str(info.value)
+    finally:
+        stop()
+
+
+def test_a_real_scheduler_passes_the_check():
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        check_scheduler(cluster.scheduler_address, 5.0)

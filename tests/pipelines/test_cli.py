@@ -198,3 +198,25 @@ def test_non_finite_loglik_is_a_failed_check_not_infinity(study_file, theta, cap
     captured = capsys.readouterr()
     assert captured.out == ""
     assert "not finite" in captured.err and "segment (s1, MC)" in captured.err
+
+
+def test_every_imported_third_party_package_is_declared():
+    import ast
+    import re
+    import tomllib
+    from importlib.metadata import packages_distributions
+
+    root = Path(__file__).resolve().parents[2]
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    declared = {re.split(r"[\[<>=!~ ;]", d)[0].lower().replace("_", "-") for d in project["dependencies"]}
+    imported = set()
+    for path in [*(root / "models").glob("*.py"), *(root / "pipelines").glob("*.py")]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                imported |= {a.name.split(".")[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                imported.add(node.module.split(".")[0])
+    dists = packages_distributions()
+    third_party = {m for m in imported - set(sys.stdlib_module_names) - {"models", "pipelines", "__future__"}}
+    missing = {m for m in third_party if not {d.lower() for d in dists.get(m, [m])} & declared}
+    assert not missing, f"imported but not declared in pyproject.toml: {sorted(missing)}"

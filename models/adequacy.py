@@ -42,7 +42,8 @@ data sets with a T at least as large. If the recorded data are exchangeable with
 replicates (the model holds at θ), that p-value is uniform on {1/(B+1), …, 1} up to ties
 (which only make it larger). The per-segment p-value is the single-step min-P
 combination over the statistics (Westfall & Young 1993), calibrated by the same B + 1
-data sets, so it accounts for the statistics' correlation: a segment is flagged when it
+data sets, so it accounts for the statistics' correlation (ties of the smallest p-value
+are broken by the next smallest): a segment is flagged when it
 is ≤ :data:`SEGMENT_ALPHA` (false-alarm rate ≤ 5 % per segment). The study verdict
 combines the segments per statistic by Fisher's method and fails when any statistic's
 combined p-value is ≤ :data:`STUDY_ALPHA` / (number of statistics) (Bonferroni:
@@ -266,8 +267,8 @@ def bootstrap_records(chain: Chain, n_boot: int, rng: np.random.Generator) -> Re
     torque = np.empty((rows, c.K))
     z = np.empty((rows, c.K))
     if c.recon is None:
-        F = Kg = Sv = np.zeros((1, 3))
-        Cm = np.zeros((1, 3, 3))
+        # Unused placeholders of the right types (numba compiles one signature).
+        F, Kg, Sv, Cm = np.zeros((3, 3)), np.zeros((1, 3)), np.zeros(1), np.zeros((1, 3, 3))
         recon_on = False
     else:
         F, Kg, Sv, Cm = c.recon
@@ -388,8 +389,10 @@ def segment_adequacy(rec: Records, dt: float) -> SegmentAdequacy:
     """Per-statistic and combined p-values of row 0 of ``rec`` against the other rows."""
     st = statistics(rec, dt)
     P = np.column_stack([exceedance(discrepancy(st[name])) for name in STATISTICS])
-    minp = P.min(axis=1)
-    p_seg = float(np.mean(minp <= minp[0]))
+    # Min-P, with ties between equal smallest p-values broken by the next smallest, and so on
+    # (a lexicographic order of each data set's sorted p-values: still a symmetric rule).
+    key = [tuple(row) for row in np.sort(P, axis=1)]
+    p_seg = float(np.mean([k <= key[0] for k in key]))
     return SegmentAdequacy(
         p={name: float(P[0, j]) for j, name in enumerate(STATISTICS)},
         p_segment=p_seg,

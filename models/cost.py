@@ -95,3 +95,19 @@ def normalize(theta) -> np.ndarray:
     """
     arr = validate_theta(theta)
     return arr / arr[2]
+
+
+def from_normalized(theta1, theta2, R) -> np.ndarray:
+    """``[θ1 R, θ2 R, R]``: θ = [q11, q22, R] from the paper's normalized θ1 = q11/R, θ2 = q22/R and R.
+
+    Parameters
+    ----------
+    theta1, theta2, R : float or array_like, broadcastable
+        1/rad², 1/(rad/s)², 1/(N·m)².
+
+    Returns
+    -------
+    ndarray, shape (3,) or (3, n)
+    """
+    t1, t2, r = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (theta1, theta2, R)))
+    return np.stack([t1 * r, t2 * r, r])

@@ -122,8 +122,10 @@ def assess_study(prepared, thetas, plant, *, assistant_model: str, resolution: f
     flagged = []
     for p, r in zip(prepared, rows):
         if r["adequacy_flagged"]:
+            checks = sorted((k for k in adq.STATISTICS if r[f"adequacy_p_{k}"] <= adq.SEGMENT_ALPHA),
+                            key=lambda k: r[f"adequacy_p_{k}"])
             flagged.append({"subject": p.data.subject, "condition": p.data.condition, "p": r["adequacy_p"],
-                            "smallest_check": min(adq.STATISTICS, key=lambda k: r[f"adequacy_p_{k}"])})
+                            "checks_at_5_percent": checks})
     summary.update({
         "judges": "the human model (does it describe the data?), not the sampler or the optimizer",
         "flagged_segments": flagged,

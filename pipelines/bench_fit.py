@@ -105,7 +105,7 @@ def format_fit(res: dict) -> str:
         f"  wall: build {s['build']:.1f} s + compile and sample {s['compile_and_sample']:.1f} s = {s['fit']:.1f} s "
         f"(goal ≤ {res['goal_s']:.0f} s: {'met' if res['within_goal'] else 'NOT met'}); sampling alone {s['sample']:.1f} s",
         f"  sampler: {d['sampler']['divergences']} divergences, mean {d['sampler']['mean_steps_per_draw']:.1f} leapfrog "
-        f"steps per draw, {res['grad_evals_after_tuning']} gradient evaluations after tuning; verdict: {d['verdict']}",
+        f"steps per draw, {res['grad_evals_after_tuning']} gradient evaluations after tuning; sampler convergence: {d['convergence_verdict']}",
         f"  {'parameter':<18} {'R-hat':>6} {'ESS bulk':>9} {'ESS tail':>9} {'ESS/s':>7}",
     ]
     for v, p in d["population"].items():

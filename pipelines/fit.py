@@ -45,7 +45,9 @@ import pandas as pd
 from models.hierarchical import CONDITIONS, build_model, index_study
 from models.maxent import forward_optimal_control, plan_inputs, prepare_batch, sample_maxent
 from models.plant import DT_HUMAN, discretize
-from pipelines.identify import IdentifySettings, prepare_segment
+from models.cost import from_normalized
+from pipelines.adequacy import assess_study, format_adequacy, not_checked
+from pipelines.identify import IdentifySettings, paper_assistant, prepare_segment
 from pipelines.io import atomic_path, load_study, write_table_atomic, write_text_atomic
 from pipelines.progress import progress
 from pipelines.provenance import versions
@@ -202,7 +204,7 @@ def diagnostics(idata, sample_seconds: float) -> dict:
         "worst": {"rhat": worst_rhat["rhat"], "ess_parameter": worst_ess[0],
                   "ess": min(worst_ess[1]["ess_bulk"], worst_ess[1]["ess_tail"]),
                   "min_ess_bulk_per_s": min(p["ess_bulk_per_s"] for p in population.values())},
-        "verdict": "pass" if not failed else "fail: " + ", ".join(failed),
+        "convergence_verdict": "pass" if not failed else "fail: " + ", ".join(failed),
         "passed": not failed,
     }
 
@@ -648,6 +650,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                           + " assistant model); "
                           "u_H is the reconstructed torque where the file has none"}
     timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    res["adequacy"] = posterior_adequacy(fits["condition"], prepared, settings, plant)
+    timing["adequacy_s"] = time.perf_counter() - t0
 
     paths = {"posterior": _write_netcdf(fits["condition"], out / "posterior.nc"),
              "posterior_pooled": _write_netcdf(fits["pooled"], out / "posterior_pooled.nc"),
@@ -667,7 +672,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "criteria": {"divergences": 0, "rhat_max": RHAT_MAX, "ess_bulk_and_tail_min": ESS_MIN,
                      "applies_to": "population parameters", "ebfmi_min_advisory": EBFMI_MIN},
         "diagnostics": diag,
-        "verdict": {name: d["verdict"] for name, d in diag.items()},
+        "convergence_verdict": {name: d["convergence_verdict"] for name, d in diag.items()},
         "seconds": timing,
         "inputs": {"estimates": None if estimates_path is None else str(estimates_path),
                    "truth_dir": None if truth_dir is None else str(truth_dir)},
@@ -679,14 +684,42 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     return {k: str(v) for k, v in paths.items()}
 
 
+def posterior_adequacy(idata, prepared: PreparedStudy, settings: IdentifySettings, plant) -> dict:
+    """Model adequacy (:func:`pipelines.adequacy.assess_study`) at each segment's posterior θ.
+
+    The plug-in θ of a segment is exp(posterior mean of log θ1) and of log R, and the
+    posterior mean of θ2, of its subject × condition.
+    """
+    if settings.adequacy_boot == 0:
+        return not_checked("switched off (adequacy bootstrap size 0)")
+    post = idata["posterior"]
+    lt1 = post["log_theta1"].mean(("chain", "draw"))
+    lr = post["log_R"].mean(("chain", "draw"))
+    t2 = post["theta2"].mean(("chain", "draw"))
+    sel = [dict(subject=s, condition=c) for s, c in zip(prepared.subjects, prepared.conditions)]
+    theta = from_normalized([float(np.exp(lt1.sel(**k))) for k in sel], [float(t2.sel(**k)) for k in sel],
+                            [float(np.exp(lr.sel(**k))) for k in sel])
+    _, summary = assess_study(prepared.segments, theta.T, plant, assistant_model=settings.assistant_model,
+                              resolution=settings.resolution, n_boot=settings.adequacy_boot,
+                              seed=settings.adequacy_seed, assistant=paper_assistant())
+    summary["theta"] = "posterior means of log θ1, log R and θ2 per subject × condition (plug-in)"
+    return summary
+
+
 def format_fit(out) -> str:
-    """A few lines summarizing a fit folder's sidecar and contrasts."""
+    """A few lines summarizing a fit folder's sidecar and contrasts, the adequacy verdict first."""
     out = Path(out)
     side = json.loads((out / "posterior.json").read_text())
     res = json.loads((out / "contrasts.json").read_text())
     b, r, loo = res["beta"], res["ratio"], res["loo"]["difference"]
-    lines = [
-        f"verdict: condition model {side['verdict']['condition']}; pooled model {side['verdict']['pooled']}",
+    conv = side["convergence_verdict"]
+    adequacy = res.get("adequacy") or not_checked("not in this fit's contrasts.json")
+    lines = [format_adequacy(adequacy)]
+    if adequacy["verdict"] == "fail":
+        lines.append("CAVEAT: the numbers below assume a human model that fails its adequacy checks; "
+                     "beta may be an artifact of model misfit")
+    lines += [
+        f"sampler convergence: condition model {conv['condition']}; pooled model {conv['pooled']}",
         f"beta (mean SC change of log theta1): {b['mean']:.3f} ± {b['sd']:.3f}, 94 % HDI "
         f"[{b['hdi'][0]:.3f}, {b['hdi'][1]:.3f}], P(beta < 0) = {b['p_negative']:.3f}",
         f"exp(beta): {r['median']:.3f} (94 % HDI {r['hdi'][0]:.3f}-{r['hdi'][1]:.3f})",
@@ -717,7 +750,11 @@ def cmd_fit(args) -> int:
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")
-    return 0
+    # Exit 1 when the sampler did not converge or the human model fails its adequacy checks.
+    side = json.loads(Path(paths["sidecar"]).read_text())
+    res = json.loads(Path(paths["contrasts"]).read_text())
+    converged = all(v == "pass" for v in side["convergence_verdict"].values())
+    return 0 if converged and res["adequacy"]["verdict"] != "fail" else 1
 
 
 __all__ = ["fit_to_dir", "prepare_study", "sample_model", "diagnostics", "contrasts", "loo_comparison",

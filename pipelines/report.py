@@ -28,6 +28,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
 
+from pipelines import report_adequacy  # noqa: E402
 from pipelines.io import write_text_atomic  # noqa: E402
 
 MC_COLOR = "#c0392b"  # red, as in the paper's Fig. 6
@@ -41,6 +42,10 @@ th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: right; }
 th { background: #f3f3f3; } td.l, th.l { text-align: left; }
 .note { color: #666; font-size: .9em; } figure { margin: 1em 0; } figcaption { color: #444; font-size: .9em; }
 .ok { color: #1e7e34; font-weight: bold; } .bad { color: #b02a37; font-weight: bold; }
+div.verdict { padding: .8em 1em; border-radius: 4px; margin: 1em 0; font-size: 1.05em; }
+div.verdict.ok { background: #e8f5e9; border: 1px solid #1e7e34; font-weight: normal; color: #222; }
+div.verdict.bad { background: #fdecea; border: 2px solid #b02a37; font-weight: normal; color: #222; }
+div.verdict.warn { background: #fff8e1; border: 1px solid #b08900; }
 """
 
 
@@ -86,10 +91,8 @@ def section_design(root: Path, sim: dict | None, ident_meta: dict | None) -> str
         parts.append(
             f"<p>Simulated experiment: {sim['n_subjects']} subjects, each a {sim['run_seconds'] / 60:g}-minute run in "
             "manual control (MC) and one in shared control (SC) in random order, sampled at 100 Hz; encoder "
-            f"{sim['encoder_counts_per_revolution']} increments per revolution; seed {sim['seed']}. The simulated "
-            "human is the max-ent LQ agent; in SC it knows the assistant's law and plans on the wheel the "
-            "assistant's state feedback closes, with its reference feedforward as a known input, while the "
-            "assistant (re-solved every 10 ms) reacts to the actual state.</p>"
+            f"{sim['encoder_counts_per_revolution']} increments per revolution; seed {sim['seed']}. "
+            + _human_text(sim.get("human", {}).get("name", "maxent")) + "</p>"
         )
         rows = [
             ("median θ1 = q11/R in MC (1/rad²)", np.exp(pop["log_theta1_mc"])),
@@ -125,6 +128,19 @@ def section_design(root: Path, sim: dict | None, ident_meta: dict | None) -> str
             + f"; velocity and torque reconstructed from the angle where missing (margin {s['margin']:g} s).</p>"
         )
     return "".join(parts)
+
+
+def _human_text(name: str) -> str:
+    """What the simulated human is, in words (models/humans.py has the details and sources)."""
+    if name == "maxent":
+        return ("The simulated human is the max-ent LQ agent; in SC it knows the assistant's law and plans on the "
+                "wheel the assistant's state feedback closes, with its reference feedforward as a known input, while "
+                "the assistant (re-solved every 10 ms) reacts to the actual state.")
+    return (f"<b>The simulated human is <code>{html.escape(name)}</code>, a negative control that is not the max-ent "
+            "LQ agent the likelihood assumes</b> (<code>models/humans.py</code>: perceptual delay, neuromuscular lag, "
+            "motor noise or a crossover-model operator, with magnitudes from the manual-control literature). "
+            + ("Its cost parameters below are those of its LQ planner." if name != "crossover" else
+               "It is not an LQ controller: it has no cost θ, so the population below is unused."))
 
 
 def section_reference(study: pd.DataFrame, ident_meta: dict | None) -> str:
@@ -455,6 +471,10 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     est_true = _read(root / "identify_true_torque" / "estimates.parquet")
     est_paper = _read(root / "identify_true_torque_exogenous" / "estimates.parquet")
     cmp = _read(root / "compare.json")
+    fit_res = _read(root / "fit" / "contrasts.json")
+    adequacy = (meta or {}).get("adequacy")
+    fit_adequacy = (fit_res or {}).get("adequacy")
+    power = _read(root.parent / "power" / "power.json")
     if est is None:
         raise FileNotFoundError(f"{root / 'identify' / 'estimates.parquet'}: no estimates; run `scioc identify` first")
     subjects = sorted(est.subject.unique())
@@ -463,17 +483,21 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     body = [f"<h1>scioc report: {html.escape(root.name)}</h1>",
             "<p>Identification of human steering cost functions in manual and shared control, following Inga et al. "
             "(SMC 2018). Every number here was produced by <code>scioc</code> from the artifacts beside this file.</p>"]
+    body.append(report_adequacy.headline(adequacy, fit_adequacy))
     body.append(section_design(root, sim, meta))
     if study is not None:
         body.append(section_reference(study, meta))
     body.append("<h2>Identified parameters and the paper's test</h2>")
     body.append(section_histogram(est))
+    body.append(report_adequacy.caveat(adequacy))
     body.append(section_wilcoxon(cmp) if cmp else "<p class='note'>No compare.json: run `scioc compare`.</p>")
     if (root / "fit").exists():
         from pipelines.report_bayes import section_bayes
 
         body.append("<h2>Hierarchical Bayesian model</h2>")
+        body.append(report_adequacy.caveat(fit_adequacy if fit_adequacy else adequacy))
         body.append(section_bayes(root))
+    body.append(report_adequacy.section(est, adequacy, power))
     body.append("<h2>Model validation (Fig. 6)</h2>")
     if traj is not None:
         body.append(section_fig6(traj, subject))

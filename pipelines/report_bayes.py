@@ -103,7 +103,7 @@ def section_diagnostics(side: dict) -> str:
         sm = d["sampler"]
         rows.append({
             "model": {"condition": "with condition effects", "pooled": "pooled (β = 0)"}[name],
-            "verdict": d["verdict"], "divergences": sm["divergences"],
+            "verdict": d["convergence_verdict"], "divergences": sm["divergences"],
             "max R-hat": d["worst"]["rhat"], "min ESS (parameter)": f"{d['worst']['ess']:.0f} ({d['worst']['ess_parameter']})",
             "min E-BFMI": min(sm["ebfmi"]), "max tree depth": sm["max_tree_depth"],
             "steps/draw": sm["mean_steps_per_draw"], "sampling (s)": sec["sample_s"],
@@ -111,7 +111,8 @@ def section_diagnostics(side: dict) -> str:
         })
     df = pd.DataFrame(rows)
     verdicts = "; ".join(f"{m}: {_ok(d['passed'], 'passes', 'fails')}" for m, d in side["diagnostics"].items())
-    parts.append(f"<p>Verdict — {verdicts}.</p>")
+    parts.append(f"<p>Sampler convergence (this judges the sampler, not whether the human model describes the "
+                 f"data: that is the model-adequacy verdict) — {verdicts}.</p>")
     parts.append(_table(df.drop(columns=["verdict"]), left=("model", "min ESS (parameter)")))
     d = side["diagnostics"]["condition"]
     prow = [{"parameter": LABELS.get(v, v), "R-hat": p["rhat"], "bulk ESS": p["ess_bulk"], "tail ESS": p["ess_tail"],

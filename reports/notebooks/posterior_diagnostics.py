@@ -57,7 +57,7 @@ print(idata)
 if SIDECAR.exists():
     side = json.loads(SIDECAR.read_text())
     print("seed", side["seed"], "| sampler", side["sampler"])
-    for name, verdict in side["verdict"].items():
+    for name, verdict in side["convergence_verdict"].items():
         print(f"{name}: {verdict}")
 post = idata["posterior"].to_dataset()[POPULATION]
 table = az.summary(post, ci_prob=0.94)

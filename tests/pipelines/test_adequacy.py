@@ -51,7 +51,7 @@ def test_a_misspecified_human_is_flagged():
     assert res.adequacy["verdict"] == "fail"
     assert res.adequacy["failed_checks"]
     assert res.estimates["adequacy_flagged"].mean() > 0.5
-    assert {"subject", "condition", "p", "smallest_check"} <= set(res.adequacy["flagged_segments"][0])
+    assert {"subject", "condition", "p", "checks_at_5_percent"} <= set(res.adequacy["flagged_segments"][0])
 
 
 def test_same_seed_same_adequacy(correct):

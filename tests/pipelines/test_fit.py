@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from models.adequacy import STATISTICS
 from pipelines import cli
 from pipelines.fit import ESS_MIN, RHAT_MAX, fit_to_dir, mixedlm_check
 from pipelines.identify import identify_to_dir
@@ -56,7 +57,7 @@ def test_fit_writes_posteriors_sidecar_and_contrasts(small_fit):
     np.testing.assert_array_equal(lt1.sel(condition="MC").values, lt1.sel(condition="SC").values)
 
     side = json.loads((fit / "posterior.json").read_text())
-    assert {"seed", "seeds", "sampler", "identify_settings", "criteria", "diagnostics", "verdict", "seconds",
+    assert {"seed", "seeds", "sampler", "identify_settings", "criteria", "diagnostics", "convergence_verdict", "seconds",
             "versions", "inputs"} <= set(side)
     assert side["seed"] == SMALL["seed"] and side["sampler"]["draws"] == 100 and side["sampler"]["chains"] == 2
     assert side["versions"]["nutpie"] and side["versions"]["pymc"]
@@ -72,7 +73,7 @@ def test_fit_writes_posteriors_sidecar_and_contrasts(small_fit):
                     and all(p["rhat"] <= RHAT_MAX for p in pop.values())
                     and all(min(p["ess_bulk"], p["ess_tail"]) >= ESS_MIN for p in pop.values()))
         assert d["passed"] == expected
-        assert side["verdict"][name] == d["verdict"] and d["verdict"].startswith("pass" if expected else "fail")
+        assert side["convergence_verdict"][name] == d["convergence_verdict"] and d["convergence_verdict"].startswith("pass" if expected else "fail")
         assert side["seconds"][name]["sample_s"] > 0
     # 2 × 100 draws cannot give 400 effective draws: this fit must fail its verdict.
     assert not side["diagnostics"]["condition"]["passed"]
@@ -102,6 +103,10 @@ def test_fit_writes_posteriors_sidecar_and_contrasts(small_fit):
     assert tr["beta"]["truth"] == -0.7
     assert tr["beta"]["in_hdi"] == (b["hdi"][0] <= -0.7 <= b["hdi"][1])
     assert tr["subjects"]["n"] == N_SUBJECTS
+
+    adq = res["adequacy"]
+    assert adq["verdict"] in ("pass", "fail") and adq["segments"] == 2 * N_SUBJECTS
+    assert set(adq["combined_p"]) == set(STATISTICS) and "posterior" in adq["theta"]
 
     ppc = pd.read_parquet(fit / "ppc.parquet")
     assert res["ppc"]["subject"] == "S03" and set(ppc.subject) == {"S03"}

@@ -215,6 +215,8 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
     present = [c for c in NUMERIC if c in df.columns]
     for col in present:
         raw = df[col]
+        if pd.api.types.is_bool_dtype(raw):  # True/False would pass as 1/0 and give a wrong result silently
+            fail("holds true/false values; expected numbers", column=col, row=0)
         if col == "t" and (pd.api.types.is_datetime64_any_dtype(raw) or pd.api.types.is_timedelta64_dtype(raw)):
             raw = _seconds_from_segment_start(raw, codes)
         values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)

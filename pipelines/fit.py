@@ -31,8 +31,12 @@ draws and numbers (file bytes differ only by the time stamps NetCDF attributes c
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import signal
+import sys
+import threading
 import time
 import warnings
 from dataclasses import asdict
@@ -48,7 +52,7 @@ from models.plant import DT_HUMAN, discretize
 from models.cost import from_normalized
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.identify import IdentifySettings, paper_assistant, prepare_segment
-from pipelines.io import atomic_path, load_study, write_table_atomic, write_text_atomic
+from pipelines.io import InputDataError, atomic_path, load_study, write_table_atomic, write_text_atomic
 from pipelines.progress import progress
 from pipelines.provenance import versions
 
@@ -136,14 +140,64 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     import pymc as pm
 
     t0 = time.perf_counter()
-    idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1, random_seed=seed,
-                      nuts_sampler="nutpie", progressbar=show_progress, quiet=not show_progress, model=model)
+    with stdout_to_stderr(), interrupt_guard() as interrupted:
+        idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
+                          random_seed=seed, nuts_sampler="nutpie", progressbar=show_progress,
+                          quiet=not show_progress, model=model)
+    if interrupted():
+        # nutpie stops on Ctrl-C and returns the draws so far; a partial posterior is not a result.
+        raise KeyboardInterrupt
     t1 = time.perf_counter()
     if log_likelihood:
         pm.compute_log_likelihood(idata, model=model, progressbar=False)
     t2 = time.perf_counter()
     return idata, {"compile_and_sample": t1 - t0, "sample": float(idata["posterior"].attrs["sampling_time"]),
                    "log_likelihood": t2 - t1}
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """Send everything written to standard output, by Python or by compiled code, to standard error.
+
+    The sampler's progress tables are progress, not results: results go to stdout.
+    """
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+@contextlib.contextmanager
+def interrupt_guard():
+    """Note a Ctrl-C (SIGINT) even if the code inside catches it; yields a function that tells.
+
+    The previous handler still runs (Python's raises KeyboardInterrupt), so the code inside
+    stops as it would; afterwards the caller can refuse a result the interruption cut short.
+    """
+    seen = []
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum, frame):
+        seen.append(signum)
+        if callable(previous):
+            previous(signum, frame)
+        else:
+            raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: bool(seen)
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def diagnostics(idata, sample_seconds: float) -> dict:
@@ -521,10 +575,19 @@ def ppc_coverage(ppc: pd.DataFrame) -> dict:
 
 
 def _default_inputs(study_path: Path, estimates_path, truth_dir):
-    """Inputs beside the study in the run-folder layout of ``scioc run`` when not given."""
+    """Inputs beside the study in the run-folder layout of ``scioc run`` when not given.
+
+    The estimates are taken from ``<run>/identify/`` only if its ``identify.json`` says they
+    were identified from this very study file.
+    """
     if estimates_path is None:
-        guess = study_path.parent.parent / "identify" / "estimates.parquet"
-        estimates_path = guess if guess.exists() else None
+        guess = study_path.parent.parent / "identify"
+        try:
+            meta = json.loads((guess / "identify.json").read_text())
+            same = Path(meta["study"]).resolve() == study_path.resolve()
+        except (OSError, ValueError, KeyError, TypeError):
+            same = False
+        estimates_path = guess / "estimates.parquet" if same and (guess / "estimates.parquet").exists() else None
     if truth_dir is None:
         folder = study_path.parent
         if (folder / "simulation.json").exists() and (folder / "truth.parquet").exists():
@@ -642,6 +705,14 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     res["loo_subject"] = subject_loo_comparison(fits["condition"], fits["pooled"], batch, prepared.subjects,
                                                 prepared.conditions, plant, np.random.default_rng(seeds["loso"]))
     estimates = pd.read_parquet(estimates_path) if estimates_path is not None else None
+    if estimates is not None:
+        units = set(zip(prepared.subjects, prepared.conditions))
+        theirs = set(zip(estimates["subject"].astype(str), estimates["condition"].astype(str)))
+        if units != theirs:
+            raise InputDataError(
+                f"{estimates_path}: its subjects × conditions ({len(theirs)}) are not those of {study_path} "
+                f"({len(units)}); e.g. {sorted(units ^ theirs)[:3]}. Pass the estimates identified from this study "
+                "with --estimates")
     res["mixedlm"] = mixedlm_check(estimates) if estimates is not None else None
     res["truth"] = truth_check(fits["condition"], truth_dir, estimates) if truth_dir is not None else None
     ppc = posterior_predictive(fits["condition"], prepared, subject, np.random.default_rng(seeds["ppc"]))
@@ -728,7 +799,8 @@ def format_fit(out) -> str:
     ]
     if res.get("loo_subject"):
         ls = res["loo_subject"]["difference"]
-        lines.append(f"leave-one-subject-out: elpd(condition) - elpd(pooled) = {ls['elpd_diff']:.1f} ± {ls['se']:.1f} "
+        se = "n/a (one subject)" if ls.get("se") is None else f"{ls['se']:.1f}"
+        lines.append(f"leave-one-subject-out: elpd(condition) - elpd(pooled) = {ls['elpd_diff']:.1f} ± {se} "
                      f"({'reliable' if ls['reliable'] else 'Pareto k high: unreliable'})")
     if res.get("truth"):
         t = res["truth"]["beta"]

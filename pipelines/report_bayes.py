@@ -32,6 +32,11 @@ LABELS = {
 }
 
 
+def _num(v, spec: str = ".1f") -> str:
+    """A number, or "n/a" where it is undefined (stored as null: e.g. an SE from one subject)."""
+    return "n/a" if v is None else format(v, spec)
+
+
 def _ok(flag: bool, yes: str = "yes", no: str = "no") -> str:
     return f'<span class="{"ok" if flag else "bad"}">{yes if flag else no}</span>'
 
@@ -172,12 +177,12 @@ def section_loo(loo: dict, loso: dict | None = None) -> str:
     d = loo["difference"]
     txt = (f"<p>Expected log predictive density of a left-out segment, estimated by Pareto-smoothed importance "
            f"sampling (PSIS-LOO), summed over segments. Difference (condition effects − pooled): "
-           f"<b>{d['elpd_diff']:.1f} ± {d['se']:.1f}</b> (z = {d['z']:.1f}), in favour of the "
+           f"<b>{d['elpd_diff']:.1f} ± {_num(d['se'])}</b> (z = {_num(d['z'])}), in favour of the "
            f"{'model with condition effects' if d['preferred'] == 'condition' else 'pooled model'}. "
            f"Reliable: {_ok(d['reliable'])}. {html.escape(d['note'])}. Each segment holds all the data on its "
            "subject × condition, so leaving one out moves that unit's θ a long way, which PSIS cannot reweight "
            "well; the difference is then indicative only.</p>")
-    out = txt + _table(pd.DataFrame(rows), fmt={"ELPD (LOO)": lambda v: f"{v:.1f}", "SE": lambda v: f"{v:.1f}",
+    out = txt + _table(pd.DataFrame(rows), fmt={"ELPD (LOO)": lambda v: f"{v:.1f}", "SE": _num,
                                                 "p_loo": lambda v: f"{v:.1f}"}, left=("model", "k > threshold"))
     if loso:
         out += section_loo_subject(loso)
@@ -196,12 +201,12 @@ def section_loo_subject(loso: dict) -> str:
     d = loso["difference"]
     txt = (f"<p>Leaving out whole subjects instead, with each subject's own parameters integrated out "
            "(importance sampling per subject, then PSIS over the population draws only, which one subject of "
-           f"many barely moves): difference <b>{d['elpd_diff']:.1f} ± {d['se']:.1f}</b> (z = {d['z']:.1f}) in favour "
+           f"many barely moves): difference <b>{d['elpd_diff']:.1f} ± {_num(d['se'])}</b> (z = {_num(d['z'])}) in favour "
            f"of the {'model with condition effects' if d['preferred'] == 'condition' else 'pooled model'}, "
            f"{d['n_favouring_condition']} of {d['n']} subjects predicted better by it. Reliable: "
            f"{_ok(d['reliable'])} (every Pareto k below the threshold). “IS ESS” is the effective sample size of "
            "the inner integral, its smallest over the population draws (min and median over subjects).</p>")
-    return txt + _table(pd.DataFrame(rows), fmt={"ELPD (LOSO)": lambda v: f"{v:.1f}", "SE": lambda v: f"{v:.1f}"},
+    return txt + _table(pd.DataFrame(rows), fmt={"ELPD (LOSO)": lambda v: f"{v:.1f}", "SE": _num},
                         left=("model", "k > threshold", "IS ESS min / median"))
 
 

@@ -85,7 +85,8 @@ def _cmd_simulate(args) -> int:
     from pipelines.simulate import simulate_to_dir
 
     paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed,
-                            population=Population(beta=args.beta), seconds=args.seconds, human=args.human)
+                            population=Population(beta=args.beta), seconds=args.seconds, human=args.human,
+                            force=args.force)
     for k, v in paths.items():
         print(f"{k}: {v}")
     return 0
@@ -94,7 +95,7 @@ def _cmd_simulate(args) -> int:
 def _cmd_identify(args) -> int:
     from pipelines.identify import format_identify, identify_to_dir
 
-    paths = identify_to_dir(args.study, args.out, _window(args))
+    paths = identify_to_dir(args.study, args.out, _window(args), force=args.force)
     print(format_identify(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")
@@ -238,17 +239,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_loglik)
 
     p = sub.add_parser("simulate", help="simulate the experiment: study table (angles only) + ground truth")
-    p.add_argument("--subjects", type=int, default=42)
-    p.add_argument("--seed", type=int, default=2018)
+    p.add_argument("--subjects", type=_positive_int, default=42, help="simulated subjects (default 42)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="root seed (default 2018)")
     p.add_argument("--seconds", type=_seconds, default=240.0, help="length of each run, s (default 240)")
     _add_human_options(p)
-    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (study.parquet, truth, simulation.json)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing non-empty --out folder as a whole (default: refuse)")
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser("identify", help="maximum-likelihood θ per subject × condition, like the paper")
     p.add_argument("study", help="study file in the data convention")
-    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (estimates, trajectories, identify.json)")
     _add_window_options(p)
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing non-empty --out folder as a whole (default: refuse)")
     p.set_defaults(func=_cmd_identify)
 
     p = sub.add_parser("fit", help="hierarchical Bayesian fit (nutpie): β with HDI, diagnostics, LOO")
@@ -265,6 +270,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--truth", metavar="DIR",
                    help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
     _add_window_options(p)
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing non-empty --out folder as a whole (default: refuse)")
     p.set_defaults(func=_cmd_fit)
 
     p = sub.add_parser("compare", help="Wilcoxon matched-pairs signed-rank test of θ1 and θ2, MC vs SC")

@@ -52,7 +52,8 @@ from models.plant import DT_HUMAN, discretize
 from models.cost import from_normalized
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.identify import IdentifySettings, paper_assistant, prepare_segment
-from pipelines.io import InputDataError, atomic_path, load_study, write_table_atomic, write_text_atomic
+from pipelines.io import (InputDataError, atomic_path, check_output_dir, load_study, refuse_inputs_inside, staged_dir,
+                          write_table_atomic, write_text_atomic)
 from pipelines.progress import progress
 from pipelines.provenance import versions
 
@@ -584,7 +585,7 @@ def _default_inputs(study_path: Path, estimates_path, truth_dir):
         guess = study_path.parent.parent / "identify"
         try:
             meta = json.loads((guess / "identify.json").read_text())
-            same = Path(meta["study"]).resolve() == study_path.resolve()
+            same = (guess / meta["study_relative"]).resolve() == study_path.resolve()
         except (OSError, ValueError, KeyError, TypeError):
             same = False
         estimates_path = guess / "estimates.parquet" if same and (guess / "estimates.parquet").exists() else None
@@ -628,7 +629,8 @@ def _write_netcdf(idata, path: Path) -> Path:
 
 def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 500,
                settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
-               estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False) -> dict:
+               estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
+               force: bool = False) -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -657,6 +659,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         depend on it.
     show_progress : bool
         Progress bars on standard error.
+    force : bool
+        Replace an existing non-empty ``out`` (as a whole; see :func:`pipelines.io.staged_dir`).
 
     Returns
     -------
@@ -676,6 +680,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
             raise ValueError(f"--{name} must be an integer >= {low}; got {v!r}")
     study_path, out = Path(study_path), Path(out)
     estimates_path, truth_dir = _default_inputs(study_path, estimates_path, truth_dir)
+    refuse_inputs_inside(out, study_path, estimates_path, truth_dir)
+    check_output_dir(out, force=force)  # before minutes of sampling, not after
     t_start = time.perf_counter()
     prepared = prepare_study(study_path, settings, show_progress=show_progress)
     subjects = sorted(dict.fromkeys(prepared.subjects))
@@ -725,9 +731,6 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     res["adequacy"] = posterior_adequacy(fits["condition"], prepared, settings, plant)
     timing["adequacy_s"] = time.perf_counter() - t0
 
-    paths = {"posterior": _write_netcdf(fits["condition"], out / "posterior.nc"),
-             "posterior_pooled": _write_netcdf(fits["pooled"], out / "posterior_pooled.nc"),
-             "ppc": write_table_atomic(ppc, out / "ppc.parquet")}
     timing["total_s"] = time.perf_counter() - t_start
     sidecar = {
         "study": str(study_path),
@@ -750,9 +753,16 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "note_timing": "wall-clock times on a shared machine: other jobs may have competed for the CPU",
         "versions": versions(),
     }
-    paths["sidecar"] = write_text_atomic(out / "posterior.json", _json(sidecar))
-    paths["contrasts"] = write_text_atomic(out / "contrasts.json", _json(res))
-    return {k: str(v) for k, v in paths.items()}
+    # Everything or nothing: the folder holds this fit's files only, or what it held before.
+    with staged_dir(out, force=force) as tmp:
+        _write_netcdf(fits["condition"], tmp / "posterior.nc")
+        _write_netcdf(fits["pooled"], tmp / "posterior_pooled.nc")
+        write_table_atomic(ppc, tmp / "ppc.parquet")
+        write_text_atomic(tmp / "posterior.json", _json(sidecar))
+        write_text_atomic(tmp / "contrasts.json", _json(res))
+    names = {"posterior": "posterior.nc", "posterior_pooled": "posterior_pooled.nc", "ppc": "ppc.parquet",
+             "sidecar": "posterior.json", "contrasts": "contrasts.json"}
+    return {k: str(out / v) for k, v in names.items()}
 
 
 def posterior_adequacy(idata, prepared: PreparedStudy, settings: IdentifySettings, plant) -> dict:
@@ -818,7 +828,7 @@ def cmd_fit(args) -> int:
 
     paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
                        settings=_window(args), subject=args.subject, estimates_path=args.estimates,
-                       truth_dir=args.truth, cores=args.cores, show_progress=True)
+                       truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force)
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")

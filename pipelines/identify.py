@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,7 +47,8 @@ from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, reconstr
 from models.reference import WINDOW_SECONDS, WINDOW_START
 from models.adequacy import N_BOOT
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
-from pipelines.io import Study, StudyFileError, SegmentData, load_study, write_table_atomic, write_text_atomic
+from pipelines.io import (Study, StudyFileError, SegmentData, load_study, refuse_inputs_inside, staged_dir,
+                          write_table_atomic, write_text_atomic)
 from pipelines.progress import progress
 from pipelines.provenance import versions
 
@@ -317,18 +319,22 @@ def _cross_predict(prepared, est: pd.DataFrame, plant):
     return pd.concat(frames, ignore_index=True), pd.DataFrame(val)
 
 
-def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettings(), *, show_progress=True) -> dict:
-    """Run :func:`identify_study` on a file and write its artifacts atomically."""
+def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettings(), *, show_progress=True,
+                    force: bool = False) -> dict:
+    """Run :func:`identify_study` on a file and write its artifacts into ``out`` as a whole.
+
+    ``out`` is written through :func:`pipelines.io.staged_dir`: it holds this run's
+    artifacts and nothing else, or, if the run fails or is interrupted, what it held
+    before. An existing non-empty ``out`` is replaced only with ``force``.
+    """
+    refuse_inputs_inside(out, study_path)
     study = load_study(study_path)
     est, traj, val, timing, adequacy = identify_study(study, settings, show_progress=show_progress)
     out = Path(out)
-    paths = {
-        "estimates": write_table_atomic(est, out / "estimates.parquet"),
-        "trajectories": write_table_atomic(traj, out / "trajectories.parquet"),
-        "validation": write_table_atomic(val, out / "validation.parquet"),
-    }
     meta = {
         "study": str(study_path),
+        # Relative to this folder: still right after the run folder holding both is renamed.
+        "study_relative": os.path.relpath(Path(study_path).resolve(), out.resolve()),
         "settings": {k: getattr(settings, k) for k in settings.__dataclass_fields__},
         "timing_s": timing,
         "converged": int(est["converged"].sum()),
@@ -338,8 +344,14 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         "adequacy": adequacy,
         "versions": versions(),
     }
-    paths["meta"] = write_text_atomic(out / "identify.json", json.dumps(meta, indent=2) + "\n")
-    return {k: str(v) for k, v in paths.items()}
+    with staged_dir(out, force=force) as tmp:
+        write_table_atomic(est, tmp / "estimates.parquet")
+        write_table_atomic(traj, tmp / "trajectories.parquet")
+        write_table_atomic(val, tmp / "validation.parquet")
+        write_text_atomic(tmp / "identify.json", json.dumps(meta, indent=2) + "\n")
+    names = {"estimates": "estimates.parquet", "trajectories": "trajectories.parquet",
+             "validation": "validation.parquet", "meta": "identify.json"}
+    return {k: str(out / v) for k, v in names.items()}
 
 
 def format_identify(out) -> str:

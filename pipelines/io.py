@@ -374,6 +374,23 @@ def atomic_path(path):
         raise
 
 
+def check_output_dir(out, *, force: bool = False) -> Path:
+    """The checks of :func:`staged_dir`, to run before a long stage starts.
+
+    Raises
+    ------
+    FileExistsError
+        If ``out`` is a non-empty folder and ``force`` is false, or is not a folder.
+    """
+    target = Path(out)
+    if target.exists() and not target.is_dir():
+        raise FileExistsError(f"{target} exists and is not a folder; choose another output folder")
+    if target.is_dir() and any(target.iterdir()) and not force:
+        raise FileExistsError(f"{target} already holds results; use --force to replace them as a whole, "
+                              "or choose another output folder")
+    return target
+
+
 @contextlib.contextmanager
 def staged_dir(out, *, force: bool = False):
     """Yield a fresh temporary folder beside ``out``; on success it replaces ``out`` as a whole.
@@ -407,12 +424,7 @@ def staged_dir(out, *, force: bool = False):
     >>> with staged_dir("results/identify", force=True) as tmp:  # doctest: +SKIP
     ...     write_table_atomic(estimates, tmp / "estimates.parquet")
     """
-    target = Path(out)
-    if target.exists() and not target.is_dir():
-        raise FileExistsError(f"{target} exists and is not a folder; choose another output folder")
-    if target.is_dir() and any(target.iterdir()) and not force:
-        raise FileExistsError(f"{target} already holds results; use --force to replace them as a whole, "
-                              "or choose another output folder")
+    target = check_output_dir(out, force=force)
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
     try:
@@ -449,3 +461,24 @@ def write_table_atomic(df: pd.DataFrame, path) -> Path:
         else:
             df.to_parquet(tmp, index=False)
     return Path(path)
+
+
+def refuse_inputs_inside(out, *inputs) -> None:
+    """Refuse an output folder that is, or holds, one of a stage's inputs.
+
+    A stage replaces its output folder as a whole (:func:`staged_dir`), so an input inside
+    it would be lost.
+
+    Raises
+    ------
+    ValueError
+        Naming the input and the folder (a usage error, exit 2).
+    """
+    target = Path(out).resolve()
+    for p in inputs:
+        if p is None:
+            continue
+        q = Path(p).resolve()
+        if q == target or target in q.parents:
+            raise ValueError(f"the output folder {out} holds the input {p}, which replacing it would delete; "
+                             "choose another output folder")

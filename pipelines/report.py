@@ -447,7 +447,7 @@ def section_calibration(cal_dir: Path) -> str:
     return "".join(parts)
 
 
-def build_report(root, *, subject: str | None = None, out=None, calibration=None) -> Path:
+def build_report(root, *, subject: str | None = None, out=None, calibration=None, title: str | None = None) -> Path:
     """Assemble ``index.html`` from the artifacts under ``root``.
 
     Parameters
@@ -458,6 +458,8 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
         Subject for the Fig. 6 trajectories (default: the third subject, as in the paper).
     out : str or Path, optional
         Report path (default ``root / "index.html"``).
+    title : str, optional
+        The run's name in the heading (default: the folder's name).
     """
     root = Path(root)
     sim = _read(root / "data" / "simulation.json")
@@ -480,7 +482,8 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     subjects = sorted(est.subject.unique())
     subject = subject or (subjects[2] if len(subjects) > 2 else subjects[0])
 
-    body = [f"<h1>scioc report: {html.escape(root.name)}</h1>",
+    title = title or root.name
+    body = [f"<h1>scioc report: {html.escape(title)}</h1>",
             "<p>Identification of human steering cost functions in manual and shared control, following Inga et al. "
             "(SMC 2018). Every number here was produced by <code>scioc</code> from the artifacts beside this file.</p>"]
     body.append(report_adequacy.headline(adequacy, fit_adequacy))
@@ -517,7 +520,7 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
         v = sim["versions"]
         body.append("<h2>Provenance</h2><p class='note'>" + html.escape(
             ", ".join(f"{k} {val_}" for k, val_ in v.items() if val_)) + "</p>")
-    doc = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>scioc report: {html.escape(root.name)}"
+    doc = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>scioc report: {html.escape(title)}"
            f"</title><style>{CSS}</style></head><body>{''.join(body)}</body></html>\n")
     path = Path(out) if out else root / "index.html"
     write_text_atomic(path, doc)

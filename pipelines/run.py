@@ -17,7 +17,7 @@ import pandas as pd
 
 from pipelines.compare import compare_to_file
 from pipelines.identify import IdentifySettings, format_identify, identify_study, identify_to_dir
-from pipelines.io import load_study, validate_table, write_table_atomic, write_text_atomic
+from pipelines.io import load_study, staged_dir, validate_table, write_table_atomic, write_text_atomic
 from models.simulate import Population
 from pipelines.simulate import DEFAULT_SEED, DEFAULT_SUBJECTS, simulate_to_dir
 
@@ -56,30 +56,33 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int = DEFAUL
     root = Path(out) / name
     steps = 6 if fit else 5
     t0 = time.perf_counter()
-    log(f"[1/{steps}] simulating {n_subjects} subjects × 2 conditions × 4 min (seed {seed}, human {human}) "
-        f"-> {root / 'data'}")
-    sim = simulate_to_dir(root / "data", n_subjects=n_subjects, seed=seed, human=human, population=population)
-    log(f"[2/{steps}] identifying every subject × condition from the encoder angle")
-    identify_to_dir(sim["study"], root / "identify", settings)
-    log(format_identify(root / "identify"))
-    log(f"[3/{steps}] identifying again from the true torques (the cost of reconstruction)")
-    identify_with_truth(sim["study"], sim["truth_trajectories"], root / "identify_true_torque", settings)
-    # The paper's likelihood (recorded u_A as a known input) on the same torques: its SC bias.
-    identify_with_truth(sim["study"], sim["truth_trajectories"], root / "identify_true_torque_exogenous",
-                        replace(settings, assistant_model="exogenous"))
-    log(f"[4/{steps}] Wilcoxon matched-pairs test MC vs SC")
-    compare_to_file(root / "identify" / "estimates.parquet", root / "compare.json")
-    if fit:
-        from pipelines.fit import fit_to_dir
+    # Every stage writes into one fresh folder that replaces ``root`` as a whole at the end:
+    # an interrupted run leaves the previous results as they were, never a mix of two runs.
+    with staged_dir(root, force=True) as tmp:
+        log(f"[1/{steps}] simulating {n_subjects} subjects × 2 conditions × 4 min (seed {seed}, human {human}) "
+            f"-> {root / 'data'}")
+        sim = simulate_to_dir(tmp / "data", n_subjects=n_subjects, seed=seed, human=human, population=population)
+        log(f"[2/{steps}] identifying every subject × condition from the encoder angle")
+        identify_to_dir(sim["study"], tmp / "identify", settings)
+        log(format_identify(tmp / "identify"))
+        log(f"[3/{steps}] identifying again from the true torques (the cost of reconstruction)")
+        identify_with_truth(sim["study"], sim["truth_trajectories"], tmp / "identify_true_torque", settings)
+        # The paper's likelihood (recorded u_A as a known input) on the same torques: its SC bias.
+        identify_with_truth(sim["study"], sim["truth_trajectories"], tmp / "identify_true_torque_exogenous",
+                            replace(settings, assistant_model="exogenous"))
+        log(f"[4/{steps}] Wilcoxon matched-pairs test MC vs SC")
+        compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
+        if fit:
+            from pipelines.fit import fit_to_dir
 
-        log(f"[5/{steps}] hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
-        fit_to_dir(sim["study"], root / "fit", seed=seed, settings=settings, truth_dir=root / "data",
-                   estimates_path=root / "identify" / "estimates.parquet", show_progress=True)
-    log(f"[{steps}/{steps}] writing the report")
-    report = build_report(root)
+            log(f"[5/{steps}] hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
+            fit_to_dir(sim["study"], tmp / "fit", seed=seed, settings=settings, truth_dir=tmp / "data",
+                       estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True)
+        log(f"[{steps}/{steps}] writing the report")
+        build_report(tmp, title=name)
+    report = root / "index.html"
     log(f"done in {time.perf_counter() - t0:.0f} s")
     log(f"report: {report}")
     return report
-
 
 __all__ = ["run_all", "identify_with_truth", "load_study"]

@@ -23,7 +23,7 @@ from models.reference import reference_trajectory
 from models.humans import HUMANS
 from models.simulate import ENCODER_COUNTS, Population, simulate_study
 from pipelines.assistant_check import assistant_alone
-from pipelines.io import write_table_atomic, write_text_atomic
+from pipelines.io import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 from pipelines.provenance import versions
 
 DEFAULT_SEED = 2018
@@ -43,7 +43,7 @@ def study_table(t, segs) -> pd.DataFrame:
 
 def simulate_to_dir(
     out, *, n_subjects: int = DEFAULT_SUBJECTS, seed: int = DEFAULT_SEED, population: Population = Population(),
-    seconds: float = 240.0, human: str = "maxent",
+    seconds: float = 240.0, human: str = "maxent", force: bool = False,
 ) -> dict:
     """Simulate the experiment and write its artifacts.
 
@@ -61,6 +61,9 @@ def simulate_to_dir(
         The simulated human (:data:`models.humans.HUMANS`): ``maxent`` is the paper's
         agent; the others are negative controls the likelihood does not describe. The
         crossover operator has no cost θ: its truth rows carry NaN.
+    force : bool
+        Replace an existing non-empty ``out`` as a whole (:func:`pipelines.io.staged_dir`);
+        without it such a folder is refused.
 
     Returns
     -------
@@ -71,7 +74,7 @@ def simulate_to_dir(
         raise ValueError(f"--subjects must be a positive integer; got {n_subjects!r}")
     if int(seed) != seed or seed < 0:
         raise ValueError(f"--seed must be a non-negative integer; got {seed!r}")
-    out = Path(out)
+    out = check_output_dir(out, force=force)
     rng = np.random.default_rng(np.random.SeedSequence(int(seed)))
     t, segs = simulate_study(int(n_subjects), rng, population, seconds, human=human)
     spec = HUMANS[human]
@@ -85,11 +88,6 @@ def simulate_to_dir(
         q11, q22, R = s.theta if spec.kind == "lq" else (np.nan, np.nan, np.nan)
         truth.append({"subject": s.subject, "condition": s.condition, "run_index": s.run_index,
                       "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R})
-    paths = {
-        "study": write_table_atomic(study, out / "study.parquet"),
-        "truth": write_table_atomic(pd.DataFrame(truth), out / "truth.parquet"),
-        "truth_trajectories": write_table_atomic(pd.concat(traj, ignore_index=True), out / "truth_trajectories.parquet"),
-    }
     meta = {
         "seed": int(seed),
         "n_subjects": int(n_subjects),
@@ -104,6 +102,12 @@ def simulate_to_dir(
         "assistant_alone": assistant_alone(seconds),
         "versions": versions(),
     }
-    paths["meta"] = write_text_atomic(out / "simulation.json", json.dumps(meta, indent=2) + "\n")
-    return {k: str(v) for k, v in paths.items()}
+    with staged_dir(out, force=force) as tmp:
+        write_table_atomic(study, tmp / "study.parquet")
+        write_table_atomic(pd.DataFrame(truth), tmp / "truth.parquet")
+        write_table_atomic(pd.concat(traj, ignore_index=True), tmp / "truth_trajectories.parquet")
+        write_text_atomic(tmp / "simulation.json", json.dumps(meta, indent=2) + "\n")
+    names = {"study": "study.parquet", "truth": "truth.parquet", "truth_trajectories": "truth_trajectories.parquet",
+             "meta": "simulation.json"}
+    return {k: str(out / v) for k, v in names.items()}
 

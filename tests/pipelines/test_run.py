@@ -83,5 +83,29 @@ def test_whole_run_and_other_windows(small_run):
 
 
 def test_bad_simulate_options_exit_nonzero(tmp_path, capsys):
-    assert main(["simulate", "--subjects", "0", "--out", str(tmp_path)]) == 2
+    with pytest.raises(SystemExit) as exc:  # a usage error, found by the parser
+        main(["simulate", "--subjects", "0", "--out", str(tmp_path)])
+    assert exc.value.code == 2
     assert "subjects" in capsys.readouterr().err
+
+
+def test_outputs_are_refused_or_replaced_whole(tmp_path, capsys):
+    data = tmp_path / "data"
+    assert main(["simulate", "--subjects", "1", "--seconds", "35", "--out", str(data)]) == 0
+    first = (data / "study.parquet").read_bytes()
+    # An existing output folder is refused without --force ...
+    assert main(["simulate", "--subjects", "1", "--seconds", "35", "--seed", "5", "--out", str(data)]) == 2
+    assert "--force" in capsys.readouterr().err and (data / "study.parquet").read_bytes() == first
+    # ... an input inside the output folder is never replaced, even with --force ...
+    assert main(["identify", str(data / "study.parquet"), "--out", str(data), "--force", "--window", "20,10"]) == 2
+    assert "input" in capsys.readouterr().err and (data / "study.parquet").read_bytes() == first
+    # ... and a folder replaced with --force holds the new run's files only.
+    ident = tmp_path / "id"
+    ident.mkdir()
+    (ident / "compare.json").write_text("{}")
+    assert main(["identify", str(data / "study.parquet"), "--out", str(ident), "--window", "20,10"]) == 2
+    assert main(["identify", str(data / "study.parquet"), "--out", str(ident), "--window", "20,10",
+                 "--force"]) == 0
+    assert sorted(p.name for p in ident.iterdir()) == ["estimates.parquet", "identify.json", "trajectories.parquet",
+                                                       "validation.parquet"]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary folder left

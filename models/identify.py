@@ -30,6 +30,9 @@ from models.plant import DiscretePlant
 START_GRID = np.geomspace(0.3, 3e4, 21)
 #: θ2 below this counts as on the bound (1/(rad/s)²).
 BOUND_TOL = 1e-8
+#: θ1 outside this range (1/rad², a decade beyond the start grid) is at the edge of what the data can say:
+#: an angle in degrees, or a segment without information, drives the search there.
+PLAUSIBLE_THETA1 = (float(START_GRID[0]) / 10.0, float(START_GRID[-1]) * 10.0)
 
 
 class Estimate(NamedTuple):
@@ -50,6 +53,9 @@ class Estimate(NamedTuple):
     grad_norm : float
         Norm of the projected gradient in z at the solution.
     message : str
+    implausible : bool
+        θ1 outside :data:`PLAUSIBLE_THETA1` (the estimate is at the edge of the search, not
+        a measurement; ``scioc compare`` leaves it out).
     """
 
     theta: np.ndarray
@@ -63,6 +69,7 @@ class Estimate(NamedTuple):
     iterations: int
     grad_norm: float
     message: str
+    implausible: bool = False
 
 
 def _theta_from_z(z) -> np.ndarray:
@@ -170,4 +177,5 @@ def identify_segment(batch: SegmentBatch, plant: DiscretePlant, *, maxiter: int 
         iterations=int(res.nit),
         grad_norm=float(np.linalg.norm(proj) / K),
         message=str(res.message),
+        implausible=not (PLAUSIBLE_THETA1[0] <= theta[0] / theta[2] <= PLAUSIBLE_THETA1[1]),
     )

@@ -12,8 +12,6 @@ between conditions, may be artifacts of model misfit.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pandas as pd
 
@@ -102,10 +100,9 @@ def assess_study(prepared, thetas, plant, *, assistant_model: str, resolution: f
         One row per segment: ``adequacy_p`` (min-P combined), ``adequacy_flagged`` and
         ``adequacy_p_<check>``.
     summary : dict
-        The verdict (:func:`models.adequacy.study_verdict`) with the flagged segments,
-        settings and seconds spent.
+        The verdict (:func:`models.adequacy.study_verdict`) with the flagged segments and
+        settings (no timings: the same seed gives the same summary).
     """
-    t0 = time.perf_counter()
     seeds = np.random.SeedSequence(int(seed)).spawn(len(prepared))
     rows, details = [], []
     for p, th, ss in zip(prepared, np.asarray(thetas, dtype=float), seeds):
@@ -134,7 +131,6 @@ def assess_study(prepared, thetas, plant, *, assistant_model: str, resolution: f
                       "theta": "plug-in (not refitted per replicate: conservative)",
                       "reconstruction": "variances held at the recorded segment's values"},
         "null_statistic_means": _mean_null(details),
-        "seconds": time.perf_counter() - t0,
     })
     return cols, summary
 

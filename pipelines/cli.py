@@ -111,7 +111,8 @@ def _cmd_compare(args) -> int:
     res = compare_to_file(args.estimates, out, alpha=args.alpha, include_nonconverged=args.include_nonconverged)
     print(format_compare(res))
     print(f"wrote {out}")
-    return 0
+    # The test ran; a human model that fails its adequacy checks is a failed check (exit 1).
+    return 1 if res["adequacy"]["verdict"] == "fail" else 0
 
 
 def _cmd_report(args) -> int:

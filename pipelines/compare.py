@@ -29,6 +29,9 @@ import numpy as np
 import pandas as pd
 from scipy.stats import rankdata, wilcoxon
 
+from models.adequacy import STATISTICS, study_verdict
+from models.identify import PLAUSIBLE_THETA1
+from pipelines.adequacy import format_adequacy, not_checked
 from pipelines.io import CONDITIONS, StudyFileError, read_table, write_text_atomic
 
 #: Default significance level (two-sided), as in the paper.
@@ -161,7 +164,8 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
     path : str
         Named in error messages.
     include_nonconverged : bool
-        Keep units whose identification did not converge (default: leave them out).
+        Keep units whose identification did not converge or ended at the edge of the
+        search (``implausible``; default: leave them out).
 
     Returns
     -------
@@ -197,6 +201,7 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
     theta1 = pd.to_numeric(df["theta1"], errors="coerce").to_numpy(dtype=float)
     theta2 = pd.to_numeric(df["theta2"], errors="coerce").to_numpy(dtype=float)
     converged = _converged(df["converged"]) if "converged" in df.columns else np.ones(len(df), bool)
+    implausible = _converged(df["implausible"]) if "implausible" in df.columns else np.zeros(len(df), bool)
     reasons = {}
     for i in range(len(df)):
         if not (np.isfinite(theta1[i]) and theta1[i] > 0):
@@ -206,6 +211,9 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
         elif not converged[i] and not include_nonconverged:
             msg = str(df["message"][i]) if "message" in df.columns else ""
             reasons[i] = "identification did not converge" + (f" ({msg})" if msg else "")
+        elif implausible[i] and not include_nonconverged:
+            reasons[i] = (f"theta1 = {_shown(df['theta1'][i])} is at the edge of the search "
+                          f"(outside {PLAUSIBLE_THETA1[0]:g}..{PLAUSIBLE_THETA1[1]:g} 1/rad²)")
     ok = np.array([i not in reasons for i in range(len(df))])
     usable_keys = set(zip(df["subject"][ok], df["condition"][ok]))
     all_keys = set(zip(df["subject"], df["condition"]))
@@ -257,7 +265,24 @@ def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_
     out["unpaired_subjects"] = sorted(counts.index[counts < 2])
     out["excluded"] = excluded
     out["include_nonconverged"] = bool(include_nonconverged)
+    out["adequacy"] = adequacy_of_estimates(estimates)
     return out
+
+
+def adequacy_of_estimates(estimates: pd.DataFrame) -> dict:
+    """The model-adequacy verdict of the segments in an estimates table (its ``adequacy_p_*`` columns).
+
+    The same combination as ``scioc identify`` (:func:`models.adequacy.study_verdict`), so
+    the test's result is never shown without the verdict on the model behind it.
+    """
+    cols = [f"adequacy_p_{k}" for k in STATISTICS]
+    if not set(cols) <= set(estimates.columns) or "adequacy_p" not in estimates.columns:
+        return not_checked("the estimates carry no adequacy columns (identified with --adequacy-boot 0, or "
+                           "not by scioc identify)")
+    p = {k: pd.to_numeric(estimates[f"adequacy_p_{k}"], errors="coerce").to_numpy(dtype=float) for k in STATISTICS}
+    if any(not np.all((v > 0) & (v <= 1)) for v in p.values()):
+        raise StudyFileError("<estimates>", "adequacy p-values must lie in (0, 1]", column="adequacy_p")
+    return study_verdict(p, pd.to_numeric(estimates["adequacy_p"], errors="coerce").to_numpy(dtype=float))
 
 
 def _finite_or_none(value):
@@ -288,7 +313,14 @@ def compare_to_file(estimates_path, out_path, *, alpha: float = ALPHA, include_n
 
 
 def format_compare(res: dict) -> str:
-    lines = ["Wilcoxon matched-pairs signed-rank test, SC − MC (exact two-sided)"]
+    """The tests as text, after the model-adequacy verdict (and a caveat when it fails)."""
+    adequacy = res.get("adequacy") or not_checked("not recorded")
+    lines = [format_adequacy(adequacy)]
+    if adequacy["verdict"] != "pass":
+        lines.append("CAVEAT: the test below compares costs of a human model that "
+                     + ("fails its adequacy checks; a 'significant' change may be an artifact of model misfit"
+                        if adequacy["verdict"] == "fail" else "was not checked for adequacy"))
+    lines.append("Wilcoxon matched-pairs signed-rank test, SC − MC (exact two-sided)")
     lines.append(f"{'':>10} {'N':>4} {'W+':>8} {'W−':>8} {'T':>8} {'p':>10} {'crit':>6} {'reject':>7} {'r_rb':>7}")
     for col in ("theta1", "theta2"):
         r = res[col]

@@ -104,7 +104,10 @@ def prepare_study(study_path, settings: IdentifySettings = IdentifySettings(), *
     """
     study = load_study(study_path)
     # The design is checked before the (slow) reconstruction: bad input fails at once.
-    index_study([s.subject for s in study.segments], [s.condition for s in study.segments])
+    try:
+        index_study([s.subject for s in study.segments], [s.condition for s in study.segments])
+    except ValueError as exc:  # the data do not have the design the model needs: bad input (exit 3)
+        raise InputDataError(f"{study_path}: {exc}") from None
     plant = discretize(DT_HUMAN)
     prepared = [prepare_segment(s, settings, plant, study.path)
                 for s in progress(study.segments, desc="reconstruct", enabled=show_progress)]

@@ -39,7 +39,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.identify import identify_segment
+from models.identify import PLAUSIBLE_THETA1, identify_segment
 from models.assistant import design_assistant, human_feedback
 from models.maxent import Segment, forward_optimal_control, plan_inputs, prepare_batch
 from models.plant import DT_HUMAN, discretize
@@ -258,6 +258,7 @@ def identify_study(study: Study, settings: IdentifySettings = IdentifySettings()
             "se_log_R": e.se_log_R,
             "loglik": e.loglik,
             "converged": e.converged,
+            "implausible": e.implausible,
             "iterations": e.iterations,
             "grad_norm": e.grad_norm,
             "message": e.message,
@@ -341,6 +342,8 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         "segments": int(len(est)),
         "not_converged": [{"subject": r.subject, "condition": r.condition, "message": r.message}
                           for r in est.itertuples() if not r.converged],
+        "implausible": [{"subject": r.subject, "condition": r.condition, "theta1": r.theta1}
+                        for r in est.itertuples() if r.implausible],
         "adequacy": adequacy,
         "versions": versions(),
     }
@@ -360,5 +363,8 @@ def format_identify(out) -> str:
     lines = [f"identified {meta['segments']} segments; {meta['converged']} converged"]
     for r in meta.get("not_converged", []):
         lines.append(f"  NOT CONVERGED: {r['subject']} {r['condition']}: {r['message']}")
+    for r in meta.get("implausible", []):
+        lines.append(f"  AT THE EDGE OF THE SEARCH: {r['subject']} {r['condition']}: theta1 = {r['theta1']:.3g} 1/rad² "
+                     f"(outside {PLAUSIBLE_THETA1[0]:g}..{PLAUSIBLE_THETA1[1]:g}: angles in degrees? no information?)")
     lines.append(format_adequacy(meta["adequacy"]))
     return "\n".join(lines)

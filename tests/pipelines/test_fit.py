@@ -157,7 +157,7 @@ def test_diagnostics_notebook_runs_on_the_fit(small_fit, tmp_path, monkeypatch):
 def test_report_section_reads_the_fit(small_fit, tmp_path):
     root, _, _ = small_fit
     html = unescape(section_bayes(root))
-    for phrase in ("paper's test (Wilcoxon)", "Bayesian contrast", "mixed model", "Verdict", "PSIS-LOO",
+    for phrase in ("paper's test (Wilcoxon)", "Bayesian contrast", "mixed model", "Sampler convergence", "PSIS-LOO",
                    "Posterior predictive check", "Ground truth check", "true β = -0.7"):
         assert phrase in html, phrase
     assert html.count("<img") == 2  # the forest plot and the predictive bands
@@ -198,7 +198,7 @@ def test_bad_design_is_a_clear_cli_error(tiny_study, drop, message, capsys):
     out = root / "out"
     with pytest.raises(ValueError, match=message):
         fit_to_dir(path, out, chains=1, draws=10, tune=10)
-    assert _cli_main(["fit", str(path), "--out", str(out), "--draws", "10", "--tune", "10"]) == 2
+    assert _cli_main(["fit", str(path), "--out", str(out), "--draws", "10", "--tune", "10"]) == 3  # bad input data
     err = capsys.readouterr().err
     assert err.startswith("scioc fit: error:") and re.search(message, err)
     assert not out.exists()
@@ -211,3 +211,30 @@ def test_fit_options_are_validated(tiny_study):
     with pytest.raises(ValueError, match="--subject 'S99' is not in the study"):
         fit_to_dir(root / "data" / "study.parquet", root / "x", subject="S99", draws=1)
     assert not (root / "x").exists()
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
+    """SIGINT while sampling: exit 130 within seconds, the previous results untouched, no temporary folder."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    _, root = tiny_study
+    out = tmp_path / "fit"
+    out.mkdir()
+    (out / "contrasts.json").write_text('{"old": true}')
+    cmd = [sys.executable, "-m", "pipelines.cli", "fit", str(root / "data" / "study.parquet"), "--out", str(out),
+           "--force", "--draws", "200000", "--tune", "200", "--chains", "2", "--window", "20,5"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(25)  # well into compiling or sampling: 200000 draws take far longer
+    assert proc.poll() is None, proc.communicate()
+    t0 = time.perf_counter()
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err[-2000:]
+    assert time.perf_counter() - t0 < 30
+    assert "interrupted" in err
+    assert [p.name for p in out.iterdir()] == ["contrasts.json"] and "old" in (out / "contrasts.json").read_text()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]

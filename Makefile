@@ -7,7 +7,7 @@ PYTHON ?= $(shell for p in python3.12 python3.13 $$HOME/.pyenv/versions/3.12*/bi
 	$$p -c 'import sys; sys.exit(0 if sys.version_info >= (3, 12) else 1)' >/dev/null 2>&1 && { echo $$p; break; }; done)
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test bench calibrate clean
+.PHONY: setup run test bench calibrate power humans clean
 
 $(STAMP): pyproject.toml
 	@test -n "$(PYTHON)" || { echo "error: no Python >= 3.12 found (PyMC 6 needs it); pass PYTHON=/path/to/python3.12" >&2; exit 1; }
@@ -33,6 +33,19 @@ calibrate: $(STAMP)
 	$(VENV)/bin/scioc calibrate --level unit
 	$(VENV)/bin/scioc calibrate --level study
 	$(VENV)/bin/scioc report reports/default-study
+
+# Model adequacy: the verdict's false-alarm rate and power over 20 simulated studies per
+# simulated human (reports/power/power.json; the report's adequacy section reads it).
+power: $(STAMP)
+	$(VENV)/bin/scioc power --studies 20 --out reports/power
+
+# The whole workflow (fit included) on one study of each simulated human whose cost does not
+# change between MC and SC (reports/human-NAME/). A failing adequacy verdict exits 1 by
+# design, so only other failures stop the loop.
+humans: $(STAMP)
+	for h in maxent delay lag coloured combined crossover; do \
+		$(VENV)/bin/scioc run --human $$h --beta 0 --name human-$$h || test $$? -eq 1 || exit 1; \
+	done
 
 clean:
 	rm -rf $(VENV)

@@ -30,14 +30,10 @@ import numpy as np
 from numba import njit
 
 from models.cost import validate_theta
+from models.design import ASSISTANT_HORIZON, DT_ASSISTANT, DT_HUMAN, THETA_ASSISTANT, WheelParameters
 from models.lq import lq_policy
-from models.maxent import Feedback
-from models.plant import DT_ASSISTANT, DT_HUMAN, DiscretePlant, WheelParameters, discretize
-
-#: The assistant's cost θ_A = [q11, q22, R] (Section IV-D: "slight assistance").
-THETA_ASSISTANT = (5.0, 0.0, 1.0)
-#: Prediction horizon N_P in assistant samples.
-HORIZON = 50
+from models.plant import DiscretePlant, discretize
+from models.segment import Feedback
 
 
 class MPCAssistant(NamedTuple):
@@ -69,7 +65,7 @@ class MPCAssistant(NamedTuple):
 
 def design_assistant(
     theta_A=THETA_ASSISTANT,
-    horizon: int = HORIZON,
+    horizon: int = ASSISTANT_HORIZON,
     dt_assistant: float = DT_ASSISTANT,
     dt: float = DT_HUMAN,
     params: WheelParameters = WheelParameters(),
@@ -165,7 +161,7 @@ def feedforward(assistant: MPCAssistant, angle_ref) -> np.ndarray:
 
 
 def human_feedback(assistant: MPCAssistant, angle_ref) -> Feedback:
-    """The assistant as the human who knows it plans with it (:class:`models.maxent.Feedback`).
+    """The assistant as the human who knows it plans with it (:class:`models.segment.Feedback`).
 
     Parameters
     ----------

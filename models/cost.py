@@ -111,3 +111,25 @@ def from_normalized(theta1, theta2, R) -> np.ndarray:
     """
     t1, t2, r = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (theta1, theta2, R)))
     return np.stack([t1 * r, t2 * r, r])
+
+
+def from_log_normalized(log_theta1, theta2, log_R) -> np.ndarray:
+    """``[exp(log θ1 + log R), θ2 exp(log R), exp(log R)]``: θ from log θ1, θ2 and log R.
+
+    The same θ as :func:`from_normalized` of ``exp(log θ1), θ2, exp(log R)``, but q11 is one
+    exp of a sum, as the PyTensor models of :mod:`models.bayes` write it in their graphs
+    and the simulator draws it; the two differ in the last bit.
+
+    Parameters
+    ----------
+    log_theta1, theta2, log_R : float or array_like, broadcastable
+        log(1/rad²), 1/(rad/s)², log(1/(N·m)²).
+
+    Returns
+    -------
+    ndarray, shape (3,) or (3, n)
+    """
+    lt1, t2, lr = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (log_theta1, theta2, log_R)))
+    r = np.exp(lr)
+    return np.stack([np.exp(lt1 + lr), t2 * r, r])
+

@@ -101,7 +101,9 @@ from numba import njit
 
 from models.assistant import ClosedLoop, MPCAssistant, human_feedback
 from models.cost import validate_theta
+from models.design import MANUAL, SHARED
 from models.lq import lq_tracking_policy
+from models.maxent import maxent_noise
 from models.plant import DiscretePlant, WheelParameters, discretize, discretize_lagged
 
 #: Perceptual delay of the ``delay`` and ``combined`` humans, s.
@@ -293,8 +295,8 @@ def simulate_human(
     assistant : MPCAssistant or None
         Used in SC only; it must re-solve every sample.
     rng : numpy.random.Generator
-        The only source of randomness. An LQ human draws its max-ent noise first as
-        ``rng.standard_normal(K)`` (as in :func:`models.simulate.simulate_run`), then
+        The only source of randomness. An LQ human draws its max-ent noise first
+        (:func:`models.maxent.maxent_noise`, as :func:`models.simulate.simulate_run` does), then
         the motor noise (the remnant of the crossover operator) as
         ``rng.standard_normal(K)`` if ``motor_sd > 0``.
     x0 : array_like, shape (2,)
@@ -324,13 +326,13 @@ def simulate_human(
     K = ref.shape[0] - 1
     dt = plant.dt
     x0 = np.asarray(x0, dtype=float).reshape(2)
-    if condition == "MC":
+    if condition == MANUAL:
         gain2, ff = np.zeros(2), np.zeros(K)
-    elif condition == "SC":
+    elif condition == SHARED:
         fb = human_feedback(assistant, ref)
         gain2, ff = np.asarray(fb.gain, dtype=float), np.ascontiguousarray(fb.feedforward)
     else:
-        raise ValueError(f"condition must be 'MC' or 'SC'; got {condition!r}")
+        raise ValueError(f"condition must be {MANUAL!r} or {SHARED!r}; got {condition!r}")
 
     lagged = spec.tau_nm > 0
     if lagged:
@@ -359,7 +361,7 @@ def simulate_human(
         x_ref = np.zeros((K + 1, n))
         x_ref[:, 0] = ref
         pol = lq_tracking_policy(A_plan, b_c, b_a, Q, R, x_ref, ff)
-        eps = rng.standard_normal(K) / np.sqrt(2.0 * pol.S)
+        eps = maxent_noise(pol, rng)
         w = rng.standard_normal(K) * spec.motor_sd if spec.motor_sd > 0 else np.zeros(K)
         z, u_H, u_A = _lq_kernel(A, b_c, b_a, A_plan, gain2, ff, pol.L, pol.f, eps, w, a_m, d, z0, plant.A,
                                  plant.b, lagged)

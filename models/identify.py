@@ -23,8 +23,10 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import minimize
 
-from models.maxent import SegmentBatch, loglik_grad
+from models.cost import from_normalized
+from models.maxent import loglik_grad
 from models.plant import DiscretePlant
+from models.segment import SegmentBatch
 
 #: Grid of θ1 = q11/R (1/rad²) for the starting point.
 START_GRID = np.geomspace(0.3, 3e4, 21)
@@ -73,8 +75,7 @@ class Estimate(NamedTuple):
 
 
 def _theta_from_z(z) -> np.ndarray:
-    R = np.exp(z[2])
-    return np.array([np.exp(z[0]) * R, max(z[1], 0.0) * R, R])
+    return from_normalized(np.exp(z[0]), max(z[1], 0.0), np.exp(z[2]))
 
 
 def _ll_grad_z(z, batch: SegmentBatch, plant: DiscretePlant):
@@ -92,7 +93,7 @@ def _start(batch: SegmentBatch, plant: DiscretePlant) -> np.ndarray:
     theta = np.vstack([START_GRID, np.zeros(n), np.ones(n)])
     big = batch.repeat(0, n)
     res = loglik_grad(theta, big, plant)
-    # At R = 1: Σ S̃ v² = -quad with quad = g_R + θ1 g_q11 - K/2 (Euler, see models.maxent._finish).
+    # At R = 1: Σ S̃ v² = -quad with quad = g_R + θ1 g_q11 - K/2 (Euler, see the kernel's end in models.maxent).
     quad = res.grad[2] + START_GRID * res.grad[0] - 0.5 * K
     R_hat = K / np.maximum(-2.0 * quad, 1e-300)
     profiled = -R_hat * (-quad) + 0.5 * K * np.log(R_hat) + (res.loglik - quad)
@@ -121,7 +122,7 @@ def identify_segment(batch: SegmentBatch, plant: DiscretePlant, *, maxiter: int 
     Parameters
     ----------
     batch : SegmentBatch
-        One segment (from :func:`models.maxent.prepare_batch`).
+        One segment (from :func:`models.segment.prepare_batch`).
     plant : DiscretePlant
     maxiter : int
 

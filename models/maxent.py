@@ -6,22 +6,21 @@ optimal torques u* and precision the Hessian H = 2 (BᵀQB + R) (Eq. 16)::
 
     log p(u) = -½ gᵀ H⁻¹ g + ½ log|H| - K/2 log 2π        (Eq. 8, g from Eq. 15)
 
-Two implementations live here:
+The dense formula (Eq. 11-16 literally: lifted matrices, Cholesky, O(K³)) lives in
+:mod:`models.maxent_dense`, as the reference this module is tested against.
 
-* :func:`loglik_dense` — Eq. 11-16 literally (lifted matrices, Cholesky), O(K³).
-  It exists to test the fast one and for the benchmark, nowhere else.
-* :func:`loglik_grad` — exact and O(K). Dynamic programming (see :mod:`models.lq`)
-  gives ``J(u) - min J = sum_k S_k v_k²`` with ``v_k = u_k + L_k x_k - f_k`` the
-  deviation from the optimal feedback law at the state x_k driven by the observed
-  torques, and ``log|H| = sum_k log(2 S_k)`` (the map u -> v is unit lower
-  triangular). Hence the max-ent model is a time-varying linear-Gaussian policy::
+:func:`loglik_grad` is exact and O(K). Dynamic programming (see :mod:`models.lq`)
+gives ``J(u) - min J = sum_k S_k v_k²`` with ``v_k = u_k + L_k x_k - f_k`` the
+deviation from the optimal feedback law at the state x_k driven by the observed
+torques, and ``log|H| = sum_k log(2 S_k)`` (the map u -> v is unit lower
+triangular). Hence the max-ent model is a time-varying linear-Gaussian policy::
 
-      log p(u) = sum_k [ -S_k v_k² + ½ log(2 S_k) - ½ log 2π ].
+    log p(u) = sum_k [ -S_k v_k² + ½ log(2 S_k) - ½ log 2π ].
 
-  Because the states are propagated from x_0 with the observed torques, they do
-  not depend on θ: they are computed once per data set (:func:`prepare_batch`).
-  The gradient with respect to θ comes from forward tangents carried through the
-  same single backward sweep.
+Because the states are propagated from x_0 with the observed torques, they do not
+depend on θ: they are computed once per data set (:func:`models.segment.prepare_batch`).
+The gradient with respect to θ comes from forward tangents carried through the same
+single backward sweep.
 
 The Riccati part depends on θ only and becomes stationary to rounding some hundred
 steps from the end (the closed loop contracts). From there on the kernel holds the
@@ -29,6 +28,14 @@ step quantities constant and obtains the gradient of the remaining steps with on
 adjoint sweep instead of three forward tangents; the result agrees with carrying
 tangents through every step to rounding error (tested). Each segment is computed on
 its own, so a segment's result does not depend on the batch it is in.
+
+The kernel (:func:`batch_kernel` and the per-segment function it calls, about 190
+lines) is one documented numba unit: its arithmetic is what every likelihood value of
+the project comes from, and it is kept in one piece.
+
+The generative side is the same factorization read forwards:
+``u_k | x_k ~ N(-L_k x_k + f_k, 1 / (2 S_k))`` (:func:`maxent_noise`,
+:func:`sample_maxent`, :func:`forward_optimal_control`).
 """
 
 from __future__ import annotations
@@ -38,122 +45,14 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from models.cost import validate_theta
-from models.lq import Policy, lq_policy, riccati_gains, riccati_update, rollout  # noqa: F401
-from models.plant import DiscretePlant, propagate
+from models.lq import Policy, lq_policy, riccati_gains, riccati_update, rollout
+from models.plant import DiscretePlant
+from models.segment import SegmentBatch, prepare_batch
 
-_HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
-
-
-class Feedback(NamedTuple):
-    """The assistant as a feedback law the human knows and plans with.
-
-    ``u_A,k = -gain @ x_k + feedforward[k]``: to the human the assistant is part of the
-    wheel (closed by ``-gain``, an added spring and damper) plus a known input, the
-    feedforward. :func:`models.assistant.human_feedback` builds it for the MPC assistant.
-
-    Attributes
-    ----------
-    gain : ndarray, shape (2,)
-        N·m per (rad, rad/s).
-    feedforward : ndarray, shape (K + M,)
-        N·m.
-    """
-
-    gain: np.ndarray
-    feedforward: np.ndarray
-
-    def window(self, start: int, n: int) -> "Feedback":
-        """The same law over samples ``start .. start + n - 1`` of the run it was built for."""
-        return Feedback(self.gain, self.feedforward[start : start + n])
-
-
-def planning_plant(plant: DiscretePlant, gain) -> DiscretePlant:
-    """The wheel closed by the assistant's state feedback: ``A - b gainᵀ``, same b and dt."""
-    g = np.asarray(gain, dtype=float).reshape(2)
-    return DiscretePlant(plant.A - np.outer(plant.b, g), plant.b, plant.dt)
-
-
-class Segment(NamedTuple):
-    """One demonstration (a subject × condition window) in the data convention.
-
-    Attributes
-    ----------
-    x0 : ndarray, shape (2,)
-        Initial angle (rad) and velocity (rad/s).
-    angle_ref : ndarray, shape (K + M + 1,)
-        Reference angle r_0..r_{K+M}, rad.
-    u_H : ndarray, shape (K,)
-        Observed human torque, N·m, acting from t_k to t_{k+1}.
-    u_A : ndarray, shape (K + M,)
-        Recorded assistant torque, N·m (zeros in manual control).
-    feedback : Feedback or None
-        How the human models the assistant. None is the paper's model (Eq. 15-16):
-        the recorded u_A is a known input sequence. A :class:`Feedback` is a human who
-        knows the assistant's law and plans with the wheel it closes and with its
-        feedforward; the recorded u_A still drives the observed states. The two differ
-        in closed loop: the recorded u_A reacts to the human's own variability, which
-        the paper's model lets the human anticipate.
-
-    M >= 0 preview steps extend the human's planning horizon past the observed torques
-    (the reference and u_A after the window are known from the recording); M = 0 is
-    the paper's model, planning exactly over the window.
-    """
-
-    x0: np.ndarray
-    angle_ref: np.ndarray
-    u_H: np.ndarray
-    u_A: np.ndarray
-    feedback: Feedback | None = None
-
-    @property
-    def K(self) -> int:
-        return int(self.u_H.shape[0])
-
-    @property
-    def preview(self) -> int:
-        return int(self.u_A.shape[0] - self.u_H.shape[0])
-
-
-class SegmentBatch(NamedTuple):
-    """Segments of equal length K, one row each, for the kernel.
-
-    Attributes
-    ----------
-    x1, x2 : ndarray, shape (n, K + 1)
-        Angle (rad) and velocity (rad/s) propagated from x_0 with the observed torques.
-    r : ndarray, shape (n, K + M + 1)
-        Angle reference, rad (M preview steps).
-    u : ndarray, shape (n, K)
-        Human torque, N·m.
-    a : ndarray, shape (n, K + M)
-        The known input of the human's plan, N·m: the recorded assistant torque, or the
-        assistant's feedforward for a segment with :class:`Feedback`.
-    fb : ndarray, shape (n, 2)
-        The assistant's state feedback the human plans with (zeros without Feedback);
-        the plan uses the wheel ``A - b fbᵀ``.
-    """
-
-    x1: np.ndarray
-    x2: np.ndarray
-    r: np.ndarray
-    u: np.ndarray
-    a: np.ndarray
-    fb: np.ndarray
-
-    @property
-    def n(self) -> int:
-        return int(self.u.shape[0])
-
-    def repeat(self, j: int, n: int) -> "SegmentBatch":
-        """A batch of ``n`` copies of segment ``j`` (to evaluate it under n θ in one call)."""
-        return SegmentBatch(*(np.repeat(arr[j : j + 1], n, axis=0) for arr in self))
-
-    @property
-    def K(self) -> int:
-        return int(self.u.shape[1])
+#: ½ log 2π, the Gaussian normalization per observed torque.
+HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
 class LoglikGrad(NamedTuple):
@@ -168,90 +67,6 @@ class LoglikGrad(NamedTuple):
 
     loglik: np.ndarray
     grad: np.ndarray
-
-
-def _check_segment(seg: Segment) -> Segment:
-    x0 = np.asarray(seg.x0, dtype=float).reshape(2)
-    r = np.asarray(seg.angle_ref, dtype=float)
-    u = np.asarray(seg.u_H, dtype=float)
-    a = np.asarray(seg.u_A, dtype=float)
-    if u.ndim != 1 or a.ndim != 1 or a.shape[0] < u.shape[0] or r.shape != (a.shape[0] + 1,):
-        raise ValueError(
-            f"a segment needs u_H of shape (K,), u_A of shape (K + M,) and angle_ref of shape (K + M + 1,) "
-            f"with M >= 0; got {u.shape}, {a.shape}, {r.shape}"
-        )
-    if u.shape[0] < 1:
-        raise ValueError("a segment needs at least two samples (K >= 1)")
-    fb = seg.feedback
-    if fb is not None:
-        gain = np.asarray(fb.gain, dtype=float)
-        ff = np.asarray(fb.feedforward, dtype=float)
-        if gain.shape != (2,) or ff.shape != a.shape:
-            raise ValueError(
-                f"a segment's feedback needs gain of shape (2,) and feedforward of the shape of u_A {a.shape}; "
-                f"got {gain.shape}, {ff.shape}"
-            )
-        fb = Feedback(gain, ff)
-    return Segment(x0, r, u, a, fb)
-
-
-def plan_inputs(segment: Segment, plant: DiscretePlant) -> tuple[DiscretePlant, np.ndarray]:
-    """The wheel and the known input the human plans with for this segment.
-
-    Returns
-    -------
-    plant : DiscretePlant
-        ``plant`` itself, or the wheel closed by the assistant's feedback.
-    u_known : ndarray, shape (K + M,)
-        The recorded u_A, or the assistant's feedforward.
-    """
-    seg = _check_segment(segment)
-    if seg.feedback is None:
-        return plant, seg.u_A
-    return planning_plant(plant, seg.feedback.gain), seg.feedback.feedforward
-
-
-def prepare_batch(plant: DiscretePlant, segments) -> SegmentBatch:
-    """Lay out equal-length segments for :func:`loglik_grad` (θ-independent, done once).
-
-    Parameters
-    ----------
-    plant : DiscretePlant
-        The 0.01-s discretization of the wheel.
-    segments : sequence of Segment
-        All with the same K.
-
-    Returns
-    -------
-    SegmentBatch
-    """
-    segs = [_check_segment(s) for s in segments]
-    if not segs:
-        raise ValueError("no segments given")
-    K, M = segs[0].K, segs[0].preview
-    if any(s.K != K or s.preview != M for s in segs):
-        raise ValueError(
-            "prepare_batch needs segments of equal length and preview; use loglik_segments for mixed lengths"
-        )
-    n = len(segs)
-    x1 = np.empty((n, K + 1))
-    x2 = np.empty((n, K + 1))
-    r = np.empty((n, K + M + 1))
-    u = np.empty((n, K))
-    a = np.empty((n, K + M))
-    fb = np.zeros((n, 2))
-    for i, s in enumerate(segs):
-        x = propagate(plant, s.x0, s.u_H + s.u_A[:K])
-        x1[i] = x[:, 0]
-        x2[i] = x[:, 1]
-        r[i] = s.angle_ref
-        u[i] = s.u_H
-        if s.feedback is None:
-            a[i] = s.u_A
-        else:
-            a[i] = s.feedback.feedforward
-            fb[i] = s.feedback.gain
-    return SegmentBatch(x1, x2, r, u, a, fb)
 
 
 # --------------------------------------------------------------------------- kernel
@@ -446,13 +261,23 @@ def _finish(K, q11, q22, R, quad, logs, g0, g1):
     ``q11 ∂/∂q11 + q22 ∂/∂q22 + R ∂/∂R`` of log p equals ``quad + K/2``; this gives
     ∂/∂R without carrying a third tangent.
     """
-    ll = quad + 0.5 * logs + K * (0.5 * math.log(2.0) - _HALF_LOG_2PI)
+    ll = quad + 0.5 * logs + K * (0.5 * math.log(2.0) - HALF_LOG_2PI)
     g2 = (quad + 0.5 * K - q11 * g0 - q22 * g1) / R
     return ll, g0, g1, g2
 
 
 @njit(cache=True)
-def _batch_kernel(A, b, fb, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
+def batch_kernel(A, b, fb, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
+    """Log-likelihood and θ-gradient of every segment of a batch, written into ``ll`` and ``g``.
+
+    The compiled entry point shared by :func:`loglik_grad` and the PyTensor Op
+    (:mod:`models.bayes.op`). Arguments are C-contiguous float64 arrays: the plant's
+    ``A`` (2, 2) and ``b`` (2,); the arrays of a :class:`models.segment.SegmentBatch`
+    (``fb`` (n, 2), ``x1``, ``x2`` (n, K + 1), ``r`` (n, K + M + 1), ``u`` (n, K),
+    ``a`` (n, K + M)); ``th`` (3, n) with rows q11, q22, R; ``freeze`` as for
+    :func:`loglik_grad`; outputs ``ll`` (n,) and ``g`` (3, n); scratch ``wbuf``
+    (K + M, 2) and ``vbuf`` (K + M,), which concurrent callers must not share.
+    """
     n = u.shape[0]
     Ai = np.empty((2, 2))
     for i in range(n):
@@ -474,7 +299,7 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: boo
     theta : array_like, shape (3,) or (3, n)
         ``[q11, q22, R]``, one for all segments or one column per segment.
     batch : SegmentBatch
-        From :func:`prepare_batch` (same plant).
+        From :func:`models.segment.prepare_batch` (same plant).
     plant : DiscretePlant
         The 0.01-s wheel discretization.
     freeze : bool
@@ -491,6 +316,7 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: boo
     Examples
     --------
     >>> from models.plant import discretize
+    >>> from models.segment import Segment
     >>> plant = discretize(0.01)
     >>> seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
     >>> res = loglik_grad([10.0, 0.0, 1.0], prepare_batch(plant, [seg]), plant)
@@ -507,8 +333,8 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: boo
     # O(K) scratch for the adjoint sweep, reused across the batch.
     wbuf = np.empty((batch.a.shape[1], 2))
     vbuf = np.empty(batch.a.shape[1])
-    _batch_kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, batch.x1, batch.x2,
-                  batch.r, batch.u, batch.a, bool(freeze), ll, g, wbuf, vbuf)
+    batch_kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, batch.x1, batch.x2,
+                 batch.r, batch.u, batch.a, bool(freeze), ll, g, wbuf, vbuf)
     return LoglikGrad(ll, g)
 
 
@@ -518,7 +344,7 @@ def loglik_segments(theta, segments, plant: DiscretePlant) -> LoglikGrad:
     Parameters
     ----------
     theta : array_like, shape (3,) or (3, n)
-    segments : sequence of Segment, length n
+    segments : sequence of models.segment.Segment, length n
     plant : DiscretePlant
 
     Returns
@@ -540,122 +366,6 @@ def loglik_segments(theta, segments, plant: DiscretePlant) -> LoglikGrad:
     return LoglikGrad(ll, g)
 
 
-# --------------------------------------------------------------------------- dense reference
-
-
-def lifted_matrices(plant: DiscretePlant, K: int) -> tuple[np.ndarray, np.ndarray]:
-    """Lifted system of Eq. 11-12: ``x = Φ x0 + Γ (u_H + u_A)`` for states x_1..x_K.
-
-    Dense K×K reference only.
-
-    Returns
-    -------
-    Phi : ndarray, shape (2K, 2)
-    Gamma : ndarray, shape (2K, K)
-    """
-    A, b = plant.A, plant.b
-    Phi = np.empty((2 * K, 2))
-    Gamma = np.zeros((2 * K, K))
-    powers_b = np.empty((K, 2))  # A^j b
-    Ak = np.eye(2)
-    for j in range(K):
-        powers_b[j] = Ak @ b
-        Ak = A @ Ak
-        Phi[2 * j : 2 * j + 2] = Ak
-    for i in range(K):  # block row i is x_{i+1}
-        for j in range(i + 1):
-            Gamma[2 * i : 2 * i + 2, j] = powers_b[i - j]
-    return Phi, Gamma
-
-
-class DenseResult(NamedTuple):
-    """Dense reference evaluation of Eq. 8 and its ingredients."""
-
-    loglik: float
-    grad: np.ndarray
-    g: np.ndarray
-    H: np.ndarray
-    u_opt: np.ndarray
-
-
-def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bool = True) -> DenseResult:
-    """Max-ent log-likelihood by Eq. 8 with Eq. 11-16 literally (Cholesky of the K×K Hessian).
-
-    The reference implementation: O(K²) memory and O(K³) time. Used by the tests and
-    the benchmark, nowhere else. With :class:`Feedback` it plans on the closed wheel
-    with the feedforward as the known input, and so also propagates the states that
-    way: it equals :func:`loglik_grad` when the recorded u_A follows the law exactly.
-
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-    segment : Segment
-    plant : DiscretePlant
-    with_grad : bool
-        Also compute the θ-gradient (needs H⁻¹ explicitly for the trace term).
-
-    Returns
-    -------
-    DenseResult
-        ``loglik``, ``grad`` (3,) (NaN if not requested), gradient ``g`` (Eq. 15),
-        Hessian ``H`` (Eq. 16) and the optimal torques ``u_opt = u - H⁻¹ g``.
-    """
-    q11, q22, R = validate_theta(theta)
-    seg = _check_segment(segment)
-    if seg.feedback is not None:
-        plant, known = plan_inputs(seg, plant)
-        seg = Segment(seg.x0, seg.angle_ref, seg.u_H, known)
-    if seg.preview > 0:
-        return _loglik_dense_marginal(q11, q22, R, seg, plant)
-    K = seg.K
-    Phi, Gamma = lifted_matrices(plant, K)
-    x = Phi @ seg.x0 + Gamma @ (seg.u_H + seg.u_A)
-    xref = np.zeros(2 * K)
-    xref[0::2] = seg.angle_ref[1:]
-    e = x - xref
-    qdiag = np.tile([q11, q22], K)
-    g = 2.0 * Gamma.T @ (qdiag * e) + 2.0 * R * seg.u_H
-    GtQG = Gamma.T @ (qdiag[:, None] * Gamma)
-    H = 2.0 * GtQG + 2.0 * R * np.eye(K)
-    c = cho_factor(H, lower=True)
-    y = cho_solve(c, g)
-    logdet = 2.0 * np.sum(np.log(np.diag(c[0])))
-    ll = -0.5 * g @ y + 0.5 * logdet - K * _HALF_LOG_2PI
-    grad = np.full(3, np.nan)
-    if with_grad:
-        # d log p = -yᵀ dg + ½ yᵀ dH y + ½ tr(H⁻¹ dH), y = H⁻¹ g, with
-        # dH/dq_ii = 2 Γᵀ E_ii Γ and dH/dR = 2 I: the traces need the weighted column
-        # norms of L⁻¹ Γᵀ and the Frobenius norm of L⁻¹ (H = L Lᵀ).
-        Lc = np.tril(c[0])
-        W = solve_triangular(Lc, Gamma.T, lower=True)
-        col2 = np.sum(W * W, axis=0)  # diag(Γ H⁻¹ Γᵀ)
-        Linv = solve_triangular(Lc, np.eye(K), lower=True)
-        Gy = Gamma @ y
-        for j in range(2):
-            dg = 2.0 * Gamma[j::2].T @ e[j::2]
-            grad[j] = -dg @ y + Gy[j::2] @ Gy[j::2] + np.sum(col2[j::2])
-        grad[2] = -2.0 * seg.u_H @ y + y @ y + np.sum(Linv * Linv)
-    return DenseResult(float(ll), grad, g, H, seg.u_H - y)
-
-
-def _loglik_dense_marginal(q11, q22, R, seg: Segment, plant: DiscretePlant) -> DenseResult:
-    """Dense reference with preview: the max-ent Gaussian over all K + M controls
-    (Eq. 8 on the longer horizon), marginalized to the K observed ones. Value only."""
-    K, Kt = seg.K, seg.u_A.shape[0]
-    Phi, Gamma = lifted_matrices(plant, Kt)
-    xref = np.zeros(2 * Kt)
-    xref[0::2] = seg.angle_ref[1:]
-    qdiag = np.tile([q11, q22], Kt)
-    g0 = 2.0 * Gamma.T @ (qdiag * (Phi @ seg.x0 + Gamma @ seg.u_A - xref))  # g at u_H = 0
-    H = 2.0 * Gamma.T @ (qdiag[:, None] * Gamma) + 2.0 * R * np.eye(Kt)
-    Sigma = np.linalg.inv(H)
-    u_opt = -Sigma @ g0
-    c = cho_factor(Sigma[:K, :K], lower=True)
-    d = seg.u_H - u_opt[:K]
-    ll = -0.5 * d @ cho_solve(c, d) - np.sum(np.log(np.diag(c[0]))) - K * _HALF_LOG_2PI
-    return DenseResult(float(ll), np.full(3, np.nan), g0 + H @ np.concatenate([seg.u_H, u_opt[K:]]), H, u_opt)
-
-
 # --------------------------------------------------------------------------- generative side
 
 
@@ -674,12 +384,37 @@ class Demonstration(NamedTuple):
     u_H: np.ndarray
 
 
+def maxent_noise(policy: Policy, rng: np.random.Generator) -> np.ndarray:
+    """The max-ent human's deviations from its optimal policy: ``ε_k ~ N(0, 1 / (2 S_k))``, N·m.
+
+    Given the state, the max-ent torque is ``u_k = -L_k x_k + f_k + ε_k`` (the sequential
+    factorization of Eq. 8 used by :func:`loglik_grad`). Every simulator of the max-ent
+    human draws its ε here, as ``rng.standard_normal(K) / sqrt(2 S_k)`` in step order,
+    and then runs them through its own loop: :func:`sample_maxent` (known input),
+    :func:`models.simulate.simulate_run` (the MPC assistant reacting to the state) and
+    :func:`models.humans.simulate_human` (delays and lags). The same generator state
+    therefore gives the same deviations in each.
+
+    Parameters
+    ----------
+    policy : Policy
+        From :func:`models.lq.lq_policy` or :func:`models.lq.lq_tracking_policy`; ``S`` (K,)
+        in 1/(N·m)².
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (K,)
+    """
+    return rng.standard_normal(policy.S.shape[0]) / np.sqrt(2.0 * policy.S)
+
+
 def forward_optimal_control(theta, x0, angle_ref, u_A, plant: DiscretePlant) -> Demonstration:
     """The human's optimal torques and states for θ (the dashed trajectories of Fig. 6).
 
     The mean of the max-ent distribution: ``u_k = -L_k x_k + f_k`` against the known
     assistant torque sequence ``u_A``. For a human who plans with the assistant's law pass
-    the wheel and known input of :func:`plan_inputs`; the states are then those of the
+    the wheel and known input of :func:`models.segment.plan_inputs`; the states are then those of the
     closed loop with the assistant.
 
     Parameters
@@ -715,7 +450,7 @@ def sample_maxent(theta, x0, angle_ref, u_A, plant: DiscretePlant, rng: np.rando
     x0 : array_like, shape (2,)
     angle_ref : array_like, shape (K + 1,)
     u_A : array_like, shape (K,)
-        Known assistant torques (an open-loop sequence); with :func:`plan_inputs`, the
+        Known assistant torques (an open-loop sequence); with :func:`models.segment.plan_inputs`, the
         assistant's feedforward on the closed wheel (a draw in closed loop).
     plant : DiscretePlant
     rng : numpy.random.Generator
@@ -726,26 +461,19 @@ def sample_maxent(theta, x0, angle_ref, u_A, plant: DiscretePlant, rng: np.rando
     """
     pol = lq_policy(plant, theta, angle_ref, u_A)
     a = np.ascontiguousarray(u_A, dtype=float)
-    noise = rng.standard_normal(a.shape[0]) / np.sqrt(2.0 * pol.S)
-    x, u = rollout(plant.A, plant.b, pol.L, pol.f, np.asarray(x0, dtype=float), a, noise)
+    x, u = rollout(plant.A, plant.b, pol.L, pol.f, np.asarray(x0, dtype=float), a, maxent_noise(pol, rng))
     return Demonstration(x, u)
 
 
 __all__ = [
-    "Feedback",
-    "Segment",
-    "SegmentBatch",
-    "plan_inputs",
-    "planning_plant",
     "LoglikGrad",
-    "DenseResult",
     "Demonstration",
-    "Policy",
-    "prepare_batch",
+    "FREEZE_RTOL",
+    "HALF_LOG_2PI",
+    "batch_kernel",
     "loglik_grad",
     "loglik_segments",
-    "loglik_dense",
-    "lifted_matrices",
     "forward_optimal_control",
+    "maxent_noise",
     "sample_maxent",
 ]

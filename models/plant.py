@@ -6,7 +6,8 @@ input vector, so ``B_H = B_A``)::
 
     d/dt [phi, phi_dot] = [[0, 1], [-c/J, -d/J]] [phi, phi_dot] + [0, 1/J] (u_H + u_A)
 
-State ``x = (phi, phi_dot)`` in (rad, rad/s).
+State ``x = (phi, phi_dot)`` in (rad, rad/s). The parameters and sample times are the
+study design's (:mod:`models.design`).
 """
 
 from __future__ import annotations
@@ -17,28 +18,7 @@ import numpy as np
 from numba import njit
 from scipy.linalg import expm
 
-#: Sample time of the recordings and of the human model (100 Hz), s.
-DT_HUMAN = 0.01
-#: Sample time of the MPC assistant (Section IV-D), s.
-DT_ASSISTANT = 0.02
-
-
-class WheelParameters(NamedTuple):
-    """Physical parameters of the steering wheel (paper Table I).
-
-    Attributes
-    ----------
-    inertia : float
-        Rotational inertia Θ_L, kg·m². Default 0.04.
-    spring : float
-        Spring constant c, N·m/rad. Default 1.146.
-    damper : float
-        Damping constant d, N·m·s/rad. Default 0.286.
-    """
-
-    inertia: float = 0.04
-    spring: float = 1.146
-    damper: float = 0.286
+from models.design import DT_HUMAN, WheelParameters
 
 
 class DiscretePlant(NamedTuple):

@@ -31,10 +31,11 @@ import numpy as np
 from numba import njit
 from scipy.optimize import minimize
 
+from models.design import ENCODER_STEP
 from models.plant import DiscretePlant
 
-#: Encoder increment of the paper's wheel (40000 per revolution), rad.
-DEFAULT_RESOLUTION = 2.0 * math.pi / 40000
+#: Encoder increment of the study's wheel (:data:`models.design.ENCODER_STEP`), rad.
+DEFAULT_RESOLUTION = ENCODER_STEP
 
 
 class Reconstruction(NamedTuple):

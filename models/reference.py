@@ -2,7 +2,8 @@
 
 One smooth trajectory, the same for every subject and both conditions: a 4-minute
 run at 100 Hz whose analysis window starts at 3:30 and lasts 15 s, followed by 15 s
-that are not analysed.
+that are not analysed (the run and the window are the study design's,
+:mod:`models.design`).
 
 The paper does not publish the trajectory, only that a point of it crosses the
 visualization window in 2 s (so the subject previews 2 s of it). We use a sum of
@@ -21,14 +22,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: Length of one run, s.
-RUN_SECONDS = 240.0
-#: Start of the analysis window (3:30), s.
-WINDOW_START = 210.0
-#: Length of the analysis window, s.
-WINDOW_SECONDS = 15.0
-#: Sample time, s.
-DT = 0.01
+from models.design import DT_HUMAN, RUN_SECONDS, WINDOW_SECONDS, WINDOW_START
+
 #: Target RMS of the reference angle, rad.
 RMS_ANGLE = 0.2
 #: Frequencies of the components, Hz (incommensurate, 0.05 .. 0.5).
@@ -52,7 +47,7 @@ class Reference(NamedTuple):
     angle: np.ndarray
 
 
-def reference_trajectory(seconds: float = RUN_SECONDS, dt: float = DT, rms: float = RMS_ANGLE) -> Reference:
+def reference_trajectory(seconds: float = RUN_SECONDS, dt: float = DT_HUMAN, rms: float = RMS_ANGLE) -> Reference:
     """The study's reference angle for a whole run.
 
     Parameters
@@ -89,7 +84,7 @@ def reference_trajectory(seconds: float = RUN_SECONDS, dt: float = DT, rms: floa
     return Reference(t=t, angle=scale * raw * fade)
 
 
-def window_slice(start: float = WINDOW_START, seconds: float = WINDOW_SECONDS, dt: float = DT) -> slice:
+def window_slice(start: float = WINDOW_START, seconds: float = WINDOW_SECONDS, dt: float = DT_HUMAN) -> slice:
     """Sample indices k = 0..K of the analysis window (K = seconds / dt, so K + 1 rows)."""
     i0 = int(round(start / dt))
     return slice(i0, i0 + int(round(seconds / dt)) + 1)

@@ -14,7 +14,7 @@ as a known input. The run samples the human's max-ent variability from the
 linear-Gaussian policy of that plan (``u_H,k = -L_k x_k + f_k + ε_k``,
 ``ε_k ~ N(0, 1 / 2 S_k)``) while the assistant reacts to the actual state, so every
 SC torque sequence is an exact draw of the max-ent model with
-:class:`models.maxent.Feedback`. The paper's model, in which the human takes the
+:class:`models.segment.Feedback`. The paper's model, in which the human takes the
 recorded u_A as a known sequence, is then misspecified in SC: the recorded u_A
 reacts to the human's own variability. The recorded angle is quantized by the
 encoder (40000 increments per revolution).
@@ -31,16 +31,14 @@ from typing import NamedTuple
 import numpy as np
 
 from models.assistant import MPCAssistant, design_assistant, human_feedback, simulate_closed_loop
+from models.cost import from_log_normalized
+from models.design import ENCODER_STEP, MANUAL, PREVIEW_SECONDS, RUN_SECONDS, SHARED, WINDOW_SECONDS
 from models.humans import HUMANS, simulate_human
 from models.lq import lq_policy
-from models.maxent import planning_plant
+from models.maxent import maxent_noise
 from models.plant import DT_HUMAN, DiscretePlant, discretize
 from models.reference import reference_trajectory
-
-#: Encoder increments per revolution (Section IV-A).
-ENCODER_COUNTS = 40000
-#: One encoder increment, rad.
-ENCODER_STEP = 2.0 * np.pi / ENCODER_COUNTS
+from models.segment import Segment, planning_plant
 
 
 @dataclass(frozen=True)
@@ -135,9 +133,8 @@ def draw_subjects(population: Population, n_subjects: int, rng: np.random.Genera
         lr_mc = p.log_R + p.sd_log_R * z[2]
         lr_sc = lr_mc + p.gamma + p.sd_R_change * z[3]
         sc_first = bool(rng.integers(0, 2))
-        mc = np.array([np.exp(lt1_mc + lr_mc), p.theta2 * np.exp(lr_mc), np.exp(lr_mc)])
-        sc = np.array([np.exp(lt1_sc + lr_sc), p.theta2 * np.exp(lr_sc), np.exp(lr_sc)])
-        out.append(SubjectTheta(mc, sc, sc_first))
+        out.append(SubjectTheta(from_log_normalized(lt1_mc, p.theta2, lr_mc),
+                                from_log_normalized(lt1_sc, p.theta2, lr_sc), sc_first))
     return out
 
 
@@ -200,15 +197,14 @@ def simulate_run(
     ref = np.asarray(angle_ref, dtype=float)
     K = ref.shape[0] - 1
     x0 = np.asarray(x0, dtype=float)
-    if condition == "MC":
+    if condition == MANUAL:
         pol, asst = lq_policy(plant, theta, ref, np.zeros(K)), None
-    elif condition == "SC":
+    elif condition == SHARED:
         fb = human_feedback(assistant, ref)
         pol, asst = lq_policy(planning_plant(plant, fb.gain), theta, ref, fb.feedforward), assistant
     else:
-        raise ValueError(f"condition must be 'MC' or 'SC'; got {condition!r}")
-    noise = rng.standard_normal(K) / np.sqrt(2.0 * pol.S)
-    run = simulate_closed_loop(plant, asst, x0, ref, pol.L, pol.f, noise)
+        raise ValueError(f"condition must be {MANUAL!r} or {SHARED!r}; got {condition!r}")
+    run = simulate_closed_loop(plant, asst, x0, ref, pol.L, pol.f, maxent_noise(pol, rng))
     u_A = np.append(run.u_A, run.u_A[-1] if K > 0 else 0.0)
     return Run(
         angle=quantize(run.x[:, 0]),
@@ -241,7 +237,7 @@ def simulate_human_run(human: str, theta, condition: str, angle_ref, plant: Disc
         raise ValueError(f"unknown human {human!r}; choose one of {', '.join(HUMANS)}")
     if human == "maxent":
         return simulate_run(theta, condition, angle_ref, plant, assistant, rng)
-    run = simulate_human(spec, theta, condition, angle_ref, plant, assistant if condition == "SC" else None, rng)
+    run = simulate_human(spec, theta, condition, angle_ref, plant, assistant if condition == SHARED else None, rng)
     K = run.u_H.shape[0]
     return Run(angle=quantize(run.x[:, 0]), u_A=np.append(run.u_A, run.u_A[-1] if K > 0 else 0.0),
                true_angle=run.x[:, 0], true_velocity=run.x[:, 1], u_H=np.append(run.u_H, 0.0))
@@ -251,7 +247,7 @@ def simulate_study(
     n_subjects: int,
     rng: np.random.Generator,
     population: Population = Population(),
-    seconds: float = 240.0,
+    seconds: float = RUN_SECONDS,
     human: str = "maxent",
 ) -> tuple[np.ndarray, list[SimulatedSegment]]:
     """Simulate the whole experiment.
@@ -285,10 +281,10 @@ def simulate_study(
     out = []
     for i, (sub, child) in enumerate(zip(subjects, children)):
         name = f"S{i + 1:0{width}d}"
-        order = ("SC", "MC") if sub.sc_first else ("MC", "SC")
-        runs = dict(zip(("MC", "SC"), child.spawn(2)))
+        order = (SHARED, MANUAL) if sub.sc_first else (MANUAL, SHARED)
+        runs = dict(zip((MANUAL, SHARED), child.spawn(2)))
         for j, cond in enumerate(order):
-            theta = sub.mc if cond == "MC" else sub.sc
+            theta = sub.mc if cond == MANUAL else sub.sc
             run = simulate_human_run(human, theta, cond, ref.angle, plant, assistant, runs[cond])
             out.append(SimulatedSegment(name, cond, j, theta, run))
     return ref.t, out
@@ -313,16 +309,16 @@ class Windows(NamedTuple):
 
 
 def simulate_windows(n_subjects: int, rng: np.random.Generator, population: Population = Population(), *,
-                     K: int = 1500, preview: int = 200) -> Windows:
+                     K: int = round(WINDOW_SECONDS / DT_HUMAN),
+                     preview: int = round(PREVIEW_SECONDS / DT_HUMAN)) -> Windows:
     """Small studies straight from the simulator: each subject's MC and SC runs, first K steps.
 
     Each run is simulated over K + preview + 200 samples of the study reference (so the
     simulated human plans past what the likelihood sees, as in a real run) and cut to
-    its first K observed steps plus ``preview`` planning steps. No encoder, no
-    reconstruction: the true state and torque, for tests and calibration.
+    its first K observed steps plus ``preview`` planning steps (by default the design's
+    15-s window and 2-s preview). No encoder, no reconstruction: the true state and
+    torque, for tests and calibration.
     """
-    from models.maxent import Segment
-
     plant = discretize(DT_HUMAN)
     assistant = design_assistant()
     ref = reference_trajectory(DT_HUMAN * (K + preview + 200)).angle
@@ -330,10 +326,10 @@ def simulate_windows(n_subjects: int, rng: np.random.Generator, population: Popu
     subjects, conditions, segments, thetas = [], [], [], []
     width = max(2, len(str(int(n_subjects))))
     for i, sub in enumerate(draw_subjects(population, n_subjects, rng)):
-        for cond, theta in (("MC", sub.mc), ("SC", sub.sc)):
+        for cond, theta in ((MANUAL, sub.mc), (SHARED, sub.sc)):
             run = simulate_run(theta, cond, ref, plant, assistant, rng)
             x0 = np.array([run.true_angle[0], run.true_velocity[0]])
-            feedback = fb.window(0, K + preview) if cond == "SC" else None
+            feedback = fb.window(0, K + preview) if cond == SHARED else None
             segments.append(Segment(x0, ref[: K + preview + 1], run.u_H[:K], run.u_A[: K + preview], feedback))
             subjects.append(f"S{i + 1:0{width}d}")
             conditions.append(cond)

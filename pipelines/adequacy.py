@@ -18,8 +18,8 @@ import pandas as pd
 from models import adequacy as adq
 from models.assistant import human_feedback
 from models.lq import lq_policy
-from models.maxent import planning_plant
 from models.plant import DT_HUMAN
+from models.segment import planning_plant
 
 #: What each check asks, for the CLI and the report.
 CHECK_TEXT = {

@@ -16,9 +16,11 @@ from collections.abc import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from models.maxent import Segment, loglik_dense, loglik_grad, prepare_batch, sample_maxent
+from models.design import WINDOW_SECONDS
+from models.maxent import loglik_grad, sample_maxent
+from models.maxent_dense import loglik_dense
 from models.plant import DT_HUMAN, discretize
-from models.reference import WINDOW_SECONDS
+from models.segment import Segment, prepare_batch
 
 #: Segment lengths compared against the dense reference.
 DENSE_K = (250, 500, 1000, 1500)

@@ -2,7 +2,7 @@
 
 The default simulated study (42 subjects × MC and SC, the 15-s window, K = 1500, the plan
 looking 2 s further, u_H reconstructed from the encoder angle) is fitted with the
-condition model of :func:`models.hierarchical.build_model` through
+condition model of :func:`models.bayes.hierarchical.build_model` through
 :func:`pipelines.fit.sample_model` (PyMC's nutpie sampler, 4 chains × 1000 draws after
 500 tuning draws, chains in parallel on all cores). Reported: wall time of building,
 compiling and sampling; the sampler's diagnostics and verdict
@@ -45,7 +45,7 @@ def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 10
         Measured dense likelihood-and-gradient time of one K = 1500 segment, s.
     linear_s_per_batch : float, optional
         Measured linear-time likelihood-and-gradient time of the whole batch, s.
-    parameterization : models.hierarchical.Parameterization, optional
+    parameterization : models.bayes.hierarchical.Parameterization, optional
         The model's default if None.
 
     Returns
@@ -55,7 +55,7 @@ def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 10
         :func:`pipelines.fit.diagnostics`), ``beta`` (mean, 94 % HDI, truth, inside),
         ``grad_evals_after_tuning``, ``dense`` (projected time and ratio) and the goal check.
     """
-    from models.hierarchical import Parameterization, build_model
+    from models.bayes.hierarchical import Parameterization, build_model
     from pipelines.fit import _hdi, diagnostics, sample_model
 
     form = parameterization or Parameterization()
@@ -124,11 +124,11 @@ def format_fit(res: dict) -> str:
 def main(argv=None) -> None:
     """``python -m pipelines.bench_fit``: one fit of a simulated study in a chosen parameterization.
 
-    What the parameterization table of :mod:`models.hierarchical` was measured with::
+    What the parameterization table of :mod:`models.bayes.hierarchical` was measured with::
 
         python -m pipelines.bench_fit --study-seed 2018 --theta1-mc centred [--window-seconds 3]
     """
-    from models.hierarchical import Parameterization
+    from models.bayes.hierarchical import Parameterization
     from pipelines.bench import default_study_segments
 
     p = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])

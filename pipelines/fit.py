@@ -2,7 +2,7 @@
 
 The segments are cut and reconstructed exactly as ``scioc identify`` does
 (:func:`pipelines.identify.prepare_segment`), then two models of
-:func:`models.hierarchical.build_model` are sampled with nutpie through ``pm.sample``:
+:func:`models.bayes.hierarchical.build_model` are sampled with nutpie through ``pm.sample``:
 the model with condition effects (β, the mean SC change of log θ1, is the paper's
 question) and the pooled model without them (log θ1 the same in MC and SC), which only
 serves the PSIS-LOO comparison.
@@ -46,10 +46,12 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.hierarchical import CONDITIONS, build_model, index_study
-from models.maxent import forward_optimal_control, plan_inputs, prepare_batch, sample_maxent
-from models.plant import DT_HUMAN, discretize
+from models.bayes.hierarchical import POPULATION_PARAMETERS, build_model, index_study
 from models.cost import from_normalized
+from models.design import CONDITIONS
+from models.maxent import forward_optimal_control, sample_maxent
+from models.plant import DT_HUMAN, discretize
+from models.segment import plan_inputs, prepare_batch
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.identify import IdentifySettings, paper_assistant, prepare_segment
 from pipelines.io import (InputDataError, atomic_path, check_output_dir, load_study, refuse_inputs_inside, staged_dir,
@@ -57,10 +59,6 @@ from pipelines.io import (InputDataError, atomic_path, check_output_dir, load_st
 from pipelines.progress import progress
 from pipelines.provenance import versions
 
-#: Population-level parameters of the model with condition effects (the pooled model has
-#: all but ``beta`` and ``sigma_beta``).
-POPULATION = ("mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R",
-              "sigma_log_R", "sigma_beta_log_R", "tau_theta2")
 #: Unit-level quantities (subject × condition) whose diagnostics are reported too.
 UNITS = ("log_theta1", "log_R", "theta2")
 #: Probability of every highest-density interval reported.
@@ -99,7 +97,7 @@ def prepare_study(study_path, settings: IdentifySettings = IdentifySettings(), *
     pipelines.io.StudyFileError
         For a malformed file (naming file, column and row).
     ValueError
-        From :func:`models.hierarchical.index_study`: a subject without one of the
+        From :func:`models.bayes.hierarchical.index_study`: a subject without one of the
         conditions, or no SC (MC) segment at all.
     """
     study = load_study(study_path)
@@ -217,7 +215,7 @@ def diagnostics(idata, sample_seconds: float) -> dict:
 
     post = idata["posterior"].to_dataset()
     ss = idata["sample_stats"].to_dataset()
-    names = [v for v in POPULATION if v in post]
+    names = [v for v in POPULATION_PARAMETERS if v in post]
     # Select before calling ArviZ: with var_names, arviz-stats 1.x leaves the Dataset's
     # cached accessor holding only those variables for later calls.
     pop = post[names]
@@ -382,15 +380,15 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
     """Leave-one-subject-out ELPD of both models by integrated PSIS, and their difference.
 
     The pointwise term is ``log p(y_i | ψ_s)``, subject i's data with its unit parameters
-    integrated out under population draw ψ_s (:mod:`models.subject_loo`); PSIS then
+    integrated out under population draw ψ_s (:mod:`models.bayes.subject_loo`); PSIS then
     reweights only the population draws, which one subject of many barely moves, so the
     Pareto k stay low where the segment-wise PSIS-LOO fails. The posterior is thinned
     evenly to :data:`LOSO_DRAWS` draws over the chains.
     """
     import xarray as xr
 
-    from models.hierarchical import index_study
-    from models.subject_loo import subject_loglik
+    from models.bayes.hierarchical import index_study
+    from models.bayes.subject_loo import subject_loglik
 
     index = index_study(subjects, conditions)
     out, pointwise = {}, {}
@@ -543,13 +541,12 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
         ang = np.empty((flat.size, K + 1))
         tq = np.empty((flat.size, K))
         for j in range(flat.size):
-            R = np.exp(lR[j])
-            demo = sample_maxent([np.exp(lt1[j]) * R, t2[j] * R, R], seg.x0, seg.angle_ref, known, plan_plant, rng)
+            theta = from_normalized(np.exp(lt1[j]), t2[j], np.exp(lR[j]))
+            demo = sample_maxent(theta, seg.x0, seg.angle_ref, known, plan_plant, rng)
             ang[j] = demo.x[: K + 1, 0]
             tq[j] = demo.u_H[:K]
-        R = np.exp(np.median(lR))
-        opt = forward_optimal_control([np.exp(np.median(lt1)) * R, np.median(t2) * R, R], seg.x0, seg.angle_ref,
-                                      known, plan_plant)
+        theta = from_normalized(np.exp(np.median(lt1)), np.median(t2), np.exp(np.median(lR)))
+        opt = forward_optimal_control(theta, seg.x0, seg.angle_ref, known, plan_plant)
         qa = np.quantile(ang, [0.05, 0.5, 0.95], axis=0)
         qu = np.quantile(tq, [0.05, 0.5, 0.95], axis=0)
         pad = lambda x: np.append(x, np.nan)  # noqa: E731  torques act from k to k + 1: none at k = K
@@ -674,7 +671,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     ------
     ValueError
         For a bad study design (a subject lacking a condition, no SC at all: the message
-        of :func:`models.hierarchical.index_study`), a malformed file, or an unknown
+        of :func:`models.bayes.hierarchical.index_study`), a malformed file, or an unknown
         ``subject``; nothing is written then.
     """
     _require_netcdf()
@@ -708,7 +705,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     diag = {name: diagnostics(d, timing[name]["sample_s"]) for name, d in fits.items()}
 
     t0 = time.perf_counter()
-    res = {"model": "hierarchical max-ent, condition effects on log θ1 and log R (models.hierarchical)",
+    res = {"model": "hierarchical max-ent, condition effects on log θ1 and log R (models.bayes.hierarchical)",
            **contrasts(fits["condition"])}
     res["loo"] = loo_comparison(fits["condition"], fits["pooled"])
     res["loo_subject"] = subject_loo_comparison(fits["condition"], fits["pooled"], batch, prepared.subjects,

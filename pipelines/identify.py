@@ -10,7 +10,7 @@ takes to cross the screen); ``--preview 0`` is the paper's horizon exactly.
 In SC the human may model the assistant two ways (``--assistant-model``). ``feedback``
 (default): the human knows the assistant's law (the paper's MPC, Section IV-D) and
 plans on the wheel it closes, with its reference feedforward as the known input
-(:class:`models.maxent.Feedback`); the simulator's humans do this. ``exogenous`` is the
+(:class:`models.segment.Feedback`); the simulator's humans do this. ``exogenous`` is the
 paper's Eq. 15-16: the recorded u_A is a known input sequence. In closed loop the
 recorded u_A reacts to the human's own torque noise, which the exogenous model lets
 the human anticipate; on the simulated study, from the true torques, it puts log θ1 in
@@ -39,13 +39,14 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.identify import PLAUSIBLE_THETA1, identify_segment
+from models.adequacy import N_BOOT
 from models.assistant import design_assistant, human_feedback
-from models.maxent import Segment, forward_optimal_control, plan_inputs, prepare_batch
+from models.design import WINDOW_SECONDS, WINDOW_START
+from models.identify import PLAUSIBLE_THETA1, identify_segment
+from models.maxent import forward_optimal_control
 from models.plant import DT_HUMAN, discretize
 from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, reconstruct
-from models.reference import WINDOW_SECONDS, WINDOW_START
-from models.adequacy import N_BOOT
+from models.segment import Segment, plan_inputs, prepare_batch
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.io import (Study, StudyFileError, SegmentData, load_study, refuse_inputs_inside, staged_dir,
                           write_table_atomic, write_text_atomic)

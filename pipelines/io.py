@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.maxent import Segment
+from models.segment import Segment
 
 REQUIRED = ("subject", "condition", "t", "angle", "angle_ref", "u_A")
 OPTIONAL = ("velocity", "u_H")

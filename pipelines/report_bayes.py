@@ -300,7 +300,7 @@ def section_bayes(root) -> str:
     cmp = _read_json(root / "compare.json")
     truth_path = root / "data" / "truth.parquet"
     truth = pd.read_parquet(truth_path) if truth_path.exists() else None
-    parts = ["<p>The hierarchical max-ent model (<code>models/hierarchical.py</code>): log θ1 and log R per subject "
+    parts = ["<p>The hierarchical max-ent model (<code>models/bayes/hierarchical.py</code>): log θ1 and log R per subject "
              "and condition with subject and condition effects, fitted to every segment's torques at once.</p>"]
     parts.append("<h3>The paper's test, the Bayesian contrast and a mixed model</h3>")
     parts.append(section_methods(cmp, res))

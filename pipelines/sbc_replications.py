@@ -6,12 +6,12 @@ fit runs its chains one after the other (``cores=1``): the parallelism is across
 replications, one worker per core; nutpie's chains are seeded each on their own, so the
 draws do not depend on this.
 
-Unit level: θ ~ :class:`models.unit_model.UnitPrior`; one exact max-ent demonstration
+Unit level: θ ~ :class:`models.bayes.unit_model.UnitPrior`; one exact max-ent demonstration
 over the study's 15-s analysis window (the fixed reference) from rest at the reference;
 even replications are manual control (u_A = 0), odd ones shared control, where the
 human plans with the assistant's feedback law and the assistant reacts to the actual
 state (:func:`simulate_unit`, the simulator's SC human); the likelihood is the
-:class:`models.maxent.Feedback` model, as in the pipeline; the posterior is sampled with
+:class:`models.segment.Feedback` model, as in the pipeline; the posterior is sampled with
 nutpie.
 
 Negative controls (same draws, same sizes, a wrong fit): ``inertia`` fits with the wheel
@@ -25,11 +25,13 @@ import warnings
 
 import numpy as np
 
-from models.likelihood_data_op import DATA_NAMES
-from models.maxent import Segment, planning_plant, prepare_batch, sample_maxent
+from models.bayes.op import DATA_NAMES
+from models.design import WINDOW_START
+from models.maxent import sample_maxent
 from models.plant import DT_HUMAN, WheelParameters, discretize
-from models.reference import WINDOW_START, reference_trajectory
+from models.reference import reference_trajectory
 from models.sbc import rank, thin
+from models.segment import Segment, planning_plant, prepare_batch
 
 _CACHE: dict = {}
 #: Relative error of the inertia in the ``inertia`` negative control.
@@ -87,7 +89,7 @@ def _compiled_unit(K: int, negative_control):
     if key not in _CACHE:
         import nutpie
 
-        from models.unit_model import build_unit_model
+        from models.bayes.unit_model import build_unit_model
 
         plant = _fit_plant(negative_control)
         ref = _reference(K)
@@ -114,7 +116,7 @@ def _prior_variances(prior) -> dict:
 def unit_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     import nutpie
 
-    from models.unit_model import UNIT_PARAMETERS, UnitPrior
+    from models.bayes.unit_model import UNIT_PARAMETERS, UnitPrior
 
     rng = np.random.default_rng(seed)
     prior = UnitPrior()

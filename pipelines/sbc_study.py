@@ -1,7 +1,7 @@
 """Study-level SBC replications: the hierarchical model against studies drawn from its own prior.
 
 Per replication: population and unit parameters are drawn from the prior of
-:func:`models.hierarchical.build_model` (by PyMC itself, from the model graph, so the
+:func:`models.bayes.hierarchical.build_model` (by PyMC itself, from the model graph, so the
 draws follow exactly the model that is fitted); a whole study is simulated exactly from
 the max-ent model (``n_subjects`` × MC and SC, windows of K samples of the study
 reference from rest; in SC the human plans with the assistant's law and the assistant
@@ -19,13 +19,12 @@ import warnings
 
 import numpy as np
 
-from models.maxent import Segment, prepare_batch
+from models.bayes.hierarchical import POPULATION_PARAMETERS
+from models.cost import from_normalized
 from models.sbc import rank, thin
+from models.segment import Segment, prepare_batch
 from pipelines.sbc_replications import _CACHE, _fit_plant, _reference, batch_data, simulate_unit
 
-#: Population parameters ranked.
-POPULATION = ("mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R",
-              "sigma_log_R", "sigma_beta_log_R", "tau_theta2")
 #: Unit parameters ranked (first subject), as (variable, condition index).
 UNITS = (("log_theta1", 0), ("log_theta1", 1), ("log_R", 0), ("theta2", 0))
 
@@ -39,7 +38,7 @@ def _labels(n_subjects: int):
 def _template(config, negative_control):
     key = ("study-model", config.K, config.n_subjects, negative_control)
     if key not in _CACHE:
-        from models.hierarchical import build_model
+        from models.bayes.hierarchical import build_model
 
         plant = _fit_plant(negative_control)
         ref = _reference(config.K)
@@ -65,7 +64,7 @@ def _prior_draw(config, rng) -> dict:
     import pymc as pm
 
     model = _template(config, None)
-    names = list(POPULATION) + sorted({v for v, _ in UNITS} | {"theta1", "R"})
+    names = list(POPULATION_PARAMETERS) + sorted({v for v, _ in UNITS} | {"theta1", "R"})
     values = pm.draw([model[n] for n in names], random_seed=rng)
     return {n: np.asarray(v, dtype=float) for n, v in zip(names, values)}
 
@@ -76,7 +75,7 @@ def _prior_variances(config) -> dict:
         import pymc as pm
 
         model = _template(config, None)
-        names = list(POPULATION) + sorted({v for v, _ in UNITS})
+        names = list(POPULATION_PARAMETERS) + sorted({v for v, _ in UNITS})
         draws = pm.draw([model[n] for n in names], draws=4000, random_seed=np.random.default_rng(0))
         var = {}
         for n, d in zip(names, draws):
@@ -100,8 +99,7 @@ def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     segs = []
     for s in range(config.n_subjects):
         for c in (0, 1):
-            t1, t2, R = truth["theta1"][s, c], truth["theta2"][s, c], truth["R"][s, c]
-            theta = np.array([t1 * R, t2 * R, R])
+            theta = from_normalized(truth["theta1"][s, c], truth["theta2"][s, c], truth["R"][s, c])
             segs.append(simulate_unit(theta, "MC" if c == 0 else "SC", K, config.negative_control, rng))
     batch = prepare_batch(_fit_plant(config.negative_control), segs)
     compiled = _compiled(config, config.negative_control).with_data(**batch_data(batch))
@@ -110,7 +108,7 @@ def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     post = trace["posterior"]
     prior_var = _prior_variances(config)
     out = {"truth": {}, "ranks": {}, "pit_u": {}, "ess": {}, "contraction": {}}
-    targets = [(n, n, None) for n in POPULATION] + [(f"{v}[0,{c}]", v, c) for v, c in UNITS]
+    targets = [(n, n, None) for n in POPULATION_PARAMETERS] + [(f"{v}[0,{c}]", v, c) for v, c in UNITS]
     for label, var, c in targets:
         draws = np.asarray(post[var].values, dtype=float)
         true = truth[var]

@@ -17,11 +17,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.assistant import HORIZON, THETA_ASSISTANT
-from models.plant import DT_ASSISTANT, DT_HUMAN
-from models.reference import reference_trajectory
+from models.design import ASSISTANT_HORIZON, DT_ASSISTANT, DT_HUMAN, ENCODER_COUNTS, THETA_ASSISTANT
 from models.humans import HUMANS
-from models.simulate import ENCODER_COUNTS, Population, simulate_study
+from models.reference import reference_trajectory
+from models.simulate import Population, simulate_study
 from pipelines.assistant_check import assistant_alone
 from pipelines.io import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 from pipelines.provenance import versions
@@ -95,10 +94,10 @@ def simulate_to_dir(
         "sample_time_s": 0.01,
         "encoder_counts_per_revolution": ENCODER_COUNTS,
         "population": asdict(population),
-        "assistant": {"theta_A": list(THETA_ASSISTANT), "horizon_steps": HORIZON, "prediction_step_s": DT_ASSISTANT,
-                      "resolved_every_s": DT_HUMAN},
+        "assistant": {"theta_A": list(THETA_ASSISTANT), "horizon_steps": ASSISTANT_HORIZON,
+                      "prediction_step_s": DT_ASSISTANT, "resolved_every_s": DT_HUMAN},
         "human": {"name": human, **asdict(spec)},
-        "sc_human": "plans with the assistant's feedback law (models.maxent.Feedback), in closed loop",
+        "sc_human": "plans with the assistant's feedback law (models.segment.Feedback), in closed loop",
         "assistant_alone": assistant_alone(seconds),
         "versions": versions(),
     }

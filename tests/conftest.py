@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from models.maxent import Segment
 from models.plant import discretize
+from models.segment import Segment
 
 
 @pytest.fixture(scope="session")

@@ -34,11 +34,12 @@ import arviz_plots as azp
 import matplotlib.pyplot as plt
 import numpy as np
 
+from models.bayes.hierarchical import POPULATION_PARAMETERS
+
 POSTERIOR = Path(os.environ.get("SCIOC_POSTERIOR", "reports/default-study/fit/posterior.nc"))
 POOLED = POSTERIOR.with_name("posterior_pooled.nc")
 SIDECAR = POSTERIOR.with_name("posterior.json")
-POPULATION = ["mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R",
-              "sigma_log_R", "sigma_beta_log_R", "tau_theta2"]
+POPULATION = list(POPULATION_PARAMETERS)
 BACKEND = "matplotlib"
 
 idata = az.from_netcdf(POSTERIOR)
@@ -152,7 +153,7 @@ else:
 # ## Leaving out whole subjects
 #
 # The reliable comparison: each subject's own parameters integrated out by importance
-# sampling, then PSIS over the population draws only (`models/subject_loo.py`).
+# sampling, then PSIS over the population draws only (`models/bayes/subject_loo.py`).
 # `scioc fit` stores it in `contrasts.json`; every Pareto k should lie below the threshold.
 
 # %%

@@ -7,8 +7,9 @@ from statsmodels.tsa.stattools import acf
 
 from models import adequacy as adq
 from models.lq import lq_policy
-from models.maxent import Segment, loglik_grad, planning_plant, prepare_batch
+from models.maxent import loglik_grad
 from models.plant import DT_HUMAN, discretize, propagate
+from models.segment import Segment, planning_plant, prepare_batch
 from models.simulate import Population, simulate_windows
 
 #: False-failure budget of each seeded statistical test in this module.

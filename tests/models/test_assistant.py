@@ -3,7 +3,7 @@ import pytest
 
 from models.assistant import assistant_torque, design_assistant, feedforward, human_feedback, simulate_closed_loop
 from models.lq import lq_policy
-from models.maxent import lifted_matrices
+from models.maxent_dense import lifted_matrices
 from models.plant import discretize
 
 

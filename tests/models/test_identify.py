@@ -5,9 +5,10 @@ import pytest
 from scipy import stats
 
 from models.identify import identify_segment
-from models.maxent import Segment, prepare_batch, sample_maxent
+from models.maxent import sample_maxent
 from models.plant import discretize
 from models.reference import reference_trajectory
+from models.segment import Segment, prepare_batch
 
 # False-failure budget of each seeded statistical test below.
 ALPHA = 1e-3

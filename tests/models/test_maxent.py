@@ -4,17 +4,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from models.maxent import (
-    Feedback,
-    Segment,
-    forward_optimal_control,
-    loglik_dense,
-    loglik_grad,
-    loglik_segments,
-    planning_plant,
-    prepare_batch,
-    sample_maxent,
-)
+from models.maxent import forward_optimal_control, loglik_grad, loglik_segments, sample_maxent
+from models.maxent_dense import loglik_dense
+from models.segment import Feedback, Segment, planning_plant, prepare_batch
 from tests.conftest import random_segment, random_theta
 
 CASES = [(K, shared, q22_zero) for K in (1, 7, 60, 250, 500) for shared in (False, True) for q22_zero in (True, False)]

@@ -3,9 +3,9 @@ import pytest
 
 from models.assistant import design_assistant, human_feedback
 from models.lq import lq_policy
-from models.maxent import planning_plant
 from models.plant import discretize
 from models.reference import reference_trajectory
+from models.segment import planning_plant
 from models.simulate import (
     ENCODER_STEP,
     Population,

@@ -8,8 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.maxent import loglik_dense, loglik_grad, prepare_batch
+from models.maxent import loglik_grad
+from models.maxent_dense import loglik_dense
 from models.plant import discretize
+from models.segment import prepare_batch
 from pipelines.calibrate import DEFAULTS
 from pipelines.cli import build_parser, main
 from pipelines.identify import with_assistant_model

@@ -36,8 +36,10 @@ from typing import NamedTuple
 import numpy as np
 from scipy import special, stats
 
-from models.maxent import SegmentBatch, loglik_grad
+from models.cost import from_normalized
+from models.maxent import loglik_grad
 from models.plant import DiscretePlant
+from models.segment import SegmentBatch
 
 #: Student-t degrees of freedom of the proposals.
 NU = 4.0
@@ -95,8 +97,7 @@ def _segment_loglik(batch: SegmentBatch, j: int, plant: DiscretePlant, lt1, lR, 
         b = min(M, a + chunk)
         n = b - a
         rep = batch.repeat(j, n)
-        R = np.exp(lR[a:b])
-        theta = np.vstack([np.exp(lt1[a:b]) * R, t2[a:b] * R, R])
+        theta = from_normalized(np.exp(lt1[a:b]), t2[a:b], np.exp(lR[a:b]))
         out[a:b] = loglik_grad(theta, rep, plant).loglik
     return out
 
@@ -117,7 +118,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         The segments the model was fitted to.
     subject_idx, condition_idx : array_like of int, shape (n_segments,)
         Each segment's subject and condition (0 = MC, 1 = SC), as in
-        :func:`models.hierarchical.index_study`.
+        :func:`models.bayes.hierarchical.index_study`.
     plant : DiscretePlant
     rng : numpy.random.Generator
         For the proposal points.

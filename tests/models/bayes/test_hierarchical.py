@@ -9,18 +9,14 @@ import pytensor
 import pytest
 from scipy import stats
 
-from models.hierarchical import (
-    CONDITIONS,
-    Parameterization,
-    Priors,
-    build_model,
-    index_study,
-    prior_predictive_summary,
-)
-from models.likelihood_op import MaxEntLoglikOp
-from models.maxent import loglik_grad, prepare_batch
+from models.bayes.hierarchical import Parameterization, Priors, build_model, index_study
+from models.bayes.op import MaxEntLoglikOp
+from models.bayes.prior_predictive import prior_predictive_summary
+from models.design import CONDITIONS
+from models.maxent import loglik_grad
+from models.segment import prepare_batch
 from tests.conftest import random_segment
-from tests.models.test_likelihood_op import preview_segment
+from tests.models.bayes.test_op import preview_segment
 
 FORMS = [
     Parameterization(),

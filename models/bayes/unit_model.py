@@ -22,9 +22,10 @@ import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 
-from models.likelihood_data_op import DATA_NAMES, MaxEntLoglikDataOp
-from models.maxent import SegmentBatch
+from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp
+from models.cost import from_normalized
 from models.plant import DiscretePlant
+from models.segment import SegmentBatch
 
 #: Names of the parameters SBC ranks.
 UNIT_PARAMETERS = ("theta1", "theta2", "R")
@@ -43,7 +44,7 @@ class UnitPrior:
         t1 = float(np.exp(rng.normal(*self.log_theta1)))
         t2 = float(abs(rng.normal(0.0, self.theta2_scale)))
         R = float(np.exp(rng.normal(*self.log_R)))
-        return {"theta1": t1, "theta2": t2, "R": R, "theta": np.array([t1 * R, t2 * R, R])}
+        return {"theta1": t1, "theta2": t2, "R": R, "theta": from_normalized(t1, t2, R)}
 
     def variance(self, name: str, rng: np.random.Generator, n: int = 20000) -> float:
         """Prior variance of a parameter (by simulation), for posterior contraction."""
@@ -78,6 +79,7 @@ def build_unit_model(batch: SegmentBatch, plant: DiscretePlant, prior: UnitPrior
         pm.Deterministic("theta1", pt.exp(lt1))
         R = pm.Deterministic("R", pt.exp(lR))
         n = batch.n
+        # θ as models.cost.from_log_normalized writes it, in the graph.
         theta = pt.stack([pt.exp(lt1 + lR) * pt.ones(n), t2 * R * pt.ones(n), R * pt.ones(n)])
         ll, _ = op(theta, *data)
         pm.Potential("loglik", ll.sum())

@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from scipy import special
 
-from models.maxent import loglik_grad, prepare_batch
+from models.bayes.subject_loo import subject_loglik
+from models.maxent import loglik_grad
+from models.segment import prepare_batch
 from models.simulate import Population, simulate_windows
-from models.subject_loo import subject_loglik
 
 PSI = {"mu_log_theta1": 3.0, "sigma_log_theta1": 0.4, "beta": -0.7, "sigma_beta": 0.2, "mu_log_R": 3.0,
        "beta_log_R": 0.0, "sigma_log_R": 0.3, "sigma_beta_log_R": 0.1, "tau_theta2": 0.05}

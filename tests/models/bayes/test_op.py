@@ -9,8 +9,9 @@ import pytest
 from pytensor.graph.basic import Apply
 from pytensor.graph.op import Op
 
-from models.likelihood_op import MaxEntLoglikOp, maxent_loglik
-from models.maxent import Segment, loglik_grad, prepare_batch
+from models.bayes.op import MaxEntLoglikOp, maxent_loglik
+from models.maxent import loglik_grad
+from models.segment import Segment, prepare_batch
 from tests.conftest import random_segment, random_theta
 
 OBJECT_MODE = "object mode"

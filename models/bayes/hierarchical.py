@@ -18,7 +18,7 @@ so the model is written in (θ1, θ2, R)::
     u_H[segment] ~ max-ent(q11 = θ1 R, q22 = θ2 R, R | x0, angle_ref, u_A)
 
 (in SC the max-ent human plans with the assistant's feedback law when the segment
-carries :class:`models.maxent.Feedback`, as ``scioc fit`` does by default, or with the
+carries :class:`models.segment.Feedback`, as ``scioc fit`` does by default, or with the
 recorded u_A as a known input, the paper's model).
 
 Several segments may belong to one unit (they share its θ); every subject needs at least
@@ -34,35 +34,10 @@ The centres say what the parameters mean physically. θ1 = e³ ≈ 20 rad⁻² w
 error (the RMS of the reference) like a 0.9 N·m torque. R sets the human's torque jitter:
 given the state the torque of one 10-ms step has SD 1 / √(2 S_k), and S_k = 1.08 R at
 θ1 = 20, θ2 = 0 (``models.lq.lq_policy`` on the study window), so log R = 3 ± 2 is a jitter
-of 0.06-0.41 N·m per sample around 0.15 N·m. (The first
-priors, μ ~ N(log 50, 1) and μ_R ~ N(0, 1), were chosen for an earlier stand-in
-simulator whose R was about 1; on the simulated study of :mod:`models.simulate`, R about
-20, the observed RMS torque lies at or below the 5 % quantile of their prior predictive,
-through the same call as below: 5-95 % 0.37-1.70 N·m in MC against 0.27-0.32 observed,
-0.25-1.94 in SC against 0.12-0.19.)
+of 0.06-0.41 N·m per sample around 0.15 N·m.
 
-Prior predictive check: :func:`prior_predictive_summary` on the default study of ``scioc run``
-(``reports/default-study/data/study.parquet``, seed 2018, 42 subjects; every segment through
-``pipelines.identify.prepare_segment`` with the default ``IdentifySettings()``: the 15-s
-window, velocity and u_H reconstructed from the angle, 2-s preview), 200 joint prior
-draws, ``rng = default_rng(1)``; quantiles 5/25/50/75/95 % over draws × segments of the
-per-segment RMS human torque and RMS tracking error, and the same quantiles over the 42
-observed segments per condition (``observed_*``)::
-
-                        5 %    25 %   50 %   75 %   95 %
-    MC torque (N·m)    0.246  0.281  0.304  0.339  0.447    observed 0.271-0.318
-    SC torque (N·m)    0.097  0.138  0.180  0.250  0.445    observed 0.118-0.193
-    MC error (rad)     0.005  0.010  0.018  0.033  0.073    observed 0.009-0.035
-    SC error (rad)     0.003  0.008  0.015  0.027  0.044    observed 0.011-0.032
-
-The priors thus allow anything from very tight (0.1°) to loose (4°) tracking with
-torques from about a tenth to half a N·m, and the observations sit inside the central
-part of each distribution. The torque's lower end is the deterministic torque that
-tracking the reference needs, which no prior on the jitter can lower. Vague priors (same
-centres; μ, μ_R, β, β_R with SD 3, σ's HalfN(2), τ HalfN(10)), through the same call,
-put 5 % of the segments above 2.4 N·m (MC) and 8.5 N·m (SC) RMS torque and above 0.25
-rad (MC) and 0.20 rad (SC) RMS error, i.e. as bad as or worse than not steering at all
-(the reference itself has an RMS of 0.2 rad): those priors are rejected by the check.
+The priors pass a prior predictive check on the default study; :mod:`models.bayes.prior_predictive`
+holds the check, its numbers and why the first priors were replaced.
 
 Pooled model (``build_model(..., condition_effects=False)``), the alternative for the
 PSIS-LOO comparison: log θ1[i, SC] = log θ1[i, MC] = m_i ~ N(μ, σ) (β = σ_β = 0), with the
@@ -118,12 +93,16 @@ import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
-from models.likelihood_data_op import DATA_NAMES, MaxEntLoglikDataOp
-from models.likelihood_op import MaxEntLoglikOp
-from models.maxent import SegmentBatch, planning_plant, prepare_batch, sample_maxent
+from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp
+from models.design import CONDITIONS, MANUAL, SHARED
+from models.maxent import sample_maxent
 from models.plant import DiscretePlant
+from models.segment import as_batch, planning_plant
 
-CONDITIONS = ("MC", "SC")
+#: The population parameters of the condition model, as the model names them. The pooled
+#: model (``condition_effects=False``) has all but ``beta`` and ``sigma_beta``.
+POPULATION_PARAMETERS = ("mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R",
+                         "sigma_log_R", "sigma_beta_log_R", "tau_theta2")
 
 Form = Literal["centred", "noncentred", "mean"]
 
@@ -246,7 +225,7 @@ def index_study(subjects: Sequence, conditions: Sequence) -> StudyIndex:
         raise ValueError("no segments given")
     for j, c in enumerate(cond):
         if c not in CONDITIONS:
-            raise ValueError(f"condition of segment {j} must be 'MC' or 'SC'; got {c!r}")
+            raise ValueError(f"condition of segment {j} must be {MANUAL!r} or {SHARED!r}; got {c!r}")
     for c in CONDITIONS:
         if c not in cond:
             raise ValueError(
@@ -261,19 +240,13 @@ def index_study(subjects: Sequence, conditions: Sequence) -> StudyIndex:
     missing = [(s, c) for s in labels for c in CONDITIONS if c not in have[s]]
     if missing:
         listed = ", ".join(f"subject {s!r} has no {c} segment" for s, c in missing)
-        raise ValueError(f"every subject needs segments in both MC and SC: {listed}")
+        raise ValueError(f"every subject needs segments in both {MANUAL} and {SHARED}: {listed}")
     pos = {s: i for i, s in enumerate(labels)}
     return StudyIndex(
         subjects=labels,
         subject_idx=np.array([pos[s] for s in subj], dtype=np.int64),
         condition_idx=np.array([CONDITIONS.index(c) for c in cond], dtype=np.int64),
     )
-
-
-def _as_batch(segments, plant: DiscretePlant) -> SegmentBatch:
-    if isinstance(segments, SegmentBatch):
-        return segments
-    return prepare_batch(plant, list(segments))
 
 
 def _unit_block(name: str, mu, beta, sigma, sigma_beta, form_mc: Form, form_sc: Form):
@@ -341,8 +314,8 @@ def build_model(
         Labels of the ``segment`` coordinate (default 0..n-1).
     data_containers : bool
         Put the data in ``pm.Data`` containers ``x1, x2, r, u, a`` (a
-        :class:`models.maxent.SegmentBatch`'s arrays) and the likelihood in a potential
-        (:class:`models.likelihood_data_op.MaxEntLoglikDataOp`), so that one compiled
+        :class:`models.segment.SegmentBatch`'s arrays) and the likelihood in a potential
+        (:class:`models.bayes.op.MaxEntLoglikDataOp`), so that one compiled
         model refits new data of the same shape (``with_data``); used by
         simulation-based calibration. No observed variable then, hence no pointwise
         log-likelihood and no predictive draws.
@@ -375,7 +348,7 @@ def build_model(
     Examples
     --------
     >>> import numpy as np
-    >>> from models.maxent import Segment
+    >>> from models.segment import Segment
     >>> from models.plant import discretize
     >>> seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
     >>> m = build_model(["a", "a"], ["MC", "SC"], [seg, seg], discretize(0.01))
@@ -383,7 +356,7 @@ def build_model(
     ('MC', 'SC')
     """
     index = index_study(subjects, conditions)
-    batch = _as_batch(segments, plant)
+    batch = as_batch(segments, plant)
     n, K = batch.n, batch.K
     if n != index.subject_idx.shape[0]:
         raise ValueError(f"got {n} segments but {index.subject_idx.shape[0]} subject/condition labels")
@@ -450,6 +423,7 @@ def build_model(
         lt1_s = log_theta1[s_idx, c_idx]
         lR_s = log_R[s_idx, c_idx]
         R_s = R[s_idx, c_idx]
+        # θ as models.cost.from_log_normalized writes it, in the graph.
         q11 = pt.exp(lt1_s + lR_s)
         q22 = theta2[s_idx, c_idx] * R_s
         if data_containers:
@@ -474,97 +448,11 @@ def build_model(
     return model
 
 
-class PriorPredictive(NamedTuple):
-    """Prior predictive torques and tracking errors, per condition.
-
-    Attributes
-    ----------
-    quantiles : ndarray, shape (5,)
-        The probabilities of the columns below: 0.05, 0.25, 0.5, 0.75, 0.95.
-    torque_rms : dict of str -> ndarray, shape (5,)
-        Quantiles over draws × segments of the RMS human torque of a segment, N·m.
-    error_rms : dict of str -> ndarray, shape (5,)
-        Quantiles of the RMS tracking error angle - angle_ref of a segment, rad.
-    observed_torque_rms, observed_error_rms : dict of str -> ndarray, shape (5,)
-        The same quantiles over the observed segments, for comparison.
-    """
-
-    quantiles: np.ndarray
-    torque_rms: dict
-    error_rms: dict
-    observed_torque_rms: dict
-    observed_error_rms: dict
-
-
-def prior_predictive_summary(
-    subjects: Sequence,
-    conditions: Sequence,
-    segments,
-    plant: DiscretePlant,
-    rng: np.random.Generator,
-    *,
-    draws: int = 200,
-    priors: Priors = Priors(),
-) -> PriorPredictive:
-    """Simulate the study's segments under prior draws and summarize torques and errors.
-
-    Each draw takes all unit parameters jointly from the prior (:func:`build_model`) and
-    simulates every segment exactly from the max-ent model with :func:`sample_maxent`
-    (x0, angle_ref and the segment's known input and plan, preview included); states follow
-    from the drawn torques, and both are summarized over the K observed steps.
-
-    Parameters
-    ----------
-    subjects, conditions, segments, plant
-        As for :func:`build_model`.
-    rng : numpy.random.Generator
-    draws : int
-        Number of prior draws.
-    priors : Priors
-
-    Returns
-    -------
-    PriorPredictive
-    """
-    batch = _as_batch(segments, plant)
-    index = index_study(subjects, conditions)
-    model = build_model(subjects, conditions, batch, plant, priors=priors)
-    seed = int(rng.integers(2**63))
-    lt1, lR, t2 = pm.draw([model["log_theta1"], model["log_R"], model["theta2"]], draws=draws, random_seed=seed)
-    x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
-    K = batch.K
-    probs = np.array([0.05, 0.25, 0.5, 0.75, 0.95])
-    tq = np.empty((draws, batch.n))
-    er = np.empty((draws, batch.n))
-    s, c = index.subject_idx, index.condition_idx
-    for d in range(draws):
-        R = np.exp(lR[d, s, c])
-        th1 = np.exp(lt1[d, s, c])
-        for j in range(batch.n):
-            theta = [th1[j] * R[j], t2[d, s[j], c[j]] * R[j], R[j]]
-            demo = sample_maxent(theta, x0[j], batch.r[j], batch.a[j], planning_plant(plant, batch.fb[j]), rng)
-            # Over the observed window only (the plan may look M steps further).
-            tq[d, j] = np.sqrt(np.mean(demo.u_H[:K] ** 2))
-            er[d, j] = np.sqrt(np.mean((demo.x[1 : K + 1, 0] - batch.r[j, 1 : K + 1]) ** 2))
-    obs_tq = np.sqrt(np.mean(batch.u**2, axis=1))
-    obs_er = np.sqrt(np.mean((batch.x1[:, 1:] - batch.r[:, 1 : K + 1]) ** 2, axis=1))
-    out = {k: {} for k in ("tq", "er", "otq", "oer")}
-    for ci, cname in enumerate(CONDITIONS):
-        m = c == ci
-        out["tq"][cname] = np.quantile(tq[:, m], probs)
-        out["er"][cname] = np.quantile(er[:, m], probs)
-        out["otq"][cname] = np.quantile(obs_tq[m], probs)
-        out["oer"][cname] = np.quantile(obs_er[m], probs)
-    return PriorPredictive(probs, out["tq"], out["er"], out["otq"], out["oer"])
-
-
 __all__ = [
-    "CONDITIONS",
     "Priors",
     "Parameterization",
     "StudyIndex",
-    "PriorPredictive",
     "index_study",
     "build_model",
-    "prior_predictive_summary",
+    "POPULATION_PARAMETERS",
 ]

@@ -1,0 +1,235 @@
+"""Demonstrations in the data convention and their θ-independent layout for the likelihood.
+
+A :class:`Segment` is one subject × condition window: the initial state, the reference,
+the observed human torques u_H,0..u_H,K-1 and the assistant's torques, optionally with
+the assistant's feedback law (:class:`Feedback`) when the human plans with it. The
+max-ent likelihood (:mod:`models.maxent`) needs, besides θ, only the states driven from
+x_0 by the *observed* torques (paper Eq. 11 with u = u_H + u_A): they do not depend on θ,
+so :func:`prepare_batch` computes them once per data set and lays equal-length segments
+out as the arrays of a :class:`SegmentBatch`.
+
+A human who plans with the assistant's law ``u_A,k = -gain @ x_k + feedforward_k`` plans
+on the wheel closed by it, ``A - b gainᵀ`` (:func:`planning_plant`), with the
+feedforward as the known input (:func:`plan_inputs`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from models.plant import DiscretePlant, propagate
+
+
+class Feedback(NamedTuple):
+    """The assistant as a feedback law the human knows and plans with.
+
+    ``u_A,k = -gain @ x_k + feedforward[k]``: to the human the assistant is part of the
+    wheel (closed by ``-gain``, an added spring and damper) plus a known input, the
+    feedforward. :func:`models.assistant.human_feedback` builds it for the MPC assistant.
+
+    Attributes
+    ----------
+    gain : ndarray, shape (2,)
+        N·m per (rad, rad/s).
+    feedforward : ndarray, shape (K + M,)
+        N·m.
+    """
+
+    gain: np.ndarray
+    feedforward: np.ndarray
+
+    def window(self, start: int, n: int) -> "Feedback":
+        """The same law over samples ``start .. start + n - 1`` of the run it was built for."""
+        return Feedback(self.gain, self.feedforward[start : start + n])
+
+
+def planning_plant(plant: DiscretePlant, gain) -> DiscretePlant:
+    """The wheel closed by the assistant's state feedback: ``A - b gainᵀ``, same b and dt."""
+    g = np.asarray(gain, dtype=float).reshape(2)
+    return DiscretePlant(plant.A - np.outer(plant.b, g), plant.b, plant.dt)
+
+
+class Segment(NamedTuple):
+    """One demonstration (a subject × condition window) in the data convention.
+
+    Attributes
+    ----------
+    x0 : ndarray, shape (2,)
+        Initial angle (rad) and velocity (rad/s).
+    angle_ref : ndarray, shape (K + M + 1,)
+        Reference angle r_0..r_{K+M}, rad.
+    u_H : ndarray, shape (K,)
+        Observed human torque, N·m, acting from t_k to t_{k+1}.
+    u_A : ndarray, shape (K + M,)
+        Recorded assistant torque, N·m (zeros in manual control).
+    feedback : Feedback or None
+        How the human models the assistant. None is the paper's model (Eq. 15-16):
+        the recorded u_A is a known input sequence. A :class:`Feedback` is a human who
+        knows the assistant's law and plans with the wheel it closes and with its
+        feedforward; the recorded u_A still drives the observed states. The two differ
+        in closed loop: the recorded u_A reacts to the human's own variability, which
+        the paper's model lets the human anticipate.
+
+    M >= 0 preview steps extend the human's planning horizon past the observed torques
+    (the reference and u_A after the window are known from the recording); M = 0 is
+    the paper's model, planning exactly over the window.
+    """
+
+    x0: np.ndarray
+    angle_ref: np.ndarray
+    u_H: np.ndarray
+    u_A: np.ndarray
+    feedback: Feedback | None = None
+
+    @property
+    def K(self) -> int:
+        return int(self.u_H.shape[0])
+
+    @property
+    def preview(self) -> int:
+        return int(self.u_A.shape[0] - self.u_H.shape[0])
+
+
+class SegmentBatch(NamedTuple):
+    """Segments of equal length K, one row each, for the kernel.
+
+    Attributes
+    ----------
+    x1, x2 : ndarray, shape (n, K + 1)
+        Angle (rad) and velocity (rad/s) propagated from x_0 with the observed torques.
+    r : ndarray, shape (n, K + M + 1)
+        Angle reference, rad (M preview steps).
+    u : ndarray, shape (n, K)
+        Human torque, N·m.
+    a : ndarray, shape (n, K + M)
+        The known input of the human's plan, N·m: the recorded assistant torque, or the
+        assistant's feedforward for a segment with :class:`Feedback`.
+    fb : ndarray, shape (n, 2)
+        The assistant's state feedback the human plans with (zeros without Feedback);
+        the plan uses the wheel ``A - b fbᵀ``.
+    """
+
+    x1: np.ndarray
+    x2: np.ndarray
+    r: np.ndarray
+    u: np.ndarray
+    a: np.ndarray
+    fb: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.u.shape[0])
+
+    def repeat(self, j: int, n: int) -> "SegmentBatch":
+        """A batch of ``n`` copies of segment ``j`` (to evaluate it under n θ in one call)."""
+        return SegmentBatch(*(np.repeat(arr[j : j + 1], n, axis=0) for arr in self))
+
+    @property
+    def K(self) -> int:
+        return int(self.u.shape[1])
+
+
+def check_segment(seg: Segment) -> Segment:
+    """A segment with float arrays of consistent shapes (K >= 1, preview M >= 0), or ValueError naming the shapes."""
+    x0 = np.asarray(seg.x0, dtype=float).reshape(2)
+    r = np.asarray(seg.angle_ref, dtype=float)
+    u = np.asarray(seg.u_H, dtype=float)
+    a = np.asarray(seg.u_A, dtype=float)
+    if u.ndim != 1 or a.ndim != 1 or a.shape[0] < u.shape[0] or r.shape != (a.shape[0] + 1,):
+        raise ValueError(
+            f"a segment needs u_H of shape (K,), u_A of shape (K + M,) and angle_ref of shape (K + M + 1,) "
+            f"with M >= 0; got {u.shape}, {a.shape}, {r.shape}"
+        )
+    if u.shape[0] < 1:
+        raise ValueError("a segment needs at least two samples (K >= 1)")
+    fb = seg.feedback
+    if fb is not None:
+        gain = np.asarray(fb.gain, dtype=float)
+        ff = np.asarray(fb.feedforward, dtype=float)
+        if gain.shape != (2,) or ff.shape != a.shape:
+            raise ValueError(
+                f"a segment's feedback needs gain of shape (2,) and feedforward of the shape of u_A {a.shape}; "
+                f"got {gain.shape}, {ff.shape}"
+            )
+        fb = Feedback(gain, ff)
+    return Segment(x0, r, u, a, fb)
+
+
+def plan_inputs(segment: Segment, plant: DiscretePlant) -> tuple[DiscretePlant, np.ndarray]:
+    """The wheel and the known input the human plans with for this segment.
+
+    Returns
+    -------
+    plant : DiscretePlant
+        ``plant`` itself, or the wheel closed by the assistant's feedback.
+    u_known : ndarray, shape (K + M,)
+        The recorded u_A, or the assistant's feedforward.
+    """
+    seg = check_segment(segment)
+    if seg.feedback is None:
+        return plant, seg.u_A
+    return planning_plant(plant, seg.feedback.gain), seg.feedback.feedforward
+
+
+def prepare_batch(plant: DiscretePlant, segments) -> SegmentBatch:
+    """Lay out equal-length segments for :func:`models.maxent.loglik_grad` (θ-independent, done once).
+
+    Parameters
+    ----------
+    plant : DiscretePlant
+        The 0.01-s discretization of the wheel.
+    segments : sequence of Segment
+        All with the same K.
+
+    Returns
+    -------
+    SegmentBatch
+    """
+    segs = [check_segment(s) for s in segments]
+    if not segs:
+        raise ValueError("no segments given")
+    K, M = segs[0].K, segs[0].preview
+    if any(s.K != K or s.preview != M for s in segs):
+        raise ValueError(
+            "prepare_batch needs segments of equal length and preview; use loglik_segments for mixed lengths"
+        )
+    n = len(segs)
+    x1 = np.empty((n, K + 1))
+    x2 = np.empty((n, K + 1))
+    r = np.empty((n, K + M + 1))
+    u = np.empty((n, K))
+    a = np.empty((n, K + M))
+    fb = np.zeros((n, 2))
+    for i, s in enumerate(segs):
+        x = propagate(plant, s.x0, s.u_H + s.u_A[:K])
+        x1[i] = x[:, 0]
+        x2[i] = x[:, 1]
+        r[i] = s.angle_ref
+        u[i] = s.u_H
+        if s.feedback is None:
+            a[i] = s.u_A
+        else:
+            a[i] = s.feedback.feedforward
+            fb[i] = s.feedback.gain
+    return SegmentBatch(x1, x2, r, u, a, fb)
+
+
+def as_batch(segments, plant: DiscretePlant) -> SegmentBatch:
+    """``segments`` itself if it is a :class:`SegmentBatch`, else :func:`prepare_batch` of them."""
+    if isinstance(segments, SegmentBatch):
+        return segments
+    return prepare_batch(plant, list(segments))
+
+
+__all__ = [
+    "as_batch",
+    "Feedback",
+    "Segment",
+    "SegmentBatch",
+    "check_segment",
+    "planning_plant",
+    "plan_inputs",
+    "prepare_batch",
+]

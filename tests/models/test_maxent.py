@@ -138,13 +138,6 @@ def test_sampler_test_catches_a_wrong_variance(plant):
     assert stats.kstest(q, stats.chi2(df=40).cdf).pvalue < ALPHA
 
 
-def test_empty_or_mismatched_segments_are_rejected(plant):
-    with pytest.raises(ValueError, match="shape"):
-        prepare_batch(plant, [Segment(np.zeros(2), np.zeros(5), np.zeros(5), np.zeros(5))])
-    with pytest.raises(ValueError, match="no segments"):
-        prepare_batch(plant, [])
-
-
 @pytest.mark.parametrize("preview", [1, 30, 250])
 @pytest.mark.parametrize("shared", [False, True])
 def test_preview_equals_dense_marginal(plant, preview, shared):
@@ -224,11 +217,3 @@ def test_zero_feedback_is_the_paper_model_bit_for_bit(plant):
     np.testing.assert_array_equal(both.grad[:, 0], plain.grad[:, 0])
     alone = loglik_grad(theta, prepare_batch(plant, [fb_seg]), plant)
     assert both.loglik[1] == alone.loglik[0]
-
-
-def test_feedback_of_the_wrong_shape_is_rejected(plant):
-    seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10), Feedback(np.zeros(2), np.zeros(9)))
-    with pytest.raises(ValueError, match="feedforward"):
-        prepare_batch(plant, [seg])
-    with pytest.raises(ValueError, match="gain"):
-        prepare_batch(plant, [seg._replace(feedback=Feedback(np.zeros(3), np.zeros(10)))])

@@ -9,9 +9,8 @@ import pytensor
 import pytest
 from scipy import stats
 
-from models.bayes.hierarchical import Parameterization, Priors, build_model, index_study
+from models.bayes.hierarchical import POPULATION_PARAMETERS, Parameterization, Priors, build_model, index_study
 from models.bayes.op import MaxEntLoglikOp
-from models.bayes.prior_predictive import prior_predictive_summary
 from models.design import CONDITIONS
 from models.maxent import loglik_grad
 from models.segment import prepare_batch
@@ -257,15 +256,6 @@ def test_observed_draws_have_the_data_shape(plant):
     assert np.isfinite(u).all()
 
 
-def test_prior_predictive_summary_is_seeded_and_ordered(plant):
-    subjects, conditions, segs = small_study(plant, K=100, M=30)
-    a = prior_predictive_summary(subjects, conditions, segs, plant, np.random.default_rng(35), draws=20)
-    b = prior_predictive_summary(subjects, conditions, segs, plant, np.random.default_rng(35), draws=20)
-    for c in CONDITIONS:
-        np.testing.assert_array_equal(a.torque_rms[c], b.torque_rms[c])
-        assert np.all(np.diff(a.error_rms[c]) >= 0) and np.all(a.torque_rms[c] > 0)
-
-
 #: Units whose true log R must lie in their own 94 % HDI: with calibrated intervals, 16
 #: units and independent errors, fewer than 13 happens with probability 0.009.
 MIN_UNITS_COVERED = 13
@@ -346,3 +336,14 @@ def test_pooled_model_is_priors_plus_likelihood_without_condition_effects(plant)
     assert model.compile_logp(jacobian=False)(point) == pytest.approx(lp, rel=1e-10)
     lt1 = pm.draw(model["log_theta1"], random_seed=37)
     np.testing.assert_array_equal(lt1[:, 0], lt1[:, 1])
+
+
+@pytest.mark.parametrize("condition_effects", [True, False])
+def test_population_parameters_are_the_models_scalar_free_variables(plant, condition_effects):
+    """The one list of population-parameter names is what the model defines (pooled: without β, σ_β)."""
+    subjects, conditions, segs = small_study(plant)
+    model = build_model(subjects, conditions, segs, plant, condition_effects=condition_effects)
+    scalars = [rv.name for rv in model.free_RVs if rv.ndim == 0]
+    expected = [n for n in POPULATION_PARAMETERS if condition_effects or n not in ("beta", "sigma_beta")]
+    assert scalars == expected
+

@@ -9,7 +9,7 @@ import pytest
 from pytensor.graph.basic import Apply
 from pytensor.graph.op import Op
 
-from models.bayes.op import MaxEntLoglikOp, maxent_loglik
+from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp, maxent_loglik
 from models.maxent import loglik_grad
 from models.segment import Segment, prepare_batch
 from tests.conftest import random_segment, random_theta
@@ -159,3 +159,40 @@ def test_ops_with_different_data_are_not_merged(plant):
     l1, l2 = f(theta)
     assert l1[0] == pytest.approx(loglik_grad(theta, b1, plant).loglik[0], rel=1e-13)
     assert l2[0] == pytest.approx(loglik_grad(theta, b2, plant).loglik[0], rel=1e-13)
+
+
+@pytest.mark.parametrize("mode", ["NUMBA", "FAST_COMPILE"])
+def test_data_input_op_equals_the_bound_op_bit_for_bit(plant, setup_m, mode):
+    """One implementation: data as inputs or bound into the Op, the same numbers and gradient."""
+    batch, theta = setup_m
+    th = pt.dmatrix("theta")
+    data = [pt.dmatrix(name) for name in DATA_NAMES]
+    ll_d, _ = MaxEntLoglikDataOp(plant)(th, *data)
+    ll_b, _ = MaxEntLoglikOp(batch, plant)(th)
+    w = np.arange(1.0, batch.n + 1.0)
+    logp_d, logp_b = (ll_d * w).sum(), (ll_b * w).sum()
+    outs = [logp_d, pytensor.grad(logp_d, th), logp_b, pytensor.grad(logp_b, th)]
+    f, msgs = _compile_quietly([th, *data], outs, mode)
+    vd, gd, vb, gb = f(theta, *(getattr(batch, name) for name in DATA_NAMES))
+    assert vd == vb
+    np.testing.assert_array_equal(gd, gb)
+    assert not [m for m in msgs if OBJECT_MODE in m], msgs
+
+
+def test_data_inputs_are_not_differentiable(plant, setup):
+    batch, _ = setup
+    th = pt.dmatrix("theta")
+    data = [pt.dmatrix(name) for name in DATA_NAMES]
+    ll, _ = MaxEntLoglikDataOp(plant)(th, *data)
+    with pytest.raises(pytensor.gradient.DisconnectedInputError):
+        pytensor.grad(ll.sum(), data[0])
+
+
+def test_data_ops_of_one_plant_are_equal_and_bound_ops_are_not(plant, setup):
+    batch, _ = setup
+    assert MaxEntLoglikDataOp(plant) == MaxEntLoglikDataOp(plant)
+    assert hash(MaxEntLoglikDataOp(plant)) == hash(MaxEntLoglikDataOp(plant))
+    a, b = MaxEntLoglikOp(batch, plant), MaxEntLoglikOp(batch, plant)
+    assert a == a and a != b
+    assert MaxEntLoglikDataOp(plant) != a
+

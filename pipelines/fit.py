@@ -46,12 +46,13 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.hierarchical import POPULATION_PARAMETERS, build_model, index_study
+from models.bayes.hierarchical import POPULATION_PARAMETERS, build_model
 from models.cost import from_normalized
 from models.design import CONDITIONS
 from models.maxent import forward_optimal_control, sample_maxent
 from models.plant import DT_HUMAN, discretize
 from models.segment import plan_inputs, prepare_batch
+from models.units import index_study
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.identify import IdentifySettings, paper_assistant, prepare_segment
 from pipelines.io import (InputDataError, atomic_path, check_output_dir, load_study, refuse_inputs_inside, staged_dir,
@@ -97,7 +98,7 @@ def prepare_study(study_path, settings: IdentifySettings = IdentifySettings(), *
     pipelines.io.StudyFileError
         For a malformed file (naming file, column and row).
     ValueError
-        From :func:`models.bayes.hierarchical.index_study`: a subject without one of the
+        From :func:`models.units.index_study`: a subject without one of the
         conditions, or no SC (MC) segment at all.
     """
     study = load_study(study_path)
@@ -387,8 +388,8 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
     """
     import xarray as xr
 
-    from models.bayes.hierarchical import index_study
     from models.bayes.subject_loo import subject_loglik
+    from models.units import index_study
 
     index = index_study(subjects, conditions)
     out, pointwise = {}, {}
@@ -671,7 +672,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     ------
     ValueError
         For a bad study design (a subject lacking a condition, no SC at all: the message
-        of :func:`models.bayes.hierarchical.index_study`), a malformed file, or an unknown
+        of :func:`models.units.index_study`), a malformed file, or an unknown
         ``subject``; nothing is written then.
     """
     _require_netcdf()

@@ -94,10 +94,11 @@ import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
 from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp
-from models.design import CONDITIONS, MANUAL, SHARED
+from models.design import CONDITIONS
 from models.maxent import sample_maxent
 from models.plant import DiscretePlant
 from models.segment import as_batch, planning_plant
+from models.units import index_study
 
 #: The population parameters of the condition model, as the model names them. The pooled
 #: model (``condition_effects=False``) has all but ``beta`` and ``sigma_beta``.
@@ -176,77 +177,6 @@ class Parameterization:
             allowed = ("centred", "noncentred", "mean") if name in ("theta1_mc", "R_mc") else ("centred", "noncentred")
             if getattr(self, name) not in allowed:
                 raise ValueError(f"Parameterization.{name} must be one of {allowed}; got {getattr(self, name)!r}")
-
-
-class StudyIndex(NamedTuple):
-    """Which unit each segment belongs to.
-
-    Attributes
-    ----------
-    subjects : tuple of str
-        Subject labels in order of first appearance (the ``subject`` coordinate).
-    subject_idx : ndarray of int, shape (n,)
-    condition_idx : ndarray of int, shape (n,)
-        0 for MC, 1 for SC.
-    """
-
-    subjects: tuple[str, ...]
-    subject_idx: np.ndarray
-    condition_idx: np.ndarray
-
-
-def index_study(subjects: Sequence, conditions: Sequence) -> StudyIndex:
-    """Check the design and map each segment to its (subject, condition) unit.
-
-    Parameters
-    ----------
-    subjects : sequence, length n
-        Subject label of each segment (compared as strings).
-    conditions : sequence of {"MC", "SC"}, length n
-        Condition of each segment.
-
-    Returns
-    -------
-    StudyIndex
-
-    Raises
-    ------
-    ValueError
-        If the lengths differ, a condition is not MC or SC (naming the first such
-        segment), there are no SC (or no MC) segments at all (β would not be
-        identified; no fallback model is offered), or a subject lacks one condition
-        (naming the subjects).
-    """
-    subj = [str(s) for s in subjects]
-    cond = [str(c) for c in conditions]
-    if len(subj) != len(cond):
-        raise ValueError(f"subjects and conditions must have one entry per segment; got {len(subj)} and {len(cond)}")
-    if not subj:
-        raise ValueError("no segments given")
-    for j, c in enumerate(cond):
-        if c not in CONDITIONS:
-            raise ValueError(f"condition of segment {j} must be {MANUAL!r} or {SHARED!r}; got {c!r}")
-    for c in CONDITIONS:
-        if c not in cond:
-            raise ValueError(
-                f"no {c} segments at all: the SC change β (and β_R) is not identified. "
-                "This model needs every subject in both conditions; fit a single-condition "
-                "model instead (none is provided here)."
-            )
-    labels = tuple(dict.fromkeys(subj))
-    have = {s: set() for s in labels}
-    for s, c in zip(subj, cond):
-        have[s].add(c)
-    missing = [(s, c) for s in labels for c in CONDITIONS if c not in have[s]]
-    if missing:
-        listed = ", ".join(f"subject {s!r} has no {c} segment" for s, c in missing)
-        raise ValueError(f"every subject needs segments in both {MANUAL} and {SHARED}: {listed}")
-    pos = {s: i for i, s in enumerate(labels)}
-    return StudyIndex(
-        subjects=labels,
-        subject_idx=np.array([pos[s] for s in subj], dtype=np.int64),
-        condition_idx=np.array([CONDITIONS.index(c) for c in cond], dtype=np.int64),
-    )
 
 
 def _unit_block(name: str, mu, beta, sigma, sigma_beta, form_mc: Form, form_sc: Form):
@@ -342,7 +272,7 @@ def build_model(
     Raises
     ------
     ValueError
-        See :func:`index_study`; also if the number of segments does not match the
+        See :func:`models.units.index_study`; also if the number of segments does not match the
         labels.
 
     Examples
@@ -451,8 +381,6 @@ def build_model(
 __all__ = [
     "Priors",
     "Parameterization",
-    "StudyIndex",
-    "index_study",
     "build_model",
     "POPULATION_PARAMETERS",
 ]

@@ -43,12 +43,13 @@ from typing import NamedTuple
 import numpy as np
 import pymc as pm
 
-from models.bayes.hierarchical import Priors, build_model, index_study
+from models.bayes.hierarchical import Priors, build_model
 from models.cost import from_normalized
 from models.design import CONDITIONS
 from models.maxent import sample_maxent
 from models.plant import DiscretePlant
 from models.segment import as_batch, planning_plant
+from models.units import index_study
 
 
 class PriorPredictive(NamedTuple):

@@ -118,7 +118,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         The segments the model was fitted to.
     subject_idx, condition_idx : array_like of int, shape (n_segments,)
         Each segment's subject and condition (0 = MC, 1 = SC), as in
-        :func:`models.bayes.hierarchical.index_study`.
+        :func:`models.units.index_study`.
     plant : DiscretePlant
     rng : numpy.random.Generator
         For the proposal points.

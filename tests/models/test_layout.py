@@ -57,7 +57,8 @@ def test_the_models_import_graph_has_no_cycle():
 
 
 @pytest.mark.parametrize("modules", [
-    "models.maxent, models.adequacy, models.simulate, models.humans, models.identify, models.maxent_dense",
+    "models.maxent, models.adequacy, models.simulate, models.humans, models.identify, models.maxent_dense, "
+    "models.units, models.design",
 ])
 def test_the_numba_core_imports_without_pymc_or_pytensor(modules):
     code = (f"import sys; import {modules}; "

@@ -9,11 +9,12 @@ import pytensor
 import pytest
 from scipy import stats
 
-from models.bayes.hierarchical import POPULATION_PARAMETERS, Parameterization, Priors, build_model, index_study
+from models.bayes.hierarchical import POPULATION_PARAMETERS, Parameterization, Priors, build_model
 from models.bayes.op import MaxEntLoglikOp
 from models.design import CONDITIONS
 from models.maxent import loglik_grad
 from models.segment import prepare_batch
+from models.units import index_study
 from tests.conftest import random_segment
 from tests.models.bayes.test_op import preview_segment
 

@@ -457,11 +457,14 @@ def truth_check(idata, truth_dir, estimates: pd.DataFrame | None = None) -> dict
     population parameter against its true value (a scale whose truth is 0 against the
     one-sided interval [0, q94]); how many per-subject HDIs hold the true change; and,
     with ``estimates``, the mean log error of the ML θ1 per condition (the closed-loop
-    bias of the likelihood plus the reconstruction).
+    bias of the likelihood plus the reconstruction). None when the simulated human has
+    no cost θ (``truth.parquet`` holds NaN).
     """
     truth_dir = Path(truth_dir)
     sim = json.loads((truth_dir / "simulation.json").read_text())
     truth = pd.read_parquet(truth_dir / "truth.parquet")
+    if not np.isfinite(truth["theta1"].to_numpy(dtype=float)).any():
+        return None  # a simulated human without a cost θ (the crossover operator): nothing to check against
     pop = sim["population"]
     post = idata["posterior"]
     out = {"source": str(truth_dir)}

@@ -509,7 +509,7 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     body.append("<h2>Data acquisition: reconstruction from the angle</h2>")
     if traj is not None:
         body.append(section_reconstruction(traj, truth_traj))
-    if truth is not None:
+    if truth is not None and truth["theta1"].notna().any():  # the crossover operator has no cost θ
         body.append("<h2>Ground truth vs estimates</h2>")
         body.append(section_truth(est, truth, est_true, est_paper))
     body.append("<h2>Identification details</h2>")

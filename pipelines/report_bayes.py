@@ -300,6 +300,8 @@ def section_bayes(root) -> str:
     cmp = _read_json(root / "compare.json")
     truth_path = root / "data" / "truth.parquet"
     truth = pd.read_parquet(truth_path) if truth_path.exists() else None
+    if truth is not None and not truth["theta1"].notna().any():
+        truth = None  # a simulated human without a cost θ (the crossover operator)
     parts = ["<p>The hierarchical max-ent model (<code>models/bayes/hierarchical.py</code>): log θ1 and log R per subject "
              "and condition with subject and condition effects, fitted to every segment's torques at once.</p>"]
     parts.append("<h3>The paper's test, the Bayesian contrast and a mixed model</h3>")

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from models import adequacy as adq
+from models.bootstrap import Chain, bootstrap_records
 from models.assistant import human_feedback
 from models.lq import lq_policy
 from models.plant import DT_HUMAN
@@ -32,7 +33,7 @@ CHECK_TEXT = {
 }
 
 
-def segment_chain(p, theta, plant, *, assistant_model: str, resolution: float, assistant=None) -> adq.Chain:
+def segment_chain(p, theta, plant, *, assistant_model: str, resolution: float, assistant=None) -> Chain:
     """The acquisition chain of one prepared segment (:class:`pipelines.identify.PreparedSegment`) at θ.
 
     The policy over the span is the fitted model's plan (horizon: the window plus its
@@ -66,7 +67,7 @@ def segment_chain(p, theta, plant, *, assistant_model: str, resolution: float, a
         # Draw the policy noise at the level the reconstruction measured (models.adequacy).
         scale = p.sigma_eps * np.sqrt(2.0 * S[i0 - j0])
     c = np.ascontiguousarray
-    return adq.Chain(
+    return Chain(
         A=c(plant.A), b=c(plant.b), gain=gain, known=c(known[: n - 1], dtype=float),
         L=c(L[: n - 1]), f=c(f[: n - 1]), S=c(S[: n - 1]), x0=c(p.span_state0, dtype=float),
         angle=c(d.angle[j0:j1]), velocity=None if d.velocity is None else c(d.velocity[j0:j1]),
@@ -109,7 +110,7 @@ def assess_study(prepared, thetas, plant, *, assistant_model: str, resolution: f
         rng = np.random.default_rng(ss)
         chain = segment_chain(p, th, plant, assistant_model=assistant_model, resolution=resolution,
                               assistant=assistant)
-        res = adq.segment_adequacy(adq.bootstrap_records(chain, n_boot, rng), DT_HUMAN)
+        res = adq.segment_adequacy(bootstrap_records(chain, n_boot, rng), DT_HUMAN)
         rows.append({"adequacy_p": res.p_segment, "adequacy_flagged": res.p_segment <= adq.SEGMENT_ALPHA,
                      **{f"adequacy_p_{k}": v for k, v in res.p.items()}})
         details.append(res)

@@ -34,7 +34,7 @@ CHECK_TEXT = {
 
 
 def segment_chain(p, theta, plant, *, assistant_model: str, resolution: float, assistant=None) -> Chain:
-    """The acquisition chain of one prepared segment (:class:`pipelines.identify.PreparedSegment`) at θ.
+    """The acquisition chain of one prepared segment (:class:`pipelines.prepare.PreparedSegment`) at θ.
 
     The policy over the span is the fitted model's plan (horizon: the window plus its
     preview); steps after that horizon, if the reconstruction span reaches past it, follow

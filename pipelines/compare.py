@@ -32,7 +32,8 @@ from scipy.stats import rankdata, wilcoxon
 from models.adequacy import STATISTICS, study_verdict
 from models.identify import PLAUSIBLE_THETA1
 from pipelines.adequacy import format_adequacy, not_checked
-from pipelines.io import CONDITIONS, StudyFileError, read_table, write_text_atomic
+from pipelines.io import CONDITIONS, StudyFileError, read_table
+from pipelines.storage import write_text_atomic
 
 #: Default significance level (two-sided), as in the paper.
 ALPHA = 0.001

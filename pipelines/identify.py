@@ -1,20 +1,10 @@
 """``scioc identify``: per subject × condition maximum-likelihood θ, like the paper (Section IV-F).
 
-For each segment: take the analysis window (default the paper's 15 s from 3:30; any
-window or the whole run on request), reconstruct velocity and u_H from the angle where
-the file lacks them (:mod:`models.reconstruct`, over the window plus a margin), and
-maximize the max-ent likelihood (:mod:`models.identify`). The human's plan may look
-``preview`` seconds past the window (default 2 s, the time a point of the reference
-takes to cross the screen); ``--preview 0`` is the paper's horizon exactly.
-
-In SC the human may model the assistant two ways (``--assistant-model``). ``feedback``
-(default): the human knows the assistant's law (the paper's MPC, Section IV-D) and
-plans on the wheel it closes, with its reference feedforward as the known input
-(:class:`models.segment.Feedback`); the simulator's humans do this. ``exogenous`` is the
-paper's Eq. 15-16: the recorded u_A is a known input sequence. In closed loop the
-recorded u_A reacts to the human's own torque noise, which the exogenous model lets
-the human anticipate; on the simulated study, from the true torques, it puts log θ1 in
-SC about 0.55 too low (measured in the report's ground-truth section).
+Each segment is cut to its analysis window and, where the file lacks velocity and u_H,
+reconstructed from the angle by the shared preparation step (:mod:`pipelines.prepare`,
+which also says how the SC human models the assistant); then the max-ent likelihood is
+maximized (:mod:`models.identify`) and the model's adequacy checked
+(:mod:`pipelines.adequacy`).
 
 It also computes the model validation of Fig. 6: the trajectories that forward optimal
 control generates with θ_MC and with θ_SC of the same subject, and the RMSE of angle
@@ -28,180 +18,25 @@ versions).
 
 from __future__ import annotations
 
-import functools
 import json
 import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
-from models.adequacy import N_BOOT
-from models.assistant import design_assistant, human_feedback
-from models.design import WINDOW_SECONDS, WINDOW_START
+from models.design import CONDITIONS
 from models.identify import PLAUSIBLE_THETA1, identify_segment
 from models.maxent import forward_optimal_control
 from models.plant import DT_HUMAN, discretize
-from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, reconstruct
-from models.segment import Segment, plan_inputs, prepare_batch
+from models.segment import plan_inputs, prepare_batch
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
-from pipelines.io import (Study, StudyFileError, SegmentData, load_study, refuse_inputs_inside, staged_dir,
-                          write_table_atomic, write_text_atomic)
-from pipelines.progress import progress
+from pipelines.io import Study, load_study
+from pipelines.prepare import IdentifySettings, PreparedStudy, paper_assistant, prepare_study
 from pipelines.provenance import versions
-
-
-@dataclass(frozen=True)
-class IdentifySettings:
-    """How to cut and treat each segment.
-
-    Attributes
-    ----------
-    window_start : float or None
-        Start of the analysis window, s on the file's time axis; None for the whole run.
-    window_seconds : float or None
-        Length of the window, s; None for the whole run.
-    preview : float
-        How far past the window the human plans, s (0: the paper's horizon).
-    margin : float
-        Extra seconds on each side of the window used by the reconstruction.
-    reconstruct : str
-        ``auto`` (only when velocity or u_H are missing) or ``always``.
-    resolution : float
-        Encoder increment, rad (sets the reconstruction's measurement noise).
-    assistant_model : str
-        ``feedback`` (the human plans with the assistant's law; default) or
-        ``exogenous`` (the recorded u_A is a known input, the paper's Eq. 15-16).
-    adequacy_boot : int
-        Bootstrap data sets per segment for the model-adequacy checks
-        (:mod:`pipelines.adequacy`; default 49; 0 skips them and the verdict reads
-        "not checked").
-    adequacy_seed : int
-        Root seed of the adequacy bootstrap.
-    """
-
-    window_start: float | None = WINDOW_START
-    window_seconds: float | None = WINDOW_SECONDS
-    preview: float = 2.0
-    margin: float = 1.0
-    reconstruct: str = "auto"
-    resolution: float = DEFAULT_RESOLUTION
-    assistant_model: str = "feedback"
-    adequacy_boot: int = N_BOOT
-    adequacy_seed: int = 2018
-
-    def __post_init__(self):
-        if (self.window_start is None) != (self.window_seconds is None):
-            raise ValueError("give both window start and length, or neither (whole run)")
-        if self.window_seconds is not None and not self.window_seconds > 0:
-            raise ValueError(f"window length must be > 0 s; got {self.window_seconds!r}")
-        if not (self.preview >= 0 and self.margin >= 0):
-            raise ValueError("preview and margin must be >= 0 s")
-        if self.reconstruct not in ("auto", "always"):
-            raise ValueError(f"reconstruct must be 'auto' or 'always'; got {self.reconstruct!r}")
-        _check_assistant_model(self.assistant_model)
-        if int(self.adequacy_boot) != self.adequacy_boot or self.adequacy_boot < 0:
-            raise ValueError(f"adequacy bootstrap size must be an integer >= 0; got {self.adequacy_boot!r}")
-        if int(self.adequacy_seed) != self.adequacy_seed or self.adequacy_seed < 0:
-            raise ValueError(f"adequacy seed must be an integer >= 0; got {self.adequacy_seed!r}")
-
-
-#: How the human in SC may model the assistant (see the module docstring).
-ASSISTANT_MODELS = ("feedback", "exogenous")
-
-
-def _check_assistant_model(name: str) -> None:
-    if name not in ASSISTANT_MODELS:
-        raise ValueError(f"assistant model must be one of {ASSISTANT_MODELS}; got {name!r}")
-
-
-@functools.lru_cache(maxsize=1)
-def paper_assistant():
-    """The study's assistant (the paper's MPC, :func:`models.assistant.design_assistant`), built once."""
-    return design_assistant()
-
-
-def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start: int, assistant_model: str) -> Segment:
-    """``segment`` (rows ``start``.. of its run) with the human's model of the assistant.
-
-    ``feedback`` in SC: the paper's MPC law, its feedforward from the run's whole reference
-    ``angle_ref_run`` (the assistant previews 1 s past the segment). Otherwise unchanged
-    (the recorded u_A as a known input).
-    """
-    _check_assistant_model(assistant_model)
-    if assistant_model != "feedback" or condition != "SC":
-        return segment
-    full = human_feedback(paper_assistant(), angle_ref_run)
-    return segment._replace(feedback=full.window(start, segment.u_A.shape[0]))
-
-
-@dataclass(frozen=True)
-class PreparedSegment:
-    """A segment cut to its window, with the arrays the likelihood needs."""
-
-    data: SegmentData
-    rows: slice  # window rows within the segment, k = 0..K
-    segment: Segment  # x0, reference and u_A with preview, u_H over the window
-    velocity: np.ndarray  # (K + 1,) used for x0 (recorded or reconstructed), rad/s
-    u_H: np.ndarray  # (K + 1,) recorded or reconstructed, N·m
-    angle_used: np.ndarray  # (K + 1,) angle the states start from (smoothed if reconstructed), rad
-    reconstructed: bool
-    sigma_eps: float
-    q: float
-    span: slice  # rows of the segment the reconstruction saw (the window rows without reconstruction)
-    span_state0: np.ndarray  # (2,) angle (rad) and velocity (rad/s) used at the span's first row
-    smoother: FixedReconstruction | None  # the reconstruction's linear smoother over the span (None: measured)
-
-
-def _window_rows(seg: SegmentData, settings: IdentifySettings, path) -> slice:
-    n = seg.t.shape[0]
-    if settings.window_start is None:
-        return slice(0, n)
-    i0 = int(np.searchsorted(seg.t, settings.window_start - 0.5 * DT_HUMAN))
-    K = int(round(settings.window_seconds / DT_HUMAN))
-    if i0 + K >= n or abs(seg.t[min(i0, n - 1)] - settings.window_start) > 0.5 * DT_HUMAN:
-        raise StudyFileError(
-            path,
-            f"segment ({seg.subject}, {seg.condition}) covers t = {seg.t[0]:g}..{seg.t[-1]:g} s, which does not "
-            f"contain the window {settings.window_start:g}..{settings.window_start + settings.window_seconds:g} s; "
-            "choose another --window or use --whole-run",
-            column="t",
-            row=seg.first_row,
-        )
-    return slice(i0, i0 + K + 1)
-
-
-def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<table>") -> PreparedSegment:
-    """Cut one recorded segment to its window, reconstructing velocity and u_H if needed."""
-    rows = _window_rows(seg, settings, path)
-    n = seg.t.shape[0]
-    i0, i1 = rows.start, rows.stop - 1  # window rows k = 0..K
-    K = i1 - i0
-    M = min(int(round(settings.preview / DT_HUMAN)), n - 1 - i1)
-    need = seg.velocity is None or seg.u_H is None or settings.reconstruct == "always"
-    if need:
-        m = int(round(settings.margin / DT_HUMAN))
-        j0, j1 = max(0, i0 - m), min(n, i1 + 1 + m)
-        rec = reconstruct(seg.angle[j0:j1], seg.u_A[j0:j1], plant, resolution=settings.resolution)
-        cut = slice(i0 - j0, i1 + 1 - j0)
-        angle, velocity, u_H = rec.angle[cut], rec.velocity[cut], rec.u_H[cut]
-        sigma_eps, q = rec.sigma_eps, rec.q
-        span, state0, smoother = slice(j0, j1), np.array([rec.angle[0], rec.velocity[0]]), rec.smoother
-    else:
-        angle, velocity, u_H = seg.angle[rows], seg.velocity[rows], seg.u_H[rows]
-        sigma_eps = q = float("nan")
-        span, state0, smoother = rows, np.array([angle[0], velocity[0]]), None
-    segment = Segment(
-        x0=np.array([angle[0], velocity[0]]),
-        angle_ref=seg.angle_ref[i0 : i1 + M + 1],
-        u_H=u_H[:K],
-        u_A=seg.u_A[i0 : i1 + M],
-    )
-    segment = with_assistant_model(segment, seg.condition, seg.angle_ref, i0, settings.assistant_model)
-    return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q, span, state0, smoother)
+from pipelines.storage import refuse_inputs_inside, staged_dir, write_table_atomic, write_text_atomic
 
 
 class Identification(NamedTuple):
@@ -230,13 +65,18 @@ class Identification(NamedTuple):
 
 def identify_study(study: Study, settings: IdentifySettings = IdentifySettings(), *,
                    show_progress: bool = True) -> Identification:
-    """Identify θ for every segment of a study, check the model's adequacy, cross-predict the conditions."""
+    """Identify θ for every segment of a study, check the model's adequacy, cross-predict the conditions.
+
+    Prepares the study (:func:`pipelines.prepare.prepare_study`) and runs
+    :func:`identify_prepared` on it.
+    """
+    return identify_prepared(prepare_study(study, settings, show_progress=show_progress))
+
+
+def identify_prepared(study: PreparedStudy) -> Identification:
+    """:func:`identify_study` on a study already prepared (with ``study.settings``)."""
+    settings, prepared = study.settings, study.segments
     plant = discretize(DT_HUMAN)
-    prepared, t_rec = [], 0.0
-    for seg in progress(study.segments, desc="reconstruct", enabled=show_progress):
-        t0 = time.perf_counter()
-        prepared.append(prepare_segment(seg, settings, plant, study.path))
-        t_rec += time.perf_counter() - t0
     t0 = time.perf_counter()
     estimates = [identify_segment(prepare_batch(plant, [p.segment]), plant) for p in prepared]
     t_opt = time.perf_counter() - t0
@@ -279,7 +119,7 @@ def identify_study(study: Study, settings: IdentifySettings = IdentifySettings()
         adequacy = not_checked("switched off (adequacy bootstrap size 0)")
     t_adq = time.perf_counter() - t0
     traj, val = _cross_predict(prepared, est, plant)
-    timing = {"reconstruct_s": t_rec, "optimize_s": t_opt, "adequacy_s": t_adq, "segments": len(prepared)}
+    timing = {"reconstruct_s": study.seconds, "optimize_s": t_opt, "adequacy_s": t_adq, "segments": len(prepared)}
     return Identification(est, traj, val, timing, adequacy)
 
 
@@ -300,7 +140,7 @@ def _cross_predict(prepared, est: pd.DataFrame, plant):
             "u_H": p.u_H,
         }
         rmse = {"subject": d.subject, "condition": d.condition}
-        for c in ("MC", "SC"):
+        for c in CONDITIONS:
             th = theta.get((d.subject, c))
             key = c.lower()
             if th is None:
@@ -322,16 +162,23 @@ def _cross_predict(prepared, est: pd.DataFrame, plant):
 
 
 def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettings(), *, show_progress=True,
-                    force: bool = False) -> dict:
+                    force: bool = False, prepared: PreparedStudy | None = None) -> dict:
     """Run :func:`identify_study` on a file and write its artifacts into ``out`` as a whole.
 
     ``out`` is written through :func:`pipelines.io.staged_dir`: it holds this run's
     artifacts and nothing else, or, if the run fails or is interrupted, what it held
     before. An existing non-empty ``out`` is replaced only with ``force``.
+
+    ``prepared``: the study file already prepared with ``settings``
+    (:func:`pipelines.prepare.prepare_study`; ``scioc run`` shares it with the fit), so
+    that it is not reconstructed again.
     """
     refuse_inputs_inside(out, study_path)
-    study = load_study(study_path)
-    est, traj, val, timing, adequacy = identify_study(study, settings, show_progress=show_progress)
+    if prepared is None:
+        prepared = prepare_study(load_study(study_path), settings, show_progress=show_progress)
+    elif prepared.settings != settings:
+        raise ValueError("the prepared study was cut with other settings than these")
+    est, traj, val, timing, adequacy = identify_prepared(prepared)
     out = Path(out)
     meta = {
         "study": str(study_path),

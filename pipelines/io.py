@@ -1,4 +1,4 @@
-"""Reading and validating study files in the data convention; atomic writes of files and folders.
+"""Reading and validating study files in the data convention (writing results: :mod:`pipelines.storage`).
 
 The data convention (README "Data format"): a long table, one row per 10-ms sample,
 with columns ``subject``, ``condition`` (MC or SC), ``t`` (s), ``angle`` (rad),
@@ -17,10 +17,6 @@ start of its segment; ``t`` stored as float32 gets a step tolerance that fits fl
 
 from __future__ import annotations
 
-import contextlib
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -344,141 +340,3 @@ def segments_to_table(segments) -> pd.DataFrame:
             d["u_H"] = s.u_H
         frames.append(pd.DataFrame(d))
     return pd.concat(frames, ignore_index=True)
-
-
-def _umask() -> int:
-    # The only portable way to read the umask is to set it; set it straight back.
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-@contextlib.contextmanager
-def atomic_path(path):
-    """Yield a temporary path beside ``path``; rename it onto ``path`` only on success.
-
-    Nothing already at ``path`` is lost or half-written if the writer fails. The file gets
-    the permissions of a plainly created one (0o666 less the umask), not ``mkstemp``'s 0o600.
-    """
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-def check_output_dir(out, *, force: bool = False) -> Path:
-    """The checks of :func:`staged_dir`, to run before a long stage starts.
-
-    Raises
-    ------
-    FileExistsError
-        If ``out`` is a non-empty folder and ``force`` is false, or is not a folder.
-    """
-    target = Path(out)
-    if target.exists() and not target.is_dir():
-        raise FileExistsError(f"{target} exists and is not a folder; choose another output folder")
-    if target.is_dir() and any(target.iterdir()) and not force:
-        raise FileExistsError(f"{target} already holds results; use --force to replace them as a whole, "
-                              "or choose another output folder")
-    return target
-
-
-@contextlib.contextmanager
-def staged_dir(out, *, force: bool = False):
-    """Yield a fresh temporary folder beside ``out``; on success it replaces ``out`` as a whole.
-
-    A stage writes all its outputs into the yielded folder. When the ``with`` block ends
-    without an exception, an existing ``out`` is renamed aside, the new folder renamed to
-    ``out`` and the old one deleted, so ``out`` never mixes two runs. On an exception
-    (``KeyboardInterrupt`` included) the temporary folder is removed and ``out`` is left
-    as it was; a run killed outright (SIGKILL) leaves ``out`` intact too, plus a hidden
-    ``.NAME.*.tmp`` folder beside it.
-
-    Parameters
-    ----------
-    out : str or Path
-        The output folder.
-    force : bool
-        Replace an existing non-empty ``out``. Without it such a folder is refused.
-
-    Yields
-    ------
-    Path
-        The temporary folder to write into.
-
-    Raises
-    ------
-    FileExistsError
-        If ``out`` is a non-empty folder and ``force`` is false, or is not a folder.
-
-    Examples
-    --------
-    >>> with staged_dir("results/identify", force=True) as tmp:  # doctest: +SKIP
-    ...     write_table_atomic(estimates, tmp / "estimates.parquet")
-    """
-    target = check_output_dir(out, force=force)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
-    try:
-        os.chmod(tmp, 0o777 & ~_umask())
-        yield tmp
-        if target.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
-            os.replace(target, old)  # renames over the empty placeholder folder
-            try:
-                os.replace(tmp, target)
-            except BaseException:
-                os.replace(old, target)
-                raise
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, target)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-
-
-def write_text_atomic(path, text: str) -> Path:
-    """Write text to ``path`` through a temporary file and a rename."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
-    return Path(path)
-
-
-def write_table_atomic(df: pd.DataFrame, path) -> Path:
-    """Write a DataFrame as Parquet (or CSV for a ``.csv`` path) atomically."""
-    with atomic_path(path) as tmp:
-        if Path(path).suffix.lower() == ".csv":
-            df.to_csv(tmp, index=False)
-        else:
-            df.to_parquet(tmp, index=False)
-    return Path(path)
-
-
-def refuse_inputs_inside(out, *inputs) -> None:
-    """Refuse an output folder that is, or holds, one of a stage's inputs.
-
-    A stage replaces its output folder as a whole (:func:`staged_dir`), so an input inside
-    it would be lost.
-
-    Raises
-    ------
-    ValueError
-        Naming the input and the folder (a usage error, exit 2).
-    """
-    target = Path(out).resolve()
-    for p in inputs:
-        if p is None:
-            continue
-        q = Path(p).resolve()
-        if q == target or target in q.parents:
-            raise ValueError(f"the output folder {out} holds the input {p}, which replacing it would delete; "
-                             "choose another output folder")

@@ -8,8 +8,8 @@ import pandas as pd
 from models.cost import validate_theta
 from models.maxent import loglik_segments
 from models.plant import DT_HUMAN, discretize
-from pipelines.identify import with_assistant_model
 from pipelines.io import load_study, to_maxent_segment
+from pipelines.prepare import with_assistant_model
 
 
 class NonFiniteLoglik(ArithmeticError):
@@ -41,7 +41,7 @@ def study_loglik(path, theta, assistant_model: str = "feedback") -> pd.DataFrame
     theta : array_like, shape (3,)
         [q11, q22, R].
     assistant_model : {"feedback", "exogenous"}
-        How the SC human models the assistant (:mod:`pipelines.identify`).
+        How the SC human models the assistant (:mod:`pipelines.prepare`).
 
     Returns
     -------

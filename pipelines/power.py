@@ -28,10 +28,12 @@ from models.adequacy import N_BOOT
 from models.humans import HUMANS
 from models.simulate import Population, simulate_study
 from pipelines.compare import compare_estimates
-from pipelines.identify import IdentifySettings, identify_study
-from pipelines.io import InputDataError, validate_table, write_table_atomic, write_text_atomic
+from pipelines.identify import identify_study
+from pipelines.io import InputDataError, validate_table
+from pipelines.prepare import IdentifySettings
 from pipelines.provenance import versions
 from pipelines.simulate import study_table
+from pipelines.storage import write_table_atomic, write_text_atomic
 
 DEFAULT_HUMANS = tuple(HUMANS)
 

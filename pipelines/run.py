@@ -15,11 +15,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from pipelines.compare import compare_to_file
-from pipelines.identify import IdentifySettings, format_identify, identify_study, identify_to_dir
-from pipelines.io import load_study, staged_dir, validate_table, write_table_atomic, write_text_atomic
 from models.simulate import Population
+from pipelines.compare import compare_to_file
+from pipelines.identify import format_identify, identify_study, identify_to_dir
+from pipelines.io import load_study, validate_table
+from pipelines.prepare import IdentifySettings, prepare_study
+from pipelines.report import build_report
 from pipelines.simulate import DEFAULT_SEED, DEFAULT_SUBJECTS, simulate_to_dir
+from pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
 
 DEFAULT_NAME = "default-study"
 
@@ -50,9 +53,9 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int = DEFAUL
     ``fit=False`` skips the hierarchical Bayesian fit (minutes) for quick looks. ``human``
     and ``population`` choose the simulated study (:func:`pipelines.simulate.simulate_to_dir`):
     a negative-control human shows what the report says when the model does not fit.
+    The study is reconstructed once (:func:`pipelines.prepare.prepare_study`) and shared
+    by the identification and the fit.
     """
-    from pipelines.report import build_report
-
     root = Path(out) / name
     steps = 6 if fit else 5
     t0 = time.perf_counter()
@@ -63,7 +66,8 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int = DEFAUL
             f"-> {root / 'data'}")
         sim = simulate_to_dir(tmp / "data", n_subjects=n_subjects, seed=seed, human=human, population=population)
         log(f"[2/{steps}] identifying every subject × condition from the encoder angle")
-        identify_to_dir(sim["study"], tmp / "identify", settings)
+        prepared = prepare_study(load_study(sim["study"]), settings, show_progress=True)
+        identify_to_dir(sim["study"], tmp / "identify", settings, prepared=prepared)
         log(format_identify(tmp / "identify"))
         log(f"[3/{steps}] identifying again from the true torques (the cost of reconstruction)")
         identify_with_truth(sim["study"], sim["truth_trajectories"], tmp / "identify_true_torque", settings)
@@ -73,11 +77,11 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int = DEFAUL
         log(f"[4/{steps}] Wilcoxon matched-pairs test MC vs SC")
         compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
         if fit:
-            from pipelines.fit import fit_to_dir
+            from pipelines.fit import fit_to_dir  # imports PyMC (seconds): not for --skip-fit
 
             log(f"[5/{steps}] hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
             fit_to_dir(sim["study"], tmp / "fit", seed=seed, settings=settings, truth_dir=tmp / "data",
-                       estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True)
+                       estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared)
         log(f"[{steps}/{steps}] writing the report")
         build_report(tmp, title=name)
     report = root / "index.html"
@@ -85,4 +89,5 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int = DEFAUL
     log(f"report: {report}")
     return report
 
-__all__ = ["run_all", "identify_with_truth", "load_study"]
+
+__all__ = ["run_all", "identify_with_truth"]

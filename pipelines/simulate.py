@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -22,8 +21,8 @@ from models.humans import HUMANS
 from models.reference import reference_trajectory
 from models.simulate import Population, simulate_study
 from pipelines.assistant_check import assistant_alone
-from pipelines.io import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 from pipelines.provenance import versions
+from pipelines.storage import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 
 DEFAULT_SEED = 2018
 DEFAULT_SUBJECTS = 42

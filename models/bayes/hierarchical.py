@@ -46,7 +46,7 @@ log R and θ2 blocks unchanged, so that the two models differ only in the paper'
 Parameterization (:class:`Parameterization`), chosen by measurement. Per unit at K = 1500
 the data pin log R down to about ±0.04 (prior spread σ_R ≈ 0.3: centred suits it) and
 log θ1 to about ±0.05-0.09, comparable with σ_β ≈ 0.2. Measured with
-``python -m pipelines.bench_fit`` (the default simulated study of ``scioc run``, 42 × 2
+``scioc bench-fit`` (the default simulated study of ``scioc run``, 42 × 2
 segments reconstructed from the angle, 2-s preview; 4 chains × 1000 draws after 500
 tuning draws, nutpie on 2 cores, sampler seed 2018; ``--study-seed``, ``--window-seconds``
 and the form options as in the rows); minimum over the nine population parameters of

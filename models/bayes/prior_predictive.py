@@ -6,7 +6,7 @@ assumes, and summarizes the RMS torque and RMS tracking error against the observ
 
 Prior predictive check: :func:`prior_predictive_summary` on the default study of ``scioc run``
 (``reports/default-study/data/study.parquet``, seed 2018, 42 subjects; every segment through
-``pipelines.identify.prepare_segment`` with the default ``IdentifySettings()``: the 15-s
+``pipelines.prepare.prepare_segment`` with the default ``IdentifySettings()``: the 15-s
 window, velocity and u_H reconstructed from the angle, 2-s preview), 200 joint prior
 draws, ``rng = default_rng(1)``; quantiles 5/25/50/75/95 % over draws × segments of the
 per-segment RMS human torque and RMS tracking error, and the same quantiles over the 42

@@ -15,13 +15,14 @@
 # # Posterior diagnostics of the hierarchical fit
 #
 # Reads the artifacts of `scioc fit` (it never refits): `posterior.nc` (model with
-# condition effects), `posterior_pooled.nc` (β = 0) and the sidecar `posterior.json`
-# beside them. Set `SCIOC_POSTERIOR` to another `posterior.nc` to inspect that fit;
+# condition effects: one DataTree with the groups `posterior`, `sample_stats`,
+# `log_likelihood`, `observed_data`, `posterior_predictive` and `constant_data`),
+# `posterior_pooled.nc` (β = 0) and the sidecar `posterior.json` beside them. Set `SCIOC_POSTERIOR` to another `posterior.nc` to inspect that fit;
 # the default is the one `scioc fit` writes for the default study.
 #
 # Steps: the sampler's own statistics and the verdict, then trace, rank, energy, pair
-# and forest plots (ArviZ, matplotlib backend), then the PSIS-LOO comparison with its
-# Pareto k diagnostics.
+# and forest plots (ArviZ, matplotlib backend), the posterior predictive draws against
+# the observed torques, then the PSIS-LOO comparison with its Pareto k diagnostics.
 
 # %%
 import json
@@ -120,6 +121,31 @@ plt.show()
 lt1 = idata["posterior"]["log_theta1"]
 change = (lt1.sel(condition="SC") - lt1.sel(condition="MC")).rename("change_log_theta1")
 azp.plot_forest(change.to_dataset(), backend=BACKEND)
+plt.show()
+
+# %% [markdown]
+# ## Posterior predictive draws
+#
+# Exact max-ent draws of one subject's torques (`posterior_predictive`, the dims of
+# `observed_data`), with the time axis from `constant_data`: the observed torque of each
+# of that subject's segments against its pointwise 5-95 % predictive band. `scioc fit`
+# stores the same bands in `ppc.parquet` for the report.
+
+# %%
+pp = idata["posterior_predictive"]["u_H"]
+obs = idata["observed_data"]["u_H"]
+t = idata["constant_data"]["t"]
+fig, axes = plt.subplots(pp.sizes["segment"], 1, figsize=(9, 2.6 * pp.sizes["segment"]), squeeze=False)
+for ax, seg in zip(axes[:, 0], pp["segment"].values):
+    draws = pp.sel(segment=seg).stack(sample=("chain", "draw")).transpose("sample", "step").values
+    lo, hi = np.quantile(draws, [0.05, 0.95], axis=0)
+    time = t.sel(segment=seg).values[:-1]
+    ax.fill_between(time, lo, hi, alpha=0.3, label="posterior predictive 5-95 %")
+    ax.plot(time, obs.sel(segment=seg).values, lw=0.5, color="k", label="u_H (observed)")
+    ax.set_title(str(seg))
+    ax.set_ylabel("u_H (N·m)")
+axes[-1, 0].set_xlabel("time t (s)")
+axes[0, 0].legend(fontsize=7)
 plt.show()
 
 # %% [markdown]

@@ -10,8 +10,9 @@ from scipy import stats as sps
 from models.adequacy import SEGMENT_ALPHA, STATISTICS
 from models.simulate import Population, simulate_study
 from pipelines.cli import main
-from pipelines.identify import IdentifySettings, identify_study
+from pipelines.identify import identify_study
 from pipelines.io import validate_table
+from pipelines.prepare import IdentifySettings
 from pipelines.simulate import study_table
 
 #: False-failure budget of the seeded statistical tests below.

@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.io import (MAX_ANGLE, MAX_TORQUE, MAX_VELOCITY, StudyFileError, load_study, segments_to_table,
-                          staged_dir, write_table_atomic, write_text_atomic)
+from pipelines.io import MAX_ANGLE, MAX_TORQUE, MAX_VELOCITY, StudyFileError, load_study, segments_to_table
+from pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
 
 
 def small_table(K=20, with_state=True):
@@ -194,7 +194,7 @@ def test_staged_dir_keeps_the_old_folder_when_the_stage_fails(tmp_path, error):
 _KILLED_WRITER = """
 import sys, time
 from pathlib import Path
-from pipelines.io import staged_dir
+from pipelines.storage import staged_dir
 with staged_dir(sys.argv[1], force=True) as tmp:
     (tmp / "posterior.nc").write_text("new seed")
     print("writing", flush=True)

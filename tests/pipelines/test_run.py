@@ -7,8 +7,9 @@ import pandas as pd
 import pytest
 
 from pipelines.cli import main
-from pipelines.identify import IdentifySettings, identify_study
+from pipelines.identify import identify_study
 from pipelines.io import StudyFileError, load_study
+from pipelines.prepare import IdentifySettings
 
 
 @pytest.fixture(scope="module")
@@ -109,3 +110,22 @@ def test_outputs_are_refused_or_replaced_whole(tmp_path, capsys):
     assert sorted(p.name for p in ident.iterdir()) == ["estimates.parquet", "identify.json", "trajectories.parquet",
                                                        "validation.parquet"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary folder left
+
+
+def test_run_reconstructs_every_segment_once_for_identify_and_fit(tmp_path, monkeypatch):
+    """``scioc run`` prepares the study once and hands the same prepared segments to identify and to the fit."""
+    import pipelines.fit
+    import pipelines.prepare
+    from pipelines.run import run_all
+
+    calls, seen = [], {}
+    real = pipelines.prepare.reconstruct
+    monkeypatch.setattr(pipelines.prepare, "reconstruct", lambda *a, **k: calls.append(1) or real(*a, **k))
+
+    def fake_fit(study_path, out, *, prepared=None, **kwargs):  # stands in for minutes of sampling
+        seen["prepared"] = prepared
+
+    monkeypatch.setattr(pipelines.fit, "fit_to_dir", fake_fit)
+    run_all(tmp_path, n_subjects=2, seed=5, fit=True, settings=IdentifySettings(adequacy_boot=0))
+    assert len(calls) == 4  # 2 subjects × MC and SC, from the angle; the true-torque runs need none
+    assert [p.data.subject for p in seen["prepared"].segments] == ["S01", "S01", "S02", "S02"]

@@ -1,0 +1,141 @@
+"""Measured cost of the hierarchical fit of the default study, as ``scioc fit`` runs it.
+
+The default simulated study (42 subjects × MC and SC, the 15-s window, K = 1500, the plan
+looking 2 s further, u_H reconstructed from the encoder angle) is fitted with the
+condition model of :func:`models.bayes.hierarchical.build_model` through
+:func:`pipelines.fit.sampling.sample_model` (PyMC's nutpie sampler, 4 chains × 1000 draws after
+500 tuning draws, chains in parallel on all cores). Reported: wall time of building,
+compiling and sampling; the sampler's diagnostics and verdict
+(:func:`pipelines.fit.diagnostics.diagnostics`), ESS per second for every population parameter; β
+against the simulator's population; and what the same fit would cost with the dense
+O(K³) likelihood: the number of logp-and-gradient evaluations the sampler made after
+tuning (tuning needs about as many again, uncounted: a lower bound) times the measured
+dense evaluation of all segments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+
+import numpy as np
+
+from models.bayes.hierarchical import Parameterization, build_model
+from models.design import WINDOW_SECONDS
+from models.plant import DT_HUMAN, discretize
+from models.simulate import Population
+from pipelines.bench.common import default_study_segments
+from pipelines.fit.contrasts import hdi
+from pipelines.fit.diagnostics import diagnostics
+from pipelines.fit.sampling import sample_model
+
+#: The issue's speed goal for the full fit (build, compile and sample), s.
+FIT_GOAL_S = 180.0
+
+
+def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 500,
+              dense_s_per_segment: float | None = None, linear_s_per_batch: float | None = None,
+              parameterization=None) -> dict:
+    """Fit the default study once and time it.
+
+    Parameters
+    ----------
+    study : dict
+        From :func:`pipelines.bench.common.default_study_segments` (its 2-s-preview segments are used).
+    seed, chains, draws, tune
+        As ``scioc fit``.
+    dense_s_per_segment : float, optional
+        Measured dense likelihood-and-gradient time of one K = 1500 segment, s.
+    linear_s_per_batch : float, optional
+        Measured linear-time likelihood-and-gradient time of the whole batch, s.
+    parameterization : models.bayes.hierarchical.Parameterization, optional
+        The model's default if None.
+
+    Returns
+    -------
+    dict
+        ``seconds`` (build, compile_and_sample, sample, total), ``diagnostics`` (see
+        :func:`pipelines.fit.diagnostics`), ``beta`` (mean, 94 % HDI, truth, inside),
+        ``grad_evals_after_tuning``, ``dense`` (projected time and ratio) and the goal check.
+    """
+    form = parameterization or Parameterization()
+    prepared = study[2.0]
+    plant = discretize(DT_HUMAN)
+    t0 = time.perf_counter()
+    model = build_model([p.data.subject for p in prepared], [p.data.condition for p in prepared],
+                        [p.segment for p in prepared], plant, parameterization=form)
+    t1 = time.perf_counter()
+    idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, log_likelihood=False)
+    diag = diagnostics(idata, sec["sample"])
+    beta = np.asarray(idata["posterior"]["beta"].values, dtype=float).ravel()
+    interval = hdi(beta)
+    truth = Population().beta
+    n_grad = int(np.asarray(idata["sample_stats"]["n_steps"].values).sum())
+    fit_s = (t1 - t0) + sec["compile_and_sample"]
+    out = {
+        "settings": {"segments": len(prepared), "K": prepared[0].segment.K, "preview_steps": prepared[0].segment.preview,
+                     "chains": chains, "draws": draws, "tune": tune, "seed": seed,
+                     "parameterization": dataclasses.asdict(form)},
+        "seconds": {"build": t1 - t0, "compile_and_sample": sec["compile_and_sample"], "sample": sec["sample"],
+                    "fit": fit_s},
+        "diagnostics": diag,
+        "beta": {"mean": float(beta.mean()), "hdi94": interval, "truth": truth,
+                 "truth_in_hdi": bool(interval[0] <= truth <= interval[1])},
+        "grad_evals_after_tuning": n_grad,
+        "goal_s": FIT_GOAL_S,
+        "within_goal": fit_s <= FIT_GOAL_S,
+    }
+    if dense_s_per_segment is not None:
+        dense_eval = dense_s_per_segment * len(prepared)
+        # The chains run in parallel, one per core.
+        out["dense"] = {"s_per_eval": dense_eval,
+                        "projected_s_lower_bound": n_grad * dense_eval / min(chains, os.cpu_count() or 1),
+                        "ratio_per_eval": dense_eval / linear_s_per_batch if linear_s_per_batch else None}
+    return out
+
+
+def format_fit(res: dict) -> str:
+    """The fit benchmark as plain text."""
+    s, d, b = res["seconds"], res["diagnostics"], res["beta"]
+    st = res["settings"]
+    lines = [
+        "",
+        f"Hierarchical fit of the default study ({st['segments']} segments × K = {st['K']}, plan +{st['preview_steps']} "
+        f"steps; {st['chains']} chains × {st['draws']} draws after {st['tune']} tuning; nutpie, all cores)",
+        f"  wall: build {s['build']:.1f} s + compile and sample {s['compile_and_sample']:.1f} s = {s['fit']:.1f} s "
+        f"(goal ≤ {res['goal_s']:.0f} s: {'met' if res['within_goal'] else 'NOT met'}); sampling alone {s['sample']:.1f} s",
+        f"  sampler: {d['sampler']['divergences']} divergences, mean {d['sampler']['mean_steps_per_draw']:.1f} leapfrog "
+        f"steps per draw, {res['grad_evals_after_tuning']} gradient evaluations after tuning; sampler convergence: {d['convergence_verdict']}",
+        f"  {'parameter':<18} {'R-hat':>6} {'ESS bulk':>9} {'ESS tail':>9} {'ESS/s':>7}",
+    ]
+    for v, p in d["population"].items():
+        lines.append(f"  {v:<18} {p['rhat']:>6.3f} {p['ess_bulk']:>9.0f} {p['ess_tail']:>9.0f} {p['ess_bulk_per_s']:>7.1f}")
+    lines.append(f"  β = {b['mean']:.3f}, 94 % HDI [{b['hdi94'][0]:.3f}, {b['hdi94'][1]:.3f}]; the population's "
+                 f"{b['truth']:g} is {'inside' if b['truth_in_hdi'] else 'OUTSIDE'}")
+    if "dense" in res:
+        dn = res["dense"]
+        ratio = f"{dn['ratio_per_eval']:.0f}× the linear-time batch; " if dn["ratio_per_eval"] else ""
+        lines.append(f"  with the dense likelihood one evaluation of all segments takes {dn['s_per_eval']:.0f} s "
+                     f"({ratio}the sampling after tuning alone would take ≥ {dn['projected_s_lower_bound'] / 86400:.0f} "
+                     "days on this machine)")
+    return "\n".join(lines)
+
+
+def bench_parameterization(parameterization: Parameterization, *, study_seed: int = 2018,
+                           window_seconds: float = WINDOW_SECONDS, seed: int = 2018) -> dict:
+    """One fit of the default simulated study in ``parameterization`` (``scioc bench-fit``).
+
+    What the parameterization table of :mod:`models.bayes.hierarchical` was measured with::
+
+        scioc bench-fit --study-seed 2018 --theta1-mc centred [--window-seconds 3]
+
+    ``study_seed`` seeds the simulated study, ``window_seconds`` shortens its analysis
+    window (less data per unit), ``seed`` seeds the sampler. Returns :func:`bench_fit`'s
+    result with the study's seed and window added to its settings.
+    """
+    res = bench_fit(default_study_segments(seed=study_seed, window_seconds=window_seconds), seed=seed,
+                    parameterization=parameterization)
+    res["settings"]["study_seed"] = study_seed
+    res["settings"]["window_seconds"] = window_seconds
+    return res

@@ -1,0 +1,60 @@
+"""``scioc bench``: measured speed of the likelihood kernels, the identification, the full fit and SBC.
+
+All ratios are measured in the same run on the same machine (:mod:`pipelines.bench.likelihood`,
+:mod:`pipelines.bench.identify`, :mod:`pipelines.bench.fit`, :mod:`pipelines.bench.sbc`).
+"""
+
+from __future__ import annotations
+
+import json
+
+from pipelines.bench.common import default_study_segments, machine_info
+from pipelines.bench.identify import bench_identify, format_identify
+from pipelines.bench.likelihood import bench_likelihood, format_likelihood
+from pipelines.storage import write_text_atomic
+
+#: The parts of ``scioc bench``, in the order they run.
+PARTS = ("likelihood", "identify", "fit", "sbc")
+
+
+def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
+    """Run the benchmarks; print tables; optionally write JSON (atomically).
+
+    Parameters
+    ----------
+    json_path : str or Path, optional
+    quick : bool
+        Smaller sizes (for tests of the command itself; not for quoting). Leaves out the
+        fit and SBC parts, which have no small version worth timing.
+    parts : sequence of str
+        Any of :data:`PARTS`. The fit's dense comparison needs the likelihood part.
+    """
+    unknown = set(parts) - set(PARTS)
+    if unknown:
+        raise ValueError(f"unknown benchmark part(s) {sorted(unknown)}; choose from {', '.join(PARTS)}")
+    kw = {"dense_k": (50, 100), "long_k": 2000} if quick else {}
+    study = default_study_segments(n_subjects=2 if quick else 42)
+    result = {"machine": machine_info(), "quick": quick}
+    if "likelihood" in parts:
+        result["likelihood"] = bench_likelihood(study, **kw)
+        print(format_likelihood(result["likelihood"]), flush=True)
+    if "identify" in parts:
+        result["identify"] = bench_identify(study)
+        print(format_identify(result["identify"]), flush=True)
+    if "fit" in parts and not quick:
+        from pipelines.bench.fit import bench_fit, format_fit  # lazy: PyMC takes seconds to import
+
+        lik = result.get("likelihood", {})
+        dense = {r["K"]: r["dense_s"] for r in lik.get("rows", [])}
+        K = study[2.0][0].segment.K
+        result["fit"] = bench_fit(study, dense_s_per_segment=dense.get(K),
+                                  linear_s_per_batch=lik.get("batch_preview", {}).get("linear_s"))
+        print(format_fit(result["fit"]), flush=True)
+    if "sbc" in parts and not quick:
+        from pipelines.bench.sbc import bench_sbc, format_sbc  # lazy: Dask and PyMC take seconds to import
+
+        result["sbc"] = bench_sbc()
+        print(format_sbc(result["sbc"]), flush=True)
+    if json_path is not None:
+        write_text_atomic(json_path, json.dumps(result, indent=2) + "\n")
+    return result

@@ -1,0 +1,137 @@
+"""What a calibration run is: its configuration, the level defaults and the replication seeds."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from models.design import DT_HUMAN
+
+#: Version of how replications simulate and fit; part of every fingerprint. Bump it when
+#: the data-generating process or the fitted likelihood changes.
+GENERATOR = ("3: SC human plans with the assistant's feedback law; assistant re-solves every sample; "
+             "ArviZ's bulk/tail-ESS thinning; log-likelihood test quantity; thinned draws stored")
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """What to calibrate and how.
+
+    Attributes
+    ----------
+    level : {"unit", "study"}
+    replications : int
+    seed : int
+    L : int
+        Posterior draws per rank after thinning (ranks take L + 1 values).
+    chains, tune, draws : int
+        Sampler settings per fit.
+    K : int
+        Samples per segment (window length × 100 Hz).
+    n_subjects : int
+        Subjects per simulated study (study level only).
+    negative_control : str or None
+        ``None`` for the correct model; ``"inertia"`` fits with the wheel inertia 10 %
+        too high; ``"ignore-uA"`` fits a likelihood that attributes the assistant's
+        torque to the human.
+    batch_size : int
+        Replications per Dask task.
+    """
+
+    level: str = "unit"
+    replications: int = 1000
+    seed: int = 2018
+    L: int = 99
+    chains: int = 2
+    tune: int = 500
+    draws: int = 500
+    K: int = 1500
+    n_subjects: int = 8
+    negative_control: str | None = None
+    batch_size: int = 10
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.level not in ("unit", "study"):
+            raise ValueError(f"level must be 'unit' or 'study'; got {self.level!r}")
+        for name in ("replications", "L", "chains", "tune", "draws", "K", "n_subjects", "batch_size"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"{name} must be a positive integer; got {value!r}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0; got {self.seed!r}")
+        if self.negative_control not in (None, "inertia", "ignore-uA"):
+            raise ValueError(f"negative_control must be None, 'inertia' or 'ignore-uA'; got {self.negative_control!r}")
+        if self.chains * self.draws < self.L:
+            raise ValueError(f"chains × draws = {self.chains * self.draws} cannot give L = {self.L} draws")
+
+    def fingerprint(self) -> str:
+        """Hash of everything that changes a replication's result.
+
+        Not ``batch_size`` (how work is grouped) nor ``replications`` (replication i is the
+        same in a run of 100 or of 1000, so a run can be extended).
+        """
+        d = asdict(self)
+        d.pop("batch_size")
+        d.pop("replications")
+        d["generator"] = GENERATOR  # results of an older simulator must not be resumed
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
+
+#: Default designs. The study level is reduced (documented in the README): 6 subjects,
+#: 2-s windows, 2 chains × 200 draws ranked against L = 39, so that 200 replications fit
+#: in well under an hour on two cores; σ_β mixes slowest (about 0.15 effective draws per
+#: draw), hence the smaller L.
+DEFAULTS = {
+    "unit": {"replications": 1000, "K": 1500, "chains": 2, "tune": 500, "draws": 500, "batch_size": 10, "L": 99},
+    "study": {"replications": 200, "K": 200, "n_subjects": 6, "chains": 2, "tune": 300, "draws": 200, "batch_size": 3,
+              "L": 39},
+}
+
+#: Default negative control per level: the unit level must catch a 10 % inertia error, the
+#: study level a likelihood that gives the assistant's torque to the human.
+NEGATIVE_DEFAULT = {"unit": "inertia", "study": "ignore-uA"}
+
+
+def level_configs(level: str, *, seed: int = 2018, replications: int | None = None, batch_size: int | None = None,
+                  n_subjects: int | None = None, seconds: float | None = None,
+                  negative_control: str | None = None) -> list[tuple[str, CalibrationConfig]]:
+    """The calibration of one level and, unless ``negative_control == "none"``, its negative control.
+
+    Parameters
+    ----------
+    level : {"unit", "study"}
+    seed : int
+    replications, batch_size, n_subjects : int, optional
+        Override the level's :data:`DEFAULTS`.
+    seconds : float, optional
+        Window length, s (K = seconds / 0.01 s).
+    negative_control : {"inertia", "ignore-uA", "none"}, optional
+        Default :data:`NEGATIVE_DEFAULT` of the level.
+
+    Returns
+    -------
+    list of (str, CalibrationConfig)
+        ``(level, correct)`` and ``(level + "-negative", wrong)``: the folder names under
+        the output folder and their validated configurations.
+    """
+    if level not in DEFAULTS:
+        raise ValueError(f"level must be 'unit' or 'study'; got {level!r}")
+    d = dict(DEFAULTS[level])
+    for key, value in (("replications", replications), ("batch_size", batch_size), ("n_subjects", n_subjects)):
+        if value is not None:
+            d[key] = value
+    if seconds is not None:
+        d["K"] = int(round(seconds / DT_HUMAN))
+    runs = [(level, None)]
+    nc = NEGATIVE_DEFAULT[level] if negative_control is None else negative_control
+    if nc != "none":
+        runs.append((f"{level}-negative", nc))
+    return [(name, CalibrationConfig(level=level, seed=seed, negative_control=wrong, **d)) for name, wrong in runs]
+
+
+def replication_seed(seed: int, i: int) -> np.random.SeedSequence:
+    """The i-th child of ``SeedSequence(seed)``, without spawning the others."""
+    return np.random.SeedSequence(entropy=int(seed), spawn_key=(int(i),))

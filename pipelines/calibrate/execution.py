@@ -1,0 +1,179 @@
+"""``scioc calibrate``: simulation-based calibration run on a Dask cluster, resumable.
+
+Every replication i draws its own child seed ``SeedSequence(seed, spawn_key=(i,))``
+(the i-th child of ``SeedSequence(seed).spawn``), so its result depends on neither the
+worker nor the order it ran in. Replications are grouped into tasks of ``batch_size``
+so that one compiled model serves several fits (workers cache compiled models). Each
+finished replication is written at once to ``OUT/reps/rep_NNNNN.json`` (temporary file
+and rename) by the worker, and again by the client from the task's result if the
+worker's file system is not the client's; a rerun skips every replication whose file
+exists, so an interrupted run resumes and a worker that dies costs only the
+replications it had not finished.
+
+The statistics (ranks, PIT, uniformity tests, coverage, contraction) are computed from
+the replication files by :func:`pipelines.calibrate.summary.summarize`, in replication
+order; the files and their rules live in :mod:`pipelines.calibrate.store`.
+
+An existing scheduler is first asked who it is (:func:`check_scheduler`), under one hard
+deadline: distributed's connect timeout stops applying once TCP connects, so an address
+that accepts connections but is no scheduler would otherwise hang the client for good.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from pipelines.calibrate.config import CalibrationConfig, replication_seed
+from pipelines.calibrate.store import earlier_summary, prepare_out, read_json, rep_path, write_replication
+from pipelines.calibrate.summary import sbc_tree, summarize
+from pipelines.progress import progress
+from pipelines.storage import atomic_path, write_text_atomic
+
+
+def run_replication(config: CalibrationConfig, i: int) -> dict:
+    """Replication ``i`` of ``config`` (its level's), with its index, wall time and worker."""
+    # Lazy: the models import PyMC (seconds), which only the workers need.
+    from pipelines.calibrate.study import study_replication
+    from pipelines.calibrate.unit import unit_replication
+
+    t0 = time.perf_counter()
+    replicate = unit_replication if config.level == "unit" else study_replication
+    res = replicate(config, i, replication_seed(config.seed, i))
+    res["index"] = i
+    res["seconds"] = time.perf_counter() - t0
+    res["worker_pid"] = os.getpid()
+    return res
+
+
+def run_batch(indices, config_dict: dict, out_dir: str) -> list[dict]:
+    """A Dask task: run (or read back) several replications, writing each as it finishes."""
+    config = CalibrationConfig(**config_dict)
+    out = []
+    for i in indices:
+        path = rep_path(out_dir, i)
+        if path.exists():
+            out.append(read_json(path))
+            continue
+        res = run_replication(config, i)
+        write_replication(out_dir, res)
+        out.append(res)
+    return out
+
+
+async def _identity(address: str, timeout: float):
+    from distributed.comm import connect  # lazy: Dask takes seconds to import
+
+    comm = await connect(address, timeout=timeout)
+    try:
+        await comm.write({"op": "identity"})
+        return await comm.read()
+    finally:
+        comm.abort()
+
+
+def check_scheduler(address: str, timeout: float) -> None:
+    """Return within ``timeout`` s if ``address`` answers as a Dask scheduler, else raise OSError.
+
+    Connecting, distributed's handshake and the reply to an ``identity`` request share
+    one deadline, so a server that accepts and never answers (an HTTP server) or answers
+    garbage (which distributed reads as a frame of exabytes) fails quickly and clearly.
+    """
+    try:
+        reply = asyncio.run(asyncio.wait_for(_identity(address, timeout), timeout))
+    except (OSError, TimeoutError) as exc:
+        raise OSError(f"cannot reach the Dask scheduler at {address} within {timeout:g} s: "
+                      f"{str(exc) or 'no answer (is it a Dask scheduler?)'}") from None
+    except Exception as exc:  # e.g. MemoryError: distributed took an HTTP reply for a frame length
+        raise OSError(f"{address} is not a Dask scheduler: it answered what distributed cannot read "
+                      f"({type(exc).__name__})") from None
+    if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
+        raise OSError(f"{address} is not a Dask scheduler: it answered as {str(reply)[:80]!r}")
+
+
+def _connect(scheduler: str | None, n_workers: int, timeout: float):
+    from dask.distributed import Client, LocalCluster  # lazy: Dask takes seconds to import
+
+    if scheduler:
+        check_scheduler(scheduler, timeout)
+        try:
+            return Client(scheduler, timeout=timeout), None
+        except (OSError, TimeoutError) as exc:
+            raise OSError(f"cannot reach the Dask scheduler at {scheduler} within {timeout:g} s: {exc}") from None
+    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None)
+    return Client(cluster), cluster
+
+
+def calibrate(config: CalibrationConfig, out_dir, *, scheduler: str | None = None, n_workers: int = 2,
+              show_progress: bool = True, timeout: float = 5.0) -> dict:
+    """Run every missing replication on Dask and summarize all of them.
+
+    Parameters
+    ----------
+    config : CalibrationConfig
+    out_dir : str or Path
+    scheduler : str, optional
+        ``tcp://HOST:PORT`` of an existing scheduler; default an in-process local cluster.
+    n_workers : int
+        Workers of the local cluster (one thread each).
+    show_progress : bool
+    timeout : float
+        Seconds to wait for a scheduler before giving up with a clear error.
+
+    Returns
+    -------
+    dict
+        The summary (also written to ``OUT/summary.json``; every replication also goes
+        into ``OUT/sbc.nc``, :func:`pipelines.calibrate.summary.sbc_tree`).
+    """
+    from dask.distributed import as_completed  # lazy: Dask takes seconds to import
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    prepare_out(config, out_dir)
+    earlier = earlier_summary(config, out_dir)
+    todo = [i for i in range(config.replications) if not rep_path(out_dir, i).exists()]
+    t0 = time.perf_counter()
+    if todo:
+        client, cluster = _connect(scheduler, n_workers, timeout)
+        try:
+            chunks = [todo[j : j + config.batch_size] for j in range(0, len(todo), config.batch_size)]
+            cfg = asdict(config)
+            futures = [client.submit(run_batch, chunk, cfg, str(out_dir), key=f"sbc-{config.fingerprint()}-{chunk[0]}",
+                                     retries=3) for chunk in chunks]
+            bar = progress(as_completed(futures), desc=f"SBC {config.level}", total=len(futures), enabled=show_progress)
+            for fut in bar:
+                for res in fut.result():
+                    if not rep_path(out_dir, res["index"]).exists():  # worker on another file system
+                        write_replication(out_dir, res)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    wall = time.perf_counter() - t0
+    total = earlier.get("wall_seconds_total", 0.0)
+    summary = summarize(out_dir, config)
+    summary["wall_seconds_this_run"] = wall
+    # Wall time of every invocation that ran replications (a resume adds to it).
+    summary["wall_seconds_total"] = total + (wall if todo else 0.0)
+    summary["replications_run_now"] = len(todo)
+    write_text_atomic(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
+    with atomic_path(out_dir / "sbc.nc") as tmp:
+        sbc_tree(out_dir, config).to_netcdf(tmp, engine="h5netcdf")
+    return summary
+
+
+def calibrate_runs(runs, out, *, scheduler: str | None = None, n_workers: int = 2) -> list[dict]:
+    """``scioc calibrate``: several calibrations (a level and its negative control), each into ``out/NAME``.
+
+    ``runs`` is a list of (folder name, :class:`CalibrationConfig`), as
+    :func:`pipelines.calibrate.config.level_configs` gives. Every folder is checked
+    (:func:`pipelines.calibrate.store.earlier_summary`) before anything runs.
+    """
+    for name, cfg in runs:
+        earlier_summary(cfg, Path(out) / name)
+    return [calibrate(cfg, Path(out) / name, scheduler=scheduler, n_workers=n_workers) for name, cfg in runs]

@@ -1,0 +1,124 @@
+"""The one SBC replication loop after the data: sample, thin, rank, randomize the PIT, keep the thinned draws.
+
+Both levels (:mod:`pipelines.calibrate.unit`, :mod:`pipelines.calibrate.study`) simulate
+their data and then call :func:`sample_and_rank` with their targets: each target names
+the posterior draws of one scalar quantity and its true value. Ranks follow simuk's
+definition (draws strictly below the truth, :func:`models.sbc.rank`) among L draws
+thinned to near independence by ArviZ's bulk- and tail-ESS factor (:func:`thin`); the randomized PIT
+``(rank + U) / (L + 1)`` takes its U from the replication's own generator, one per target
+in target order. The thinned draws are returned too, so that the replication can be
+re-ranked later (simuk's ``prior_sbc`` layout, :mod:`pipelines.calibrate.summary`).
+
+Besides the parameters, every replication ranks one test quantity that depends on the
+data: the log-likelihood of the simulated data (Modrák et al. 2023, *Simulation-based
+calibration checking for Bayesian computation: the choice of test quantities shapes
+sensitivity*, Bayesian Analysis), evaluated at each posterior draw and at the truth
+with the likelihood the fit uses (:func:`loglik_draws`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from arviz_stats.base import array_stats
+
+from models.maxent import loglik_grad
+from models.sbc import rank
+
+#: Name of the log-likelihood test quantity among the ranked targets.
+LOGLIK = "loglik"
+
+
+class Target(NamedTuple):
+    """One ranked quantity: its label, its draws (chains, draws) and its true value."""
+
+    label: str
+    draws: np.ndarray
+    truth: float
+
+
+def thin(draws: np.ndarray, L: int) -> tuple[np.ndarray, float]:
+    """L of the (chains, draws) ``draws``, thinned to near independence by ArviZ, then evenly spaced.
+
+    Each chain is thinned by ArviZ's factor ``ceil(N / min(bulk ESS, tail ESS))``
+    (``arviz_stats`` ``thin_factor`` and ``thin``); L draws are taken evenly spaced from
+    the chains' thinned draws in chain order (all draws if fewer than L remain).
+
+    Returns
+    -------
+    kept : ndarray, shape (L,)
+    ess : float
+        min(bulk ESS, tail ESS) of the draws; below L the kept draws are still
+        autocorrelated, and the summary counts the replication (``low_ess``).
+    """
+    x = np.atleast_2d(np.asarray(draws, dtype=float))
+    ess = float(min(array_stats.ess(x, method="bulk", chain_axis=0, draw_axis=1),
+                    array_stats.ess(x, method="tail", prob=0.95, chain_axis=0, draw_axis=1)))
+    factor = array_stats.thin_factor(x, chain_axis=0, draw_axis=1) if np.isfinite(ess) and ess > 0 else 1
+    pool = array_stats.thin(x, factor=int(factor), chain_axis=0, draw_axis=1).reshape(-1)
+    if pool.shape[0] < L:
+        pool = x.reshape(-1)
+    return pool[np.round(np.linspace(0, pool.shape[0] - 1, L)).astype(int)], ess
+
+
+def loglik_draws(thetas, batch, plant) -> np.ndarray:
+    """Log-likelihood (nats) of a batch's data, summed over its segments, at each of many θ.
+
+    Parameters
+    ----------
+    thetas : ndarray, shape (..., 3, n)
+        [q11, q22, R] of each of the batch's n segments, per draw (leading dims).
+    batch : SegmentBatch
+    plant : DiscretePlant
+        The plant the fit assumes.
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    thetas = np.asarray(thetas, dtype=float)
+    flat = thetas.reshape((-1,) + thetas.shape[-2:])
+    out = np.array([loglik_grad(th, batch, plant).loglik.sum() for th in flat])
+    return out.reshape(thetas.shape[:-2])
+
+
+def sample_and_rank(compiled, config, rng: np.random.Generator, targets, prior_var: dict) -> dict:
+    """Sample a compiled model with nutpie and rank every target's truth among its thinned draws.
+
+    Parameters
+    ----------
+    compiled : nutpie compiled model, with the replication's data set
+    config : CalibrationConfig
+        Chains, tune, draws and L.
+    rng : numpy.random.Generator
+        The replication's generator (the sampler's seed, then one U per target).
+    targets : callable
+        ``targets(posterior) -> list of Target``, given the posterior Dataset.
+    prior_var : dict
+        Prior variance of each target label (for the contraction; targets without one,
+        like the log-likelihood, get none).
+
+    Returns
+    -------
+    dict
+        ``truth``, ``ranks``, ``pit_u``, ``ess``, ``contraction`` and ``thinned`` (the
+        L kept draws) per target label, and ``divergences``.
+    """
+    import nutpie  # lazy: nutpie imports numba-compiled PyMC machinery (seconds)
+
+    trace = nutpie.sample(compiled, chains=config.chains, tune=config.tune, draws=config.draws,
+                          seed=int(rng.integers(2**62)), cores=1, progress_bar=False)
+    out = {"truth": {}, "ranks": {}, "pit_u": {}, "ess": {}, "contraction": {}, "thinned": {}}
+    for t in targets(trace["posterior"]):
+        draws = np.asarray(t.draws, dtype=float)
+        kept, ess = thin(draws, config.L)
+        out["truth"][t.label] = float(t.truth)
+        out["ranks"][t.label] = rank(kept, t.truth)
+        out["pit_u"][t.label] = float(rng.uniform())
+        out["ess"][t.label] = ess
+        if t.label in prior_var:
+            out["contraction"][t.label] = float(1.0 - draws.var() / prior_var[t.label])
+        out["thinned"][t.label] = [float(v) for v in kept]
+    out["divergences"] = int(np.asarray(trace["sample_stats"]["diverging"].values).sum())
+    return out

@@ -1,0 +1,83 @@
+"""Where a calibration keeps its results: one JSON file per replication, the configuration, the summary.
+
+Each finished replication is written at once to ``OUT/reps/rep_NNNNN.json`` (temporary
+file and rename); a rerun skips every replication whose file exists, so an interrupted
+run resumes. ``OUT/config.json`` holds the configuration's fingerprint (another
+configuration is refused), ``OUT/summary.json`` the summary, which names how many
+replications it covers (a rerun with fewer is refused rather than replacing it).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+from pipelines.calibrate.config import CalibrationConfig
+from pipelines.io import InputDataError
+from pipelines.storage import write_text_atomic
+
+#: The fields every replication file holds.
+REPLICATION_FIELDS = frozenset({"ranks", "pit_u", "ess", "contraction", "seconds", "truth", "thinned"})
+
+
+def rep_path(out_dir, i: int) -> Path:
+    return Path(out_dir) / "reps" / f"rep_{i:05d}.json"
+
+
+def read_json(path, what: str = "replication") -> dict:
+    """Read one of the calibration's JSON files; a damaged one is named, with the way out."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
+        raise InputDataError(f"{path}: damaged {what} file ({exc}); delete it and rerun to recompute it") from None
+
+
+def prepare_out(config: CalibrationConfig, out_dir: Path) -> None:
+    cfg_path = out_dir / "config.json"
+    d = asdict(config)
+    if cfg_path.exists():
+        old = read_json(cfg_path, "configuration")
+        old_fp = old.get("fingerprint")
+        if old_fp != config.fingerprint():
+            raise ValueError(
+                f"{cfg_path}: this folder holds replications of a different configuration "
+                f"(fingerprint {old_fp} vs {config.fingerprint()}); use another --out"
+            )
+        return
+    write_text_atomic(cfg_path, json.dumps({**d, "fingerprint": config.fingerprint()}, indent=2) + "\n")
+
+
+def earlier_summary(config: CalibrationConfig, out_dir) -> dict:
+    """The summary already in ``out_dir`` ({} if none); refuses a run smaller than it.
+
+    Raises
+    ------
+    ValueError
+        If the folder's summary covers more replications than ``config`` asks for.
+    """
+    path = Path(out_dir) / "summary.json"
+    earlier = read_json(path, "summary") if path.exists() else {}
+    if earlier.get("replications", 0) > config.replications:
+        raise ValueError(
+            f"{path} summarizes {earlier['replications']} replications; this run asks for "
+            f"{config.replications} and would replace it: use --replications {earlier['replications']} "
+            "(or more), or another --out")
+    return earlier
+
+
+def load_replications(out_dir, n: int) -> list[dict]:
+    missing = [i for i in range(n) if not rep_path(out_dir, i).exists()]
+    if missing:
+        raise FileNotFoundError(f"{out_dir}: {len(missing)} replications missing (first {missing[0]}); rerun to resume")
+    reps = [read_json(rep_path(out_dir, i)) for i in range(n)]
+    for i, rep in enumerate(reps):
+        if not (isinstance(rep, dict) and REPLICATION_FIELDS <= rep.keys()):
+            raise InputDataError(f"{rep_path(out_dir, i)}: damaged replication file (fields missing); "
+                                 "delete it and rerun to recompute it")
+    return reps
+
+
+def write_replication(out_dir, res: dict) -> None:
+    """Write one finished replication's file (atomically)."""
+    write_text_atomic(rep_path(out_dir, res["index"]), json.dumps(res) + "\n")

@@ -1,0 +1,117 @@
+"""Study-level SBC replication: the hierarchical model against studies drawn from its own prior.
+
+Per replication: population and unit parameters are drawn from the prior of
+:func:`models.bayes.hierarchical.build_model` (by PyMC itself, from the model graph, so
+the draws follow exactly the model that is fitted); a whole study is simulated exactly
+from the max-ent model (``n_subjects`` × MC and SC, windows of K samples of the study
+reference from rest; in SC the human plans with the assistant's law and the assistant
+reacts to the sampled trajectory, :func:`pipelines.calibrate.simulation.simulate_unit`);
+the model compiled once per worker (data in ``pm.Data`` containers) is refitted with
+nutpie; ranks of the population parameters, of the first subject's unit parameters and
+of the study's log-likelihood are recorded. The negative controls are those of the unit
+level (:mod:`pipelines.calibrate.simulation`).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from models.bayes.hierarchical import POPULATION_PARAMETERS, build_model
+from models.cost import from_normalized
+from models.design import CONDITIONS
+from pipelines.calibrate.ranking import LOGLIK, Target, loglik_draws, sample_and_rank
+from pipelines.calibrate.simulation import cached, fit_plant, fitted_batch, rest_segment, simulate_unit
+
+#: Unit parameters ranked (first subject), as (variable, condition index).
+UNITS = (("log_theta1", 0), ("log_theta1", 1), ("log_R", 0), ("theta2", 0))
+
+
+def study_labels(n_subjects: int):
+    """Subjects and conditions of a simulated study's segments: S00 MC, S00 SC, S01 MC, ..."""
+    subjects = [f"S{i:02d}" for i in range(n_subjects) for _ in CONDITIONS]
+    return subjects, list(CONDITIONS) * n_subjects
+
+
+def template(config, negative_control):
+    """The hierarchical model with data containers for the study design of ``config`` (cached per worker)."""
+
+    def build():
+        plant = fit_plant(negative_control)
+        batch, _ = fitted_batch([rest_segment(config.K)] * (2 * config.n_subjects), negative_control)
+        subjects, conditions = study_labels(config.n_subjects)
+        return build_model(subjects, conditions, batch, plant, data_containers=True)
+
+    return cached(("study-model", config.K, config.n_subjects, negative_control), build)
+
+
+def compiled_study(config, negative_control):
+    """:func:`template` compiled by nutpie (cached per worker)."""
+
+    def build():
+        import nutpie  # lazy: nutpie imports numba-compiled PyMC machinery (seconds)
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return nutpie.compile_pymc_model(template(config, negative_control), backend="numba")
+
+    return cached(("study-compiled", config.K, config.n_subjects, negative_control), build)
+
+
+def prior_draw(config, rng) -> dict:
+    """One draw of the population and unit parameters from the model's own prior (``pm.draw``)."""
+    import pymc as pm  # lazy: PyMC takes seconds to import
+
+    model = template(config, None)
+    names = list(POPULATION_PARAMETERS) + sorted({v for v, _ in UNITS} | {"theta1", "R"})
+    values = pm.draw([model[n] for n in names], random_seed=rng)
+    return {n: np.asarray(v, dtype=float) for n, v in zip(names, values)}
+
+
+def prior_variances(config) -> dict:
+    """Prior variance of every ranked parameter (4000 prior draws, seed 0; cached per worker)."""
+
+    def build():
+        import pymc as pm  # lazy: PyMC takes seconds to import
+
+        model = template(config, None)
+        names = list(POPULATION_PARAMETERS) + sorted({v for v, _ in UNITS})
+        draws = pm.draw([model[n] for n in names], draws=4000, random_seed=np.random.default_rng(0))
+        var = {}
+        for n, d in zip(names, draws):
+            d = np.asarray(d, dtype=float)
+            if d.ndim == 1:
+                var[n] = float(d.var())
+            else:
+                for v, c in UNITS:
+                    if v == n:
+                        var[f"{n}[0,{c}]"] = float(d[:, 0, c].var())
+        return var
+
+    return cached(("study-prior-var", config.K, config.n_subjects), build)
+
+
+def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
+    """Replication ``i``: draw a population and its units, simulate a study, refit, rank."""
+    rng = np.random.default_rng(seed)
+    truth = prior_draw(config, rng)
+    segs, thetas = [], []
+    for s in range(config.n_subjects):
+        for c, condition in enumerate(CONDITIONS):
+            theta = from_normalized(truth["theta1"][s, c], truth["theta2"][s, c], truth["R"][s, c])
+            segs.append(simulate_unit(theta, condition, config.K, config.negative_control, rng))
+            thetas.append(theta)
+    plant = fit_plant(config.negative_control)
+    batch, data = fitted_batch(segs, config.negative_control)
+    compiled = compiled_study(config, config.negative_control).with_data(**data)
+
+    def targets(post):
+        out = [Target(n, post[n].values, truth[n]) for n in POPULATION_PARAMETERS]
+        out += [Target(f"{v}[0,{c}]", post[v].values[:, :, 0, c], truth[v][0, c]) for v, c in UNITS]
+        # θ of every segment per draw, in segment order (subject-major, MC before SC).
+        t1, t2, r = (post[v].values.reshape(post[v].shape[:2] + (-1,)) for v in ("theta1", "theta2", "R"))
+        ll = loglik_draws(np.moveaxis(from_normalized(t1, t2, r), 0, -2), batch, plant)
+        return out + [Target(LOGLIK, ll, loglik_draws(np.column_stack(thetas), batch, plant))]
+
+    return sample_and_rank(compiled, config, rng, targets, prior_variances(config))

@@ -1,0 +1,66 @@
+"""Unit-level SBC replication: one subject in one condition, θ from its prior, one 15-s window.
+
+θ ~ :class:`models.bayes.unit_model.UnitPrior`; one exact max-ent demonstration over the
+study's analysis window (the fixed reference) from rest at the reference; even
+replications are manual control (u_A = 0), odd ones shared control, where the human
+plans with the assistant's feedback law and the assistant reacts to the actual state
+(:func:`pipelines.calibrate.simulation.simulate_unit`, the simulator's SC human); the
+likelihood is the :class:`models.segment.Feedback` model, as in the pipeline; the
+posterior is sampled with nutpie, one chain after the other (``cores=1``: the
+parallelism is across replications, one worker per core; nutpie seeds each chain on its
+own, so the draws do not depend on this).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from models.bayes.unit_model import UNIT_PARAMETERS, UnitPrior, build_unit_model
+from models.cost import from_normalized
+from models.design import MANUAL, SHARED
+from pipelines.calibrate.ranking import LOGLIK, Target, loglik_draws, sample_and_rank
+from pipelines.calibrate.simulation import cached, fit_plant, fitted_batch, rest_segment, simulate_unit
+
+
+def compiled_unit(K: int, negative_control):
+    """The unit model compiled by nutpie for windows of K samples (cached per worker)."""
+
+    def build():
+        import nutpie  # lazy: nutpie imports numba-compiled PyMC machinery (seconds)
+
+        plant = fit_plant(negative_control)
+        batch, _ = fitted_batch([rest_segment(K)], negative_control)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return nutpie.compile_pymc_model(build_unit_model(batch, plant), backend="numba")
+
+    return cached(("unit", K, negative_control), build)
+
+
+def prior_variances(prior: UnitPrior) -> dict:
+    """Prior variance of θ1, θ2 and R (by simulation, seed 0; cached per worker)."""
+    rng = np.random.default_rng(0)
+    return cached(("prior_var", prior), lambda: {name: prior.variance(name, rng) for name in UNIT_PARAMETERS})
+
+
+def unit_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
+    """Replication ``i``: draw θ, simulate one window, fit, rank θ1, θ2, R and the log-likelihood."""
+    rng = np.random.default_rng(seed)
+    prior = UnitPrior()
+    truth = prior.draw(rng)
+    condition = MANUAL if i % 2 == 0 else SHARED
+    seg = simulate_unit(truth["theta"], condition, config.K, config.negative_control, rng)
+    plant = fit_plant(config.negative_control)
+    batch, data = fitted_batch([seg], config.negative_control)
+    compiled = compiled_unit(config.K, config.negative_control).with_data(**data)
+
+    def targets(post):
+        out = [Target(name, post[name].values, truth[name]) for name in UNIT_PARAMETERS]
+        thetas = from_normalized(post["theta1"].values, post["theta2"].values, post["R"].values)  # (3, chain, draw)
+        ll = loglik_draws(np.moveaxis(thetas, 0, -1)[..., None], batch, plant)
+        return out + [Target(LOGLIK, ll, loglik_draws(np.asarray(truth["theta"], dtype=float)[:, None], batch, plant))]
+
+    out = sample_and_rank(compiled, config, rng, targets, prior_variances(prior))
+    return {"condition": condition, **out}

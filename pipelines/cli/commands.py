@@ -1,0 +1,174 @@
+"""The ``scioc`` commands: each turns its parsed options into typed settings, calls one pipeline function,
+prints where the results went and returns the exit status.
+
+Every pipeline module is imported inside its command: ``scioc --help`` and the light
+commands then start in a fraction of a second, and only ``fit`` pays for PyMC.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+
+def cmd_loglik(args) -> int:
+    from pipelines.loglik import NonFiniteLoglik, parse_theta, study_loglik
+
+    theta = parse_theta(args.theta)
+    try:
+        table = study_loglik(args.study, theta, args.assistant_model)
+    except NonFiniteLoglik as exc:
+        print(f"scioc loglik: error: {exc}", file=sys.stderr)
+        return 1
+    if args.format == "json":
+        records = [
+            {"subject": r.subject, "condition": r.condition, "loglik": float(r.loglik)}
+            for r in table.itertuples(index=False)
+        ]
+        print(json.dumps(records, indent=2, allow_nan=False))
+    else:
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.6f}"))
+    return 0
+
+
+def cmd_power(args) -> int:
+    from pipelines.power import format_power, power_study
+
+    humans = [h.strip() for h in args.humans.split(",") if h.strip()]
+    summary = power_study(args.out, humans=humans, studies=args.studies, seed=args.seed, n_subjects=args.subjects,
+                          beta=args.beta, n_boot=args.adequacy_boot, workers=args.workers,
+                          log=lambda m: print(m, file=sys.stderr, flush=True))
+    print(format_power(summary))
+    print(f"wrote {Path(args.out) / 'power.json'}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from pipelines.bench import run_bench
+
+    run_bench(args.json, quick=args.quick, parts=[p.strip() for p in args.parts.split(",") if p.strip()])
+    if args.json:
+        print(f"wrote {args.json}")
+    return 0
+
+
+def cmd_bench_fit(args) -> int:
+    from models.bayes.hierarchical import Parameterization  # imports PyMC (seconds): only for this command
+    from pipelines.bench.fit import bench_parameterization, format_fit
+
+    form = Parameterization(**{f.name: getattr(args, f.name) for f in dataclasses.fields(Parameterization)})
+    res = bench_parameterization(form, study_seed=args.study_seed, window_seconds=args.window_seconds, seed=args.seed)
+    print(format_fit(res))
+    if args.json:
+        from pipelines.storage import write_text_atomic
+
+        write_text_atomic(args.json, json.dumps(res, indent=1) + "\n")
+    return 0
+
+
+def cmd_assistant(args) -> int:
+    from pipelines.assistant_check import assistant_alone, format_assistant
+
+    res = assistant_alone()
+    print(json.dumps(res, indent=2) if args.format == "json" else format_assistant(res))
+    return 0
+
+
+def window_settings(args):
+    """The :class:`pipelines.prepare.IdentifySettings` of the window options (``--window``, ``--whole-run``, ...)."""
+    from pipelines.prepare import IdentifySettings
+
+    if args.whole_run:
+        window = (None, None)
+    else:
+        try:
+            start, seconds = (float(v) for v in args.window.split(","))
+        except ValueError:
+            raise ValueError(f"--window needs START,SECONDS in s (e.g. 210,15); got {args.window!r}") from None
+        window = (start, seconds)
+    return IdentifySettings(window_start=window[0], window_seconds=window[1], preview=args.preview,
+                            reconstruct=args.reconstruct, assistant_model=args.assistant_model,
+                            adequacy_boot=args.adequacy_boot, adequacy_seed=args.adequacy_seed)
+
+
+def cmd_simulate(args) -> int:
+    from models.simulate import Population
+    from pipelines.simulate import simulate_to_dir
+
+    paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed,
+                            population=Population(beta=args.beta), seconds=args.seconds, human=args.human,
+                            force=args.force)
+    for k, v in paths.items():
+        print(f"{k}: {v}")
+    return 0
+
+
+def cmd_identify(args) -> int:
+    from pipelines.identify import format_identify, identify_to_dir
+
+    paths = identify_to_dir(args.study, args.out, window_settings(args), force=args.force)
+    print(format_identify(args.out))
+    for k, v in paths.items():
+        print(f"{k}: {v}")
+    # Exit 1 when the human model fails its adequacy checks: the estimates are written, but
+    # no conclusion about costs should be drawn from them unexamined.
+    return 1 if json.loads(Path(paths["meta"]).read_text())["adequacy"]["verdict"] == "fail" else 0
+
+
+def cmd_compare(args) -> int:
+    from pipelines.compare import compare_to_file, format_compare
+
+    out = args.out or str(Path(args.estimates).parent / "compare.json")
+    res = compare_to_file(args.estimates, out, alpha=args.alpha, include_nonconverged=args.include_nonconverged)
+    print(format_compare(res))
+    print(f"wrote {out}")
+    # The test ran; a human model that fails its adequacy checks is a failed check (exit 1).
+    return 1 if res["adequacy"]["verdict"] == "fail" else 0
+
+
+def cmd_report(args) -> int:
+    from pipelines.report import build_report
+
+    print(build_report(args.run_dir, subject=args.subject))
+    return 0
+
+
+def cmd_run(args) -> int:
+    from pipelines.run import run_all
+
+    from models.simulate import Population
+
+    report = run_all(args.out, n_subjects=args.subjects, seed=args.seed, fit=not args.skip_fit, human=args.human,
+                     population=Population(beta=args.beta), name=args.name)
+    # The workflow ran; a human model that fails its adequacy checks is a failed check (exit 1).
+    verdict = json.loads((report.parent / "identify" / "identify.json").read_text())["adequacy"]["verdict"]
+    return 1 if verdict == "fail" else 0
+
+
+def cmd_fit(args) -> int:
+    from pipelines.fit import fit_to_dir, format_fit  # imports PyMC (seconds): only when fitting
+
+    paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
+                       settings=window_settings(args), subject=args.subject, estimates_path=args.estimates,
+                       truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force)
+    print(format_fit(args.out))
+    for k, v in paths.items():
+        print(f"{k}: {v}")
+    # Exit 1 when the sampler did not converge or the human model fails its adequacy checks.
+    side = json.loads(Path(paths["sidecar"]).read_text())
+    res = json.loads(Path(paths["contrasts"]).read_text())
+    converged = all(v == "pass" for v in side["convergence_verdict"].values())
+    return 0 if converged and res["adequacy"]["verdict"] != "fail" else 1
+
+
+def cmd_calibrate(args) -> int:
+    from pipelines.calibrate import as_expected, calibrate_runs, format_summary, level_configs
+
+    runs = level_configs(args.level, seed=args.seed, replications=args.replications, batch_size=args.batch_size,
+                         n_subjects=args.subjects, seconds=args.seconds, negative_control=args.negative_control)
+    summaries = calibrate_runs(runs, args.out, scheduler=args.scheduler, n_workers=args.workers)
+    for summary in summaries:
+        print(format_summary(summary))
+    return 0 if all(as_expected(s) for s in summaries) else 1

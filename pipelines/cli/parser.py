@@ -1,0 +1,245 @@
+"""The ``scioc`` argument parser: every command's options, their checks and their defaults (all argparse lives here)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from importlib.metadata import PackageNotFoundError, version
+
+import pipelines.cli.commands as commands
+
+#: Shortest analysis window, s. Shorter windows leave θ unidentified: measured on a simulated
+#: study, 0.02 s drives the optimizer to θ = ∞ and 0.05 s gives θ1 ≈ 1800 where longer
+#: windows give 10-30.
+MIN_WINDOW_SECONDS = 0.1
+#: The study design's defaults (models.design.STUDY), spelled out so that parsing imports no model
+#: code (tests/pipelines/cli/test_parser.py holds them equal): sample time, analysis window
+#: (start, length), preview and run length, s.
+SAMPLE_TIME, WINDOW, PREVIEW, RUN_SECONDS = 0.01, (210, 15), 2.0, 240.0
+_WINDOW_TEXT = f"{WINDOW[0]:g},{WINDOW[1]:g}"
+
+
+def _number(kind, accept, wanted: str):
+    """An argparse ``type`` that parses with ``kind`` and rejects values ``accept`` refuses (exit 2)."""
+
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {wanted}; got {text!r}") from None
+        if not accept(value):
+            raise argparse.ArgumentTypeError(f"expected {wanted}; got {text!r}")
+        return value
+
+    return parse
+
+
+_positive_int = _number(int, lambda v: v >= 1, "a positive integer")
+_nonnegative_int = _number(int, lambda v: v >= 0, "an integer >= 0")
+_seconds = _number(float, lambda v: math.isfinite(v) and v > 0, "a finite number of seconds > 0")
+_nonnegative_seconds = _number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number of seconds >= 0")
+_level = _number(float, lambda v: 0 < v < 1, "a significance level between 0 and 1")
+_finite_float = _number(float, math.isfinite, "a finite number")
+
+
+def _window_spec(text: str) -> str:
+    """Check ``--window START,SECONDS`` at parse time; ``commands.window_settings`` splits it later."""
+    usage = f"expected START,SECONDS in s (e.g. {_WINDOW_TEXT}); got {text!r}"
+    try:
+        start, seconds = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(usage) from None
+    if not (math.isfinite(start) and math.isfinite(seconds)):
+        raise argparse.ArgumentTypeError(f"start and length must be finite numbers of seconds; got {text!r}")
+    if seconds < MIN_WINDOW_SECONDS:
+        raise argparse.ArgumentTypeError(
+            f"a {seconds:g}-s window is too short to identify θ: it needs at least {MIN_WINDOW_SECONDS:g} s "
+            f"({round(MIN_WINDOW_SECONDS / SAMPLE_TIME)} samples of {SAMPLE_TIME:g} s); got {text!r}")
+    return text
+
+
+def _add_force_option(p):
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing non-empty --out folder as a whole (default: refuse)")
+
+
+def _add_assistant_model_option(p):
+    # The choices of pipelines.prepare.ASSISTANT_MODELS, spelled out so parsing imports no model code.
+    p.add_argument("--assistant-model", choices=("feedback", "exogenous"), default="feedback",
+                   help="in SC the human plans with the assistant's feedback law (default) or takes the recorded "
+                   "u_A as a known input sequence (exogenous: the paper's Eq. 15-16)")
+
+
+def _add_window_options(p):
+    p.add_argument("--window", type=_window_spec, default=_WINDOW_TEXT, metavar="START,SECONDS",
+                   help=f"analysis window on the file's time axis, s (default: the paper's {_WINDOW_TEXT})")
+    p.add_argument("--whole-run", action="store_true", help="analyse each segment whole")
+    p.add_argument("--preview", type=_nonnegative_seconds, default=PREVIEW,
+                   help=f"seconds the human's plan looks past the window (default {PREVIEW:g}; 0 = the paper's "
+                        "horizon)")
+    _add_assistant_model_option(p)
+    p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
+                   help="reconstruct velocity and u_H from the angle when missing (auto, the default) or always")
+    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=49, metavar="B",
+                   help="bootstrap data sets per segment for the model-adequacy checks (default 49; 0 skips them)")
+    p.add_argument("--adequacy-seed", type=_nonnegative_int, default=2018, help="seed of the adequacy bootstrap (default 2018)")
+
+
+# The names of models.humans.HUMANS, spelled out so parsing imports no model code (a test holds them equal).
+HUMAN_NAMES = ("maxent", "delay", "lag", "coloured", "combined", "crossover")
+
+
+def _add_human_options(p):
+    p.add_argument("--human", choices=HUMAN_NAMES, default="maxent",
+                   help="the simulated human: maxent (the paper's agent, default) or a negative control the "
+                        "max-ent likelihood does not describe (see models/humans.py)")
+    p.add_argument("--beta", type=_finite_float, default=-0.7,
+                   help="mean SC shift of log θ1 in the simulated population (default -0.7; 0: no change)")
+
+
+# The blocks of models.bayes.hierarchical.Parameterization and their defaults, spelled out so parsing imports
+# no PyMC (a test holds them equal).
+PARAMETERIZATION_BLOCKS = {"theta1_mc": "mean", "theta1_sc": "noncentred", "R_mc": "centred", "R_sc": "centred",
+                           "theta2": "noncentred"}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``scioc`` parser with every command; each command's ``func`` is its :mod:`pipelines.cli.commands` function."""
+    parser = argparse.ArgumentParser(
+        prog="scioc",
+        description="Shared-control inverse optimal control: identify human steering cost functions "
+        "in manual and shared control (Inga et al., SMC 2018).",
+        epilog="exit status: 0 success, 1 a failing verdict or check, 2 a usage error, 3 bad input data, "
+        "130 interrupted (README: Errors and exit codes)",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("loglik", help="max-ent log-likelihood of every segment of a study file under one θ")
+    p.add_argument("study", help="study file (Parquet or CSV) in the data convention")
+    p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
+    _add_assistant_model_option(p)
+    p.add_argument("--format", choices=("table", "json"), default="table", help="output format (default table)")
+    p.set_defaults(func=commands.cmd_loglik)
+
+    p = sub.add_parser("simulate", help="simulate the experiment: study table (angles only) + ground truth")
+    p.add_argument("--subjects", type=_positive_int, default=42, help="simulated subjects (default 42)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="root seed (default 2018)")
+    p.add_argument("--seconds", type=_seconds, default=RUN_SECONDS,
+                   help=f"length of each run, s (default {RUN_SECONDS:g})")
+    _add_human_options(p)
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (study.parquet, truth, simulation.json)")
+    _add_force_option(p)
+    p.set_defaults(func=commands.cmd_simulate)
+
+    p = sub.add_parser("identify", help="maximum-likelihood θ per subject × condition, like the paper")
+    p.add_argument("study", help="study file in the data convention")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (estimates, trajectories, identify.json)")
+    _add_window_options(p)
+    _add_force_option(p)
+    p.set_defaults(func=commands.cmd_identify)
+
+    p = sub.add_parser("fit", help="hierarchical Bayesian fit (nutpie): β with HDI, diagnostics, LOO")
+    p.add_argument("study", help="study file in the data convention")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (required)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="sampler seed (default 2018)")
+    p.add_argument("--chains", type=_positive_int, default=4, help="Markov chains (default 4)")
+    p.add_argument("--draws", type=_positive_int, default=1000, help="draws kept per chain (default 1000)")
+    p.add_argument("--tune", type=_nonnegative_int, default=500, help="warm-up draws per chain (default 500)")
+    p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
+    p.add_argument("--cores", type=_positive_int, help="chains sampled in parallel (default: all CPUs)")
+    p.add_argument("--estimates", metavar="PATH",
+                   help="estimates.parquet for the mixed-model check (default: ../identify/ beside the study's folder)")
+    p.add_argument("--truth", metavar="DIR",
+                   help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
+    _add_window_options(p)
+    _add_force_option(p)
+    p.set_defaults(func=commands.cmd_fit)
+
+    p = sub.add_parser("compare", help="Wilcoxon matched-pairs signed-rank test of θ1 and θ2, MC vs SC")
+    p.add_argument("estimates", help="estimates.parquet written by `scioc identify`")
+    p.add_argument("--alpha", type=_level, default=0.001, help="two-sided significance level (default 0.001)")
+    p.add_argument("--out", help="JSON path (default: compare.json beside ESTIMATES); never ESTIMATES itself")
+    p.add_argument("--include-nonconverged", action="store_true",
+                   help="test units whose identification did not converge too (default: leave them out, listed)")
+    p.set_defaults(func=commands.cmd_compare)
+
+    p = sub.add_parser("report", help="self-contained HTML report from a run folder's artifacts")
+    p.add_argument("run_dir", help="folder with data/, identify/, compare.json (as `scioc run` writes)")
+    p.add_argument("--subject", help="subject for the Fig. 6 trajectories (default: the third)")
+    p.set_defaults(func=commands.cmd_report)
+
+    p = sub.add_parser("run", help="the whole workflow on the built-in simulated study, ending with the report")
+    p.add_argument("--out", default="reports", metavar="DIR", help="where everything goes (default reports/)")
+    p.add_argument("--subjects", type=_positive_int, default=42, help="simulated subjects (default 42)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the whole workflow (default 2018)")
+    p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fit (minutes)")
+    _add_human_options(p)
+    p.add_argument("--name", default="default-study",
+                   help="subfolder of --out for this run (default default-study)")
+    p.set_defaults(func=commands.cmd_run)
+
+    p = sub.add_parser("calibrate", help="simulation-based calibration (unit or study level), locally or on Dask")
+    p.add_argument("--level", choices=("unit", "study"), default="unit",
+                   help="one subject × condition per replication, or a whole study (default unit)")
+    p.add_argument("--replications", type=_positive_int, help="replications (default 1000 unit, 200 study)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the replications (default 2018)")
+    p.add_argument("--out", default="reports/calibration", metavar="DIR",
+                   help="results go to DIR/LEVEL and DIR/LEVEL-negative (default reports/calibration)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=_positive_int, default=2, help="workers of the local cluster (default 2)")
+    p.add_argument("--batch-size", type=_positive_int, help="replications per Dask task (default 10 unit, 3 study)")
+    p.add_argument("--negative-control", choices=("inertia", "ignore-uA", "none"),
+                   help="also run this wrong fit at the same size (default: inertia at the unit level, ignore-uA "
+                        "at the study level; 'none' to skip)")
+    p.add_argument("--subjects", type=_positive_int, help="subjects per simulated study (study level; default 6)")
+    p.add_argument("--seconds", type=_seconds, help="window length in s (default 15 unit, 2 study)")
+    p.set_defaults(func=commands.cmd_calibrate)
+
+    p = sub.add_parser("assistant", help="the MPC assistant alone on the study reference: tracking and torques")
+    p.add_argument("--format", choices=("table", "json"), default="table", help="output format (default table)")
+    p.set_defaults(func=commands.cmd_assistant)
+
+    p = sub.add_parser("power", help="how often the adequacy verdict fails per simulated human (false alarms on "
+                       "maxent, power on the others), beside the paper's Wilcoxon test; resumable")
+    p.add_argument("--humans", default=",".join(HUMAN_NAMES),
+                   help=f"comma-separated simulated humans (default: all, {','.join(HUMAN_NAMES)})")
+    p.add_argument("--studies", type=_positive_int, default=20, help="simulated studies per human (default 20)")
+    p.add_argument("--subjects", type=_positive_int, default=42, help="subjects per study (default 42)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="root seed (default 2018)")
+    p.add_argument("--beta", type=_finite_float, default=0.0,
+                   help="true mean SC shift of log θ1 (default 0: the cost does not change)")
+    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=49, metavar="B",
+                   help="bootstrap data sets per segment (default 49)")
+    p.add_argument("--workers", type=_positive_int, default=1, help="studies run in parallel processes (default 1)")
+    p.add_argument("--out", default="reports/power", metavar="DIR", help="results folder (default reports/power)")
+    p.set_defaults(func=commands.cmd_power)
+
+    p = sub.add_parser("bench", help="measured speed of the kernels, the identification, the full fit and SBC")
+    p.add_argument("--json", metavar="PATH", help="also write the results as JSON")
+    p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
+    p.add_argument("--parts", default="likelihood,identify,fit,sbc", metavar="LIST",
+                   help="comma-separated subset of likelihood, identify, fit (the full default-study fit, about "
+                   "3 min) and sbc (default: all)")
+    p.set_defaults(func=commands.cmd_bench)
+
+    p = sub.add_parser("bench-fit", help="one fit of the default simulated study in a chosen parameterization (how "
+                       "the table in models/bayes/hierarchical.py was measured)")
+    p.add_argument("--study-seed", type=_nonnegative_int, default=2018,
+                   help="seed of the simulated study (default 2018, scioc run's)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="sampler seed (default 2018)")
+    p.add_argument("--window-seconds", type=_seconds, default=15.0,
+                   help="analysis window, s (default the paper's 15; shorter gives less data per unit)")
+    for name, default in PARAMETERIZATION_BLOCKS.items():
+        p.add_argument(f"--{name.replace('_', '-')}", choices=["centred", "noncentred", "mean"], default=default,
+                       help=f"form of the {name} block (default {default})")
+    p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
+    p.set_defaults(func=commands.cmd_bench_fit)
+    return parser
+
+
+def _version() -> str:
+    try:
+        return version("scioc")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"

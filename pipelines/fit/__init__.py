@@ -1,0 +1,22 @@
+"""``scioc fit``: the hierarchical Bayesian fit of a study (:mod:`pipelines.fit.stage`) and its parts.
+
+=========================  ===========================================================
+module                     what it holds
+=========================  ===========================================================
+:mod:`.sampling`           nutpie through ``pm.sample``: seeds, clean stdout, Ctrl-C
+:mod:`.diagnostics`        R-hat, ESS, E-BFMI, divergences and the sampler's verdict
+:mod:`.contrasts`          β, exp(β), P(β < 0), HDIs, per-subject contrasts
+:mod:`.loo`                PSIS-LOO over segments and leave-one-subject-out
+:mod:`.ppc`                posterior predictive draws and ``constant_data``
+:mod:`.checks`             mixed model, truth check, adequacy at the posterior θ
+:mod:`.stage`              :func:`fit_to_dir` (the artifacts) and :func:`format_fit`
+=========================  ===========================================================
+
+Importing this package imports PyMC (seconds): the CLI imports it only to fit.
+"""
+
+from pipelines.fit.checks import mixedlm_check, truth_check
+from pipelines.fit.diagnostics import ESS_MIN, RHAT_MAX, diagnostics
+from pipelines.fit.stage import fit_to_dir, format_fit
+
+__all__ = ["fit_to_dir", "format_fit", "diagnostics", "mixedlm_check", "truth_check", "ESS_MIN", "RHAT_MAX"]

@@ -1,0 +1,99 @@
+"""Sampling a PyMC model with nutpie for ``scioc fit``: seeds, stdout kept clean, Ctrl-C honoured."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+import time
+
+import numpy as np
+
+
+def child_seeds(seed: int) -> dict:
+    """The fit's four seeds from ``SeedSequence(seed).spawn(4)``: both samplers, the predictive draws, LOSO."""
+    sampler, pooled, ppc, loso = np.random.SeedSequence(int(seed)).spawn(4)
+    return {"condition": int(sampler.generate_state(1)[0]), "pooled": int(pooled.generate_state(1)[0]),
+            "ppc": int(ppc.generate_state(1)[0]), "loso": int(loso.generate_state(1)[0])}
+
+
+def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
+                 show_progress: bool = False, log_likelihood: bool = True):
+    """Sample ``model`` with nutpie (through ``pm.sample``) and add the pointwise log-likelihood.
+
+    ``log_likelihood=False`` skips the pointwise log-likelihood (for timing the fit alone).
+    ``cores`` (chains run in parallel) defaults to ``os.cpu_count()``. It is passed
+    explicitly because PyMC's own default halves the CPU count (it assumes hardware
+    threads): on a 2-core machine nutpie then ran the chains one at a time, measured
+    2.0× slower sampling on the default study.
+
+    Returns
+    -------
+    idata : DataTree
+    seconds : dict
+        ``compile_and_sample`` (wall time of ``pm.sample``), ``sample`` (nutpie's own
+        sampling time, tuning included, compilation excluded) and ``log_likelihood``.
+    """
+    import pymc as pm  # lazy: PyMC takes seconds to import
+
+    t0 = time.perf_counter()
+    with stdout_to_stderr(), interrupt_guard() as interrupted:
+        idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
+                          random_seed=seed, nuts_sampler="nutpie", progressbar=show_progress,
+                          quiet=not show_progress, model=model)
+    if interrupted():
+        # nutpie stops on Ctrl-C and returns the draws so far; a partial posterior is not a result.
+        raise KeyboardInterrupt
+    t1 = time.perf_counter()
+    if log_likelihood:
+        pm.compute_log_likelihood(idata, model=model, progressbar=False)
+    t2 = time.perf_counter()
+    return idata, {"compile_and_sample": t1 - t0, "sample": float(idata["posterior"].attrs["sampling_time"]),
+                   "log_likelihood": t2 - t1}
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """Send everything written to standard output, by Python or by compiled code, to standard error.
+
+    The sampler's progress tables are progress, not results: results go to stdout.
+    """
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+@contextlib.contextmanager
+def interrupt_guard():
+    """Note a Ctrl-C (SIGINT) even if the code inside catches it; yields a function that tells.
+
+    The previous handler still runs (Python's raises KeyboardInterrupt), so the code inside
+    stops as it would; afterwards the caller can refuse a result the interruption cut short.
+    """
+    seen = []
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum, frame):
+        seen.append(signum)
+        if callable(previous):
+            previous(signum, frame)
+        else:
+            raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: bool(seen)
+    finally:
+        signal.signal(signal.SIGINT, previous)

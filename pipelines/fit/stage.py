@@ -1,0 +1,296 @@
+"""``scioc fit``: the hierarchical Bayesian model of a study, its diagnostics and contrasts.
+
+The segments are cut and reconstructed exactly as ``scioc identify`` does
+(:func:`pipelines.prepare.prepare_study`; ``scioc run`` passes the same prepared study to
+both), then two models of
+:func:`models.bayes.hierarchical.build_model` are sampled with nutpie through ``pm.sample``:
+the model with condition effects (β, the mean SC change of log θ1, is the paper's
+question) and the pooled model without them (log θ1 the same in MC and SC), which only
+serves the PSIS-LOO comparison.
+
+Artifacts in ``--out DIR``:
+
+* ``posterior.nc`` — the posterior of the model with condition effects as one ArviZ
+  DataTree (NetCDF): ``posterior``, ``sample_stats``, ``log_likelihood`` (one value per
+  segment), ``observed_data`` (``u_H``, segment × step), ``posterior_predictive`` (the
+  predictive draws of one subject's segments, same dims) and ``constant_data`` (x0,
+  reference, u_A, time and recorded angle per segment).
+* ``posterior_pooled.nc`` — the pooled model's posterior (no predictive groups).
+* ``posterior.json`` — sidecar: seeds, sampler settings, diagnostics of both fits with a
+  verdict (no divergences, R-hat ≤ 1.01, bulk and tail ESS ≥ 400 for every population
+  parameter), wall times, ESS per second, inputs and package versions.
+* ``contrasts.json`` — β (mean, SD, 94 % HDI, P(β < 0)), the ratio exp(β) with its HDI,
+  per-subject MC→SC contrasts of log θ1, the LOO comparisons (PSIS over segments, which
+  one segment per unit defeats, and integrated PSIS leaving out whole subjects,
+  :func:`pipelines.fit.loo.subject_loo_comparison`), the frequentist mixed-model
+  cross-check on the per-segment ML estimates and, for a simulated study, the truth check.
+* ``ppc.parquet`` — the report's summary of the predictive draws: 5/50/95 % bands of angle
+  and torque of one subject (both conditions) over exact max-ent draws of the human the
+  likelihood assumes (:func:`models.maxent.sample_maxent`), beside the data.
+
+Randomness: the root ``seed`` is split with ``SeedSequence(seed).spawn(4)`` into the seeds
+of the two samplers, of the posterior predictive draws and of the leave-one-subject-out
+importance sampling; the same seed gives the same
+draws and numbers (file bytes differ only by the time stamps NetCDF attributes carry).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from models.bayes.hierarchical import build_model
+from models.plant import DT_HUMAN, discretize
+from models.segment import prepare_batch
+from pipelines.adequacy import format_adequacy, not_checked
+from pipelines.fit.checks import mixedlm_check, posterior_adequacy, truth_check
+from pipelines.fit.contrasts import contrasts
+from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, RHAT_MAX, diagnostics
+from pipelines.fit.loo import loo_comparison, subject_loo_comparison
+from pipelines.fit.ppc import PPC_DRAWS, constant_data, posterior_predictive, ppc_coverage
+from pipelines.fit.sampling import child_seeds, sample_model
+from pipelines.io import InputDataError, load_study
+from pipelines.prepare import IdentifySettings, PreparedStudy, check_design, prepare_study
+from pipelines.provenance import versions
+from pipelines.storage import (atomic_path, check_output_dir, refuse_inputs_inside, staged_dir, write_table_atomic,
+                               write_text_atomic)
+
+
+def default_inputs(study_path: Path, estimates_path, truth_dir):
+    """Inputs beside the study in the run-folder layout of ``scioc run`` when not given.
+
+    The estimates are taken from ``<run>/identify/`` only if its ``identify.json`` says they
+    were identified from this very study file.
+    """
+    if estimates_path is None:
+        guess = study_path.parent.parent / "identify"
+        try:
+            meta = json.loads((guess / "identify.json").read_text())
+            same = (guess / meta["study_relative"]).resolve() == study_path.resolve()
+        except (OSError, ValueError, KeyError, TypeError):
+            same = False
+        estimates_path = guess / "estimates.parquet" if same and (guess / "estimates.parquet").exists() else None
+    if truth_dir is None:
+        folder = study_path.parent
+        if (folder / "simulation.json").exists() and (folder / "truth.parquet").exists():
+            truth_dir = folder
+    return estimates_path, truth_dir
+
+
+def strict_json(obj) -> str:
+    """Strict JSON: non-finite numbers (an undefined k, a z of 0/0) become null."""
+
+    def clean(x):
+        if isinstance(x, float) and not np.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        return x
+
+    return json.dumps(clean(obj), indent=2, allow_nan=False) + "\n"
+
+
+def require_netcdf() -> None:
+    """Fail before minutes of sampling, not after, if NetCDF cannot be written."""
+    try:
+        import h5netcdf  # noqa: F401
+        import h5py  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(f"writing posterior.nc needs the packages h5netcdf and h5py ({exc}); "
+                          "install them with `pip install h5netcdf h5py`") from exc
+
+
+def write_netcdf(idata, path: Path) -> Path:
+    with atomic_path(path) as tmp:
+        idata.to_netcdf(tmp, engine="h5netcdf")
+    return path
+
+
+def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 500,
+               settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
+               estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
+               force: bool = False, prepared: PreparedStudy | None = None) -> dict:
+    """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
+
+    Parameters
+    ----------
+    study_path : str or Path
+        Study file in the data convention.
+    out : str or Path
+        Output folder (created).
+    seed : int
+        Root seed (split into the samplers' and the predictive draws' seeds).
+    chains, draws, tune : int
+        nutpie chains, and draws kept per chain after ``tune`` warm-up draws.
+    settings : IdentifySettings
+        Window, preview and reconstruction, as for ``scioc identify``.
+    subject : str, optional
+        Subject of the posterior predictive bands (default: the third in sorted order,
+        as in the report's Fig. 6).
+    estimates_path : str or Path, optional
+        ``estimates.parquet`` of ``scioc identify`` for the mixed-model cross-check
+        (default: ``../identify/estimates.parquet`` from the study's folder, if present).
+    truth_dir : str or Path, optional
+        Folder with ``simulation.json`` and ``truth.parquet`` (default: the study's own
+        folder, if it has them).
+    cores : int, optional
+        Chains sampled in parallel (default: ``os.cpu_count()``); the draws do not
+        depend on it.
+    show_progress : bool
+        Progress bars on standard error.
+    force : bool
+        Replace an existing non-empty ``out`` (as a whole; see :func:`pipelines.io.staged_dir`).
+    prepared : PreparedStudy, optional
+        The study file already prepared with ``settings`` (``scioc run`` shares the
+        identification's); by default it is loaded and prepared here.
+
+    Returns
+    -------
+    dict
+        Paths of the written files.
+
+    Raises
+    ------
+    ValueError
+        For a bad study design (a subject lacking a condition, no SC at all: the message
+        of :func:`models.units.index_study`), a malformed file, or an unknown
+        ``subject``; nothing is written then.
+    """
+    require_netcdf()
+    for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
+        if int(v) != v or v < low:
+            raise ValueError(f"--{name} must be an integer >= {low}; got {v!r}")
+    study_path, out = Path(study_path), Path(out)
+    estimates_path, truth_dir = default_inputs(study_path, estimates_path, truth_dir)
+    refuse_inputs_inside(out, study_path, estimates_path, truth_dir)
+    check_output_dir(out, force=force)  # before minutes of sampling, not after
+    t_start = time.perf_counter()
+    if prepared is None:
+        study = load_study(study_path)
+        check_design(study.path, [s.subject for s in study.segments], [s.condition for s in study.segments])
+        prepared = prepare_study(study, settings, show_progress=show_progress)
+    elif prepared.settings != settings:
+        raise ValueError("the prepared study was cut with other settings than these")
+    else:
+        check_design(prepared.path, prepared.subjects, prepared.conditions)
+    subjects = sorted(dict.fromkeys(prepared.subjects))
+    subject = subject or (subjects[2] if len(subjects) > 2 else subjects[0])
+    if subject not in subjects:
+        raise ValueError(f"--subject {subject!r} is not in the study (subjects: {', '.join(subjects)})")
+    t_prepared = time.perf_counter()
+    plant = discretize(DT_HUMAN)
+    batch = prepare_batch(plant, [p.segment for p in prepared.segments])
+    seeds = child_seeds(seed)
+    fits, timing = {}, {"prepare_s": t_prepared - t_start}
+    for name, effects in (("condition", True), ("pooled", False)):
+        t0 = time.perf_counter()
+        model = build_model(prepared.subjects, prepared.conditions, batch, plant, segment_ids=prepared.labels,
+                            condition_effects=effects)
+        t1 = time.perf_counter()
+        idata, sec = sample_model(model, seed=seeds[name], chains=chains, draws=draws, tune=tune, cores=cores,
+                                  show_progress=show_progress)
+        fits[name] = idata
+        timing[name] = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
+    diag = {name: diagnostics(d, timing[name]["sample_s"]) for name, d in fits.items()}
+
+    t0 = time.perf_counter()
+    res = {"model": "hierarchical max-ent, condition effects on log θ1 and log R (models.bayes.hierarchical)",
+           **contrasts(fits["condition"])}
+    res["loo"] = loo_comparison(fits["condition"], fits["pooled"])
+    res["loo_subject"] = subject_loo_comparison(fits["condition"], fits["pooled"], batch, prepared.subjects,
+                                                prepared.conditions, plant, np.random.default_rng(seeds["loso"]))
+    estimates = pd.read_parquet(estimates_path) if estimates_path is not None else None
+    if estimates is not None:
+        units = set(zip(prepared.subjects, prepared.conditions))
+        theirs = set(zip(estimates["subject"].astype(str), estimates["condition"].astype(str)))
+        if units != theirs:
+            raise InputDataError(
+                f"{estimates_path}: its subjects × conditions ({len(theirs)}) are not those of {study_path} "
+                f"({len(units)}); e.g. {sorted(units ^ theirs)[:3]}. Pass the estimates identified from this study "
+                "with --estimates")
+    res["mixedlm"] = mixedlm_check(estimates) if estimates is not None else None
+    res["truth"] = truth_check(fits["condition"], truth_dir, estimates) if truth_dir is not None else None
+    ppc, ppc_draws = posterior_predictive(fits["condition"], prepared, subject, np.random.default_rng(seeds["ppc"]))
+    res["ppc"] = {"subject": subject, "draws": int(min(PPC_DRAWS, chains * draws)), "coverage_5_95": ppc_coverage(ppc),
+                  "note": "exact max-ent draws of the human the likelihood assumes (in SC: " + settings.assistant_model
+                          + " assistant model); "
+                          "u_H is the reconstructed torque where the file has none"}
+    timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    res["adequacy"] = posterior_adequacy(fits["condition"], prepared, plant)
+    timing["adequacy_s"] = time.perf_counter() - t0
+
+    timing["total_s"] = time.perf_counter() - t_start
+    sidecar = {
+        "study": str(study_path),
+        "seed": int(seed),
+        "seeds": seeds,
+        "sampler": {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')", "chains": int(chains),
+                    "draws": int(draws), "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)),
+                    "target_accept": 0.8, "adaptation": "diag (nutpie default)"},
+        "identify_settings": asdict(settings),
+        "n_segments": len(prepared.segments),
+        "n_subjects": len(subjects),
+        "K": int(batch.K),
+        "criteria": {"divergences": 0, "rhat_max": RHAT_MAX, "ess_bulk_and_tail_min": ESS_MIN,
+                     "applies_to": "population parameters", "ebfmi_min_advisory": EBFMI_MIN},
+        "diagnostics": diag,
+        "convergence_verdict": {name: d["convergence_verdict"] for name, d in diag.items()},
+        "seconds": timing,
+        "inputs": {"estimates": None if estimates_path is None else str(estimates_path),
+                   "truth_dir": None if truth_dir is None else str(truth_dir)},
+        "note_timing": "wall-clock times on a shared machine: other jobs may have competed for the CPU",
+        "versions": versions(),
+    }
+    fits["condition"]["posterior_predictive"] = ppc_draws
+    fits["condition"]["constant_data"] = constant_data(prepared)
+    # Everything or nothing: the folder holds this fit's files only, or what it held before.
+    with staged_dir(out, force=force) as tmp:
+        write_netcdf(fits["condition"], tmp / "posterior.nc")
+        write_netcdf(fits["pooled"], tmp / "posterior_pooled.nc")
+        write_table_atomic(ppc, tmp / "ppc.parquet")
+        write_text_atomic(tmp / "posterior.json", strict_json(sidecar))
+        write_text_atomic(tmp / "contrasts.json", strict_json(res))
+    names = {"posterior": "posterior.nc", "posterior_pooled": "posterior_pooled.nc", "ppc": "ppc.parquet",
+             "sidecar": "posterior.json", "contrasts": "contrasts.json"}
+    return {k: str(out / v) for k, v in names.items()}
+
+
+def format_fit(out) -> str:
+    """A few lines summarizing a fit folder's sidecar and contrasts, the adequacy verdict first."""
+    out = Path(out)
+    side = json.loads((out / "posterior.json").read_text())
+    res = json.loads((out / "contrasts.json").read_text())
+    b, r, loo = res["beta"], res["ratio"], res["loo"]["difference"]
+    conv = side["convergence_verdict"]
+    adequacy = res.get("adequacy") or not_checked("not in this fit's contrasts.json")
+    lines = [format_adequacy(adequacy)]
+    if adequacy["verdict"] == "fail":
+        lines.append("CAVEAT: the numbers below assume a human model that fails its adequacy checks; "
+                     "beta may be an artifact of model misfit")
+    lines += [
+        f"sampler convergence: condition model {conv['condition']}; pooled model {conv['pooled']}",
+        f"beta (mean SC change of log theta1): {b['mean']:.3f} ± {b['sd']:.3f}, 94 % HDI "
+        f"[{b['hdi'][0]:.3f}, {b['hdi'][1]:.3f}], P(beta < 0) = {b['p_negative']:.3f}",
+        f"exp(beta): {r['median']:.3f} (94 % HDI {r['hdi'][0]:.3f}-{r['hdi'][1]:.3f})",
+        f"LOO: elpd(condition) - elpd(pooled) = {loo['elpd_diff']:.1f} ± {loo['se']:.1f} "
+        f"({'reliable' if loo['reliable'] else 'Pareto k high: unreliable'})",
+    ]
+    if res.get("loo_subject"):
+        ls = res["loo_subject"]["difference"]
+        se = "n/a (one subject)" if ls.get("se") is None else f"{ls['se']:.1f}"
+        lines.append(f"leave-one-subject-out: elpd(condition) - elpd(pooled) = {ls['elpd_diff']:.1f} ± {se} "
+                     f"({'reliable' if ls['reliable'] else 'Pareto k high: unreliable'})")
+    if res.get("truth"):
+        t = res["truth"]["beta"]
+        lines.append(f"true beta {t['truth']:g}: {'inside' if t['in_hdi'] else 'outside'} the HDI "
+                     f"(posterior mean - truth = {t['discrepancy']:+.3f})")
+    return "\n".join(lines)

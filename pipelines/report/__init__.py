@@ -1,0 +1,20 @@
+"""``scioc report``: the HTML report of a run folder (:func:`build_report`), one module per part.
+
+=========================  ===========================================================
+module                     what it holds
+=========================  ===========================================================
+:mod:`.build`              :func:`build_report`: reads the artifacts, orders the sections
+:mod:`.render`             the HTML layer: jinja2 templates (``templates/``), tables, figures
+:mod:`.figures`            every matplotlib figure
+:mod:`.design`             study design and reference trajectory
+:mod:`.identify`           θ1 histogram, Wilcoxon test, Fig. 6, cross-prediction, details
+:mod:`.truth`              reconstruction error, truth vs estimates (simulated studies)
+:mod:`.bayes`              the hierarchical fit: contrasts, diagnostics, LOO, PPC, truth
+:mod:`.adequacy`           the model-adequacy verdict, caveats and section
+:mod:`.calibration`        simulation-based calibration
+=========================  ===========================================================
+"""
+
+from pipelines.report.build import build_report
+
+__all__ = ["build_report"]

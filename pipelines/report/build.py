@@ -1,0 +1,106 @@
+"""``scioc report``: a self-contained HTML report (figures embedded) from stored artifacts.
+
+Reads what the stages wrote under a run folder and never refits:
+
+* ``data/`` — ``study.parquet``, ``simulation.json`` and, for simulated studies, ``truth*.parquet``
+* ``identify/`` — ``estimates.parquet``, ``trajectories.parquet``, ``validation.parquet``, ``identify.json``
+* ``identify_true_torque/`` — the same from the true torques (simulated studies only)
+* ``identify_true_torque_exogenous/`` — the same with the paper's exogenous-u_A likelihood
+* ``compare.json`` — the Wilcoxon tests
+* ``fit/`` — the Bayesian fit (:mod:`pipelines.report.bayes`)
+* ``../calibration/`` and ``../power/`` — ``scioc calibrate`` and ``scioc power`` results beside the run
+
+Sections whose artifacts are missing are left out with a note. The page is the template
+``templates/page.html.j2``; every section renders its own (:mod:`pipelines.report.render`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from markupsafe import Markup
+
+from pipelines.report import adequacy as report_adequacy
+from pipelines.report.bayes import section_bayes
+from pipelines.report.calibration import section_calibration
+from pipelines.report.design import section_design, section_reference
+from pipelines.report.identify import (section_cross_prediction, section_fig6, section_histogram,
+                                       section_identification, section_wilcoxon)
+from pipelines.report.render import read_artifact, render
+from pipelines.report.truth import section_reconstruction, section_truth
+from pipelines.storage import write_text_atomic
+
+
+def _h2(text: str) -> Markup:
+    return render("heading.html.j2", text=text)
+
+
+def build_report(root, *, subject: str | None = None, out=None, calibration=None, title: str | None = None) -> Path:
+    """Assemble ``index.html`` from the artifacts under ``root``.
+
+    Parameters
+    ----------
+    root : str or Path
+        Run folder (as written by ``scioc run``).
+    subject : str, optional
+        Subject for the Fig. 6 trajectories (default: the third subject, as in the paper).
+    out : str or Path, optional
+        Report path (default ``root / "index.html"``).
+    calibration : str or Path, optional
+        Folder of ``scioc calibrate`` (default ``root / "../calibration"``).
+    title : str, optional
+        The run's name in the heading (default: the folder's name).
+
+    Returns
+    -------
+    Path
+        The report's path.
+    """
+    root = Path(root)
+    sim = read_artifact(root / "data" / "simulation.json")
+    study = read_artifact(root / "data" / "study.parquet")
+    truth = read_artifact(root / "data" / "truth.parquet")
+    truth_traj = read_artifact(root / "data" / "truth_trajectories.parquet")
+    est = read_artifact(root / "identify" / "estimates.parquet")
+    traj = read_artifact(root / "identify" / "trajectories.parquet")
+    val = read_artifact(root / "identify" / "validation.parquet")
+    meta = read_artifact(root / "identify" / "identify.json")
+    est_true = read_artifact(root / "identify_true_torque" / "estimates.parquet")
+    est_paper = read_artifact(root / "identify_true_torque_exogenous" / "estimates.parquet")
+    cmp = read_artifact(root / "compare.json")
+    fit_res = read_artifact(root / "fit" / "contrasts.json")
+    adequacy = (meta or {}).get("adequacy")
+    fit_adequacy = (fit_res or {}).get("adequacy")
+    power = read_artifact(root.parent / "power" / "power.json")
+    if est is None:
+        raise FileNotFoundError(f"{root / 'identify' / 'estimates.parquet'}: no estimates; run `scioc identify` first")
+    subjects = sorted(est.subject.unique())
+    subject = subject or (subjects[2] if len(subjects) > 2 else subjects[0])
+
+    body = [report_adequacy.headline(adequacy, fit_adequacy), section_design(sim, meta)]
+    if study is not None:
+        body.append(section_reference(study, meta))
+    body += [_h2("Identified parameters and the paper's test"), section_histogram(est),
+             report_adequacy.caveat(adequacy),
+             section_wilcoxon(cmp) if cmp else render("note.html.j2", text="No compare.json: run `scioc compare`.")]
+    if (root / "fit").exists():
+        body += [_h2("Hierarchical Bayesian model"), report_adequacy.caveat(fit_adequacy if fit_adequacy else adequacy),
+                 section_bayes(root)]
+    body += [report_adequacy.section(est, adequacy, power), _h2("Model validation (Fig. 6)")]
+    if traj is not None:
+        body.append(section_fig6(traj, subject))
+    if val is not None:
+        body.append(section_cross_prediction(val))
+    body.append(_h2("Data acquisition: reconstruction from the angle"))
+    if traj is not None:
+        body.append(section_reconstruction(traj, truth_traj))
+    if truth is not None and truth["theta1"].notna().any():  # the crossover operator has no cost θ
+        body += [_h2("Ground truth vs estimates"), section_truth(est, truth, est_true, est_paper)]
+    body += [_h2("Identification details"), section_identification(est, meta),
+             _h2("Simulation-based calibration"),
+             section_calibration(Path(calibration) if calibration else root.parent / "calibration")]
+    if sim and "versions" in sim:
+        body.append(render("provenance.html.j2", versions={k: v for k, v in sim["versions"].items() if v}))
+    path = Path(out) if out else root / "index.html"
+    write_text_atomic(path, render("page.html.j2", title=title or root.name, sections=body) + "\n")
+    return path

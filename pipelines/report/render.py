@@ -1,0 +1,85 @@
+"""The report's one HTML layer: jinja2 templates (autoescaped), tables, embedded figures, reading artifacts.
+
+Every piece of the report is rendered from a template in ``templates/`` with autoescape
+on: values inserted into a template are escaped, only the templates' own markup and the
+fragments that :func:`render` returns (``Markup``) pass through as HTML. The sections
+(:mod:`pipelines.report.design`, :mod:`pipelines.report.identify`, ...) compute their
+numbers and call :func:`render`; :func:`table` and :func:`figure` are the two shared
+fragments.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+from pathlib import Path
+
+import jinja2
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from markupsafe import Markup  # noqa: E402
+
+#: Folder of the report's templates.
+TEMPLATES = Path(__file__).resolve().parent / "templates"
+
+#: What an undefined number (NaN, or null in a JSON artifact) prints as.
+MISSING = "–"
+
+
+def number(value, spec: str = ".4g", missing: str = MISSING) -> str:
+    """``format(value, spec)``, or ``missing`` for None and NaN."""
+    if value is None or (isinstance(value, (float, np.floating)) and math.isnan(value)):
+        return missing
+    return format(value, spec)
+
+
+ENV = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), autoescape=True, undefined=jinja2.StrictUndefined,
+                         trim_blocks=True, lstrip_blocks=True)
+ENV.filters["f"] = number
+
+
+def render(template: str, **context) -> Markup:
+    """The HTML of ``templates/<template>`` with ``context`` (values escaped)."""
+    return Markup(ENV.get_template(template).render(**context))
+
+
+def _cell(value, fmt) -> str:
+    if fmt is not None:
+        return fmt(value)
+    if value is None or isinstance(value, (float, np.floating)):
+        return number(value)
+    return str(value)
+
+
+def table(df: pd.DataFrame, fmt: dict | None = None, left: tuple = ()) -> Markup:
+    """A DataFrame as an HTML table: floats to 4 significant digits unless ``fmt[column]`` formats them.
+
+    ``left`` names the columns aligned left (text); NaN and None print as :data:`MISSING`.
+    """
+    fmt = fmt or {}
+    rows = [[(c, _cell(v, fmt.get(c))) for c, v in zip(df.columns, r)] for r in df.itertuples(index=False)]
+    return render("table.html.j2", columns=[str(c) for c in df.columns], rows=rows, left=set(left))
+
+
+def figure(fig, caption: str) -> Markup:
+    """A matplotlib figure as an embedded PNG with its caption; the figure is closed."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight", metadata={"Software": None})
+    plt.close(fig)
+    return render("figure.html.j2", caption=caption, data=base64.b64encode(buf.getvalue()).decode("ascii"))
+
+
+def read_artifact(path: Path):
+    """A stored JSON or Parquet artifact, or None if it is not there."""
+    path = Path(path)
+    if not path.exists():
+        return None
+    if path.suffix == ".json":
+        return json.loads(path.read_text())
+    return pd.read_parquet(path)

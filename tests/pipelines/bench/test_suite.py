@@ -1,0 +1,21 @@
+"""``scioc bench --quick``: every quick part runs and writes its JSON (the numbers are not quotable)."""
+
+import json
+
+import numpy as np
+
+from pipelines.cli import main
+
+
+def test_bench_quick_writes_json(tmp_path, capsys):
+    path = tmp_path / "bench.json"
+    assert main(["bench", "--quick", "--json", str(path)]) == 0
+    res = json.loads(path.read_text())
+    rows = res["likelihood"]["rows"]
+    assert [r["K"] for r in rows] == [50, 100]
+    assert all(r["ratio"] > 1 for r in rows)
+    assert res["likelihood"]["long"]["dense"] == "infeasible"
+    assert res["likelihood"]["batch"]["n"] == 4 and res["likelihood"]["batch"]["K"] == 1500
+    assert res["likelihood"]["batch_preview"]["preview_steps"] == 200
+    assert np.isfinite(res["likelihood"]["batch"]["linear_s"])
+    assert res["identify"]["preview_2s"]["converged"] == 4

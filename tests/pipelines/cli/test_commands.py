@@ -1,0 +1,107 @@
+"""End-to-end runs of the ``scioc`` command (in-process and as a console script)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from models.maxent import loglik_grad
+from models.maxent_dense import loglik_dense
+from models.plant import discretize
+from models.segment import prepare_batch
+from pipelines.cli import main
+from pipelines.io import load_study, to_maxent_segment
+from pipelines.prepare import with_assistant_model
+from pipelines.storage import write_table_atomic
+from tests.pipelines.test_io import small_table
+
+
+@pytest.fixture()
+def study_file(tmp_path):
+    return write_table_atomic(small_table(K=40), tmp_path / "study.parquet")
+
+
+def test_loglik_json_matches_dense_reference(study_file, capsys):
+    # The paper's model: the recorded u_A as a known input, against Eq. 11-16 literally.
+    assert main(["loglik", str(study_file), "--theta", "60,0.1,1", "--format", "json",
+                 "--assistant-model", "exogenous"]) == 0
+    records = json.loads(capsys.readouterr().out)
+    assert [set(r) for r in records] == [{"subject", "condition", "loglik"}] * 4
+    study = load_study(study_file)
+    plant = discretize(0.01)
+    for rec, seg in zip(records, study.segments):
+        assert (rec["subject"], rec["condition"]) == (seg.subject, seg.condition)
+        ref = loglik_dense([60, 0.1, 1], to_maxent_segment(seg), plant, with_grad=False).loglik
+        assert rec["loglik"] == pytest.approx(ref, rel=1e-10)
+    # The default plans with the assistant's law in SC: MC unchanged, SC its own likelihood.
+    assert main(["loglik", str(study_file), "--theta", "60,0.1,1", "--format", "json"]) == 0
+    default = json.loads(capsys.readouterr().out)
+    for rec, dflt, seg in zip(records, default, study.segments):
+        if seg.condition == "MC":
+            assert dflt["loglik"] == rec["loglik"]
+        else:
+            fb = with_assistant_model(to_maxent_segment(seg), "SC", seg.angle_ref, 0, "feedback")
+            assert fb.feedback is not None
+            ref = loglik_grad([60, 0.1, 1], prepare_batch(plant, [fb]), plant).loglik[0]
+            assert dflt["loglik"] == pytest.approx(ref, rel=1e-12) and dflt["loglik"] != rec["loglik"]
+
+
+def test_loglik_table_output(study_file, capsys):
+    assert main(["loglik", str(study_file), "--theta", "60,0,1"]) == 0
+    out = capsys.readouterr().out
+    assert "subject" in out and "loglik" in out and "SC" in out
+
+
+@pytest.mark.parametrize("theta", ["60,0", "60,0,-1", "a,b,c", "nan,0,1"])
+def test_bad_theta_exits_nonzero(study_file, theta, capsys):
+    assert main(["loglik", str(study_file), "--theta", theta]) == 2
+    assert "error" in capsys.readouterr().err
+
+
+def test_bad_file_exits_nonzero_naming_file_column_row(tmp_path, capsys):
+    df = small_table()
+    df.loc[5, "condition"] = "manual"
+    path = tmp_path / "bad.csv"
+    df.to_csv(path, index=False)
+    assert main(["loglik", str(path), "--theta", "60,0,1"]) == 3  # bad input data
+    err = capsys.readouterr().err
+    assert str(path) in err and "column 'condition'" in err and "row 5" in err
+
+
+def test_file_without_torque_is_refused(tmp_path, capsys):
+    path = write_table_atomic(small_table(with_state=False), tmp_path / "angles.parquet")
+    assert main(["loglik", str(path), "--theta", "60,0,1"]) == 3
+    err = capsys.readouterr().err
+    assert "column 'velocity'" in err
+
+
+def test_console_script_runs(study_file):
+    # The script installed beside this interpreter (the venv need not be on PATH).
+    exe = Path(sys.executable).parent / "scioc"
+    if not exe.exists():
+        pytest.fail(f"the console script 'scioc' is not installed beside {sys.executable}")
+    out = subprocess.run([exe, "loglik", str(study_file), "--theta", "60,0,1", "--format", "json"],
+                         capture_output=True, text=True, check=True)
+    assert len(json.loads(out.stdout)) == 4
+    bad = subprocess.run([exe, "loglik", str(study_file), "--theta", "0,0,0"], capture_output=True, text=True)
+    assert bad.returncode != 0 and "R must be > 0" in bad.stderr
+
+
+def test_broken_pipe_ends_quietly(study_file):
+    exe = Path(sys.executable).parent / "scioc"
+    proc = subprocess.Popen([exe, "loglik", str(study_file), "--theta", "60,0,1", "--format", "json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before scioc writes, as with `| head` on long output
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert err == ""
+
+
+@pytest.mark.parametrize("theta", ["1e300,0,1e-300", "1e300,0,1", "1e-300,0,1e300"])
+def test_non_finite_loglik_is_a_failed_check_not_infinity(study_file, theta, capsys):
+    assert main(["loglik", str(study_file), f"--theta={theta}", "--format", "json"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "not finite" in captured.err and "segment (s1, MC)" in captured.err

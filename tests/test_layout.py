@@ -1,0 +1,160 @@
+"""The structure of models/ and pipelines/, drawn from the imports in the source (``ast``, nothing imported);
+the numba core without PyMC; every imported package declared.
+
+Every import counts, including those inside functions: a lazy import may save start-up
+time, but it must not hide a cycle. ``from package import name`` counts as an import of
+``package.name`` when that is a module, else of ``package``; a submodule's implicit
+import of its parent package does not count (it is how Python loads packages, not a
+dependency the code chose).
+"""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("models", "pipelines")
+#: Longest module, in lines (STYLE.md: about 300 is a good size).
+MAX_LINES = 400
+#: Modules allowed to be longer: numba kernels that are one documented unit.
+LONG_KERNELS = {
+    "models/maxent.py": "the max-ent likelihood's backward sweep, adjoint and batching: one numba unit",
+}
+
+
+def _module_name(path: Path) -> str:
+    return ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+
+
+def _files() -> dict:
+    return {_module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
+
+
+def _imports() -> dict:
+    """{module: [(imported module, imported name or None), ...]} for every module of models/ and pipelines/."""
+    files = _files()
+    out = {}
+    for name, path in files.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        found = []
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                found += [(a.name, None) for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:  # relative: resolve against this module's package
+                    parts = package.split(".")
+                    base = ".".join(parts[: len(parts) - node.level + 1] + ([base] if base else []))
+                for a in node.names:
+                    sub = f"{base}.{a.name}"
+                    found.append((sub, None) if sub in files else (base, a.name))
+        out[name] = found
+    return out
+
+
+def _graph() -> dict:
+    imports = _imports()
+    return {m: {t for t, _ in imps if t in imports and t != m} for m, imps in imports.items()}
+
+
+def _find_cycle(graph: dict) -> list | None:
+    """The first import cycle of ``graph`` (depth-first, modules in sorted order) as a list of modules, or None."""
+    done, path = set(), []
+
+    def visit(m):
+        if m in path:
+            return path[path.index(m):] + [m]
+        if m in done:
+            return None
+        path.append(m)
+        for t in sorted(graph[m]):
+            cycle = visit(t)
+            if cycle:
+                return cycle
+        path.pop()
+        done.add(m)
+        return None
+
+    for m in sorted(graph):
+        cycle = visit(m)
+        if cycle:
+            return cycle
+    return None
+
+
+def test_the_import_graph_has_no_cycle():
+    cycle = _find_cycle(_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+def test_a_cycle_would_be_found():
+    """Negative control: the search reports a cycle planted in a copy of the graph."""
+    graph = _graph()
+    graph["pipelines.io"] = graph["pipelines.io"] | {"pipelines.identify"}
+    assert _find_cycle(graph)[0] in ("pipelines.io", "pipelines.identify", "pipelines.prepare")
+
+
+def test_models_never_import_pipelines():
+    bad = [(m, t) for m, imps in _imports().items() if m.startswith("models")
+           for t, _ in imps if t.split(".")[0] == "pipelines"]
+    assert not bad
+
+
+def test_no_private_name_is_imported_from_another_module():
+    bad = [(m, t, n) for m, imps in _imports().items() for t, n in imps
+           if t != m and (n or t.rpartition(".")[2]).startswith("_") and not (n or "").startswith("__")
+           and t.split(".")[0] in PACKAGES]
+    assert not bad
+
+
+def test_stages_never_import_the_cli():
+    bad = [(m, t) for m, imps in _imports().items() if not m.startswith("pipelines.cli")
+           for t, _ in imps if t.startswith("pipelines.cli")]
+    assert not bad
+
+
+@pytest.mark.parametrize("modules", [
+    "models.maxent, models.adequacy, models.simulate, models.humans, models.identify, models.maxent_dense, "
+    "models.units, models.design, models.bootstrap",
+])
+def test_the_numba_core_imports_without_pymc_or_pytensor(modules):
+    code = (f"import sys; import {modules}; "
+            "bad = [m for m in ('pymc', 'pytensor') if m in sys.modules]; assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+
+
+@pytest.mark.parametrize("rel", sorted(str(p.relative_to(ROOT)) for pkg in PACKAGES
+                                        for p in (ROOT / pkg).rglob("*.py")))
+def test_no_module_is_longer_than_400_lines_except_the_numba_kernels(rel):
+    n = len((ROOT / rel).read_text().splitlines())
+    assert n <= MAX_LINES or rel in LONG_KERNELS, f"{rel}: {n} lines"
+
+
+def test_the_listed_long_kernels_exist_and_are_numba():
+    for rel in LONG_KERNELS:
+        assert "njit" in (ROOT / rel).read_text(), rel
+
+
+def test_every_imported_third_party_package_is_declared():
+    import ast
+    import re
+    import tomllib
+    from importlib.metadata import packages_distributions
+
+    root = ROOT
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    declared = {re.split(r"[\[<>=!~ ;]", d)[0].lower().replace("_", "-") for d in project["dependencies"]}
+    imported = set()
+    for path in [*(root / "models").rglob("*.py"), *(root / "pipelines").rglob("*.py")]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                imported |= {a.name.split(".")[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                imported.add(node.module.split(".")[0])
+    dists = packages_distributions()
+    third_party = {m for m in imported - set(sys.stdlib_module_names) - {"models", "pipelines", "__future__"}}
+    missing = {m for m in third_party if not {d.lower() for d in dists.get(m, [m])} & declared}
+    assert not missing, f"imported but not declared in pyproject.toml: {sorted(missing)}"

@@ -101,8 +101,9 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
         torques.append(tq)
     if not frames:
         raise ValueError(f"subject {subject!r} is not in the study (subjects: {', '.join(dict.fromkeys(prepared.subjects))})")
-    coords = {"chain": [0], "draw": np.arange(flat.size), "segment": labels,
-              "source_draw": ("draw", flat)}
+    K = torques[0].shape[1]
+    coords = {"chain": [0], "draw": np.arange(flat.size), "segment": labels, "step": np.arange(K),
+              "sample": np.arange(K + 1), "source_draw": ("draw", flat)}
     draws = xr.Dataset(
         {"u_H": (("chain", "draw", "segment", "step"), np.stack(torques, axis=1)[None]),
          "angle": (("chain", "draw", "segment", "sample"), np.stack(angles, axis=1)[None])},
@@ -127,6 +128,7 @@ def constant_data(prepared: PreparedStudy) -> xr.Dataset:
          "angle_ref": (("segment", "sample"), np.stack([p.segment.angle_ref[: K + 1] for p in segs])),
          "u_A": (("segment", "step"), np.stack([p.segment.u_A[:K] for p in segs]))},
         coords={"segment": prepared.labels, "state": ["angle", "velocity"], "step": np.arange(K),
+                "sample": np.arange(K + 1),
                 "subject": ("segment", prepared.subjects), "condition": ("segment", prepared.conditions)},
         attrs={"units": "x0: rad, rad/s; t: s; angle, angle_ref: rad; u_A: N·m"})
 

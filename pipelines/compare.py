@@ -30,9 +30,10 @@ import pandas as pd
 from scipy.stats import rankdata, wilcoxon
 
 from models.adequacy import STATISTICS, study_verdict
+from models.design import CONDITIONS, MANUAL, SHARED
 from models.identify import PLAUSIBLE_THETA1
 from pipelines.adequacy import format_adequacy, not_checked
-from pipelines.io import CONDITIONS, StudyFileError, read_table
+from pipelines.io import StudyFileError, read_table
 from pipelines.storage import write_text_atomic
 
 #: Default significance level (two-sided), as in the paper.
@@ -220,7 +221,7 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
     all_keys = set(zip(df["subject"], df["condition"]))
     for i in np.flatnonzero(ok):
         subject, condition = df["subject"][i], df["condition"][i]
-        other = "SC" if condition == "MC" else "MC"
+        other = SHARED if condition == MANUAL else MANUAL
         if (subject, other) not in all_keys:
             reasons[int(i)] = f"no {other} estimate for this subject"
         elif (subject, other) not in usable_keys:
@@ -235,11 +236,11 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
 def paired(estimates: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """MC and SC values of ``column`` for subjects that have both conditions."""
     wide = estimates.pivot_table(index="subject", columns="condition", values=column, aggfunc="first")
-    for c in ("MC", "SC"):
+    for c in CONDITIONS:
         if c not in wide.columns:
             raise ValueError(f"no {c} estimates: the matched-pairs test needs both conditions")
-    wide = wide.dropna(subset=["MC", "SC"])
-    return wide["MC"].to_numpy(), wide["SC"].to_numpy(), list(wide.index)
+    wide = wide.dropna(subset=list(CONDITIONS))
+    return wide[MANUAL].to_numpy(), wide[SHARED].to_numpy(), list(wide.index)
 
 
 def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_nonconverged: bool = False,

@@ -23,14 +23,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from models.design import CONDITIONS, DT_HUMAN, MANUAL
 from models.segment import Segment
 
 REQUIRED = ("subject", "condition", "t", "angle", "angle_ref", "u_A")
 OPTIONAL = ("velocity", "u_H")
 NUMERIC = ("t", "angle", "angle_ref", "u_A", "velocity", "u_H")
-CONDITIONS = ("MC", "SC")
 #: Sample time of the data convention, s.
-DT = 0.01
+DT = DT_HUMAN
 #: Allowed deviation of a time step from DT, s (recording clocks print rounded times).
 DT_TOL = 1e-6
 #: Largest plausible |angle| and |angle_ref|, rad: one full turn. The study's reference peaks
@@ -245,7 +245,7 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
                 column="t",
                 row=int(rows[j + 1]),
             )
-        if condition == "MC":
+        if condition == MANUAL:
             bad = cols["u_A"][rows] != 0.0
             if bad.any():
                 j = _first(bad)

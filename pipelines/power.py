@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from models.adequacy import N_BOOT
+from models.design import MANUAL, SHARED
 from models.humans import HUMANS
 from models.simulate import Population, simulate_study
 from pipelines.compare import compare_estimates
@@ -49,9 +50,9 @@ def one_study(human: str, i: int, seed: int, n_subjects: int, beta: float, n_boo
     est = ident.estimates
     cmp = compare_estimates(est)["theta1"]
     wide = est.pivot(index="subject", columns="condition", values="theta1")
-    shift = np.log(wide["SC"]) - np.log(wide["MC"])
+    shift = np.log(wide[SHARED]) - np.log(wide[MANUAL])
     truth = {(s.subject, s.condition): s.theta[0] / s.theta[2] for s in segs}
-    true_shift = [np.log(truth[(s, "SC")]) - np.log(truth[(s, "MC")]) for s in wide.index]
+    true_shift = [np.log(truth[(s, SHARED)]) - np.log(truth[(s, MANUAL)]) for s in wide.index]
     lq = HUMANS[human].kind == "lq"
     a = ident.adequacy
     return {

@@ -30,7 +30,7 @@ import numpy as np
 
 from models.adequacy import N_BOOT
 from models.assistant import design_assistant, human_feedback
-from models.design import PREVIEW_SECONDS, WINDOW_SECONDS, WINDOW_START
+from models.design import PREVIEW_SECONDS, SHARED, WINDOW_SECONDS, WINDOW_START
 from models.plant import DT_HUMAN, discretize
 from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, reconstruct
 from models.segment import Segment
@@ -117,7 +117,7 @@ def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start:
     (the recorded u_A as a known input).
     """
     check_assistant_model(assistant_model)
-    if assistant_model != "feedback" or condition != "SC":
+    if assistant_model != "feedback" or condition != SHARED:
         return segment
     full = human_feedback(paper_assistant(), angle_ref_run)
     return segment._replace(feedback=full.window(start, segment.u_A.shape[0]))

@@ -90,7 +90,7 @@ def simulate_to_dir(
         "seed": int(seed),
         "n_subjects": int(n_subjects),
         "run_seconds": float(seconds),
-        "sample_time_s": 0.01,
+        "sample_time_s": DT_HUMAN,
         "encoder_counts_per_revolution": ENCODER_COUNTS,
         "population": asdict(population),
         "assistant": {"theta_A": list(THETA_ASSISTANT), "horizon_steps": ASSISTANT_HORIZON,

@@ -107,7 +107,7 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     replications, batch_size, n_subjects : int, optional
         Override the level's :data:`DEFAULTS`.
     seconds : float, optional
-        Window length, s (K = seconds / 0.01 s).
+        Window length, s (K = seconds / DT_HUMAN, the 0.01-s sample time).
     negative_control : {"inertia", "ignore-uA", "none"}, optional
         Default :data:`NEGATIVE_DEFAULT` of the level.
 

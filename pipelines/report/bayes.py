@@ -141,7 +141,12 @@ def _k_over(k: dict) -> str:
 
 
 def section_loo(loo: dict, loso: dict | None = None) -> Markup:
-    """PSIS-LOO of both models, the ELPD difference and the Pareto k summary; then leave-one-subject-out."""
+    """PSIS-LOO of both models, the ELPD difference and the Pareto k summary; then leave-one-subject-out.
+
+    The Pareto k are summarized in a table (counts above the threshold); the per-segment
+    k plot (``arviz_plots.plot_khat``) is in the diagnostics notebook, which has the
+    pointwise log-likelihood at hand.
+    """
     seg = _loo_rows(loo, "ELPD (LOO)", lambda m, k: {"p_loo": m["p_loo"], "max Pareto k": k["max"],
                                                       "median k": k["median"], "k > threshold": _k_over(k),
                                                       "k > 1": k["n_gt_1"]})

@@ -135,7 +135,13 @@ def truth_scatter(sources):
 
 
 def forest(subjects: list, beta: dict, true_change: np.ndarray | None):
-    """Per-subject MC→SC change of log θ1 (posterior mean and 94 % HDI from ``contrasts.json``) with β's band."""
+    """Per-subject MC→SC change of log θ1 (posterior mean and 94 % HDI from ``contrasts.json``) with β's band.
+
+    Drawn here rather than by ``arviz_plots.plot_forest``: the report reads the stored
+    contrasts (the same HDIs the text quotes, from :func:`pipelines.fit.contrasts.hdi`) and
+    overlays β's HDI band and the simulated truth, which ``plot_forest`` does not draw. The
+    diagnostics notebook shows ``plot_forest`` of the posterior itself.
+    """
     n = len(subjects)
     fig, ax = plt.subplots(figsize=(7.5, 0.18 * n + 1.6))
     y = np.arange(n)[::-1]

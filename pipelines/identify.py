@@ -36,7 +36,7 @@ from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.io import Study, load_study
 from pipelines.prepare import IdentifySettings, PreparedStudy, paper_assistant, prepare_study
 from pipelines.provenance import versions
-from pipelines.storage import refuse_inputs_inside, staged_dir, write_table_atomic, write_text_atomic
+from pipelines.storage import check_output_dir, refuse_inputs_inside, staged_dir, write_table_atomic, write_text_atomic
 
 
 class Identification(NamedTuple):
@@ -165,7 +165,7 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
                     force: bool = False, prepared: PreparedStudy | None = None) -> dict:
     """Run :func:`identify_study` on a file and write its artifacts into ``out`` as a whole.
 
-    ``out`` is written through :func:`pipelines.io.staged_dir`: it holds this run's
+    ``out`` is written through :func:`pipelines.storage.staged_dir`: it holds this run's
     artifacts and nothing else, or, if the run fails or is interrupted, what it held
     before. An existing non-empty ``out`` is replaced only with ``force``.
 
@@ -174,6 +174,7 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
     that it is not reconstructed again.
     """
     refuse_inputs_inside(out, study_path)
+    check_output_dir(out, force=force)  # before the work, not after
     if prepared is None:
         prepared = prepare_study(load_study(study_path), settings, show_progress=show_progress)
     elif prepared.settings != settings:

@@ -4,7 +4,7 @@ The default simulated study (42 subjects × MC and SC, the 15-s window, K = 1500
 looking 2 s further, u_H reconstructed from the encoder angle) is fitted with the
 condition model of :func:`models.bayes.hierarchical.build_model` through
 :func:`pipelines.fit.sampling.sample_model` (PyMC's nutpie sampler, 4 chains × 1000 draws after
-500 tuning draws, chains in parallel on all cores). Reported: wall time of building,
+1000 tuning draws, chains in parallel on all cores). Reported: wall time of building,
 compiling and sampling; the sampler's diagnostics and verdict
 (:func:`pipelines.fit.diagnostics.diagnostics`), ESS per second for every population parameter; β
 against the simulator's population; and what the same fit would cost with the dense
@@ -34,7 +34,7 @@ from pipelines.fit.sampling import sample_model
 FIT_GOAL_S = 180.0
 
 
-def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 500,
+def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 1000,
               dense_s_per_segment: float | None = None, linear_s_per_batch: float | None = None,
               parameterization=None) -> dict:
     """Fit the default study once and time it.

@@ -145,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_nonnegative_int, default=2018, help="sampler seed (default 2018)")
     p.add_argument("--chains", type=_positive_int, default=4, help="Markov chains (default 4)")
     p.add_argument("--draws", type=_positive_int, default=1000, help="draws kept per chain (default 1000)")
-    p.add_argument("--tune", type=_nonnegative_int, default=500, help="warm-up draws per chain (default 500)")
+    p.add_argument("--tune", type=_nonnegative_int, default=1000, help="warm-up draws per chain (default 1000)")
     p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
     p.add_argument("--cores", type=_positive_int, help="chains sampled in parallel (default: all CPUs)")
     p.add_argument("--estimates", metavar="PATH",

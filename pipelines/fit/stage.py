@@ -114,7 +114,7 @@ def write_netcdf(idata, path: Path) -> Path:
     return path
 
 
-def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 500,
+def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 1000,
                settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
                force: bool = False, prepared: PreparedStudy | None = None) -> dict:

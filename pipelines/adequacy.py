@@ -21,6 +21,7 @@ from models.assistant import human_feedback
 from models.lq import lq_policy
 from models.plant import DT_HUMAN
 from models.segment import planning_plant
+from pipelines.prepare import IdentifySettings, paper_assistant
 
 #: What each check asks, for the CLI and the report.
 CHECK_TEXT = {
@@ -33,7 +34,7 @@ CHECK_TEXT = {
 }
 
 
-def segment_chain(p, theta, plant, *, assistant_model: str, resolution: float, assistant=None) -> Chain:
+def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chain:
     """The acquisition chain of one prepared segment (:class:`pipelines.prepare.PreparedSegment`) at θ.
 
     The policy over the span is the fitted model's plan (horizon: the window plus its
@@ -75,25 +76,20 @@ def segment_chain(p, theta, plant, *, assistant_model: str, resolution: float, a
         w0=i0 - j0, K=K, recon=recon, resolution=float(resolution), noise_scale=float(scale))
 
 
-def assess_study(prepared, thetas, plant, *, assistant_model: str, resolution: float, n_boot: int = adq.N_BOOT,
-                 seed: int = 2018, assistant=None):
+def assess_study(prepared, thetas, plant, settings: IdentifySettings):
     """Bootstrap adequacy of every segment at its θ, and the study verdict.
 
     Parameters
     ----------
     prepared : list of PreparedSegment
+        As :func:`pipelines.prepare.prepare_segment` made them with ``settings`` (each
+        segment carries the human's model of the assistant).
     thetas : array_like, shape (n, 3)
         [q11, q22, R] per segment.
     plant : DiscretePlant
-    assistant_model : str
-    resolution : float
-        Encoder increment, rad.
-    n_boot : int
-        Bootstrap data sets per segment.
-    seed : int
-        Segment i draws from ``SeedSequence(seed).spawn(n)[i]``.
-    assistant : MPCAssistant, optional
-        The law of the feedback segments.
+    settings : IdentifySettings
+        ``adequacy_boot`` data sets per segment (segment i draws from
+        ``SeedSequence(adequacy_seed).spawn(n)[i]``) and the encoder ``resolution``.
 
     Returns
     -------
@@ -104,12 +100,12 @@ def assess_study(prepared, thetas, plant, *, assistant_model: str, resolution: f
         The verdict (:func:`models.adequacy.study_verdict`) with the flagged segments and
         settings (no timings: the same seed gives the same summary).
     """
+    n_boot, seed, assistant = settings.adequacy_boot, settings.adequacy_seed, paper_assistant()
     seeds = np.random.SeedSequence(int(seed)).spawn(len(prepared))
     rows, details = [], []
     for p, th, ss in zip(prepared, np.asarray(thetas, dtype=float), seeds):
         rng = np.random.default_rng(ss)
-        chain = segment_chain(p, th, plant, assistant_model=assistant_model, resolution=resolution,
-                              assistant=assistant)
+        chain = segment_chain(p, th, plant, resolution=settings.resolution, assistant=assistant)
         res = adq.segment_adequacy(bootstrap_records(chain, n_boot, rng), DT_HUMAN)
         rows.append({"adequacy_p": res.p_segment, "adequacy_flagged": res.p_segment <= adq.SEGMENT_ALPHA,
                      **{f"adequacy_p_{k}": v for k, v in res.p.items()}})

@@ -34,7 +34,7 @@ from models.plant import DT_HUMAN, discretize
 from models.segment import plan_inputs, prepare_batch
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.io import Study, load_study
-from pipelines.prepare import IdentifySettings, PreparedStudy, paper_assistant, prepare_study
+from pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
 from pipelines.provenance import versions
 from pipelines.storage import check_output_dir, refuse_inputs_inside, staged_dir, write_table_atomic, write_text_atomic
 
@@ -110,10 +110,7 @@ def identify_prepared(study: PreparedStudy) -> Identification:
     est = pd.DataFrame(rows)
     t0 = time.perf_counter()
     if settings.adequacy_boot > 0:
-        cols, adequacy = assess_study(prepared, [e.theta for e in estimates], plant,
-                                      assistant_model=settings.assistant_model, resolution=settings.resolution,
-                                      n_boot=settings.adequacy_boot, seed=settings.adequacy_seed,
-                                      assistant=paper_assistant())
+        cols, adequacy = assess_study(prepared, [e.theta for e in estimates], plant, settings)
         est = pd.concat([est, cols], axis=1)
     else:
         adequacy = not_checked("switched off (adequacy bootstrap size 0)")

@@ -8,7 +8,7 @@ from models.identify import identify_segment
 from models.plant import DT_HUMAN, discretize
 from models.segment import prepare_batch
 from pipelines.adequacy import assess_study
-from pipelines.prepare import IdentifySettings, paper_assistant
+from pipelines.prepare import IdentifySettings
 
 
 def bench_identify(study: dict) -> dict:
@@ -28,11 +28,9 @@ def bench_identify(study: dict) -> dict:
             "converged": int(sum(e.converged for e in ests)),
         }
     settings = IdentifySettings()
-    kw = {"assistant_model": settings.assistant_model, "resolution": settings.resolution,
-          "n_boot": settings.adequacy_boot, "seed": settings.adequacy_seed, "assistant": paper_assistant()}
-    assess_study(study[2.0][:2], [e.theta for e in ests[:2]], plant, **kw)  # compile
+    assess_study(study[2.0][:2], [e.theta for e in ests[:2]], plant, settings)  # compile
     t0 = time.perf_counter()
-    _, verdict = assess_study(study[2.0], [e.theta for e in ests], plant, **kw)
+    _, verdict = assess_study(study[2.0], [e.theta for e in ests], plant, settings)
     r = out["preview_2s"]
     r["adequacy_s"] = time.perf_counter() - t0
     r["adequacy_boot"] = settings.adequacy_boot

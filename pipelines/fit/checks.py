@@ -14,7 +14,7 @@ from models.cost import from_normalized
 from models.design import CONDITIONS, SHARED
 from pipelines.adequacy import assess_study, not_checked
 from pipelines.fit.contrasts import HDI_PROB, condition_change, hdi
-from pipelines.prepare import PreparedStudy, paper_assistant
+from pipelines.prepare import PreparedStudy
 
 
 def mixedlm_check(estimates: pd.DataFrame) -> dict:
@@ -119,8 +119,6 @@ def posterior_adequacy(idata, prepared: PreparedStudy, plant) -> dict:
     sel = [dict(subject=s, condition=c) for s, c in zip(prepared.subjects, prepared.conditions)]
     theta = from_normalized([float(np.exp(lt1.sel(**k))) for k in sel], [float(t2.sel(**k)) for k in sel],
                             [float(np.exp(lr.sel(**k))) for k in sel])
-    _, summary = assess_study(prepared.segments, theta.T, plant, assistant_model=prepared.settings.assistant_model,
-                              resolution=prepared.settings.resolution, n_boot=prepared.settings.adequacy_boot,
-                              seed=prepared.settings.adequacy_seed, assistant=paper_assistant())
+    _, summary = assess_study(prepared.segments, theta.T, plant, prepared.settings)
     summary["theta"] = "posterior means of log θ1, log R and θ2 per subject × condition (plug-in)"
     return summary

@@ -60,7 +60,7 @@ def simulate_to_dir(
         agent; the others are negative controls the likelihood does not describe. The
         crossover operator has no cost θ: its truth rows carry NaN.
     force : bool
-        Replace an existing non-empty ``out`` as a whole (:func:`pipelines.io.staged_dir`);
+        Replace an existing non-empty ``out`` as a whole (:func:`pipelines.storage.staged_dir`);
         without it such a folder is refused.
 
     Returns

@@ -147,7 +147,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     show_progress : bool
         Progress bars on standard error.
     force : bool
-        Replace an existing non-empty ``out`` (as a whole; see :func:`pipelines.io.staged_dir`).
+        Replace an existing non-empty ``out`` (as a whole; see :func:`pipelines.storage.staged_dir`).
     prepared : PreparedStudy, optional
         The study file already prepared with ``settings`` (``scioc run`` shares the
         identification's); by default it is loaded and prepared here.

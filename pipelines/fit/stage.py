@@ -114,6 +114,10 @@ def write_netcdf(idata, path: Path) -> Path:
     return path
 
 
+#: Fewest draws in all chains: PSIS-LOO fits its Pareto tail to min(0.2 S, 3 √S) draws and needs 5.
+MIN_TOTAL_DRAWS = 25
+
+
 def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 1000,
                settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
@@ -168,6 +172,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
         if int(v) != v or v < low:
             raise ValueError(f"--{name} must be an integer >= {low}; got {v!r}")
+    if chains * draws < MIN_TOTAL_DRAWS:
+        raise ValueError(f"--chains × --draws must be at least {MIN_TOTAL_DRAWS} (PSIS-LOO smooths a tail of "
+                         f"0.2 × draws, which needs 5 draws); got {chains} × {draws}")
     study_path, out = Path(study_path), Path(out)
     estimates_path, truth_dir = default_inputs(study_path, estimates_path, truth_dir)
     refuse_inputs_inside(out, study_path, estimates_path, truth_dir)

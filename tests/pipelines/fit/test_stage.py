@@ -166,7 +166,7 @@ def test_bad_design_is_a_clear_cli_error(tiny_study, drop, message, capsys):
     path = write_table_atomic(table[~drop(table)], root / "bad.parquet")
     out = root / "out"
     with pytest.raises(ValueError, match=message):
-        fit_to_dir(path, out, chains=1, draws=10, tune=10)
+        fit_to_dir(path, out, chains=1, draws=25, tune=10)
     assert _cli_main(["fit", str(path), "--out", str(out), "--draws", "10", "--tune", "10"]) == 3  # bad input data
     err = capsys.readouterr().err
     assert err.startswith("scioc fit: error:") and re.search(message, err)
@@ -177,8 +177,10 @@ def test_fit_options_are_validated(tiny_study):
     table, root = tiny_study
     with pytest.raises(ValueError, match="--draws must be an integer >= 1"):
         fit_to_dir(root / "data" / "study.parquet", root / "x", draws=0)
+    with pytest.raises(ValueError, match="--chains × --draws must be at least 25"):
+        fit_to_dir(root / "data" / "study.parquet", root / "x", chains=1, draws=20)
     with pytest.raises(ValueError, match="--subject 'S99' is not in the study"):
-        fit_to_dir(root / "data" / "study.parquet", root / "x", subject="S99", draws=1)
+        fit_to_dir(root / "data" / "study.parquet", root / "x", subject="S99", draws=10)
     assert not (root / "x").exists()
 
 

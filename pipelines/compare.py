@@ -267,24 +267,34 @@ def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_
     out["unpaired_subjects"] = sorted(counts.index[counts < 2])
     out["excluded"] = excluded
     out["include_nonconverged"] = bool(include_nonconverged)
-    out["adequacy"] = adequacy_of_estimates(estimates)
+    out["adequacy"] = adequacy_of_estimates(estimates, path)
     return out
 
 
-def adequacy_of_estimates(estimates: pd.DataFrame) -> dict:
+def adequacy_of_estimates(estimates: pd.DataFrame, path="<table>") -> dict:
     """The model-adequacy verdict of the segments in an estimates table (its ``adequacy_p_*`` columns).
 
     The same combination as ``scioc identify`` (:func:`models.adequacy.study_verdict`), so
     the test's result is never shown without the verdict on the model behind it.
+
+    Raises
+    ------
+    StudyFileError
+        A p-value outside (0, 1], naming the file, the column and the first bad row.
     """
-    cols = [f"adequacy_p_{k}" for k in STATISTICS]
-    if not set(cols) <= set(estimates.columns) or "adequacy_p" not in estimates.columns:
+    cols = {k: f"adequacy_p_{k}" for k in STATISTICS}
+    if not set(cols.values()) <= set(estimates.columns) or "adequacy_p" not in estimates.columns:
         return not_checked("the estimates carry no adequacy columns (identified with --adequacy-boot 0, or "
                            "not by scioc identify)")
-    p = {k: pd.to_numeric(estimates[f"adequacy_p_{k}"], errors="coerce").to_numpy(dtype=float) for k in STATISTICS}
-    if any(not np.all((v > 0) & (v <= 1)) for v in p.values()):
-        raise StudyFileError("<estimates>", "adequacy p-values must lie in (0, 1]", column="adequacy_p")
-    return study_verdict(p, pd.to_numeric(estimates["adequacy_p"], errors="coerce").to_numpy(dtype=float))
+    values = {}
+    for col in ["adequacy_p", *cols.values()]:
+        v = pd.to_numeric(estimates[col], errors="coerce").to_numpy(dtype=float)
+        bad = ~((v > 0) & (v <= 1))
+        if bad.any():
+            raise StudyFileError(path, "an adequacy p-value must lie in (0, 1]", column=col,
+                                 row=int(np.flatnonzero(bad)[0]))
+        values[col] = v
+    return study_verdict({k: values[c] for k, c in cols.items()}, values["adequacy_p"])
 
 
 def _finite_or_none(value):

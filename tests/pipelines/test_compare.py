@@ -159,3 +159,19 @@ def test_unknown_condition_in_estimates_names_the_row(tmp_path, capsys):
     assert main(["compare", str(path)]) == 3
     err = capsys.readouterr().err
     assert str(path) in err and "column 'condition', row 1" in err
+
+
+def test_adequacy_columns_give_the_identify_verdict_and_bad_ones_are_named():
+    from models.adequacy import STATISTICS, study_verdict
+
+    est = _estimates([f"S{i}" for i in range(6)])
+    rng = np.random.default_rng(3)
+    p = {k: rng.integers(1, 51, len(est)) / 50 for k in STATISTICS}
+    est = est.assign(adequacy_p=rng.integers(1, 51, len(est)) / 50, **{f"adequacy_p_{k}": v for k, v in p.items()})
+    res = compare_estimates(est)
+    assert res["adequacy"] == study_verdict(p, est["adequacy_p"].to_numpy())
+    bad = est.copy()
+    bad.loc[2, "adequacy_p_xcorr"] = 1.5
+    with pytest.raises(StudyFileError, match=r"est\.parquet, column 'adequacy_p_xcorr', row 2"):
+        compare_estimates(bad, path="est.parquet")
+    assert compare_estimates(est.drop(columns=["adequacy_p"]))["adequacy"]["verdict"] == "not checked"

@@ -30,7 +30,8 @@ import numpy as np
 from numba import njit
 
 from models.cost import validate_theta
-from models.design import ASSISTANT_HORIZON, DT_ASSISTANT, DT_HUMAN, THETA_ASSISTANT, WheelParameters
+from models.design import (ASSISTANT_HORIZON, DT_ASSISTANT, DT_HUMAN, THETA_ASSISTANT, AssistantSpec, Design,
+                           WheelParameters)
 from models.lq import lq_policy
 from models.plant import DiscretePlant, discretize
 from models.segment import Feedback
@@ -115,6 +116,36 @@ def design_assistant(
         r[j] = 1.0
         weights[j - 1] = lq_policy(plant, theta, r, zeros_a).f[0]
     return MPCAssistant(gain=gain, preview_weights=weights, hold=int(hold), stride=int(stride), theta=theta, plant=plant)
+
+
+def linear_assistant(gain, reference_gain: float, dt: float = DT_HUMAN,
+                     params: WheelParameters = WheelParameters()) -> MPCAssistant:
+    """A fixed linear assistant, ``u_A,k = -gain @ x_k + reference_gain · r_k``, in the same form as the MPC.
+
+    It is an :class:`MPCAssistant` with one preview weight on the current reference
+    sample (``stride = 0``) that acts every sample, so the closed-loop simulator,
+    :func:`feedforward` and :func:`human_feedback` treat both kinds alike. ``theta`` is
+    NaN (it has no cost) and ``plant`` is the loop's own discretization.
+
+    Examples
+    --------
+    >>> a = linear_assistant([6.0, 0.3], 6.0)
+    >>> float(assistant_torque(a, [0.1, 0.0], [0.2]))
+    0.6
+    """
+    g = np.asarray(gain, dtype=float).reshape(2)
+    rg = float(reference_gain)
+    if not (np.all(np.isfinite(g)) and np.isfinite(rg)):
+        raise ValueError(f"a linear assistant needs finite gains; got gain={gain!r}, reference_gain={reference_gain!r}")
+    return MPCAssistant(gain=g, preview_weights=np.array([rg]), hold=1, stride=0,
+                        theta=np.full(3, np.nan), plant=discretize(dt, params))
+
+
+def build_assistant(spec: AssistantSpec, design: Design) -> MPCAssistant:
+    """The assistant law ``spec`` declares, on ``design``'s wheel and sample time."""
+    if spec.kind == "linear":
+        return linear_assistant(spec.gain, spec.reference_gain, design.dt, design.wheel)
+    return design_assistant(spec.theta, spec.horizon, spec.step_s, design.dt, design.wheel, spec.period_s)
 
 
 def assistant_torque(assistant: MPCAssistant, x, r_preview) -> float:

@@ -1,0 +1,249 @@
+"""The ``delayed`` likelihood of one segment and of a batch: assembly and chain rule (numba).
+
+One segment (see :mod:`models.delayed.likelihood` for the model and its derivation):
+
+1. the plan (:func:`models.delayed.riccati.plan_recursion`): S_k, L_k, f_k and their
+   tangents in q11, q22, a, α;
+2. the data: the arm torque τ_k and the effective command c̃_k from the observed
+   torques (tangents in a and α), the residual ``r_k = c̃_k + L_k z_k - f_k``;
+3. the MA coefficients ``c_{k,0} = 1``, ``c_{k,j} = L_k g_j`` with ``g_j = Ā^{j-1} b_c``,
+   and the band of Σ = diag(1/(2 S_k)) + σ_m² C Cᵀ::
+
+       Σ_{i, i-t} = [t = 0] / (2 S_i) + σ_m² sum_{j=t..d} c_{i,j} c_{i-t, j-t};
+
+4. log N(r; 0, Σ), ω = Σ⁻¹ r and ∂/∂Σ (:func:`models.delayed.innovations.banded_loglik`);
+5. the chain rule back to (q11, q22, R, τ_nm, σ_m); R by homogeneity (L and f do not
+   change when θ is scaled, S scales with it, so ``θ · ∇_θ log p = sum_k S_k ∂/∂S_k``).
+
+Rows k <= k_R share one S and L (the stationary plan), so their adjoints are summed
+before they meet the tangents.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from models.delayed.innovations import banded_loglik
+from models.delayed.riccati import plan_recursion
+
+
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, r, u, ua, freeze, sc, out):
+    """Log-likelihood and gradient of one segment, written into ``out`` (8,): ll, then
+    d/d[q11, q22, R, τ_nm, σ_m], then (as floats) k_R and the steady-state row i_f (-1: none). ``sc`` is the scratch tuple of :func:`make_scratch`."""
+    (f, df, S_t, L_t, dS_t, dL_t, cst, tau, ct, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
+     Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar) = sc
+    K = u.shape[0]
+    # ---- planning plant and its derivatives in (q11, q22, a, α)
+    Ab = np.zeros((3, 3))
+    for i in range(2):
+        for j in range(2):
+            Ab[i, j] = A[i, j] - b[i] * fb[j]
+        Ab[i, 2] = al * b[i]
+    Ab[2, 2] = a
+    bc = np.array([(1.0 - al) * b[0], (1.0 - al) * b[1], 1.0 - a])
+    ba = np.array([b[0], b[1], 0.0])
+    dAb = np.zeros((4, 3, 3))
+    dbc = np.zeros((4, 3))
+    dAb[2, 2, 2] = 1.0
+    dbc[2, 2] = -1.0
+    dAb[3, 0, 2] = b[0]
+    dAb[3, 1, 2] = b[1]
+    dbc[3, 0] = -b[0]
+    dbc[3, 1] = -b[1]
+    k_R = plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K, freeze, f, df, S_t, L_t, dS_t, dL_t, cst)
+    Sc = cst[0]
+    # ---- data: arm torque, effective command, residual
+    tau[0] = tau0
+    dtau[0, 0] = 0.0
+    dtau[0, 1] = 0.0
+    om1 = 1.0 - al
+    for k in range(K):
+        tk = tau[k]
+        c = (u[k] - al * tk) / om1
+        ct[k] = c
+        dct[k, 0] = -al * dtau[k, 0] / om1
+        dct[k, 1] = (c - tk - al * dtau[k, 1]) / om1
+        tau[k + 1] = a * tk + (1.0 - a) * c
+        dtau[k + 1, 0] = tk + a * dtau[k, 0] - c + (1.0 - a) * dct[k, 0]
+        dtau[k + 1, 1] = a * dtau[k, 1] + (1.0 - a) * dct[k, 1]
+        if k <= k_R:
+            rr[k] = c + cst[1] * x1[k] + cst[2] * x2[k] + cst[3] * tk - f[k]
+        else:
+            rr[k] = c + L_t[k, 0] * x1[k] + L_t[k, 1] * x2[k] + L_t[k, 2] * tk - f[k]
+    # ---- g_j = Ā^{j-1} b_c and its (a, α) tangents; MA coefficients
+    for j in range(d):
+        for i in range(3):
+            if j == 0:
+                g[0, i] = bc[i]
+                dg[0, 0, i] = dbc[2, i]
+                dg[0, 1, i] = dbc[3, i]
+            else:
+                g[j, i] = Ab[i, 0] * g[j - 1, 0] + Ab[i, 1] * g[j - 1, 1] + Ab[i, 2] * g[j - 1, 2]
+                for p in range(2):
+                    dg[j, p, i] = (dAb[2 + p, i, 0] * g[j - 1, 0] + dAb[2 + p, i, 1] * g[j - 1, 1]
+                                   + dAb[2 + p, i, 2] * g[j - 1, 2] + Ab[i, 0] * dg[j - 1, p, 0]
+                                   + Ab[i, 1] * dg[j - 1, p, 1] + Ab[i, 2] * dg[j - 1, p, 2])
+    s2 = sig * sig
+    cs[0] = 1.0
+    for j in range(1, d + 1):
+        cs[j] = cst[1] * g[j - 1, 0] + cst[2] * g[j - 1, 1] + cst[3] * g[j - 1, 2]
+    gam = np.empty(d + 1)
+    for t in range(d + 1):
+        acc = 0.0
+        for j in range(t, d + 1):
+            acc += cs[j] * cs[j - t]
+        gam[t] = s2 * acc
+    if k_R >= 0:
+        gam[0] += 0.5 / Sc
+    for i in range(k_R + 1, K):
+        ctail[i, 0] = 1.0
+        for j in range(1, d + 1):
+            ctail[i, j] = L_t[i, 0] * g[j - 1, 0] + L_t[i, 1] * g[j - 1, 1] + L_t[i, 2] * g[j - 1, 2]
+    for i in range(k_R + 1, K):
+        for t in range(min(i, d) + 1):
+            ip = i - t
+            acc = 0.0
+            for j in range(t, d + 1):
+                acc += ctail[i, j] * (ctail[ip, j - t] if ip > k_R else cs[j - t])
+            tailS[i, t] = s2 * acc
+        tailS[i, 0] += 0.5 / S_t[i]
+    # ---- Gaussian log-density of the residuals and ∂/∂Σ
+    ll, i_f, i_e = banded_loglik(d, gam, k_R, tailS, rr, freeze, Lr, D, y, om, q, Lbar, Dbar, Sbar, w, wb, XY[:, :, :d + 1],
+                                 gbar[:d + 1])
+    # ---- adjoints of the MA coefficients, of 1/(2S) and of σ_m²
+    s2bar = 0.0
+    for j in range(d + 1):
+        cbs[j] = 0.0
+        gam[j] = gbar[j]  # now ∂/∂γ_t through the Toeplitz rows
+    vbar_s = gam[0]
+    for t in range(d + 1):
+        acc = 0.0
+        for j in range(t, d + 1):
+            acc += cs[j] * cs[j - t]
+            cbs[j] += s2 * gam[t] * cs[j - t]
+            cbs[j - t] += s2 * gam[t] * cs[j]
+        s2bar += gam[t] * acc
+    for i in range(k_R + 1, K):
+        for j in range(d + 1):
+            cbt[i, j] = 0.0
+    for i in range(k_R + 1, K):
+        for t in range(min(i, d) + 1):
+            ip = i - t
+            sb = Sbar[i, t]
+            acc = 0.0
+            for j in range(t, d + 1):
+                cp = ctail[ip, j - t] if ip > k_R else cs[j - t]
+                acc += ctail[i, j] * cp
+                cbt[i, j] += s2 * sb * cp
+                if ip > k_R:
+                    cbt[ip, j - t] += s2 * sb * ctail[i, j]
+                else:
+                    cbs[j - t] += s2 * sb * ctail[i, j]
+            s2bar += sb * acc
+    # c̄ -> L̄ (per tail row, summed over the stationary rows) and ḡ
+    for j in range(d):
+        for i in range(3):
+            gb[j, i] = cbs[j + 1] * cst[1 + i]
+    Lbs0 = Lbs1 = Lbs2 = 0.0
+    for j in range(d):
+        Lbs0 += cbs[j + 1] * g[j, 0]
+        Lbs1 += cbs[j + 1] * g[j, 1]
+        Lbs2 += cbs[j + 1] * g[j, 2]
+    for i in range(k_R + 1, K):
+        for m in range(3):
+            Lbt[i, m] = 0.0
+        for j in range(d):
+            cb = cbt[i, j + 1]
+            for m in range(3):
+                Lbt[i, m] += cb * g[j, m]
+                gb[j, m] += cb * L_t[i, m]
+    # ---- the residual's path: r̄ = -ω; chain to the tangents
+    G = np.zeros(4)
+    hom = 0.0  # sum_k S_k ∂/∂S_k
+    for k in range(K):
+        o = om[k]
+        for p in range(4):
+            G[p] += o * df[k, p]
+        G[2] -= o * (dct[k, 0])
+        G[3] -= o * (dct[k, 1])
+        if k <= k_R:
+            Lbs0 -= o * x1[k]
+            Lbs1 -= o * x2[k]
+            Lbs2 -= o * tau[k]
+            G[2] -= o * cst[3] * dtau[k, 0]
+            G[3] -= o * cst[3] * dtau[k, 1]
+        else:
+            Lbt[k, 0] -= o * x1[k]
+            Lbt[k, 1] -= o * x2[k]
+            Lbt[k, 2] -= o * tau[k]
+            G[2] -= o * L_t[k, 2] * dtau[k, 0]
+            G[3] -= o * L_t[k, 2] * dtau[k, 1]
+            Sk = S_t[k]
+            Sb = -0.5 * Sbar[k, 0] / (Sk * Sk)
+            hom += Sb * Sk
+            for p in range(4):
+                G[p] += Sb * dS_t[k, p] + Lbt[k, 0] * dL_t[k, p, 0] + Lbt[k, 1] * dL_t[k, p, 1] \
+                    + Lbt[k, 2] * dL_t[k, p, 2]
+    if k_R >= 0:
+        Sb = -0.5 * vbar_s / (Sc * Sc)
+        hom += Sb * Sc
+        for p in range(4):
+            G[p] += Sb * cst[4 + p] + Lbs0 * cst[8 + 3 * p] + Lbs1 * cst[9 + 3 * p] + Lbs2 * cst[10 + 3 * p]
+    for j in range(d):
+        for p in range(2):
+            G[2 + p] += gb[j, 0] * dg[j, p, 0] + gb[j, 1] * dg[j, p, 1] + gb[j, 2] * dg[j, p, 2]
+    # u -> c̃ is triangular with diagonal 1/(1 - α): log p(u) = log p(c̃) - K log(1 - α)
+    out[0] = ll - K * math.log(om1)
+    G[3] += K / om1
+    out[1] = G[0]
+    out[2] = G[1]
+    out[3] = (hom - q11 * G[0] - q22 * G[1]) / R
+    out[4] = G[2] * da + G[3] * dal
+    out[5] = 2.0 * sig * s2bar
+    out[6] = k_R
+    out[7] = i_f
+
+
+@njit(cache=True)
+def make_scratch(K, KM, dmax):
+    """Scratch arrays for :func:`segment_kernel`: K observed steps, K + M planned, delays <= dmax."""
+    dd = max(dmax, 1)
+    return (np.empty(K), np.empty((K, 4)), np.empty(K), np.empty((K, 3)), np.empty((K, 4)), np.empty((K, 4, 3)),
+            np.zeros(20), np.empty(K + 1), np.empty(K), np.empty((K + 1, 2)), np.empty((K, 2)), np.empty(K),
+            np.empty((dd, 3)), np.empty((dd, 2, 3)), np.empty(dmax + 1), np.empty((K, dmax + 1)),
+            np.empty((K, dmax + 1)), np.empty((K, dd)), np.empty(K), np.empty(K), np.empty(K), np.empty(K),
+            np.empty((K, dd)), np.empty(K), np.empty((K, dmax + 1)), np.empty(dd + 1), np.empty(dd + 1),
+            np.empty((K, dmax + 1)), np.empty(dmax + 1), np.empty((dd, 3)), np.empty((K, 3)),
+            np.empty((K + 1, 4, dmax + 1)), np.empty(dmax + 1))
+
+
+@njit(cache=True, parallel=True)
+def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, x1, x2, r, u, ua, freeze, nchunks, out):
+    """Every segment of a batch, each on its own, in ``nchunks`` parallel chunks.
+
+    Arguments are C-contiguous float64 arrays (``delay`` int64): the wheel ``A`` (2, 2),
+    ``b`` (2,); ``fb`` (n, 2); ``th`` (3, n) rows q11, q22, R; ``lag`` (4, n) rows a, α,
+    da/dτ_nm, dα/dτ_nm; ``sig`` (n,) σ_m; ``delay`` (n,); ``tau0`` (n,); the arrays of a
+    :class:`models.segment.SegmentBatch`; output ``out`` (6, n): log-likelihood, then
+    the gradient in q11, q22, R, τ_nm, σ_m.
+    """
+    n = u.shape[0]
+    K = u.shape[1]
+    dmax = 0
+    for i in range(n):
+        dmax = max(dmax, delay[i])
+    for c in prange(nchunks):
+        sc = make_scratch(K, ua.shape[1], dmax)
+        res = np.empty(8)
+        for i in range(c, n, nchunks):
+            segment_kernel(A, b, fb[i], th[0, i], th[1, i], th[2, i], lag[0, i], lag[1, i], lag[2, i], lag[3, i],
+                           sig[i], delay[i], tau0[i], x1[i], x2[i], r[i], u[i], ua[i], freeze, sc, res)
+            for m in range(6):
+                out[m, i] = res[m]
+
+
+__all__ = ["batch_kernel", "make_scratch", "segment_kernel"]

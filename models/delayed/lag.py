@@ -1,0 +1,192 @@
+"""The neuromuscular lag as the ``delayed`` human model sees it: pole a, mixing α, and the planning plant.
+
+The simulated human (:func:`models.humans.simulate_human`) drives the wheel through a
+first-order lag with time constant τ_nm, discretized exactly with a zero-order hold
+(:func:`models.plant.discretize_lagged`): the arm torque τ follows the held command
+c̃ (command plus motor noise). Recorded torques are ZOH-equivalent: u_k is the torque
+that, held over the sample, gives the velocity x_{k+1}[1] on the 2-state wheel. From the
+velocity row of the lagged plant::
+
+    u_k = α τ_k + (1 - α) c̃_k,        τ_{k+1} = a τ_k + (1 - a) c̃_k,
+
+with ``a = exp(-dt / τ_nm)``, ``α = A_lag[1, 2] / b[1]`` and ``1 - α = b_c,lag[1] / b[1]``
+(a held constant torque passes the lag unchanged, hence the two weights sum to one;
+tested against :func:`models.plant.discretize_lagged`). τ_nm = 0 is no lag: a = α = 0.
+
+Closed form of α. The arm torque decays as ``exp(-μ s)``, μ = 1/τ_nm, over the sample,
+so the velocity it adds at the sample's end is the second entry of::
+
+    ∫_0^dt e^{A_c (dt - s)} b_w e^{-μ s} ds = (A_c + μ I)⁻¹ (Φ - a I) b_w,   Φ = e^{A_c dt},
+
+with (A_c, b_w) the continuous wheel (:func:`models.plant.continuous_matrices`) and
+Φ = the discrete wheel's A. Its τ_nm-derivative follows by differentiating in μ:
+``dv/dμ = (A_c + μ I)⁻¹ (dt a b_w - v)``. When A_c + μ I is (nearly) singular, possible
+only for a wheel with real poles at τ_nm = -1/λ (within 5 %), the block matrix exponential and its
+Fréchet derivative are used instead (:func:`scipy.linalg.expm_frechet`). As τ_nm -> 0,
+``α ≈ τ_nm [Φ b_w]_1 / b[1]``: the one-sided derivative at 0 is ``[Φ b_w]_1 / b[1]``, and
+``da/dτ_nm -> 0``.
+
+The human plans on z = (angle, velocity, arm torque) with the command c as input (see
+:mod:`models.delayed.likelihood`)::
+
+    z_{k+1} = A_z z_k + b_c c_k + b_a u_A,k,
+    A_z = [[A, α b], [0, a]],  b_c = [(1 - α) b; 1 - a],  b_a = [b; 0].
+
+This is the ZOH-equivalent description of the lagged wheel: its velocity row is exact,
+its angle row differs from the lagged plant's by the within-sample shape of the torque
+(about 1e-5 rad per step, see :mod:`models.humans`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from scipy.linalg import expm_frechet
+
+from models.design import DT_HUMAN, WheelParameters
+from models.plant import DiscretePlant, continuous_matrices, discretize
+
+
+class LagCoefficients(NamedTuple):
+    """The lag of one τ_nm in the data convention, with derivatives.
+
+    Attributes
+    ----------
+    a : float or ndarray
+        Pole ``exp(-dt / τ_nm)`` (0 for τ_nm = 0).
+    alpha : float or ndarray
+        Weight of the arm torque in the ZOH-equivalent torque (0 for τ_nm = 0).
+    da : float or ndarray
+        da/dτ_nm, 1/s (0 at τ_nm = 0).
+    dalpha : float or ndarray
+        dα/dτ_nm, 1/s; at τ_nm = 0 the one-sided derivative from above.
+    """
+
+    a: float | np.ndarray
+    alpha: float | np.ndarray
+    da: float | np.ndarray
+    dalpha: float | np.ndarray
+
+
+def _check_tau(tau_nm) -> np.ndarray:
+    tau = np.asarray(tau_nm, dtype=float)
+    if not np.all(np.isfinite(tau)) or np.any(tau < 0):
+        raise ValueError(f"neuromuscular time constant tau_nm must be finite and >= 0 s; got {tau_nm!r}")
+    return tau
+
+
+def lag_coefficients(tau_nm, dt: float = DT_HUMAN, params: WheelParameters = WheelParameters()) -> LagCoefficients:
+    """The pole a and mixing α of the ZOH-sampled neuromuscular lag, and their τ_nm-derivatives.
+
+    Parameters
+    ----------
+    tau_nm : float or array_like
+        Neuromuscular time constant(s), s, >= 0.
+    dt : float
+        Sample time, s.
+    params : WheelParameters
+        The wheel (Table I by default).
+
+    Returns
+    -------
+    LagCoefficients
+        Same shape as ``tau_nm``.
+
+    Examples
+    --------
+    >>> lag = lag_coefficients(0.06)
+    >>> round(float(lag.a), 4), round(float(lag.alpha), 4)
+    (0.8465, 0.9202)
+    """
+    tau = _check_tau(tau_nm)
+    A_c, b_w = continuous_matrices(params)
+    Phi = discretize(dt, params).A
+    b1 = discretize(dt, params).b[1]
+    flat = tau.reshape(-1)
+    out = np.zeros((4, flat.shape[0]))
+    Pb = Phi @ b_w
+    lam = np.linalg.eigvals(A_c)
+    for i, t in enumerate(flat):
+        if t == 0.0:
+            out[3, i] = Pb[1] / b1
+            continue
+        mu = 1.0 / t
+        a = np.exp(-dt * mu)
+        Mu = A_c + mu * np.eye(2)
+        # The solve loses about 1e-15 / (relative distance of μ from a pole) in α.
+        if np.min(np.abs(mu + lam) / (mu + np.abs(lam))) > 0.05:
+            v = np.linalg.solve(Mu, Pb - a * b_w)
+            dv_dmu = np.linalg.solve(Mu, dt * a * b_w - v)
+            alpha, dalpha = v[1] / b1, -mu * mu * dv_dmu[1] / b1
+        else:  # A_c + μ I (nearly) singular: the block exponential, by value and Fréchet derivative
+            M = np.zeros((4, 4))
+            M[:2, :2] = A_c
+            M[:2, 2] = b_w
+            M[2, 2], M[2, 3] = -mu, mu
+            dM = np.zeros((4, 4))
+            dM[2, 2], dM[2, 3] = mu * mu, -mu * mu  # d/dτ_nm of -1/τ_nm and 1/τ_nm
+            E, dE = expm_frechet(M * dt, dM * dt)
+            alpha, dalpha = E[1, 2] / b1, dE[1, 2] / b1
+        out[:, i] = a, alpha, a * dt * mu * mu, dalpha
+    if tau.ndim == 0:
+        return LagCoefficients(*(float(v[0]) for v in out))
+    return LagCoefficients(*(v.reshape(tau.shape) for v in out))
+
+
+class LaggedPlanningPlant(NamedTuple):
+    """The plant the ``delayed`` human plans on: z = (angle, velocity, arm torque).
+
+    ``z_{k+1} = A z_k + b_c c_k + b_a u_k`` with the command c and the known input u (the
+    assistant's recorded torque, or its feedforward when the human plans with its law).
+
+    Attributes
+    ----------
+    A : ndarray, shape (3, 3)
+        ``[[A_wheel - b gainᵀ, α b], [0, a]]``.
+    b_c : ndarray, shape (3,)
+        ``[(1 - α) b; 1 - a]``.
+    b_a : ndarray, shape (3,)
+        ``[b; 0]``.
+    """
+
+    A: np.ndarray
+    b_c: np.ndarray
+    b_a: np.ndarray
+
+
+def lagged_planning_plant(plant: DiscretePlant, a: float, alpha: float, gain=None) -> LaggedPlanningPlant:
+    """The augmented plant of the module docstring, closed by the assistant's state feedback ``gain``.
+
+    Parameters
+    ----------
+    plant : DiscretePlant
+        The 2-state wheel.
+    a, alpha : float
+        From :func:`lag_coefficients`.
+    gain : array_like, shape (2,), optional
+        The assistant's feedback the human plans with (None: the open wheel).
+
+    Returns
+    -------
+    LaggedPlanningPlant
+    """
+    g = np.zeros(2) if gain is None else np.asarray(gain, dtype=float).reshape(2)
+    A = np.zeros((3, 3))
+    A[:2, :2] = plant.A - np.outer(plant.b, g)
+    A[:2, 2] = alpha * plant.b
+    A[2, 2] = a
+    b_c = np.concatenate([(1.0 - alpha) * plant.b, [1.0 - a]])
+    b_a = np.concatenate([plant.b, [0.0]])
+    return LaggedPlanningPlant(A, b_c, b_a)
+
+
+def check_wheel(plant: DiscretePlant, params: WheelParameters) -> None:
+    """ValueError unless ``plant`` is the discretization of ``params`` at its own sample time."""
+    wheel = discretize(plant.dt, params)
+    if not (np.allclose(wheel.A, plant.A, rtol=1e-12, atol=1e-15) and np.allclose(wheel.b, plant.b, rtol=1e-12,
+                                                                                 atol=1e-15)):
+        raise ValueError("plant is not the discretization of params; pass the WheelParameters it came from")
+
+
+__all__ = ["LagCoefficients", "LaggedPlanningPlant", "check_wheel", "lag_coefficients", "lagged_planning_plant"]

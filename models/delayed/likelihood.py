@@ -1,0 +1,190 @@
+"""Exact likelihood of the ``delayed`` human: perceptual delay, neuromuscular lag and motor noise.
+
+The model
+---------
+Sample time dt; wheel x_k = (angle, velocity), ``x_{k+1} = A x_k + b (u_k + u_A,k)``
+(:func:`models.plant.discretize`); u_k is the observed human torque, acting from t_k to
+t_{k+1}.
+
+*Lag* (:mod:`models.delayed.lag`). The human issues commands c_k; the effective command
+is ``c̃_k = c_k + m_k`` with motor noise m_k. The arm torque τ follows
+``τ_{k+1} = a τ_k + (1 - a) c̃_k`` and the observed (ZOH-equivalent) torque is
+``u_k = α τ_k + (1 - α) c̃_k``. Given the data, τ_k is a recursion of observed torques
+from the arm torque at the segment's start, τ_0 (``tau0``; 0 at rest), and
+``c̃_k = (u_k - α τ_k) / (1 - α)``. The map u -> c̃ is triangular with Jacobian
+(1 - α)^{-K}, so ``log p(u) = log p(c̃) - K log(1 - α)``. τ_nm = 0 gives a = α = 0 and
+u = c̃.
+
+*Plan.* The human plans on z = (x, τ), ``z_{k+1} = A_z z_k + b_c c_k + b_a u_A,k`` with
+A_z = [[A, α b], [0, a]], b_c = [(1 - α) b; 1 - a], b_a = [b; 0], and the paper's Eq. 8
+cost with the command in place of the torque: ``J = sum_{k=1..K+M} e_kᵀ Q e_k +
+sum_k R c_k²``, e = (angle - ref, velocity), Q = diag(q11, q22) on the wheel states
+only, over the window and M preview steps. With the assistant's law (a segment with
+:class:`models.segment.Feedback`) it plans on ``Ā = A_z - b_a [gainᵀ, 0]`` with the
+feedforward as known input, otherwise on Ā = A_z with the recorded u_A as known input;
+the recursion is :func:`models.lq.lq_tracking_policy`'s (:mod:`models.delayed.riccati`).
+Max-ent over the commands (as :mod:`models.maxent` over torques): given the state the
+human acts on, ``c_k = -L_k ẑ_k + f_k + ε_k``, ``ε_k ~ N(0, 1 / (2 S_k))``,
+``S_k = R + b_cᵀ P_{k+1} b_c``.
+
+*Delay.* The human sees z_{k-d} (d samples, d >= 0) and predicts the present with its
+internal model and its own commands; it does not know m. Motor noise is white,
+``m_k ~ N(0, σ_m²)``. Then ``z_k - ẑ_k = sum_{j=1..d} Ā^{j-1} b_c m_{k-j}`` (in SC the
+assistant's law acts on the true state, so it is part of Ā on both sides; with an
+exogenous u_A the recorded torque enters truth and prediction alike), and the residual
+of the effective command against the optimal law at the *observed* state is::
+
+    r_k = c̃_k + L_k z_k - f_k = ε_k + m_k + sum_{j=1..d} h_{k,j} m_{k-j},
+    h_{k,j} = L_k Ā^{j-1} b_c.
+
+What is conditioned on. The density is of u_0..u_{K-1} given the initial state z_0 =
+(x_0, τ_0), the reference, the assistant (its recorded torques, or its law and
+feedforward) and the parameters. The motor noises before the window, m_{-d}..m_{-1},
+enter r_0..r_{d-1}; they are taken independent of z_0 with their prior N(0, σ_m²)
+(the human's view of z_0 from before the window is the true z_0 minus their
+propagated effect; see :func:`models.delayed.sample.closed_loop`). The observed states
+z_k (x_k propagated from x_0 with the observed torques, as
+:func:`models.segment.prepare_batch` does, and τ_k from the recursion) depend on θ only
+through (a, α) in τ_k.
+
+*Likelihood.* r = ε + C m with C banded (c_{k,0} = 1, c_{k,j} = h_{k,j}, m over
+-d..K-1), all terms independent and Gaussian, so r ~ N(0, Σ) with Σ = diag(1 / (2 S_k))
++ σ_m² C Cᵀ, a band matrix of bandwidth d. The map u -> r is triangular (z_k depends on
+u_{<k} only) with diagonal 1/(1 - α), hence::
+
+    log p(u) = log N(r; 0, Σ) - K log(1 - α).
+
+With d = 0, τ_nm = 0 and σ_m = 0 this is :func:`models.maxent.loglik_grad`'s
+``sum_k [-S_k v_k² + ½ log(2 S_k) - ½ log 2π]`` (tested to rounding).
+
+Computation
+-----------
+log N(r; 0, Σ) is evaluated in innovations form, ``Σ = L D Lᵀ`` row by row
+(:mod:`models.delayed.innovations`; the same innovations as a Kalman filter over the
+last d + 1 motor noises, without its covariance state). The plan is stationary
+except near its end and Σ is then Toeplitz, so the rows of L reach a steady state: held
+there, all but the transient rows cost O(d), the transient ones O(d²), and the result
+equals the unheld computation to rounding (tested). The gradient is exact reverse mode
+through the factorization (∂/∂Σ band) followed by the chain rule through the MA
+coefficients, the data recursion and the forward tangents of the plan
+(:mod:`models.delayed.kernel`): one backward sweep for all parameters rather than five
+forward tangents through an O(d²) filter. With the steady state held it is the exact
+derivative of the held computation. At τ_nm = 0 the τ_nm-derivative is the one-sided
+derivative from above (a = exp(-dt/τ_nm) is flat there, α is not); at σ_m = 0 the
+σ_m-derivative is 0 (the likelihood depends on σ_m²).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import get_num_threads
+
+from models.cost import validate_theta
+from models.delayed.kernel import batch_kernel
+from models.delayed.lag import check_wheel, lag_coefficients
+from models.design import WheelParameters
+from models.plant import DiscretePlant
+from models.segment import SegmentBatch
+
+#: Parameter order of the gradient.
+PARAMETERS = ("q11", "q22", "R", "tau_nm", "sigma_m")
+
+
+class DelayedLoglikGrad(NamedTuple):
+    """Log-likelihood per segment and its gradient.
+
+    Attributes
+    ----------
+    loglik : ndarray, shape (n,)
+        Nats.
+    grad : ndarray, shape (5, n)
+        d loglik / d[q11, q22, R, τ_nm, σ_m] (:data:`PARAMETERS`).
+    """
+
+    loglik: np.ndarray
+    grad: np.ndarray
+
+
+def _per_segment(value, n: int, name: str, *, integer: bool = False, minimum: float | None = 0.0) -> np.ndarray:
+    arr = np.asarray(value)
+    if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != n):
+        raise ValueError(f"{name} must be a scalar or have shape ({n},); got shape {arr.shape}")
+    arr = np.broadcast_to(arr, (n,))
+    if integer:
+        if not np.all(np.isfinite(arr.astype(float))) or np.any(arr.astype(float) != np.round(arr.astype(float))):
+            raise ValueError(f"{name} must be a whole number of samples; got {value!r}")
+        out = np.ascontiguousarray(arr, dtype=np.int64)
+    else:
+        out = np.ascontiguousarray(arr, dtype=np.float64)
+        if not np.all(np.isfinite(out)):
+            raise ValueError(f"{name} must be finite; got {value!r}")
+    if minimum is not None and np.any(out < minimum):
+        raise ValueError(f"{name} must be >= {minimum:g}; got {value!r}")
+    return out
+
+
+def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0, sigma_m=0.0, delay=0, tau0=0.0,
+                freeze: bool = True, params: WheelParameters = WheelParameters()) -> DelayedLoglikGrad:
+    """Exact log-likelihood of the ``delayed`` human and its gradient, per segment of a batch.
+
+    Parameters
+    ----------
+    theta : array_like, shape (3,) or (3, n)
+        ``[q11, q22, R]`` of the command cost, one for all segments or one column each.
+    batch : SegmentBatch
+        From :func:`models.segment.prepare_batch` with the same plant.
+    plant : DiscretePlant
+        The wheel at the human's sample time.
+    tau_nm : float or array_like (n,)
+        Neuromuscular time constant, s, >= 0.
+    sigma_m : float or array_like (n,)
+        Motor-noise SD per sample, N·m, >= 0.
+    delay : int or array_like (n,)
+        Perceptual delay d in samples, >= 0.
+    tau0 : float or array_like (n,)
+        Arm torque at each segment's start, N·m (0 at rest).
+    freeze : bool
+        Hold the plan and the innovations once stationary (default); ``False`` computes
+        every step, to test the fast path.
+    params : WheelParameters
+        The wheel ``plant`` was discretized from (needed for the lag).
+
+    Returns
+    -------
+    DelayedLoglikGrad
+        ``loglik`` (n,) and ``grad`` (5, n) in :data:`PARAMETERS` order.
+
+    Examples
+    --------
+    >>> from models.plant import discretize
+    >>> from models.segment import Segment, prepare_batch
+    >>> plant = discretize(0.01)
+    >>> seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
+    >>> res = loglik_grad([10.0, 0.0, 1.0], prepare_batch(plant, [seg]), plant, tau_nm=0.06, sigma_m=0.2, delay=3)
+    >>> res.loglik.shape, res.grad.shape
+    ((1,), (5, 1))
+    """
+    n = batch.n
+    th = validate_theta(theta)
+    if th.ndim == 2 and th.shape[1] != n:
+        raise ValueError(f"theta must have shape (3,) or (3, {n}); got {th.shape}")
+    th = np.array(np.broadcast_to(th.reshape(3, -1), (3, n)), dtype=np.float64, order="C")
+    tau = _per_segment(tau_nm, n, "tau_nm")
+    sig = _per_segment(sigma_m, n, "sigma_m")
+    d = _per_segment(delay, n, "delay", integer=True)
+    t0 = _per_segment(tau0, n, "tau0", minimum=None)
+    check_wheel(plant, params)
+    lag = np.empty((4, n))
+    values, inverse = np.unique(tau, return_inverse=True)
+    coef = lag_coefficients(values, plant.dt, params)
+    for row, v in enumerate(coef):
+        lag[row] = np.asarray(v)[inverse]
+    out = np.empty((6, n))
+    batch_kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, lag, sig, d, t0,
+                 batch.x1, batch.x2, batch.r, batch.u, batch.a, bool(freeze), max(1, min(n, get_num_threads())), out)
+    return DelayedLoglikGrad(out[0].copy(), out[1:].copy())
+
+
+__all__ = ["DelayedLoglikGrad", "PARAMETERS", "loglik_grad"]

@@ -23,11 +23,29 @@ field                  default                     paper
 ``subjects``           42                          Section IV-B (simulation)
 ``trials``             1                           runs per subject × condition (simulation)
 ``torque_sensor``      False                       the rig records the angle only (simulation)
+``effects``            -0.7 per non-baseline       true mean shift of log θ1 (simulation): θ1
+                       level                       about halves in SC, the paper's finding
 ``window_start``       210 s                       analysis from 3:30 (Section IV-F)
 ``window_seconds``     15 s                        length of the analysis window
 ``whole``              False                       True: analyse every trial whole
 ``preview``            2 s                         a point of the reference crosses the screen
 =====================  ==========================  ==========================================
+
+How the cost parameters transform with the sample rate
+-------------------------------------------------------
+The cost J = Σ_k e_kᵀ Q e_k + R u_k² is a sum over samples: it approximates
+(1/dt) ∫ (eᵀ Q_c e + R_c u²) dt with Q = Q_c dt and R = R_c dt, so the same human
+recorded at another rate has per-sample weights proportional to the sample time.
+Hence:
+
+* θ1 = q11 / R and θ2 = q22 / R are ratios and do not depend on the rate: they are the
+  reported parameters, and their priors hold at any rate.
+* R is a per-sample precision: R ∝ dt. Under maximum entropy the torque's per-sample
+  variance 1 / (2 S) ≈ 1 / (2 R) then grows as 1/dt, which is white noise of the same
+  spectral density at every rate. The rate-free quantity is R at the paper's 100 Hz,
+  ``R · REFERENCE_DT / dt`` (:meth:`Design.r_scale`); the simulator's population and the
+  hierarchical model's prior on log R are stated at :data:`REFERENCE_DT` and shifted by
+  ``log(dt / REFERENCE_DT)``. At 100 Hz nothing changes.
 """
 
 from __future__ import annotations
@@ -36,6 +54,10 @@ import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+#: The sample time R is stated at (the paper's 100 Hz), s; see the module docstring.
+REFERENCE_DT = 0.01
+#: The simulated population's default mean shift of log θ1 from the baseline to another level.
+DEFAULT_EFFECT = -0.7
 #: The kinds of assistant an experiment can declare (:class:`AssistantSpec`).
 ASSISTANT_KINDS = ("mpc", "linear")
 
@@ -135,7 +157,10 @@ class Design:
     subjects, trials : int
         Subjects, and runs per subject × condition, of a simulated study.
     torque_sensor : bool
-        Whether the simulated rig records u_H (and the velocity) besides the angle.
+        Whether the simulated rig records u_H besides the angle.
+    effects : tuple of float
+        Simulation truth: the population's mean shift of log θ1 from the baseline to each
+        non-baseline level, in order (default :data:`DEFAULT_EFFECT` for every one).
     window_start, window_seconds : float
         Start and length of the analysis window on each trial's own time axis, s.
     whole : bool
@@ -161,6 +186,7 @@ class Design:
     subjects: int = 42
     trials: int = 1
     torque_sensor: bool = False
+    effects: tuple[float, ...] = ()
     window_start: float = 210.0
     window_seconds: float = 15.0
     whole: bool = False
@@ -199,6 +225,12 @@ class Design:
                 raise ValueError(f"Design.assistants: {name!r} needs an AssistantSpec; got {spec!r}")
         if len(set(names)) != len(names):
             raise ValueError(f"Design.assistants: a level appears twice in {names}")
+        n_contrasts = len(levels) - 1
+        effects = tuple(self.effects) if self.effects else (DEFAULT_EFFECT,) * n_contrasts
+        if len(effects) != n_contrasts or not all(_finite(v) for v in effects):
+            raise ValueError(f"Design.effects must be {n_contrasts} finite numbers, one per non-baseline level; "
+                             f"got {self.effects!r}")
+        object.__setattr__(self, "effects", tuple(float(v) for v in effects))
         for name, spec in self.assistants:
             if spec.kind == "mpc":
                 for what, value in (("step_s", spec.step_s), ("period_s", spec.period_s)):
@@ -213,6 +245,11 @@ class Design:
         return 1.0 / self.dt
 
     @property
+    def r_scale(self) -> float:
+        """``dt / REFERENCE_DT``: a per-sample R at this rate is the 100-Hz R times this (1.0 at 100 Hz)."""
+        return self.dt / REFERENCE_DT
+
+    @property
     def encoder_step(self) -> float:
         """One encoder increment, rad (0.0 for an angle that is not quantized)."""
         return 2.0 * math.pi / self.encoder_counts if self.encoder_counts else 0.0
@@ -220,6 +257,11 @@ class Design:
     def assistant(self, level: str) -> AssistantSpec | None:
         """The law of ``level``'s assistant, or None for an unassisted level."""
         return dict(self.assistants).get(level)
+
+    @property
+    def ordered_levels(self) -> tuple[str, ...]:
+        """The baseline, then the other levels in order (condition index 0, 1, ...)."""
+        return (self.baseline,) + self.contrasts
 
     @property
     def contrasts(self) -> tuple[str, ...]:
@@ -261,6 +303,8 @@ PREVIEW_SECONDS = STUDY.preview
 
 __all__ = [
     "ASSISTANT_KINDS",
+    "REFERENCE_DT",
+    "DEFAULT_EFFECT",
     "AssistantSpec",
     "PAPER_ASSISTANT",
     "WheelParameters",

@@ -287,13 +287,15 @@ def simulate_human(
     spec : HumanSpec
     theta : array_like, shape (3,)
         [q11, q22, R] of an LQ human; ignored by the crossover operator.
-    condition : {"MC", "SC"}
+    condition : str
+        The level: ``MC`` is unassisted; any other level is assisted by ``assistant``
+        unless it is None (``SC`` needs one).
     angle_ref : array_like, shape (K + 1,)
         Reference angle, rad.
     plant : DiscretePlant
-        The wheel sampled at 0.01 s.
+        The wheel at the recording's sample time.
     assistant : MPCAssistant or None
-        Used in SC only; it must re-solve every sample.
+        The level's assistant; it must re-solve every sample.
     rng : numpy.random.Generator
         The only source of randomness. An LQ human draws its max-ent noise first
         (:func:`models.maxent.maxent_noise`, as :func:`models.simulate.simulate_run` does), then
@@ -326,13 +328,13 @@ def simulate_human(
     K = ref.shape[0] - 1
     dt = plant.dt
     x0 = np.asarray(x0, dtype=float).reshape(2)
-    if condition == MANUAL:
+    if condition == SHARED and assistant is None:
+        raise ValueError("shared control (SC) needs the assistant")
+    if condition == MANUAL or assistant is None:
         gain2, ff = np.zeros(2), np.zeros(K)
-    elif condition == SHARED:
+    else:
         fb = human_feedback(assistant, ref)
         gain2, ff = np.asarray(fb.gain, dtype=float), np.ascontiguousarray(fb.feedforward)
-    else:
-        raise ValueError(f"condition must be {MANUAL!r} or {SHARED!r}; got {condition!r}")
 
     lagged = spec.tau_nm > 0
     if lagged:

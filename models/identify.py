@@ -78,25 +78,37 @@ def _theta_from_z(z) -> np.ndarray:
     return from_normalized(np.exp(z[0]), max(z[1], 0.0), np.exp(z[2]))
 
 
-def _ll_grad_z(z, batch: SegmentBatch, plant: DiscretePlant):
+def _ll_grad_z(z, batches, plant: DiscretePlant):
+    """Log-likelihood summed over every segment of ``batches`` (one unit's trials) and its gradient in z."""
     th = _theta_from_z(z)
-    res = loglik_grad(th, batch, plant)
-    g = res.grad[:, 0]
+    ll = 0.0
+    g = np.zeros(3)
+    for batch in batches:
+        res = loglik_grad(th, batch, plant)
+        ll += float(res.loglik.sum())
+        g += res.grad.sum(axis=1)
     q11, q22, R = th
     gz = np.array([q11 * g[0], R * g[1], q11 * g[0] + q22 * g[1] + R * g[2]])
-    return float(res.loglik[0]), gz
+    return ll, gz
 
 
-def _start(batch: SegmentBatch, plant: DiscretePlant) -> np.ndarray:
-    K = batch.K
+def _start(batches, plant: DiscretePlant) -> np.ndarray:
     n = START_GRID.shape[0]
     theta = np.vstack([START_GRID, np.zeros(n), np.ones(n)])
-    big = batch.repeat(0, n)
-    res = loglik_grad(theta, big, plant)
-    # At R = 1: Σ S̃ v² = -quad with quad = g_R + θ1 g_q11 - K/2 (Euler, see the kernel's end in models.maxent).
-    quad = res.grad[2] + START_GRID * res.grad[0] - 0.5 * K
+    K = 0
+    quad = np.zeros(n)
+    rest = np.zeros(n)
+    for batch in batches:
+        for j in range(batch.n):
+            res = loglik_grad(theta, batch.repeat(j, n), plant)
+            # At R = 1: Σ S̃ v² = -quad with quad = g_R + θ1 g_q11 - K/2 (Euler, see the kernel's end in
+            # models.maxent).
+            q = res.grad[2] + START_GRID * res.grad[0] - 0.5 * batch.K
+            quad += q
+            rest += res.loglik - q
+            K += batch.K
     R_hat = K / np.maximum(-2.0 * quad, 1e-300)
-    profiled = -R_hat * (-quad) + 0.5 * K * np.log(R_hat) + (res.loglik - quad)
+    profiled = -R_hat * (-quad) + 0.5 * K * np.log(R_hat) + rest
     i = int(np.argmax(profiled))
     return np.array([np.log(START_GRID[i]), 0.0, np.log(R_hat[i])])
 
@@ -117,22 +129,34 @@ def _observed_information(z, batch, plant, free) -> np.ndarray:
 
 
 def identify_segment(batch: SegmentBatch, plant: DiscretePlant, *, maxiter: int = 200) -> Estimate:
-    """Maximize the max-ent likelihood of one segment over θ.
+    """Maximize the max-ent likelihood of one segment over θ (:func:`identify_unit` of one batch of one row)."""
+    if batch.n != 1:
+        raise ValueError(f"identify_segment takes a batch of one segment; got {batch.n}")
+    return identify_unit([batch], plant, maxiter=maxiter)
+
+
+def identify_unit(batches, plant: DiscretePlant, *, maxiter: int = 200) -> Estimate:
+    """Maximize the max-ent likelihood of one unit's segments (its trials) over one θ: paper Eq. 17 with d ≥ 1.
 
     Parameters
     ----------
-    batch : SegmentBatch
-        One segment (from :func:`models.segment.prepare_batch`).
+    batches : sequence of SegmentBatch
+        Every row of every batch is a trial of the same unit (batches group trials of
+        equal length, from :func:`models.segment.prepare_batch`); the log-likelihood is
+        their sum.
     plant : DiscretePlant
     maxiter : int
 
     Returns
     -------
     Estimate
+        ``loglik`` is the sum over the trials; ``grad_norm`` is per torque sample of all of them.
     """
-    if batch.n != 1:
-        raise ValueError(f"identify_segment takes a batch of one segment; got {batch.n}")
-    K = batch.K
+    batches = list(batches)
+    if not batches or any(b.n < 1 for b in batches):
+        raise ValueError("identify_unit needs at least one segment")
+    batch = batches
+    K = sum(b.K * b.n for b in batches)
     z0 = _start(batch, plant)
     scale = 1.0 / K  # per-sample log-likelihood: O(1) numbers for SLSQP's tolerances
 

@@ -242,6 +242,60 @@ def apply_reconstruction(F, b, A, Kg, Sv, C, y, a):
     return zs[:, 0].copy(), zs[:, 1].copy(), torque_from_means(A, b, zs, a)
 
 
+#: Seconds of recorded angle :func:`initial_state` fits the initial state to.
+INITIAL_STATE_SECONDS = 0.5
+
+
+def initial_state(angle, u, plant: DiscretePlant, seconds: float = INITIAL_STATE_SECONDS) -> np.ndarray:
+    """Initial angle and velocity of a record whose torques are measured, fitted to its angles.
+
+    With the total torque ``u = u_H + u_A`` known, the angles are linear in x_0:
+    ``angle_k = [A^k x_0]_0 + Σ_{j<k} [A^{k-1-j} b]_0 u_j``. x_0 is the least-squares fit
+    over the first ``seconds`` (at least 3 samples), so the velocity it implies is
+    consistent with the plant and averages the encoder's quantization over many samples
+    instead of differencing two of them.
+
+    Parameters
+    ----------
+    angle : array_like, shape (K + 1,)
+        Recorded angle, rad.
+    u : array_like, shape (>= K,)
+        Total torque acting on the wheel from t_k to t_{k+1}, N·m.
+    plant : DiscretePlant
+    seconds : float
+
+    Returns
+    -------
+    ndarray, shape (2,)
+
+    Examples
+    --------
+    >>> from models.plant import discretize, propagate
+    >>> plant = discretize(0.01)
+    >>> u = np.sin(np.arange(100) / 10.0)
+    >>> x = propagate(plant, np.array([0.1, -0.3]), u)
+    >>> np.round(initial_state(x[:, 0], u, plant), 12)
+    array([ 0.1, -0.3])
+    """
+    y = np.asarray(angle, dtype=float)
+    uu = np.asarray(u, dtype=float)
+    n = min(y.shape[0], uu.shape[0] + 1, max(3, int(round(seconds / plant.dt)) + 1))
+    if n < 2:
+        raise ValueError("initial_state needs at least two angle samples")
+    rows = np.empty((n, 2))
+    forced = np.zeros(n)
+    Ak = np.eye(2)
+    x = np.zeros(2)  # the torques' part of the state
+    for k in range(n):
+        rows[k] = Ak[0]
+        forced[k] = x[0]
+        if k + 1 < n:
+            Ak = plant.A @ Ak
+            x = plant.A @ x + plant.b * uu[k]
+    sol, *_ = np.linalg.lstsq(rows, y[:n] - forced, rcond=None)
+    return sol
+
+
 def reconstruct(
     angle,
     u_A,

@@ -25,117 +25,20 @@ u_H and θ are kept apart as ground truth.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from models.assistant import MPCAssistant, design_assistant, human_feedback, simulate_closed_loop
-from models.cost import from_log_normalized
-from models.design import ENCODER_STEP, MANUAL, PREVIEW_SECONDS, RUN_SECONDS, SHARED, WINDOW_SECONDS
+from models.assistant import build_assistant
+from models.design import ENCODER_STEP, MANUAL, PREVIEW_SECONDS, RUN_SECONDS, SHARED, STUDY, WINDOW_SECONDS, Design
 from models.humans import HUMANS, simulate_human
 from models.lq import lq_policy
 from models.maxent import maxent_noise
 from models.plant import DT_HUMAN, DiscretePlant, discretize
+from models.population import Population, draw_subjects
 from models.reference import reference_trajectory
 from models.segment import Segment, planning_plant
-
-
-@dataclass(frozen=True)
-class Population:
-    """The population θ per subject and condition is drawn from (all logs natural).
-
-    For subject i::
-
-        log θ1[i, MC] ~ N(log_theta1_mc, sd_log_theta1)          θ1 = q11 / R, 1/rad²
-        log θ1[i, SC] = log θ1[i, MC] + beta + N(0, sd_change)
-        log R[i, MC]  ~ N(log_R, sd_log_R)                      R, 1/(N·m)²
-        log R[i, SC]  = log R[i, MC] + gamma + N(0, sd_R_change)
-        θ2[i, c] = q22 / R = theta2                             (the paper found 0)
-
-    The defaults make the paper's qualitative findings appear: q22 = 0; in SC the
-    normalized angle weight drops to about half (β = -0.7) for nearly every subject,
-    with between-subject spread. With R around 20 the max-ent torque variability is about
-    0.16 N·m per 10-ms sample, and the tracking error RMS about 0.02-0.05 rad for the
-    0.2-rad RMS reference.
-
-    Attributes
-    ----------
-    log_theta1_mc : float
-        Mean of log θ1 in MC (default log 20).
-    sd_log_theta1 : float
-        Between-subject SD of log θ1 (default 0.5).
-    beta : float
-        Mean SC shift of log θ1 (default -0.7).
-    sd_change : float
-        Between-subject SD of the SC shift (default 0.2).
-    log_R : float
-        Mean of log R in MC (default log 20).
-    sd_log_R : float
-        Between-subject SD of log R (default 0.3).
-    gamma : float
-        Mean SC shift of log R (default 0).
-    sd_R_change : float
-        Between-subject SD of the SC shift of log R (default 0.1).
-    theta2 : float
-        q22 / R for everyone (default 0).
-    """
-
-    log_theta1_mc: float = float(np.log(20.0))
-    sd_log_theta1: float = 0.5
-    beta: float = -0.7
-    sd_change: float = 0.2
-    log_R: float = float(np.log(20.0))
-    sd_log_R: float = 0.3
-    gamma: float = 0.0
-    sd_R_change: float = 0.1
-    theta2: float = 0.0
-
-    def __post_init__(self):
-        for name, value in asdict(self).items():
-            if not np.isfinite(value):
-                raise ValueError(f"population parameter {name} must be finite; got {value!r}")
-            if name.startswith("sd") and value < 0:
-                raise ValueError(f"population parameter {name} must be >= 0; got {value!r}")
-        if self.theta2 < 0:
-            raise ValueError(f"population parameter theta2 must be >= 0; got {self.theta2!r}")
-
-
-class SubjectTheta(NamedTuple):
-    """True cost parameters of one subject: θ = [q11, q22, R] per condition, and run order."""
-
-    mc: np.ndarray
-    sc: np.ndarray
-    sc_first: bool
-
-
-def draw_subjects(population: Population, n_subjects: int, rng: np.random.Generator) -> list[SubjectTheta]:
-    """Draw θ_MC, θ_SC and the run order for each subject.
-
-    Parameters
-    ----------
-    population : Population
-    n_subjects : int
-    rng : numpy.random.Generator
-
-    Returns
-    -------
-    list of SubjectTheta
-    """
-    if int(n_subjects) != n_subjects or n_subjects < 1:
-        raise ValueError(f"n_subjects must be a positive integer; got {n_subjects!r}")
-    p = population
-    out = []
-    for _ in range(int(n_subjects)):
-        z = rng.standard_normal(4)
-        lt1_mc = p.log_theta1_mc + p.sd_log_theta1 * z[0]
-        lt1_sc = lt1_mc + p.beta + p.sd_change * z[1]
-        lr_mc = p.log_R + p.sd_log_R * z[2]
-        lr_sc = lr_mc + p.gamma + p.sd_R_change * z[3]
-        sc_first = bool(rng.integers(0, 2))
-        out.append(SubjectTheta(from_log_normalized(lt1_mc, p.theta2, lr_mc),
-                                from_log_normalized(lt1_sc, p.theta2, lr_sc), sc_first))
-    return out
 
 
 class Run(NamedTuple):
@@ -161,8 +64,18 @@ class Run(NamedTuple):
 
 
 def quantize(angle, step: float = ENCODER_STEP) -> np.ndarray:
-    """Encoder reading: the angle rounded to whole increments, rad (error uniform within ±step/2)."""
-    return np.round(np.asarray(angle, dtype=float) / step) * step
+    """Encoder reading: the angle rounded to whole increments, rad (error uniform within ±step/2); step 0: unchanged."""
+    a = np.asarray(angle, dtype=float)
+    return np.round(a / step) * step if step > 0 else a.copy()
+
+
+def _assisted(condition: str, assistant: MPCAssistant | None) -> MPCAssistant | None:
+    """The assistant acting in ``condition``: none in MC, the given one otherwise (None: an unassisted level)."""
+    if condition == MANUAL:
+        return None
+    if condition == SHARED and assistant is None:
+        raise ValueError("shared control (SC) needs the assistant")
+    return assistant
 
 
 def simulate_run(
@@ -170,9 +83,11 @@ def simulate_run(
     condition: str,
     angle_ref,
     plant: DiscretePlant,
-    assistant: MPCAssistant,
+    assistant: MPCAssistant | None,
     rng: np.random.Generator,
     x0=(0.0, 0.0),
+    *,
+    encoder_step: float = ENCODER_STEP,
 ) -> Run:
     """Simulate one run of one subject.
 
@@ -180,15 +95,19 @@ def simulate_run(
     ----------
     theta : array_like, shape (3,)
         True [q11, q22, R].
-    condition : {"MC", "SC"}
+    condition : str
+        The level: ``MC`` is unassisted whatever ``assistant`` is; any other level is
+        assisted by ``assistant`` unless it is None.
     angle_ref : array_like, shape (K + 1,)
     plant : DiscretePlant
-        0.01-s wheel.
-    assistant : MPCAssistant
-        Used in SC only; it must re-solve every sample (``hold == 1``).
+        The wheel at the recording's sample time.
+    assistant : MPCAssistant or None
+        The level's assistant; it must re-solve every sample (``hold == 1``).
     rng : numpy.random.Generator
     x0 : array_like, shape (2,)
         Initial state (the wheel at rest by default).
+    encoder_step : float
+        Encoder increment, rad (0: the angle is not quantized).
 
     Returns
     -------
@@ -197,17 +116,16 @@ def simulate_run(
     ref = np.asarray(angle_ref, dtype=float)
     K = ref.shape[0] - 1
     x0 = np.asarray(x0, dtype=float)
-    if condition == MANUAL:
-        pol, asst = lq_policy(plant, theta, ref, np.zeros(K)), None
-    elif condition == SHARED:
-        fb = human_feedback(assistant, ref)
-        pol, asst = lq_policy(planning_plant(plant, fb.gain), theta, ref, fb.feedforward), assistant
+    asst = _assisted(condition, assistant)
+    if asst is None:
+        pol = lq_policy(plant, theta, ref, np.zeros(K))
     else:
-        raise ValueError(f"condition must be {MANUAL!r} or {SHARED!r}; got {condition!r}")
+        fb = human_feedback(asst, ref)
+        pol = lq_policy(planning_plant(plant, fb.gain), theta, ref, fb.feedforward)
     run = simulate_closed_loop(plant, asst, x0, ref, pol.L, pol.f, maxent_noise(pol, rng))
     u_A = np.append(run.u_A, run.u_A[-1] if K > 0 else 0.0)
     return Run(
-        angle=quantize(run.x[:, 0]),
+        angle=quantize(run.x[:, 0], encoder_step),
         u_A=u_A,
         true_angle=run.x[:, 0],
         true_velocity=run.x[:, 1],
@@ -216,30 +134,34 @@ def simulate_run(
 
 
 class SimulatedSegment(NamedTuple):
-    """One subject × condition run of the simulated study."""
+    """One subject × condition run (one trial) of the simulated study."""
 
     subject: str
     condition: str
     run_index: int
     theta: np.ndarray
     run: Run
+    trial: int | None = None
 
 
-def simulate_human_run(human: str, theta, condition: str, angle_ref, plant: DiscretePlant, assistant: MPCAssistant,
-                       rng: np.random.Generator) -> Run:
+def simulate_human_run(human: str, theta, condition: str, angle_ref, plant: DiscretePlant,
+                       assistant: MPCAssistant | None, rng: np.random.Generator, *,
+                       encoder_step: float = ENCODER_STEP, design: Design = STUDY) -> Run:
     """One run of the named human of :data:`models.humans.HUMANS`, recorded like :func:`simulate_run`.
 
     ``maxent`` is :func:`simulate_run` itself (the paper's agent, bit for bit); every other
     name is a human the max-ent likelihood does not describe (negative controls).
+    ``design`` gives the wheel of the lagged humans.
     """
     spec = HUMANS.get(human)
     if spec is None:
         raise ValueError(f"unknown human {human!r}; choose one of {', '.join(HUMANS)}")
     if human == "maxent":
-        return simulate_run(theta, condition, angle_ref, plant, assistant, rng)
-    run = simulate_human(spec, theta, condition, angle_ref, plant, assistant if condition == SHARED else None, rng)
+        return simulate_run(theta, condition, angle_ref, plant, assistant, rng, encoder_step=encoder_step)
+    run = simulate_human(spec, theta, condition, angle_ref, plant, _assisted(condition, assistant), rng,
+                         params=design.wheel)
     K = run.u_H.shape[0]
-    return Run(angle=quantize(run.x[:, 0]), u_A=np.append(run.u_A, run.u_A[-1] if K > 0 else 0.0),
+    return Run(angle=quantize(run.x[:, 0], encoder_step), u_A=np.append(run.u_A, run.u_A[-1] if K > 0 else 0.0),
                true_angle=run.x[:, 0], true_velocity=run.x[:, 1], u_H=np.append(run.u_H, 0.0))
 
 
@@ -249,6 +171,7 @@ def simulate_study(
     population: Population = Population(),
     seconds: float = RUN_SECONDS,
     human: str = "maxent",
+    design: Design = STUDY,
 ) -> tuple[np.ndarray, list[SimulatedSegment]]:
     """Simulate the whole experiment.
 
@@ -257,36 +180,50 @@ def simulate_study(
     n_subjects : int
     rng : numpy.random.Generator
         Every subject gets an independent child generator spawned from it, so a subject's
-        data do not depend on how many subjects follow.
+        data do not depend on how many subjects follow; each of its runs (level × trial)
+        gets a child of that.
     population : Population
     seconds : float
         Length of each run, s (240: 4 minutes).
     human : str
         Which simulated human (:data:`models.humans.HUMANS`); ``maxent`` is the paper's
         agent, the others are negative controls the likelihood does not describe.
+    design : Design
+        The experiment: sample time, wheel, encoder, levels with their assistants, and
+        ``trials`` runs per subject × level (the paper's study by default). The
+        population's θ (stated at 100 Hz) is scaled by ``design.r_scale``, so that the
+        same subjects recorded at another rate have the same θ1, θ2 and R at 100 Hz.
 
     Returns
     -------
     t : ndarray, shape (K + 1,)
         Sample times, s.
     segments : list of SimulatedSegment
-        Subject by subject, in the order the runs were performed.
+        Subject by subject, in the order the runs were performed (a level's trials one
+        after another); ``trial`` is None with one trial per level.
     """
-    plant = discretize(DT_HUMAN)
-    assistant = design_assistant()
-    ref = reference_trajectory(seconds)
-    subjects = draw_subjects(population, n_subjects, rng)
+    plant = discretize(design.dt, design.wheel)
+    levels = design.ordered_levels
+    laws = [None if design.assistant(v) is None else build_assistant(design.assistant(v), design) for v in levels]
+    ref = reference_trajectory(seconds, design.dt)
+    subjects = draw_subjects(population, n_subjects, rng, len(levels))
     children = rng.spawn(len(subjects))
     width = max(2, len(str(len(subjects))))
+    T = design.trials
+    scale = design.r_scale  # the population's θ is per 10-ms sample (models.design: θ ∝ dt); 1.0 at 100 Hz
     out = []
     for i, (sub, child) in enumerate(zip(subjects, children)):
+        if scale != 1.0:
+            sub = sub._replace(thetas=tuple(th * scale for th in sub.thetas))
         name = f"S{i + 1:0{width}d}"
-        order = (SHARED, MANUAL) if sub.sc_first else (MANUAL, SHARED)
-        runs = dict(zip((MANUAL, SHARED), child.spawn(2)))
-        for j, cond in enumerate(order):
-            theta = sub.mc if cond == MANUAL else sub.sc
-            run = simulate_human_run(human, theta, cond, ref.angle, plant, assistant, runs[cond])
-            out.append(SimulatedSegment(name, cond, j, theta, run))
+        runs = child.spawn(len(levels) * T)  # level-major: level j, trial t is runs[j * T + t]
+        n = 0
+        for j in sub.order:
+            for t in range(T):
+                run = simulate_human_run(human, sub.thetas[j], levels[j], ref.angle, plant, laws[j],
+                                         runs[j * T + t], encoder_step=design.encoder_step, design=design)
+                out.append(SimulatedSegment(name, levels[j], n, sub.thetas[j], run, t + 1 if T > 1 else None))
+                n += 1
     return ref.t, out
 
 
@@ -326,7 +263,7 @@ def simulate_windows(n_subjects: int, rng: np.random.Generator, population: Popu
     subjects, conditions, segments, thetas = [], [], [], []
     width = max(2, len(str(int(n_subjects))))
     for i, sub in enumerate(draw_subjects(population, n_subjects, rng)):
-        for cond, theta in ((MANUAL, sub.mc), (SHARED, sub.sc)):
+        for cond, theta in ((MANUAL, sub.mc), (SHARED, sub.sc)):  # the paper's two levels
             run = simulate_run(theta, cond, ref, plant, assistant, rng)
             x0 = np.array([run.true_angle[0], run.true_velocity[0]])
             feedback = fb.window(0, K + preview) if cond == SHARED else None

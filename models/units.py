@@ -1,9 +1,10 @@
 """Units of a study: which subject × condition each segment belongs to, and the design check.
 
-A *unit* is one subject in one condition (MC, manual, or SC, shared control). The models
-that compare the conditions (:mod:`models.bayes.hierarchical`) need every subject in both
-conditions; :func:`index_study` checks that where the labels enter and maps each segment
-to its unit.
+A *unit* is one subject in one condition level (by default MC, manual, and SC, shared
+control; an experiment file may name two or more levels with a baseline). Several
+segments (trials) of one unit are replicates of it. The models that compare the
+conditions (:mod:`models.bayes.hierarchical`) need every subject in every level;
+:func:`index_study` checks that where the labels enter and maps each segment to its unit.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from models.design import CONDITIONS, MANUAL, SHARED
+from models.design import CONDITIONS
 
 
 class StudyIndex(NamedTuple):
@@ -25,7 +26,8 @@ class StudyIndex(NamedTuple):
         Subject labels in order of first appearance (the ``subject`` coordinate).
     subject_idx : ndarray of int, shape (n,)
     condition_idx : ndarray of int, shape (n,)
-        0 for MC, 1 for SC.
+        Position of the segment's level in ``levels`` (0: the baseline; by default 0 for
+        MC, 1 for SC).
     """
 
     subjects: tuple[str, ...]
@@ -33,15 +35,17 @@ class StudyIndex(NamedTuple):
     condition_idx: np.ndarray
 
 
-def index_study(subjects: Sequence, conditions: Sequence) -> StudyIndex:
+def index_study(subjects: Sequence, conditions: Sequence, levels: Sequence = CONDITIONS) -> StudyIndex:
     """Check the design and map each segment to its (subject, condition) unit.
 
     Parameters
     ----------
     subjects : sequence, length n
         Subject label of each segment (compared as strings).
-    conditions : sequence of {"MC", "SC"}, length n
-        Condition of each segment.
+    conditions : sequence of str, length n
+        Condition level of each segment (several segments of one unit are its trials).
+    levels : sequence of str
+        The levels, baseline first (default MC, SC).
 
     Returns
     -------
@@ -55,6 +59,9 @@ def index_study(subjects: Sequence, conditions: Sequence) -> StudyIndex:
         identified; no fallback model is offered), or a subject lacks one condition
         (naming the subjects).
     """
+    levels = tuple(str(v) for v in levels)
+    if len(levels) < 2:
+        raise ValueError(f"a comparison needs two or more levels; got {levels}")
     subj = [str(s) for s in subjects]
     cond = [str(c) for c in conditions]
     if len(subj) != len(cond):
@@ -62,28 +69,29 @@ def index_study(subjects: Sequence, conditions: Sequence) -> StudyIndex:
     if not subj:
         raise ValueError("no segments given")
     for j, c in enumerate(cond):
-        if c not in CONDITIONS:
-            raise ValueError(f"condition of segment {j} must be {MANUAL!r} or {SHARED!r}; got {c!r}")
-    for c in CONDITIONS:
+        if c not in levels:
+            raise ValueError(f"condition of segment {j} must be one of {', '.join(map(repr, levels))}; got {c!r}")
+    for c in levels:
         if c not in cond:
             raise ValueError(
-                f"no {c} segments at all: the SC change β (and β_R) is not identified. "
-                "This model needs every subject in both conditions; fit a single-condition "
+                f"no {c} segments at all: the change β (and β_R) of {c} is not identified. "
+                "This model needs every subject in every condition; fit a single-condition "
                 "model instead (none is provided here)."
             )
     labels = tuple(dict.fromkeys(subj))
     have = {s: set() for s in labels}
     for s, c in zip(subj, cond):
         have[s].add(c)
-    missing = [(s, c) for s in labels for c in CONDITIONS if c not in have[s]]
+    missing = [(s, c) for s in labels for c in levels if c not in have[s]]
     if missing:
         listed = ", ".join(f"subject {s!r} has no {c} segment" for s, c in missing)
-        raise ValueError(f"every subject needs segments in both {MANUAL} and {SHARED}: {listed}")
+        both = f"both {levels[0]} and {levels[1]}" if len(levels) == 2 else f"every one of {', '.join(levels)}"
+        raise ValueError(f"every subject needs segments in {both}: {listed}")
     pos = {s: i for i, s in enumerate(labels)}
     return StudyIndex(
         subjects=labels,
         subject_idx=np.array([pos[s] for s in subj], dtype=np.int64),
-        condition_idx=np.array([CONDITIONS.index(c) for c in cond], dtype=np.int64),
+        condition_idx=np.array([levels.index(c) for c in cond], dtype=np.int64),
     )
 
 

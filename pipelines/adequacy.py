@@ -19,9 +19,8 @@ from models import adequacy as adq
 from models.bootstrap import Chain, bootstrap_records
 from models.assistant import human_feedback
 from models.lq import lq_policy
-from models.plant import DT_HUMAN
 from models.segment import planning_plant
-from pipelines.prepare import IdentifySettings, paper_assistant
+from pipelines.prepare import IdentifySettings, assistant_law
 
 #: What each check asks, for the CLI and the report.
 CHECK_TEXT = {
@@ -61,6 +60,10 @@ def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chai
         L = np.concatenate([L, tail.L[end - j0 :]])
         f = np.concatenate([f, tail.f[end - j0 :]])
         S = np.concatenate([S, tail.S[end - j0 :]])
+    velocity = d.velocity
+    if velocity is None and not p.reconstructed:  # measured torque: the velocity the plant implies
+        velocity = np.full(d.t.shape[0], np.nan)
+        velocity[p.rows] = p.velocity
     recon, scale = None, 1.0
     if p.reconstructed:
         r = p.smoother  # the very filter the recorded segment went through
@@ -71,7 +74,7 @@ def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chai
     return Chain(
         A=c(plant.A), b=c(plant.b), gain=gain, known=c(known[: n - 1], dtype=float),
         L=c(L[: n - 1]), f=c(f[: n - 1]), S=c(S[: n - 1]), x0=c(p.span_state0, dtype=float),
-        angle=c(d.angle[j0:j1]), velocity=None if d.velocity is None else c(d.velocity[j0:j1]),
+        angle=c(d.angle[j0:j1]), velocity=None if velocity is None else c(velocity[j0:j1]),
         u_H=None if d.u_H is None else c(d.u_H[j0:j1]), u_A=c(d.u_A[j0:j1]), ref=c(d.angle_ref[j0:j1]),
         w0=i0 - j0, K=K, recon=recon, resolution=float(resolution), noise_scale=float(scale))
 
@@ -95,30 +98,36 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings):
     -------
     columns : DataFrame
         One row per segment: ``adequacy_p`` (min-P combined), ``adequacy_flagged`` and
-        ``adequacy_p_<check>``.
+        ``adequacy_p_<check>``. With several trials per unit, one row per unit instead
+        (:func:`_per_unit`), in order of first appearance.
     summary : dict
         The verdict (:func:`models.adequacy.study_verdict`) with the flagged segments and
         settings (no timings: the same seed gives the same summary).
     """
-    n_boot, seed, assistant = settings.adequacy_boot, settings.adequacy_seed, paper_assistant()
+    n_boot, seed, design = settings.adequacy_boot, settings.adequacy_seed, settings.design
     seeds = np.random.SeedSequence(int(seed)).spawn(len(prepared))
     rows, details = [], []
     for p, th, ss in zip(prepared, np.asarray(thetas, dtype=float), seeds):
         rng = np.random.default_rng(ss)
-        chain = segment_chain(p, th, plant, resolution=settings.resolution, assistant=assistant)
-        res = adq.segment_adequacy(bootstrap_records(chain, n_boot, rng), DT_HUMAN)
+        chain = segment_chain(p, th, plant, resolution=settings.resolution,
+                              assistant=assistant_law(design, p.data.condition))
+        res = adq.segment_adequacy(bootstrap_records(chain, n_boot, rng), design.dt)
         rows.append({"adequacy_p": res.p_segment, "adequacy_flagged": res.p_segment <= adq.SEGMENT_ALPHA,
                      **{f"adequacy_p_{k}": v for k, v in res.p.items()}})
         details.append(res)
     cols = pd.DataFrame(rows)
+    keys = [(p.data.subject, p.data.condition) for p in prepared]
+    if len(set(keys)) < len(keys):  # trials: one p per unit
+        cols, keys = _per_unit(cols, keys)
+        rows = cols.to_dict("records")
     summary = adq.study_verdict({k: cols[f"adequacy_p_{k}"].to_numpy() for k in adq.STATISTICS},
                                 cols["adequacy_p"].to_numpy())
     flagged = []
-    for p, r in zip(prepared, rows):
+    for key, r in zip(keys, rows):
         if r["adequacy_flagged"]:
             checks = sorted((k for k in adq.STATISTICS if r[f"adequacy_p_{k}"] <= adq.SEGMENT_ALPHA),
                             key=lambda k: r[f"adequacy_p_{k}"])
-            flagged.append({"subject": p.data.subject, "condition": p.data.condition, "p": r["adequacy_p"],
+            flagged.append({"subject": key[0], "condition": key[1], "p": r["adequacy_p"],
                             "checks_at_5_percent": checks})
     summary.update({
         "judges": "the human model (does it describe the data?), not the sampler or the optimizer",
@@ -130,6 +139,26 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings):
         "null_statistic_means": _mean_null(details),
     })
     return cols, summary
+
+
+def _per_unit(cols: pd.DataFrame, keys: list):
+    """Combine the trials of each unit: every p is Fisher's combination of its trials' (:func:`models.adequacy.fisher`).
+
+    The trials of a unit are independent given its θ, so the combination is a valid
+    p-value (conservative for the bootstrap's discrete p-values), and the study verdict
+    over units keeps its false-alarm rate; ``adequacy_flagged`` flags the unit at the
+    segment level's 5 %. Returns the columns, one row per unit in order of first
+    appearance, and the units.
+    """
+    units = list(dict.fromkeys(keys))
+    pcols = [c for c in cols.columns if c.startswith("adequacy_p")]
+    out = []
+    for u in units:
+        sel = cols[[k == u for k in keys]]
+        row = {c: adq.fisher(sel[c].to_numpy(dtype=float)) for c in pcols}
+        row["adequacy_flagged"] = row["adequacy_p"] <= adq.SEGMENT_ALPHA
+        out.append(row)
+    return pd.DataFrame(out)[list(cols.columns)], units
 
 
 def _mean_null(details) -> dict:

@@ -1,7 +1,8 @@
 """``scioc compare``: the paper's hypothesis test (Section IV-G, V-A) on identified parameters.
 
 Wilcoxon matched-pairs signed-rank test of θ1 = q11/R (and θ2 = q22/R) between MC and
-SC over subjects with both conditions: N non-zero differences, W+ and W−, T = min(W+,
+SC (an experiment's baseline and each other level: :func:`compare_estimates`) over
+subjects with both conditions: N non-zero differences, W+ and W−, T = min(W+,
 W−), the exact two-sided p-value (scipy's ``wilcoxon(method="exact")``) and the critical
 value at the chosen α from the exact null distribution of T (Siegel & Castellan 1988; for
 N = 42 and α = 0.1 % two-sided it is 195, the paper's P(0.1; 42); scipy has no critical
@@ -19,7 +20,7 @@ listed with its reason.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import math
@@ -27,119 +28,15 @@ import os
 
 import numpy as np
 import pandas as pd
-from scipy.stats import rankdata, wilcoxon
 
 from models.adequacy import STATISTICS, study_verdict
-from models.design import CONDITIONS, MANUAL, SHARED
+from models.design import CONDITIONS, STUDY
 from models.identify import PLAUSIBLE_THETA1
 from pipelines.adequacy import format_adequacy, not_checked
+from pipelines.experiment import parse_experiment, sidecar
 from pipelines.io import StudyFileError, read_table
+from pipelines.signed_rank import ALPHA, holm, wilcoxon_signed_rank
 from pipelines.storage import write_text_atomic
-
-#: Default significance level (two-sided), as in the paper.
-ALPHA = 0.001
-
-
-def signed_rank_null_counts(n: int) -> np.ndarray:
-    """Number of sign assignments giving each rank sum W+ = 0..n(n+1)/2 (exact null).
-
-    Dynamic programming over ranks: O(n³) integers, exact for any n used in practice.
-    """
-    top = n * (n + 1) // 2
-    counts = np.zeros(top + 1, dtype=object)  # Python ints: 2**42 overflows nothing
-    counts[0] = 1
-    for r in range(1, n + 1):
-        counts[r:] = counts[r:] + counts[: top + 1 - r].copy()
-    return counts
-
-
-def null_cdf(n: int) -> np.ndarray:
-    """P(W+ <= w) for w = 0..n(n+1)/2 under H0 (symmetric about zero differences)."""
-    c = signed_rank_null_counts(n)
-    cum = np.cumsum(c)
-    return np.array([float(x) / float(2**n) for x in cum])
-
-
-def critical_value(n: int, alpha: float) -> int | None:
-    """Largest T with P(T <= t) <= alpha/2 per tail (two-sided): reject H0 if T <= it.
-
-    Returns None when even T = 0 is not significant (small n).
-    """
-    cdf = null_cdf(n)
-    ok = np.flatnonzero(cdf <= alpha / 2.0)
-    return int(ok[-1]) if ok.size else None
-
-
-@dataclass(frozen=True)
-class WilcoxonResult:
-    """The signed-rank test of one parameter, SC minus MC."""
-
-    parameter: str
-    n_pairs: int
-    n: int
-    w_plus: float
-    w_minus: float
-    T: float
-    p_value: float
-    alpha: float
-    critical_value: int | None
-    reject: bool
-    rank_biserial: float
-    median_difference: float
-    ties: bool
-
-
-def wilcoxon_signed_rank(mc, sc, *, parameter: str = "theta1", alpha: float = ALPHA) -> WilcoxonResult:
-    """Exact two-sided Wilcoxon matched-pairs signed-rank test of SC − MC.
-
-    Parameters
-    ----------
-    mc, sc : array_like, shape (n_pairs,)
-        Paired values per subject.
-    parameter : str
-        Name for the report.
-    alpha : float
-        Two-sided significance level.
-
-    Returns
-    -------
-    WilcoxonResult
-    """
-    mc = np.asarray(mc, dtype=float)
-    sc = np.asarray(sc, dtype=float)
-    if mc.shape != sc.shape or mc.ndim != 1:
-        raise ValueError("mc and sc must be 1-D arrays of equal length (one pair per subject)")
-    if not 0 < alpha < 1:
-        raise ValueError(f"alpha must be in (0, 1); got {alpha!r}")
-    d = sc - mc
-    nz = d[d != 0]
-    n = int(nz.size)
-    if n == 0:
-        return WilcoxonResult(parameter, int(d.size), 0, 0.0, 0.0, 0.0, 1.0, alpha, None, False, float("nan"),
-                              float(np.median(d)) if d.size else float("nan"), False)
-    ranks = rankdata(np.abs(nz))
-    ties = bool(np.unique(np.abs(nz)).size < n)
-    w_plus = float(ranks[nz > 0].sum())
-    w_minus = float(ranks[nz < 0].sum())
-    T = min(w_plus, w_minus)
-    p = wilcoxon(nz, method="exact").pvalue
-    crit = critical_value(n, alpha)
-    return WilcoxonResult(
-        parameter=parameter,
-        n_pairs=int(d.size),
-        n=n,
-        w_plus=w_plus,
-        w_minus=w_minus,
-        T=T,
-        p_value=float(p),
-        alpha=float(alpha),
-        critical_value=crit,
-        reject=bool(crit is not None and T <= crit),
-        rank_biserial=(w_plus - w_minus) / (w_plus + w_minus),
-        median_difference=float(np.median(d)),
-        ties=ties,
-    )
-
 
 def _converged(values: pd.Series) -> np.ndarray:
     """``converged`` as booleans, whether stored as bool (Parquet) or text (CSV)."""
@@ -155,7 +52,8 @@ def _shown(value) -> str:
         return repr(value)
 
 
-def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconverged: bool = False):
+def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconverged: bool = False,
+                    levels=CONDITIONS):
     """Validate an estimates table and choose the units the matched-pairs test may use.
 
     Parameters
@@ -168,11 +66,14 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
     include_nonconverged : bool
         Keep units whose identification did not converge or ended at the edge of the
         search (``implausible``; default: leave them out).
+    levels : sequence of str
+        The condition levels, baseline first (default MC, SC). A unit of another level
+        needs its subject's baseline unit; a baseline unit needs at least one other.
 
     Returns
     -------
     usable : DataFrame
-        Rows of the subjects whose MC and SC units are both usable.
+        Rows of the subjects whose baseline unit and at least one other are usable.
     excluded : list of dict
         ``{"subject", "condition", "reason"}`` for every unit left out, in table order.
 
@@ -188,10 +89,12 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
     df = estimates.reset_index(drop=True).copy()
     df["subject"] = df["subject"].astype(str).str.strip()
     df["condition"] = df["condition"].astype(str).str.strip()
-    bad = ~df["condition"].isin(CONDITIONS).to_numpy()
+    levels = tuple(levels)
+    bad = ~df["condition"].isin(levels).to_numpy()
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise StudyFileError(path, f"unknown condition label '{df['condition'][i]}' (expected MC or SC)",
+        raise StudyFileError(path, f"unknown condition label '{df['condition'][i]}' (expected "
+                             f"{' or '.join(levels) if len(levels) == 2 else 'one of ' + ', '.join(levels)})",
                              column="condition", row=i)
     dup = df.duplicated(["subject", "condition"], keep=False).to_numpy()
     if dup.any():
@@ -219,13 +122,15 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
     ok = np.array([i not in reasons for i in range(len(df))])
     usable_keys = set(zip(df["subject"][ok], df["condition"][ok]))
     all_keys = set(zip(df["subject"], df["condition"]))
+    base = levels[0]
     for i in np.flatnonzero(ok):
         subject, condition = df["subject"][i], df["condition"][i]
-        other = SHARED if condition == MANUAL else MANUAL
-        if (subject, other) not in all_keys:
-            reasons[int(i)] = f"no {other} estimate for this subject"
-        elif (subject, other) not in usable_keys:
-            reasons[int(i)] = f"its {other} estimate is left out"
+        others = [base] if condition != base else list(levels[1:])
+        named = others[0] if len(others) == 1 else "other-level"
+        if not any((subject, o) in all_keys for o in others):
+            reasons[int(i)] = f"no {named} estimate for this subject"
+        elif not any((subject, o) in usable_keys for o in others):
+            reasons[int(i)] = f"its {named} estimate{'s are' if len(others) > 1 else ' is'} left out"
     excluded = [{"subject": df["subject"][i], "condition": df["condition"][i], "reason": reasons[i]}
                 for i in sorted(reasons)]
     keep = np.array([i not in reasons for i in range(len(df))], dtype=bool)
@@ -233,36 +138,58 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
     return usable, excluded
 
 
-def paired(estimates: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """MC and SC values of ``column`` for subjects that have both conditions."""
+def paired(estimates: pd.DataFrame, column: str, pair=CONDITIONS) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Values of ``column`` in the two levels of ``pair`` (default MC, SC) for subjects that have both."""
     wide = estimates.pivot_table(index="subject", columns="condition", values=column, aggfunc="first")
-    for c in CONDITIONS:
+    for c in pair:
         if c not in wide.columns:
             raise ValueError(f"no {c} estimates: the matched-pairs test needs both conditions")
-    wide = wide.dropna(subset=list(CONDITIONS))
-    return wide[MANUAL].to_numpy(), wide[SHARED].to_numpy(), list(wide.index)
+    wide = wide.dropna(subset=list(pair))
+    return wide[pair[0]].to_numpy(), wide[pair[1]].to_numpy(), list(wide.index)
+
+
+def _tests(usable: pd.DataFrame, pair, alpha: float) -> dict:
+    out = {}
+    for col in ("theta1", "theta2"):
+        a, b, _ = paired(usable, col, pair) if len(usable) else (np.array([]), np.array([]), [])
+        out[col] = {k: _finite_or_none(v) for k, v in asdict(wilcoxon_signed_rank(a, b, parameter=col,
+                                                                                 alpha=alpha)).items()}
+    return out
 
 
 def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_nonconverged: bool = False,
-                      path="<table>") -> dict:
-    """Signed-rank tests of θ1 and θ2 between MC and SC on the units :func:`check_estimates` keeps.
+                      path="<table>", levels=CONDITIONS) -> dict:
+    """Signed-rank tests of θ1 and θ2 of each level against the baseline on the units :func:`check_estimates` keeps.
+
+    ``levels``: baseline first (default MC, SC). With two levels the result has the
+    ``theta1`` and ``theta2`` tests at the top. With more, ``contrasts`` holds them per
+    non-baseline level (each against the baseline), with Holm-adjusted p-values
+    (``p_holm``, ``reject_holm``) across the levels, per parameter: the family-wise error
+    rate over the contrasts is then at most α.
 
     Returns
     -------
     dict
-        ``theta1`` and ``theta2`` results, ``excluded`` (every unit left out, with its
-        reason), ``unpaired_subjects`` (subjects with one condition only in the table)
-        and ``include_nonconverged``.
+        The tests, ``excluded`` (every unit left out, with its reason),
+        ``unpaired_subjects`` (subjects with one condition only in the table) and
+        ``include_nonconverged``.
     """
-    usable, excluded = check_estimates(estimates, path, include_nonconverged=include_nonconverged)
-    for c in CONDITIONS:
+    levels = tuple(levels)
+    usable, excluded = check_estimates(estimates, path, include_nonconverged=include_nonconverged, levels=levels)
+    for c in levels:
         if not (estimates["condition"].astype(str).str.strip() == c).any():
-            raise ValueError(f"no {c} estimates: the matched-pairs test needs both conditions")
-    out = {}
-    for col in ("theta1", "theta2"):
-        mc, sc, _ = paired(usable, col) if len(usable) else (np.array([]), np.array([]), [])
-        out[col] = {k: _finite_or_none(v) for k, v in asdict(wilcoxon_signed_rank(mc, sc, parameter=col,
-                                                                                 alpha=alpha)).items()}
+            raise ValueError(f"no {c} estimates: the matched-pairs test needs every condition")
+    if len(levels) == 2:
+        out = _tests(usable, levels, alpha)
+    else:
+        per = {c: _tests(usable, (levels[0], c), alpha) for c in levels[1:]}
+        for col in ("theta1", "theta2"):
+            adj = holm([per[c][col]["p_value"] for c in levels[1:]])
+            for c, a in zip(levels[1:], adj):
+                per[c][col].update(p_holm=float(a), reject_holm=bool(a <= alpha))
+        out = {"baseline": levels[0], "contrasts": per,
+               "multiplicity": f"Holm across the {len(levels) - 1} levels against {levels[0]}, per parameter, "
+                               f"at family-wise α = {alpha:g}"}
     counts = estimates.assign(subject=estimates["subject"].astype(str).str.strip()).groupby("subject").size()
     out["unpaired_subjects"] = sorted(counts.index[counts < 2])
     out["excluded"] = excluded
@@ -308,8 +235,26 @@ def _same_file(a: Path, b: Path) -> bool:
     return a.exists() and b.exists() and os.path.samefile(a, b)
 
 
+def estimates_design(estimates_path):
+    """The experiment ``scioc identify`` recorded beside ``estimates_path`` (its ``identify.json``), and its file.
+
+    Returns ``(STUDY, None)`` when there is no such record (estimates made elsewhere).
+    """
+    meta = Path(estimates_path).parent / "identify.json"
+    if not meta.is_file():
+        return STUDY, None
+    side = json.loads(meta.read_text())
+    if "experiment" not in side:
+        return STUDY, None
+    return parse_experiment(side["experiment"], f"{meta} (experiment)"), side.get("experiment_file")
+
+
 def compare_to_file(estimates_path, out_path, *, alpha: float = ALPHA, include_nonconverged: bool = False) -> dict:
     """Read ``estimates.parquet``, test, write ``compare.json`` atomically.
+
+    The condition levels and the baseline are those of the experiment ``scioc identify``
+    recorded beside the estimates (:func:`estimates_design`); they and its hash go into
+    ``compare.json``.
 
     Raises
     ------
@@ -318,8 +263,11 @@ def compare_to_file(estimates_path, out_path, *, alpha: float = ALPHA, include_n
     """
     if _same_file(Path(out_path), Path(estimates_path)):
         raise ValueError(f"--out {out_path} is the estimates file itself; write the result elsewhere")
+    design, source = estimates_design(estimates_path)
     df = read_table(estimates_path)
-    res = compare_estimates(df, alpha=alpha, include_nonconverged=include_nonconverged, path=estimates_path)
+    res = compare_estimates(df, alpha=alpha, include_nonconverged=include_nonconverged, path=estimates_path,
+                            levels=design.ordered_levels)
+    res.update(sidecar(design, source))
     write_text_atomic(Path(out_path), json.dumps(res, indent=2, allow_nan=False) + "\n")
     return res
 
@@ -332,17 +280,23 @@ def format_compare(res: dict) -> str:
         lines.append("CAVEAT: the test below compares costs of a human model that "
                      + ("fails its adequacy checks; a 'significant' change may be an artifact of model misfit"
                         if adequacy["verdict"] == "fail" else "was not checked for adequacy"))
-    lines.append("Wilcoxon matched-pairs signed-rank test, SC − MC (exact two-sided)")
-    lines.append(f"{'':>10} {'N':>4} {'W+':>8} {'W−':>8} {'T':>8} {'p':>10} {'crit':>6} {'reject':>7} {'r_rb':>7}")
-    for col in ("theta1", "theta2"):
-        r = res[col]
-        crit = "-" if r["critical_value"] is None else str(r["critical_value"])
-        r_rb = "-" if r["rank_biserial"] is None else f"{r['rank_biserial']:.3f}"
-        lines.append(
-            f"{col:>10} {r['n']:>4} {r['w_plus']:>8.1f} {r['w_minus']:>8.1f} {r['T']:>8.1f} {r['p_value']:>10.3g} "
-            f"{crit:>6} {str(r['reject']):>7} {r_rb:>7}"
-        )
-    lines.append(f"α = {res['theta1']['alpha']:g}; reject H0 when T <= crit")
+    tests = ({"": res} if "contrasts" not in res else
+             {f"{c} − {res['baseline']}": r for c, r in res["contrasts"].items()})
+    for name, t in tests.items():
+        lines.append(f"Wilcoxon matched-pairs signed-rank test, {name or 'SC − MC'} (exact two-sided)")
+        holm_col = "p_holm" in t["theta1"]
+        lines.append(f"{'':>10} {'N':>4} {'W+':>8} {'W−':>8} {'T':>8} {'p':>10} {'crit':>6} {'reject':>7} {'r_rb':>7}"
+                     + (f" {'p_holm':>8}" if holm_col else ""))
+        for col in ("theta1", "theta2"):
+            r = t[col]
+            crit = "-" if r["critical_value"] is None else str(r["critical_value"])
+            r_rb = "-" if r["rank_biserial"] is None else f"{r['rank_biserial']:.3f}"
+            lines.append(
+                f"{col:>10} {r['n']:>4} {r['w_plus']:>8.1f} {r['w_minus']:>8.1f} {r['T']:>8.1f} {r['p_value']:>10.3g} "
+                f"{crit:>6} {str(r['reject']):>7} {r_rb:>7}" + (f" {r['p_holm']:>8.3g}" if holm_col else ""))
+    first = next(iter(tests.values()))
+    lines.append(f"α = {first['theta1']['alpha']:g}; reject H0 when T <= crit"
+                 + (f"; {res['multiplicity']}" if "multiplicity" in res else ""))
     excluded = res.get("excluded", [])
     if excluded:
         lines.append(f"left out of the test ({len(excluded)} units):")

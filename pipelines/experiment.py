@@ -34,10 +34,11 @@ Keys: ``section.key`` unit, default: meaning
 ``analysis.whole``            true/false, false: analyse every trial whole instead of one window
                               (refused together with a window key: a conflict).
 ``analysis.preview_s``        s, 2.0: how far ahead the human sees the reference, >= 0; 0: the paper's horizon.
-``simulation.run_s``          s, 240.0: one simulated run, > 0; it must hold the window unless whole.
+``simulation.run_s``          s, 240.0: one simulated run, > 0 (a window outside it is refused when analysed).
 ``simulation.subjects``       integer, 42: subjects of a simulated study, >= 1.
 ``simulation.trials``         integer, 1: runs per subject × condition of a simulated study, >= 1.
-``simulation.torque_sensor``  true/false, false: the simulated rig also records u_H and velocity.
+``simulation.torque_sensor``  true/false, false: the simulated rig also records u_H (a torque sensor).
+``simulation.beta``           number or list, -0.7: true mean shift of log θ1 to each other level.
 
 Rules
 -----
@@ -46,9 +47,8 @@ Rules
   labels get no assistant by accident. A given table (``{}`` for none) replaces it whole.
 * ``kind = "mpc"`` takes missing keys from the paper's MPC; ``kind = "linear"`` needs ``gain``
   and ``reference_gain`` (no paper default). Only the keys of the entry's kind are allowed.
-* The baseline defaults to "MC" if that is a level, else the file must name it. It is the
-  unassisted reference of every contrast: an entry for it is refused, and so is baseline
-  "SC" with the implied default table.
+* The baseline defaults to "MC" if that is a level, else the file must name it. It is the unassisted
+  reference of every contrast: an entry for it, or baseline "SC" with the default table, is refused.
 * :func:`resolved`: every applicable key written out (floats as floats, each entry's kind's
   keys, no window keys when ``whole = true``: unused). :func:`experiment_hash` hashes its
   canonical JSON: equal designs share a hash however written. ``parse_experiment(resolved(d))``
@@ -74,7 +74,7 @@ EXPERIMENT_FILE = "experiment.toml"
 SECTIONS = {"sampling": ("rate_hz",), "wheel": ("inertia", "spring", "damper"), "encoder": ("counts_per_rev",),
             "conditions": ("baseline", "levels", "assistant"),
             "analysis": ("window_start_s", "window_s", "whole", "preview_s"),
-            "simulation": ("run_s", "subjects", "trials", "torque_sensor")}
+            "simulation": ("run_s", "subjects", "trials", "torque_sensor", "beta")}
 #: The keys of an assistant entry of each kind.
 ASSISTANT_KEYS = {"mpc": ("kind", "theta", "horizon", "step_s", "period_s"),
                   "linear": ("kind", "gain", "reference_gain")}
@@ -84,12 +84,13 @@ _NOTES = {"rate_hz": "Hz; the t column steps by 1/rate_hz within a trial", "iner
     "baseline": "every contrast is taken against this level", "levels": "all levels in the data, baseline included",
     "window_start_s": "s, on the trial's own t axis", "window_s": "s", "whole": "true: every trial whole",
     "preview_s": "s; 0: the paper's horizon", "run_s": "s", "subjects": "simulated subjects",
-    "trials": "runs per subject x condition", "torque_sensor": "true: the rig also records u_H and velocity"}
+    "trials": "runs per subject x condition", "torque_sensor": "true: the rig also records u_H",
+    "beta": "true mean shift of log theta1 per non-baseline level"}
 # The section of each Design field, for the backstop's errors.
 _FIELD_SECTION = dict.fromkeys(("dt",), "sampling") | {"wheel": "wheel", "encoder_counts": "encoder"} | dict.fromkeys(
     ("levels", "baseline", "assistants"), "conditions") | dict.fromkeys(
     ("window_start", "window_seconds", "whole", "preview"), "analysis") | dict.fromkeys(
-    ("run_seconds", "subjects", "trials", "torque_sensor"), "simulation")
+    ("run_seconds", "subjects", "trials", "torque_sensor", "effects"), "simulation")
 
 
 class ExperimentFileError(InputDataError):
@@ -279,16 +280,15 @@ def parse_experiment(mapping: dict, path="<experiment>") -> Design:
     length = r.number(a.get("window_s", STUDY.window_seconds), "analysis.window_s", lo=0.0)
     preview = r.number(a.get("preview_s", STUDY.preview), "analysis.preview_s", lo=0.0, strict=False)
     run = r.number(m.get("run_s", STUDY.run_seconds), "simulation.run_s", lo=0.0)
-    if not whole and start + length > run * (1 + 1e-12):
-        r.fail("simulation.run_s", f"a simulated run of {run!r} s ends before the analysis window does "
-                                   f"(analysis.window_start_s + analysis.window_s = {start + length!r} s): lengthen "
-                                   "run_s, move or shorten the window, or set analysis.whole = true")
     subjects = r.integer(m.get("subjects", STUDY.subjects), "simulation.subjects", 1)
     trials = r.integer(m.get("trials", STUDY.trials), "simulation.trials", 1)
     sensor = r.flag(m.get("torque_sensor", STUDY.torque_sensor), "simulation.torque_sensor")
+    n, beta = len(levels) - 1, m.get("beta", [])
+    effects = (r.numbers(beta, "simulation.beta", n, f"{n} numbers, one per non-baseline level") if beta else ()) \
+        if isinstance(beta, list) else (r.number(beta, "simulation.beta"),) * n
     try:
         return Design(wheel=wheel, dt=dt, encoder_counts=counts, levels=levels, baseline=baseline,
-                      assistants=assistants, run_seconds=run, subjects=subjects, trials=trials, torque_sensor=sensor,
+                      assistants=assistants, run_seconds=run, subjects=subjects, trials=trials, torque_sensor=sensor, effects=effects,
                       window_start=start, window_seconds=length, whole=whole, preview=preview)
     except ValueError as exc:  # backstop: the checks above should have said it first
         found = re.search(r"Design\.(\w+)", str(exc))
@@ -341,7 +341,7 @@ def resolved(design: Design) -> dict:
                        "assistant": {lv: _entry(d.assistant(lv)) for lv in d.levels if d.assistant(lv)}},
         "analysis": {**window, "whole": bool(d.whole), "preview_s": float(d.preview)},
         "simulation": {"run_s": float(d.run_seconds), "subjects": int(d.subjects), "trials": int(d.trials),
-                       "torque_sensor": bool(d.torque_sensor)},
+                       "torque_sensor": bool(d.torque_sensor), "beta": [float(v) for v in d.effects]},
     }
 
 

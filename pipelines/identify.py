@@ -10,6 +10,10 @@ It also computes the model validation of Fig. 6: the trajectories that forward o
 control generates with θ_MC and with θ_SC of the same subject, and the RMSE of angle
 and torque when each condition's data are predicted with either.
 
+With several trials per subject × condition (the ``trial`` column), the trials of a unit
+share one θ: the likelihood maximized is their sum (Eq. 17 with d > 1), and the unit gets
+one estimate (with a ``trials`` column).
+
 Artifacts in ``--out DIR``: ``estimates.parquet`` (one row per subject × condition),
 ``trajectories.parquet`` (window samples: measured, reconstructed and predicted),
 ``validation.parquet`` (cross-prediction RMSE) and ``identify.json`` (settings, timings,
@@ -27,12 +31,12 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.design import CONDITIONS
-from models.identify import PLAUSIBLE_THETA1, identify_segment
+from models.identify import PLAUSIBLE_THETA1, identify_unit
 from models.maxent import forward_optimal_control
-from models.plant import DT_HUMAN, discretize
+from models.plant import discretize
 from models.segment import plan_inputs, prepare_batch
 from pipelines.adequacy import assess_study, format_adequacy, not_checked
+from pipelines.experiment import sidecar
 from pipelines.io import Study, load_study
 from pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
 from pipelines.provenance import versions
@@ -76,19 +80,27 @@ def identify_study(study: Study, settings: IdentifySettings = IdentifySettings()
 def identify_prepared(study: PreparedStudy) -> Identification:
     """:func:`identify_study` on a study already prepared (with ``study.settings``)."""
     settings, prepared = study.settings, study.segments
-    plant = discretize(DT_HUMAN)
+    plant = discretize(settings.design.dt, settings.design.wheel)
+    units = {}  # (subject, condition) -> positions of its segments (trials), in file order
+    for i, p in enumerate(prepared):
+        units.setdefault((p.data.subject, p.data.condition), []).append(i)
+    trials = any(p.data.trial is not None for p in prepared)
     t0 = time.perf_counter()
-    estimates = [identify_segment(prepare_batch(plant, [p.segment]), plant) for p in prepared]
+    estimates = {u: identify_unit([prepare_batch(plant, [prepared[i].segment]) for i in idx], plant)
+                 for u, idx in units.items()}
     t_opt = time.perf_counter() - t0
 
     rows = []
-    for p, e in zip(prepared, estimates):
+    for (subject, condition), idx in units.items():
+        e = estimates[(subject, condition)]
+        first = prepared[idx[0]]
         rows.append({
-            "subject": p.data.subject,
-            "condition": p.data.condition,
-            "window_start": float(p.data.t[p.rows.start]),
-            "K": p.segment.K,
-            "preview": p.segment.preview,
+            "subject": subject,
+            "condition": condition,
+            **({"trials": len(idx)} if trials else {}),
+            "window_start": float(first.data.t[first.rows.start]),
+            "K": sum(prepared[i].segment.K for i in idx),
+            "preview": first.segment.preview,
             "q11": e.theta[0],
             "q22": e.theta[1],
             "R": e.theta[2],
@@ -103,24 +115,25 @@ def identify_prepared(study: PreparedStudy) -> Identification:
             "iterations": e.iterations,
             "grad_norm": e.grad_norm,
             "message": e.message,
-            "reconstructed": p.reconstructed,
-            "recon_sigma_eps": p.sigma_eps,
-            "recon_q": p.q,
+            "reconstructed": any(prepared[i].reconstructed for i in idx),
+            "recon_sigma_eps": float(np.mean([prepared[i].sigma_eps for i in idx])),
+            "recon_q": float(np.mean([prepared[i].q for i in idx])),
         })
     est = pd.DataFrame(rows)
     t0 = time.perf_counter()
     if settings.adequacy_boot > 0:
-        cols, adequacy = assess_study(prepared, [e.theta for e in estimates], plant, settings)
+        thetas = [estimates[(p.data.subject, p.data.condition)].theta for p in prepared]
+        cols, adequacy = assess_study(prepared, thetas, plant, settings)
         est = pd.concat([est, cols], axis=1)
     else:
         adequacy = not_checked("switched off (adequacy bootstrap size 0)")
     t_adq = time.perf_counter() - t0
-    traj, val = _cross_predict(prepared, est, plant)
+    traj, val = _cross_predict(prepared, est, plant, settings.design.levels)
     timing = {"reconstruct_s": study.seconds, "optimize_s": t_opt, "adequacy_s": t_adq, "segments": len(prepared)}
     return Identification(est, traj, val, timing, adequacy)
 
 
-def _cross_predict(prepared, est: pd.DataFrame, plant):
+def _cross_predict(prepared, est: pd.DataFrame, plant, levels):
     theta = {(r.subject, r.condition): np.array([r.q11, r.q22, r.R]) for r in est.itertuples()}
     frames, val = [], []
     for p in prepared:
@@ -129,6 +142,7 @@ def _cross_predict(prepared, est: pd.DataFrame, plant):
         frame = {
             "subject": np.full(K + 1, d.subject, dtype=object),
             "condition": np.full(K + 1, d.condition, dtype=object),
+            **({"trial": np.full(K + 1, d.trial, dtype=object)} if d.trial is not None else {}),
             "t": d.t[p.rows],
             "angle": d.angle[p.rows],
             "angle_ref": d.angle_ref[p.rows],
@@ -136,8 +150,8 @@ def _cross_predict(prepared, est: pd.DataFrame, plant):
             "velocity": p.velocity,
             "u_H": p.u_H,
         }
-        rmse = {"subject": d.subject, "condition": d.condition}
-        for c in CONDITIONS:
+        rmse = {"subject": d.subject, "condition": d.condition, **({"trial": d.trial} if d.trial is not None else {})}
+        for c in levels:
             th = theta.get((d.subject, c))
             key = c.lower()
             if th is None:
@@ -159,7 +173,8 @@ def _cross_predict(prepared, est: pd.DataFrame, plant):
 
 
 def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettings(), *, show_progress=True,
-                    force: bool = False, prepared: PreparedStudy | None = None) -> dict:
+                    force: bool = False, prepared: PreparedStudy | None = None,
+                    experiment_file: str | None = None) -> dict:
     """Run :func:`identify_study` on a file and write its artifacts into ``out`` as a whole.
 
     ``out`` is written through :func:`pipelines.storage.staged_dir`: it holds this run's
@@ -168,12 +183,13 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
 
     ``prepared``: the study file already prepared with ``settings``
     (:func:`pipelines.prepare.prepare_study`; ``scioc run`` shares it with the fit), so
-    that it is not reconstructed again.
+    that it is not reconstructed again. ``experiment_file``: where ``settings.design``
+    came from (recorded in ``identify.json`` beside the resolved experiment and its hash).
     """
     refuse_inputs_inside(out, study_path)
     check_output_dir(out, force=force)  # before the work, not after
     if prepared is None:
-        prepared = prepare_study(load_study(study_path), settings, show_progress=show_progress)
+        prepared = prepare_study(load_study(study_path, settings.design), settings, show_progress=show_progress)
     elif prepared.settings != settings:
         raise ValueError("the prepared study was cut with other settings than these")
     est, traj, val, timing, adequacy = identify_prepared(prepared)
@@ -182,7 +198,7 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         "study": str(study_path),
         # Relative to this folder: still right after the run folder holding both is renamed.
         "study_relative": os.path.relpath(Path(study_path).resolve(), out.resolve()),
-        "settings": {k: getattr(settings, k) for k in settings.__dataclass_fields__},
+        "settings": settings.as_dict(),
         "timing_s": timing,
         "converged": int(est["converged"].sum()),
         "segments": int(len(est)),
@@ -191,6 +207,7 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         "implausible": [{"subject": r.subject, "condition": r.condition, "theta1": r.theta1}
                         for r in est.itertuples() if r.implausible],
         "adequacy": adequacy,
+        **sidecar(settings.design, experiment_file),
         "versions": versions(),
     }
     with staged_dir(out, force=force) as tmp:

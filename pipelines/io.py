@@ -1,11 +1,13 @@
 """Reading and validating study files in the data convention (writing results: :mod:`pipelines.storage`).
 
-The data convention (README "Data format"): a long table, one row per 10-ms sample,
-with columns ``subject``, ``condition`` (MC or SC), ``t`` (s), ``angle`` (rad),
-``angle_ref`` (rad), ``u_A`` (N·m) and optionally ``velocity`` (rad/s) and ``u_H``
-(N·m). Parquet, or CSV on input. Rows k = 0..K of one (subject, condition) segment
-give x_k = (angle_k, velocity_k); u_H,k and u_A,k act from t_k to t_{k+1}; the last
-row's torques are unused.
+The data convention (README "Data format"): a long table, one row per sample of the
+experiment's rate (:class:`models.design.Design`, 100 Hz without an experiment file),
+with columns ``subject``, ``condition`` (one of the experiment's levels, MC or SC by
+default), ``t`` (s), ``angle`` (rad), ``angle_ref`` (rad), ``u_A`` (N·m) and optionally
+``trial``, ``velocity`` (rad/s) and ``u_H`` (N·m). Parquet, or CSV on input. Rows
+k = 0..K of one (subject, condition, trial) segment give x_k = (angle_k, velocity_k);
+u_H,k and u_A,k act from t_k to t_{k+1}; the last row's torques are unused. Several
+trials of one subject × condition are replicates of that unit.
 
 Validation happens here, once, and every error names the file, the column and the
 first bad row (0-based position in the table; for CSV also the line number). Besides the
@@ -23,13 +25,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.design import CONDITIONS, DT_HUMAN, MANUAL
+from models.design import DT_HUMAN, STUDY, Design
 from models.segment import Segment
 
 REQUIRED = ("subject", "condition", "t", "angle", "angle_ref", "u_A")
-OPTIONAL = ("velocity", "u_H")
+OPTIONAL = ("trial", "velocity", "u_H")
 NUMERIC = ("t", "angle", "angle_ref", "u_A", "velocity", "u_H")
-#: Sample time of the data convention, s.
+#: Sample time of the data convention without an experiment file, s.
 DT = DT_HUMAN
 #: Allowed deviation of a time step from DT, s (recording clocks print rounded times).
 DT_TOL = 1e-6
@@ -76,13 +78,13 @@ class StudyFileError(InputDataError):
 
 @dataclass(frozen=True)
 class SegmentData:
-    """One (subject, condition) segment as recorded.
+    """One (subject, condition, trial) segment as recorded.
 
     Attributes
     ----------
     subject : str
     condition : str
-        ``MC`` or ``SC``.
+        One of the experiment's levels.
     t : ndarray, shape (K + 1,)
         Time, s.
     angle, angle_ref : ndarray, shape (K + 1,)
@@ -95,6 +97,8 @@ class SegmentData:
         N·m (last entry unused), if recorded.
     first_row : int
         Row of the segment's first sample in the file.
+    trial : str or None
+        The ``trial`` label, if the file has that column.
     """
 
     subject: str
@@ -106,18 +110,26 @@ class SegmentData:
     velocity: np.ndarray | None
     u_H: np.ndarray | None
     first_row: int
+    trial: str | None = None
 
     @property
     def K(self) -> int:
         return int(self.t.shape[0] - 1)
 
+    @property
+    def label(self) -> str:
+        """``(subject, condition)`` or ``(subject, condition, trial)``, for messages."""
+        parts = [self.subject, self.condition] + ([self.trial] if self.trial is not None else [])
+        return f"({', '.join(parts)})"
+
 
 @dataclass(frozen=True)
 class Study:
-    """A validated study file: its segments in file order."""
+    """A validated study file: its segments in file order, and the experiment it was read with."""
 
     path: str
     segments: tuple[SegmentData, ...]
+    design: Design = STUDY
 
     @property
     def has_velocity_and_torque(self) -> bool:
@@ -142,13 +154,15 @@ def read_table(path) -> pd.DataFrame:
     raise StudyFileError(p, f"unknown file type '{suffix}': use .parquet or .csv")
 
 
-def load_study(path) -> Study:
+def load_study(path, design: Design = STUDY) -> Study:
     """Read and validate a study file in the data convention.
 
     Parameters
     ----------
     path : str or Path
         ``.parquet`` / ``.pq`` or ``.csv``.
+    design : Design
+        The experiment (rate, levels, assistants) the file must agree with.
 
     Returns
     -------
@@ -160,14 +174,14 @@ def load_study(path) -> Study:
         Naming the file, the column and the first bad row.
     """
     df = read_table(path)
-    return validate_table(df, path, csv=Path(path).suffix.lower() == ".csv")
+    return validate_table(df, path, csv=Path(path).suffix.lower() == ".csv", design=design)
 
 
 def _first(mask: np.ndarray) -> int:
     return int(np.flatnonzero(mask)[0])
 
 
-def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> Study:
+def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False, design: Design = STUDY) -> Study:
     """Validate a table in the data convention and split it into segments.
 
     Parameters
@@ -177,6 +191,9 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
         Named in error messages.
     csv : bool
         Also give CSV line numbers in errors.
+    design : Design
+        The experiment: its sample time, its condition levels (each must appear), and
+        which levels are unassisted (u_A = 0 there).
 
     Returns
     -------
@@ -192,21 +209,28 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
     if len(df) == 0:
         fail("the table has no rows")
     cols = {}
-    for col in ("subject", "condition"):
+    labels = ("subject", "condition", "trial") if "trial" in df.columns else ("subject", "condition")
+    for col in labels:
         raw = df[col]
         bad = raw.isna().to_numpy()
         if bad.any():
             fail("empty value", column=col, row=_first(bad))
         cols[col] = raw.astype(str).str.strip().to_numpy()
-    bad = ~np.isin(cols["condition"], CONDITIONS)
+        bad = cols[col] == ""
+        if bad.any():
+            fail("empty value", column=col, row=_first(bad))
+    levels = design.levels
+    bad = ~np.isin(cols["condition"], levels)
     if bad.any():
         i = _first(bad)
-        fail(f"unknown condition label '{cols['condition'][i]}' (expected MC or SC)", column="condition", row=i)
-    bad = cols["subject"] == ""
-    if bad.any():
-        fail("empty value", column="subject", row=_first(bad))
-    # Segments: rows of one (subject, condition) in file order.
-    keys = pd.MultiIndex.from_arrays([cols["subject"], cols["condition"]])
+        fail(f"unknown condition label '{cols['condition'][i]}' (the experiment's levels: {', '.join(levels)})",
+             column="condition", row=i)
+    missing = [v for v in levels if v not in set(cols["condition"])]
+    if missing:
+        fail(f"no {', '.join(missing)} segments at all (the experiment's levels: {', '.join(levels)}); every level "
+             "needs data: give the experiment file the levels of this study", column="condition")
+    # Segments: rows of one (subject, condition[, trial]) in file order.
+    keys = pd.MultiIndex.from_arrays([cols[c] for c in labels])
     codes, uniques = pd.factorize(keys)
     present = [c for c in NUMERIC if c in df.columns]
     for col in present:
@@ -223,6 +247,7 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
         cols[col] = values
     _check_plausible(cols, fail)
     has_opt = {c: c in df.columns for c in OPTIONAL}
+    dt = design.dt
     # float32 cannot hold t = 240.01 s to 1e-6 s: allow its own rounding (two ulps at the largest |t|).
     dt_tol = DT_TOL
     if df["t"].dtype == np.float32:
@@ -230,26 +255,29 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
     segments = []
     for code in range(len(uniques)):
         rows = np.flatnonzero(codes == code)
-        subject, condition = uniques[code]
-        label = f"segment ({subject}, {condition})"
+        subject, condition, *trial = uniques[code]
+        trial = str(trial[0]) if trial else None
+        label = f"segment ({', '.join(map(str, uniques[code]))})"
         if rows.shape[0] < 2:
             fail(f"{label} has a single sample; a segment needs at least two", column="t", row=int(rows[0]))
         t = cols["t"][rows]
         steps = np.diff(t)
-        bad = np.abs(steps - DT) > dt_tol
+        bad = np.abs(steps - dt) > dt_tol
         if bad.any():
             j = _first(bad)
             fail(
-                f"{label}: time step {steps[j]:.6g} s from the previous row; samples must be "
-                f"uniform {DT} s apart in increasing order{_unit_hint(steps)}",
+                f"{label}: time step {steps[j]:.6g} s from the previous row; samples must be uniform "
+                f"{dt:g} s apart ({design.rate_hz:g} Hz, the experiment's sampling.rate_hz) in increasing "
+                f"order{_unit_hint(steps, dt)}",
                 column="t",
                 row=int(rows[j + 1]),
             )
-        if condition == MANUAL:
+        if design.assistant(condition) is None:
             bad = cols["u_A"][rows] != 0.0
             if bad.any():
                 j = _first(bad)
-                fail(f"{label}: u_A must be 0 throughout manual control", column="u_A", row=int(rows[j]))
+                fail(f"{label}: u_A must be 0 throughout level {condition}, which the experiment declares "
+                     "unassisted (no [conditions.assistant] entry)", column="u_A", row=int(rows[j]))
         segments.append(
             SegmentData(
                 subject=str(subject),
@@ -261,9 +289,10 @@ def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False) -> St
                 velocity=cols["velocity"][rows] if has_opt["velocity"] else None,
                 u_H=cols["u_H"][rows] if has_opt["u_H"] else None,
                 first_row=int(rows[0]),
+                trial=trial,
             )
         )
-    return Study(path=str(path), segments=tuple(segments))
+    return Study(path=str(path), segments=tuple(segments), design=design)
 
 
 def _seconds_from_segment_start(t: pd.Series, codes: np.ndarray) -> pd.Series:
@@ -273,12 +302,15 @@ def _seconds_from_segment_start(t: pd.Series, codes: np.ndarray) -> pd.Series:
     return t.dt.total_seconds()
 
 
-def _unit_hint(steps: np.ndarray) -> str:
-    """Name the unit of ``t`` when its steps are DT in ms, µs or ns."""
+def _unit_hint(steps: np.ndarray, dt: float) -> str:
+    """Name the unit of ``t`` when its steps are ``dt`` in ms, µs or ns, or the rate when they are another."""
     step = float(np.median(steps))
     for unit, factor in (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9)):
-        if abs(step / (DT * factor) - 1) < 0.01:
+        if abs(step / (dt * factor) - 1) < 0.01:
             return f" (the median step is {step:g}: is t in {unit}? t must be in seconds)"
+    if step > 0 and abs(step - dt) > 0.01 * dt:
+        return (f" (the median step is {step:g} s, {1.0 / step:g} Hz: set sampling.rate_hz in the experiment "
+                "file to the recording's rate)")
     return ""
 
 
@@ -334,6 +366,8 @@ def segments_to_table(segments) -> pd.DataFrame:
             "angle_ref": s.angle_ref,
             "u_A": s.u_A,
         }
+        if s.trial is not None:
+            d["trial"] = np.full(s.t.shape[0], s.trial, dtype=object)
         if s.velocity is not None:
             d["velocity"] = s.velocity
         if s.u_H is not None:

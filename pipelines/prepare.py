@@ -1,20 +1,25 @@
 """The preparation step shared by ``scioc identify``, ``scioc fit`` and ``scioc loglik``.
 
-For each recorded segment: take the analysis window (default the paper's 15 s from 3:30;
-any window or the whole run on request), reconstruct velocity and u_H from the angle
-where the file lacks them (:mod:`models.reconstruct`, over the window plus a margin), and
-cut the arrays the max-ent likelihood needs (:class:`models.segment.Segment`), with the
-``preview`` seconds the human's plan looks past the window (default 2 s, the time a
-point of the reference takes to cross the screen; 0 is the paper's horizon).
+For each recorded segment: take the analysis window (the experiment's, by default the
+paper's 15 s from 3:30; any window or the whole trial on request), reconstruct velocity
+and u_H from the angle where the file lacks the torque (:mod:`models.reconstruct`, over
+the window plus a margin), and cut the arrays the max-ent likelihood needs
+(:class:`models.segment.Segment`), with the ``preview`` seconds the human's plan looks
+past the window (default 2 s, the time a point of the reference takes to cross the
+screen; 0 is the paper's horizon). A measured u_H is used as measured; where the file
+has no velocity beside it, the initial state is fitted to the angles with the measured
+torques (:func:`models.reconstruct.initial_state`) and the velocity follows from the plant.
 
-In SC the human may model the assistant two ways (``assistant_model``). ``feedback``
-(default): the human knows the assistant's law (the paper's MPC, Section IV-D) and plans
-on the wheel it closes, with its reference feedforward as the known input
-(:class:`models.segment.Feedback`); the simulator's humans do this. ``exogenous`` is the
-paper's Eq. 15-16: the recorded u_A is a known input sequence. In closed loop the
-recorded u_A reacts to the human's own torque noise, which the exogenous model lets the
-human anticipate; on the simulated study, from the true torques, it puts log θ1 in SC
-about 0.55 too low (measured in the report's ground-truth section).
+On an assisted level the human may model the assistant two ways (``assistant_model``).
+``feedback`` (default): the human knows the assistant's law (the experiment's
+``[conditions.assistant]`` entry; the paper's MPC, Section IV-D, by default) and plans on
+the wheel it closes, with its reference feedforward as the known input
+(:class:`models.segment.Feedback`); the simulator's humans do this. The recorded u_A must
+then follow that law (:func:`check_assistant_law`). ``exogenous`` is the paper's
+Eq. 15-16: the recorded u_A is a known input sequence. In closed loop the recorded u_A
+reacts to the human's own torque noise, which the exogenous model lets the human
+anticipate; on the simulated study, from the true torques, it puts log θ1 in SC about
+0.55 too low (measured in the report's ground-truth section).
 
 :func:`prepare_study` does this once per study; ``scioc run`` passes its result to both
 the identification and the Bayesian fit.
@@ -29,17 +34,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.adequacy import N_BOOT
-from models.assistant import design_assistant, human_feedback
-from models.design import PREVIEW_SECONDS, SHARED, WINDOW_SECONDS, WINDOW_START
-from models.plant import DT_HUMAN, discretize
-from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, reconstruct
+from models.assistant import MPCAssistant, build_assistant, human_feedback
+from models.design import PREVIEW_SECONDS, STUDY, WINDOW_SECONDS, WINDOW_START, Design
+from models.plant import discretize, propagate
+from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, initial_state, reconstruct
 from models.segment import Segment
 from models.units import index_study
 from pipelines.io import InputDataError, SegmentData, Study, StudyFileError
 from pipelines.progress import progress
 
-#: How the human in SC may model the assistant (see the module docstring).
+#: How the human on an assisted level may model the assistant (see the module docstring).
 ASSISTANT_MODELS = ("feedback", "exogenous")
+#: Measurement resolution the reconstruction assumes for an angle that is not quantized
+#: (``encoder.counts_per_rev = 0``), rad: a sensor's noise floor, far below any encoder's step.
+UNQUANTIZED_RESOLUTION = 1e-6
+#: The recorded u_A follows the declared law if the RMS of their difference over the
+#: window is at most this fraction of the recorded u_A's RMS plus :data:`LAW_ATOL`
+#: (measured on the simulated study from the reconstructed states: about 0.02).
+LAW_RTOL = 0.1
+#: Absolute part of the law check's tolerance, N·m.
+LAW_ATOL = 0.01
 
 
 def check_assistant_model(name: str) -> None:
@@ -75,6 +89,10 @@ class IdentifySettings:
         "not checked").
     adequacy_seed : int
         Root seed of the adequacy bootstrap.
+    design : Design
+        The experiment: sample time, wheel, levels and their assistants
+        (:data:`models.design.STUDY` without an experiment file). :meth:`for_design`
+        takes the window, preview and encoder resolution from it too.
     """
 
     window_start: float | None = WINDOW_START
@@ -86,6 +104,24 @@ class IdentifySettings:
     assistant_model: str = "feedback"
     adequacy_boot: int = N_BOOT
     adequacy_seed: int = 2018
+    design: Design = STUDY
+
+    @classmethod
+    def for_design(cls, design: Design, **overrides) -> "IdentifySettings":
+        """The settings of ``design``'s ``[analysis]`` and encoder, with ``overrides`` on top."""
+        base = {
+            "window_start": None if design.whole else design.window_start,
+            "window_seconds": None if design.whole else design.window_seconds,
+            "preview": design.preview,
+            "resolution": design.encoder_step or UNQUANTIZED_RESOLUTION,
+            "design": design,
+        }
+        base.update(overrides)
+        return cls(**base)
+
+    def as_dict(self) -> dict:
+        """The settings as JSON-ready values (the design goes to the sidecar's ``experiment``)."""
+        return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "design"}
 
     def __post_init__(self):
         if (self.window_start is None) != (self.window_seconds is None):
@@ -103,24 +139,68 @@ class IdentifySettings:
             raise ValueError(f"adequacy seed must be an integer >= 0; got {self.adequacy_seed!r}")
 
 
-@functools.lru_cache(maxsize=1)
-def paper_assistant():
-    """The study's assistant (the paper's MPC, :func:`models.assistant.design_assistant`), built once."""
-    return design_assistant()
+@functools.lru_cache(maxsize=16)
+def assistant_law(design: Design, level: str) -> MPCAssistant | None:
+    """The assistant of ``level`` in ``design`` (:func:`models.assistant.build_assistant`), built once; None if unassisted."""
+    spec = design.assistant(level)
+    return None if spec is None else build_assistant(spec, design)
 
 
-def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start: int, assistant_model: str) -> Segment:
+def paper_assistant() -> MPCAssistant:
+    """The paper's assistant (the MPC of Section IV-D) on the paper's wheel at 100 Hz."""
+    return assistant_law(STUDY, STUDY.contrasts[0])
+
+
+def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start: int, assistant_model: str,
+                         design: Design = STUDY) -> Segment:
     """``segment`` (rows ``start``.. of its run) with the human's model of the assistant.
 
-    ``feedback`` in SC: the paper's MPC law, its feedforward from the run's whole reference
-    ``angle_ref_run`` (the assistant previews 1 s past the segment). Otherwise unchanged
-    (the recorded u_A as a known input).
+    ``feedback`` on an assisted level: the level's law, its feedforward from the run's
+    whole reference ``angle_ref_run`` (the MPC previews past the segment). Otherwise
+    unchanged (the recorded u_A as a known input).
+
+    Raises
+    ------
+    ValueError
+        If the level's assistant holds its torque over several samples (an MPC with
+        ``period_s`` > the sample time): it is then not a state feedback the human can
+        plan with; use ``exogenous``.
     """
     check_assistant_model(assistant_model)
-    if assistant_model != "feedback" or condition != SHARED:
+    law = assistant_law(design, condition)
+    if assistant_model != "feedback" or law is None:
         return segment
-    full = human_feedback(paper_assistant(), angle_ref_run)
+    try:
+        full = human_feedback(law, angle_ref_run)
+    except ValueError as exc:
+        raise ValueError(f"level {condition}: {exc}; analyse it with --assistant-model exogenous") from None
     return segment._replace(feedback=full.window(start, segment.u_A.shape[0]))
+
+
+def check_assistant_law(seg: SegmentData, segment: Segment, angle, velocity, path) -> None:
+    """Raise :class:`pipelines.io.StudyFileError` unless the recorded u_A follows the law the human plans with.
+
+    Compared over the window on the recorded (or reconstructed) states: the RMS of
+    ``u_A - (-gain @ x + feedforward)`` must be at most ``LAW_RTOL · RMS(u_A) + LAW_ATOL``.
+    """
+    fb = segment.feedback
+    if fb is None:
+        return
+    K = segment.K
+    law = -(fb.gain[0] * angle[:K] + fb.gain[1] * velocity[:K]) + fb.feedforward[:K]
+    rec = segment.u_A[:K]
+    rms = float(np.sqrt(np.mean((rec - law) ** 2)))
+    tol = LAW_RTOL * float(np.sqrt(np.mean(rec**2))) + LAW_ATOL
+    if not rms <= tol:
+        raise StudyFileError(
+            path,
+            f"segment {seg.label}: the recorded u_A does not follow the assistant law the experiment declares for "
+            f"level {seg.condition} (RMS difference {rms:.3g} N·m over the window, tolerance {tol:.3g} N·m); "
+            "check [conditions.assistant] in the experiment file, or analyse with --assistant-model exogenous "
+            "(the recorded u_A as a known input)",
+            column="u_A",
+            row=seg.first_row,
+        )
 
 
 @dataclass(frozen=True)
@@ -145,14 +225,16 @@ def _window_rows(seg: SegmentData, settings: IdentifySettings, path) -> slice:
     n = seg.t.shape[0]
     if settings.window_start is None:
         return slice(0, n)
-    i0 = int(np.searchsorted(seg.t, settings.window_start - 0.5 * DT_HUMAN))
-    K = int(round(settings.window_seconds / DT_HUMAN))
-    if i0 + K >= n or abs(seg.t[min(i0, n - 1)] - settings.window_start) > 0.5 * DT_HUMAN:
+    dt = settings.design.dt
+    i0 = int(np.searchsorted(seg.t, settings.window_start - 0.5 * dt))
+    K = int(round(settings.window_seconds / dt))
+    if i0 + K >= n or abs(seg.t[min(i0, n - 1)] - settings.window_start) > 0.5 * dt:
         raise StudyFileError(
             path,
-            f"segment ({seg.subject}, {seg.condition}) covers t = {seg.t[0]:g}..{seg.t[-1]:g} s, which does not "
+            f"segment {seg.label} covers t = {seg.t[0]:g}..{seg.t[-1]:g} s, which does not "
             f"contain the window {settings.window_start:g}..{settings.window_start + settings.window_seconds:g} s; "
-            "choose another --window or use --whole-run",
+            "choose another --window or use --whole-run (experiment file: [analysis] window_start_s, window_s, "
+            "whole)",
             column="t",
             row=seg.first_row,
         )
@@ -163,18 +245,26 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
     """Cut one recorded segment to its window, reconstructing velocity and u_H if needed."""
     rows = _window_rows(seg, settings, path)
     n = seg.t.shape[0]
+    dt = settings.design.dt
     i0, i1 = rows.start, rows.stop - 1  # window rows k = 0..K
     K = i1 - i0
-    M = min(int(round(settings.preview / DT_HUMAN)), n - 1 - i1)
-    need = seg.velocity is None or seg.u_H is None or settings.reconstruct == "always"
+    M = min(int(round(settings.preview / dt)), n - 1 - i1)
+    need = seg.u_H is None or settings.reconstruct == "always"
     if need:
-        m = int(round(settings.margin / DT_HUMAN))
+        m = int(round(settings.margin / dt))
         j0, j1 = max(0, i0 - m), min(n, i1 + 1 + m)
         rec = reconstruct(seg.angle[j0:j1], seg.u_A[j0:j1], plant, resolution=settings.resolution)
         cut = slice(i0 - j0, i1 + 1 - j0)
         angle, velocity, u_H = rec.angle[cut], rec.velocity[cut], rec.u_H[cut]
         sigma_eps, q = rec.sigma_eps, rec.q
         span, state0, smoother = slice(j0, j1), np.array([rec.angle[0], rec.velocity[0]]), rec.smoother
+    elif seg.velocity is None:  # measured torque, no velocity: the state follows from the plant
+        u_H = seg.u_H[rows]
+        total = u_H[:K] + seg.u_A[i0:i1]
+        x = propagate(plant, initial_state(seg.angle[rows], total, plant), total)
+        angle, velocity = x[:, 0], x[:, 1]
+        sigma_eps = q = float("nan")
+        span, state0, smoother = rows, x[0].copy(), None
     else:
         angle, velocity, u_H = seg.angle[rows], seg.velocity[rows], seg.u_H[rows]
         sigma_eps = q = float("nan")
@@ -185,7 +275,12 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
         u_H=u_H[:K],
         u_A=seg.u_A[i0 : i1 + M],
     )
-    segment = with_assistant_model(segment, seg.condition, seg.angle_ref, i0, settings.assistant_model)
+    try:
+        segment = with_assistant_model(segment, seg.condition, seg.angle_ref, i0, settings.assistant_model,
+                                       settings.design)
+    except ValueError as exc:
+        raise StudyFileError(path, f"segment {seg.label}: {exc}", column="u_A", row=seg.first_row) from None
+    check_assistant_law(seg, segment, angle, velocity, path)
     return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q, span, state0, smoother)
 
 
@@ -219,17 +314,20 @@ class PreparedStudy:
 
     @property
     def labels(self) -> list:
-        return [f"{s}/{c}" for s, c in zip(self.subjects, self.conditions)]
+        """``subject/condition`` per segment, with ``/trial`` when the file has trials."""
+        return [f"{p.data.subject}/{p.data.condition}" + (f"/{p.data.trial}" if p.data.trial is not None else "")
+                for p in self.segments]
 
 
-def check_design(path, subjects, conditions) -> None:
-    """Raise :class:`pipelines.io.InputDataError` unless every subject has both conditions.
+def check_design(path, subjects, conditions, levels=None) -> None:
+    """Raise :class:`pipelines.io.InputDataError` unless every subject has every level.
 
-    The message is that of :func:`models.units.index_study` (a subject without one of the
-    conditions, or no SC (MC) segment at all), prefixed with the file ``path``.
+    ``levels``: baseline first (default MC, SC). The message is that of
+    :func:`models.units.index_study` (a subject without one of the levels, or a level
+    with no segment at all), prefixed with the file ``path``.
     """
     try:
-        index_study(list(subjects), list(conditions))
+        index_study(list(subjects), list(conditions), *(() if levels is None else (levels,)))
     except ValueError as exc:  # the data do not have the design the model needs: bad input (exit 3)
         raise InputDataError(f"{path}: {exc}") from None
 
@@ -243,7 +341,9 @@ def prepare_study(study: Study, settings: IdentifySettings = IdentifySettings(),
     pipelines.io.StudyFileError
         If a segment does not contain the analysis window.
     """
-    plant = discretize(DT_HUMAN)
+    if study.design != settings.design:
+        raise ValueError("the study file was validated against another experiment than these settings'")
+    plant = discretize(settings.design.dt, settings.design.wheel)
     t0 = time.perf_counter()
     segments = tuple(prepare_segment(s, settings, plant, study.path)
                      for s in progress(study.segments, desc="reconstruct", enabled=show_progress))

@@ -2,7 +2,11 @@
 
 Artifacts in ``--out DIR``:
 
-* ``study.parquet`` — what a lab records: subject, condition, t, angle (encoder), angle_ref, u_A.
+* ``study.parquet`` — what a lab records: subject, condition (and trial, with several trials
+  per subject × condition), t, angle (encoder), angle_ref, u_A; with a torque sensor
+  (``[simulation] torque_sensor``) also u_H.
+* ``experiment.toml`` — the experiment simulated (:mod:`pipelines.experiment`): every
+  command finds it beside the study file.
 * ``truth.parquet`` — one row per subject × condition: run order, true q11, q22, R, θ1, θ2.
 * ``truth_trajectories.parquet`` — true angle, velocity and u_H per sample.
 * ``simulation.json`` — seed, population, design and package versions.
@@ -11,16 +15,17 @@ Artifacts in ``--out DIR``:
 from __future__ import annotations
 
 import json
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 import pandas as pd
 
-from models.design import ASSISTANT_HORIZON, DT_ASSISTANT, DT_HUMAN, ENCODER_COUNTS, THETA_ASSISTANT
+from models.design import STUDY, Design
 from models.humans import HUMANS
 from models.reference import reference_trajectory
 from models.simulate import Population, simulate_study
 from pipelines.assistant_check import assistant_alone
+from pipelines.experiment import EXPERIMENT_FILE, resolved, sidecar, to_toml
 from pipelines.provenance import versions
 from pipelines.storage import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 
@@ -28,20 +33,29 @@ DEFAULT_SEED = 2018
 DEFAULT_SUBJECTS = 42
 
 
-def study_table(t, segs) -> pd.DataFrame:
-    """The lab's view of simulated runs: subject, condition, t, angle (encoder), angle_ref, u_A."""
-    ref = reference_trajectory(float(t[-1])).angle
+def _labels(s, n: int) -> dict:
+    d = {"subject": np.full(n, s.subject, dtype=object), "condition": np.full(n, s.condition, dtype=object)}
+    if s.trial is not None:
+        d["trial"] = np.full(n, s.trial, dtype=np.int64)
+    return d
+
+
+def study_table(t, segs, design: Design = STUDY) -> pd.DataFrame:
+    """The lab's view of simulated runs: subject, condition[, trial], t, angle (encoder), angle_ref, u_A[, u_H]."""
+    ref = reference_trajectory(float(t[-1]), design.dt).angle
     n = t.shape[0]
-    return pd.concat(
-        [pd.DataFrame({"subject": np.full(n, s.subject, dtype=object), "condition": np.full(n, s.condition, dtype=object),
-                       "t": t, "angle": s.run.angle, "angle_ref": ref, "u_A": s.run.u_A}) for s in segs],
-        ignore_index=True,
-    )
+    frames = []
+    for s in segs:
+        d = {**_labels(s, n), "t": t, "angle": s.run.angle, "angle_ref": ref, "u_A": s.run.u_A}
+        if design.torque_sensor:
+            d["u_H"] = s.run.u_H
+        frames.append(pd.DataFrame(d))
+    return pd.concat(frames, ignore_index=True)
 
 
 def simulate_to_dir(
-    out, *, n_subjects: int = DEFAULT_SUBJECTS, seed: int = DEFAULT_SEED, population: Population = Population(),
-    seconds: float = 240.0, human: str = "maxent", force: bool = False,
+    out, *, n_subjects: int | None = None, seed: int = DEFAULT_SEED, population: Population | None = None,
+    seconds: float | None = None, human: str = "maxent", force: bool = False, design: Design | None = None,
 ) -> dict:
     """Simulate the experiment and write its artifacts.
 
@@ -49,12 +63,16 @@ def simulate_to_dir(
     ----------
     out : str or Path
         Output folder (created).
-    n_subjects : int
+    n_subjects : int, optional
+        Default: the design's ``subjects`` (42 for the paper's study).
     seed : int
         Root seed; subject i uses the i-th child of ``SeedSequence(seed)``.
-    population : Population
-    seconds : float
-        Length of each run, s.
+    population : Population, optional
+        Default: the paper's population with the design's ``effects`` (its
+        ``[simulation] beta``) as the shifts of log θ1. An explicit population's shifts
+        are written into ``experiment.toml`` as the effects simulated.
+    seconds : float, optional
+        Length of each run, s (default: the design's ``run_seconds``, 240 for the paper's).
     human : str
         The simulated human (:data:`models.humans.HUMANS`): ``maxent`` is the paper's
         agent; the others are negative controls the likelihood does not describe. The
@@ -62,50 +80,61 @@ def simulate_to_dir(
     force : bool
         Replace an existing non-empty ``out`` as a whole (:func:`pipelines.storage.staged_dir`);
         without it such a folder is refused.
+    design : Design, optional
+        The experiment to simulate (default the paper's study); written as
+        ``experiment.toml`` beside the study (with ``subjects`` and ``run_s`` as simulated).
 
     Returns
     -------
     dict
         Paths of the written files.
     """
+    design = STUDY if design is None else design
+    n_subjects = design.subjects if n_subjects is None else n_subjects
+    seconds = design.run_seconds if seconds is None else seconds
     if int(n_subjects) != n_subjects or n_subjects < 1:
         raise ValueError(f"--subjects must be a positive integer; got {n_subjects!r}")
     if int(seed) != seed or seed < 0:
         raise ValueError(f"--seed must be a non-negative integer; got {seed!r}")
+    population = Population(betas=design.effects) if population is None else population
+    effects = population.betas or (population.beta,) * len(design.contrasts)
+    design = replace(design, subjects=int(n_subjects), run_seconds=float(seconds), effects=tuple(effects))
     out = check_output_dir(out, force=force)
     rng = np.random.default_rng(np.random.SeedSequence(int(seed)))
-    t, segs = simulate_study(int(n_subjects), rng, population, seconds, human=human)
+    t, segs = simulate_study(int(n_subjects), rng, population, seconds, human=human, design=design)
     spec = HUMANS[human]
-    study = study_table(t, segs)
+    study = study_table(t, segs, design)
     truth, traj = [], []
     for s in segs:
         n = t.shape[0]
-        common = {"subject": np.full(n, s.subject, dtype=object), "condition": np.full(n, s.condition, dtype=object)}
-        traj.append(pd.DataFrame({**common, "t": t, "angle": s.run.true_angle, "velocity": s.run.true_velocity,
-                                  "u_H": s.run.u_H}))
+        traj.append(pd.DataFrame({**_labels(s, n), "t": t, "angle": s.run.true_angle,
+                                  "velocity": s.run.true_velocity, "u_H": s.run.u_H}))
         q11, q22, R = s.theta if spec.kind == "lq" else (np.nan, np.nan, np.nan)
-        truth.append({"subject": s.subject, "condition": s.condition, "run_index": s.run_index,
+        trial = {} if s.trial is None else {"trial": s.trial}
+        truth.append({"subject": s.subject, "condition": s.condition, **trial, "run_index": s.run_index,
                       "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R})
+    res = resolved(design)
     meta = {
         "seed": int(seed),
         "n_subjects": int(n_subjects),
         "run_seconds": float(seconds),
-        "sample_time_s": DT_HUMAN,
-        "encoder_counts_per_revolution": ENCODER_COUNTS,
+        "sample_time_s": design.dt,
+        "encoder_counts_per_revolution": design.encoder_counts,
         "population": asdict(population),
-        "assistant": {"theta_A": list(THETA_ASSISTANT), "horizon_steps": ASSISTANT_HORIZON,
-                      "prediction_step_s": DT_ASSISTANT, "resolved_every_s": DT_HUMAN},
+        "assistant": res["conditions"]["assistant"],
         "human": {"name": human, **asdict(spec)},
         "sc_human": "plans with the assistant's feedback law (models.segment.Feedback), in closed loop",
-        "assistant_alone": assistant_alone(seconds),
+        "assistant_alone": assistant_alone(seconds) if design == STUDY else None,
+        **sidecar(design, EXPERIMENT_FILE),
         "versions": versions(),
     }
     with staged_dir(out, force=force) as tmp:
         write_table_atomic(study, tmp / "study.parquet")
+        write_text_atomic(tmp / EXPERIMENT_FILE, to_toml(design))
         write_table_atomic(pd.DataFrame(truth), tmp / "truth.parquet")
         write_table_atomic(pd.concat(traj, ignore_index=True), tmp / "truth_trajectories.parquet")
         write_text_atomic(tmp / "simulation.json", json.dumps(meta, indent=2) + "\n")
-    names = {"study": "study.parquet", "truth": "truth.parquet", "truth_trajectories": "truth_trajectories.parquet",
-             "meta": "simulation.json"}
+    names = {"study": "study.parquet", "experiment": EXPERIMENT_FILE, "truth": "truth.parquet",
+             "truth_trajectories": "truth_trajectories.parquet", "meta": "simulation.json"}
     return {k: str(out / v) for k, v in names.items()}
 

@@ -14,17 +14,21 @@ from pathlib import Path
 
 
 def cmd_loglik(args) -> int:
+    from pipelines.experiment import find_experiment
     from pipelines.loglik import NonFiniteLoglik, parse_theta, study_loglik
 
     theta = parse_theta(args.theta)
+    design, source = find_experiment(args.study, args.experiment)
     try:
-        table = study_loglik(args.study, theta, args.assistant_model)
+        table = study_loglik(args.study, theta, args.assistant_model, design=design, experiment_file=source)
     except NonFiniteLoglik as exc:
         print(f"scioc loglik: error: {exc}", file=sys.stderr)
         return 1
     if args.format == "json":
+        trial = "trial" in table.columns
         records = [
-            {"subject": r.subject, "condition": r.condition, "loglik": float(r.loglik)}
+            {"subject": r.subject, "condition": r.condition, **({"trial": r.trial} if trial else {}),
+             "loglik": float(r.loglik)}
             for r in table.itertuples(index=False)
         ]
         print(json.dumps(records, indent=2, allow_nan=False))
@@ -77,29 +81,49 @@ def cmd_assistant(args) -> int:
 
 
 def window_settings(args):
-    """The :class:`pipelines.prepare.IdentifySettings` of the window options (``--window``, ``--whole-run``, ...)."""
+    """The :class:`pipelines.prepare.IdentifySettings` of the experiment and the window options, and its source.
+
+    The experiment (``--experiment``, or ``experiment.toml`` beside the study file, or the
+    paper's study) gives the defaults; ``--window``, ``--whole-run`` and ``--preview``
+    override its ``[analysis]``.
+
+    Returns
+    -------
+    settings : IdentifySettings
+    source : str or None
+        The experiment file's path (None: the paper's study, no file).
+    """
+    from pipelines.experiment import find_experiment
     from pipelines.prepare import IdentifySettings
 
+    design, source = find_experiment(args.study, getattr(args, "experiment", None))
+    overrides = {}
     if args.whole_run:
-        window = (None, None)
-    else:
+        overrides.update(window_start=None, window_seconds=None)
+    elif args.window is not None:
         try:
             start, seconds = (float(v) for v in args.window.split(","))
         except ValueError:
             raise ValueError(f"--window needs START,SECONDS in s (e.g. 210,15); got {args.window!r}") from None
-        window = (start, seconds)
-    return IdentifySettings(window_start=window[0], window_seconds=window[1], preview=args.preview,
-                            reconstruct=args.reconstruct, assistant_model=args.assistant_model,
-                            adequacy_boot=args.adequacy_boot, adequacy_seed=args.adequacy_seed)
+        overrides.update(window_start=start, window_seconds=seconds)
+    if args.preview is not None:
+        overrides["preview"] = args.preview
+    settings = IdentifySettings.for_design(design, reconstruct=args.reconstruct, assistant_model=args.assistant_model,
+                                           adequacy_boot=args.adequacy_boot, adequacy_seed=args.adequacy_seed,
+                                           **overrides)
+    return settings, source
 
 
 def cmd_simulate(args) -> int:
     from models.simulate import Population
+    from pipelines.experiment import load_experiment
     from pipelines.simulate import simulate_to_dir
 
+    design = load_experiment(args.experiment) if args.experiment else None
     paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed,
-                            population=Population(beta=args.beta), seconds=args.seconds, human=args.human,
-                            force=args.force)
+                            population=None if args.beta is None else Population(beta=args.beta),
+                            seconds=args.seconds, human=args.human,
+                            force=args.force, design=design)
     for k, v in paths.items():
         print(f"{k}: {v}")
     return 0
@@ -108,7 +132,8 @@ def cmd_simulate(args) -> int:
 def cmd_identify(args) -> int:
     from pipelines.identify import format_identify, identify_to_dir
 
-    paths = identify_to_dir(args.study, args.out, window_settings(args), force=args.force)
+    settings, source = window_settings(args)
+    paths = identify_to_dir(args.study, args.out, settings, force=args.force, experiment_file=source)
     print(format_identify(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")
@@ -140,8 +165,13 @@ def cmd_run(args) -> int:
 
     from models.simulate import Population
 
+    from pipelines.experiment import load_experiment
+
+    design = load_experiment(args.experiment) if args.experiment else None
+    name = args.name or (Path(args.experiment).resolve().parent.name if args.experiment else "default-study")
     report = run_all(args.out, n_subjects=args.subjects, seed=args.seed, fit=not args.skip_fit, human=args.human,
-                     population=Population(beta=args.beta), name=args.name)
+                     population=None if args.beta is None else Population(beta=args.beta), name=name,
+                     design=design)
     # The workflow ran; a human model that fails its adequacy checks is a failed check (exit 1).
     verdict = json.loads((report.parent / "identify" / "identify.json").read_text())["adequacy"]["verdict"]
     return 1 if verdict == "fail" else 0
@@ -150,8 +180,9 @@ def cmd_run(args) -> int:
 def cmd_fit(args) -> int:
     from pipelines.fit import fit_to_dir, format_fit  # imports PyMC (seconds): only when fitting
 
+    settings, source = window_settings(args)
     paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
-                       settings=window_settings(args), subject=args.subject, estimates_path=args.estimates,
+                       settings=settings, experiment_file=source, subject=args.subject, estimates_path=args.estimates,
                        truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force)
     print(format_fit(args.out))
     for k, v in paths.items():

@@ -70,13 +70,21 @@ def _add_assistant_model_option(p):
                    "u_A as a known input sequence (exogenous: the paper's Eq. 15-16)")
 
 
+def _add_experiment_option(p):
+    p.add_argument("--experiment", metavar="PATH",
+                   help="the experiment file (rig, assistants, design; README 'Experiment file'); default: "
+                        "experiment.toml beside the study file if there, else the paper's study")
+
+
 def _add_window_options(p):
-    p.add_argument("--window", type=_window_spec, default=_WINDOW_TEXT, metavar="START,SECONDS",
-                   help=f"analysis window on the file's time axis, s (default: the paper's {_WINDOW_TEXT})")
+    _add_experiment_option(p)
+    p.add_argument("--window", type=_window_spec, default=None, metavar="START,SECONDS",
+                   help=f"analysis window on each trial's time axis, s (default: the experiment's [analysis], "
+                        f"without one the paper's {_WINDOW_TEXT})")
     p.add_argument("--whole-run", action="store_true", help="analyse each segment whole")
-    p.add_argument("--preview", type=_nonnegative_seconds, default=PREVIEW,
-                   help=f"seconds the human's plan looks past the window (default {PREVIEW:g}; 0 = the paper's "
-                        "horizon)")
+    p.add_argument("--preview", type=_nonnegative_seconds, default=None,
+                   help=f"seconds the human's plan looks past the window (default: the experiment's; without one "
+                        f"{PREVIEW:g}; 0 = the paper's horizon)")
     _add_assistant_model_option(p)
     p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
                    help="reconstruct velocity and u_H from the angle when missing (auto, the default) or always")
@@ -93,8 +101,9 @@ def _add_human_options(p):
     p.add_argument("--human", choices=HUMAN_NAMES, default="maxent",
                    help="the simulated human: maxent (the paper's agent, default) or a negative control the "
                         "max-ent likelihood does not describe (see models/humans.py)")
-    p.add_argument("--beta", type=_finite_float, default=-0.7,
-                   help="mean SC shift of log θ1 in the simulated population (default -0.7; 0: no change)")
+    p.add_argument("--beta", type=_finite_float, default=None,
+                   help="mean shift of log θ1 from the baseline to every other level in the simulated population "
+                        "(default: the experiment's [simulation] beta, -0.7 for the paper's; 0: no change)")
 
 
 # The blocks of models.bayes.hierarchical.Parameterization and their defaults, spelled out so parsing imports
@@ -119,14 +128,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("study", help="study file (Parquet or CSV) in the data convention")
     p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
     _add_assistant_model_option(p)
+    _add_experiment_option(p)
     p.add_argument("--format", choices=("table", "json"), default="table", help="output format (default table)")
     p.set_defaults(func=commands.cmd_loglik)
 
     p = sub.add_parser("simulate", help="simulate the experiment: study table (angles only) + ground truth")
-    p.add_argument("--subjects", type=_positive_int, default=42, help="simulated subjects (default 42)")
+    p.add_argument("--experiment", metavar="PATH",
+                   help="the experiment to simulate (default: the paper's study); written beside the study")
+    p.add_argument("--subjects", type=_positive_int, default=None,
+                   help="simulated subjects (default: the experiment's [simulation] subjects, 42 for the paper's)")
     p.add_argument("--seed", type=_nonnegative_int, default=2018, help="root seed (default 2018)")
-    p.add_argument("--seconds", type=_seconds, default=RUN_SECONDS,
-                   help=f"length of each run, s (default {RUN_SECONDS:g})")
+    p.add_argument("--seconds", type=_seconds, default=None,
+                   help=f"length of each run, s (default: the experiment's [simulation] run_s, {RUN_SECONDS:g} for "
+                        "the paper's)")
     _add_human_options(p)
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (study.parquet, truth, simulation.json)")
     _add_force_option(p)
@@ -171,12 +185,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="the whole workflow on the built-in simulated study, ending with the report")
     p.add_argument("--out", default="reports", metavar="DIR", help="where everything goes (default reports/)")
-    p.add_argument("--subjects", type=_positive_int, default=42, help="simulated subjects (default 42)")
+    p.add_argument("--experiment", metavar="PATH",
+                   help="simulate and analyse this experiment instead of the paper's (e.g. "
+                        "data/examples/three-assistants/experiment.toml)")
+    p.add_argument("--subjects", type=_positive_int, default=None,
+                   help="simulated subjects (default: the experiment's, 42 for the paper's)")
     p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the whole workflow (default 2018)")
     p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fit (minutes)")
     _add_human_options(p)
-    p.add_argument("--name", default="default-study",
-                   help="subfolder of --out for this run (default default-study)")
+    p.add_argument("--name", default=None,
+                   help="subfolder of --out for this run (default default-study, or the experiment file's folder "
+                        "name)")
     p.set_defaults(func=commands.cmd_run)
 
     p = sub.add_parser("calibrate", help="simulation-based calibration (unit or study level), locally or on Dask")

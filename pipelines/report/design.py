@@ -27,7 +27,7 @@ def section_design(sim: dict | None, ident_meta: dict | None) -> Markup:
             ("θ2 = q22/R", pop["theta2"]),
         ]
         population = table(pd.DataFrame(rows, columns=["parameter", "value"]), left=("parameter",))
-        assistant = sim.get("assistant_alone", {}).get("run")
+        assistant = (sim.get("assistant_alone") or {}).get("run")
     settings = window = None
     if ident_meta:
         settings = ident_meta["settings"]

@@ -225,8 +225,8 @@ def test_bad_specs_are_rejected(kwargs, field):
 
 
 def test_bad_calls_are_rejected(plant, assistant, ref60):
-    with pytest.raises(ValueError, match="condition"):
-        simulate_human(HUMANS["maxent"], THETA["MC"], "XC", ref60, plant, assistant, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="SC.*needs the assistant"):
+        simulate_human(HUMANS["maxent"], THETA["SC"], "SC", ref60, plant, None, np.random.default_rng(0))
     with pytest.raises(ValueError, match="params"):
         run(HUMANS["lag"], "MC", ref60, plant, assistant, params=WheelParameters(inertia=0.05))
     with pytest.raises(ValueError, match="re-solves every sample"):

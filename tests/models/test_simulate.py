@@ -65,8 +65,11 @@ def test_manual_run_has_no_assistance_and_shared_run_has_some():
     sc = simulate_run([400.0, 0.0, 20.0], "SC", ref, plant, asst, rng)
     assert np.all(mc.u_A == 0.0)
     assert np.sqrt(np.mean(sc.u_A**2)) > 0.05
-    with pytest.raises(ValueError, match="condition"):
-        simulate_run([400.0, 0.0, 20.0], "XC", ref, plant, asst, rng)
+    with pytest.raises(ValueError, match="SC.*needs the assistant"):
+        simulate_run([400.0, 0.0, 20.0], "SC", ref, plant, None, rng)
+    # Another level is assisted by the assistant given, unassisted without one.
+    other = simulate_run([400.0, 0.0, 20.0], "weak", ref, plant, None, np.random.default_rng(3))
+    assert np.all(other.u_A == 0.0)
 
 
 def test_study_is_seeded_and_a_subject_does_not_depend_on_the_next():

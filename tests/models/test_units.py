@@ -16,7 +16,7 @@ def test_segments_map_to_subjects_in_order_of_appearance_and_conditions():
 @pytest.mark.parametrize("subjects, conditions, message", [
     (["a", "a"], ["MC"], "one entry per segment"),
     ([], [], "no segments"),
-    (["a", "a"], ["MC", "sc"], r"segment 1 must be 'MC' or 'SC'"),
+    (["a", "a"], ["MC", "sc"], r"segment 1 must be one of 'MC', 'SC'"),
     (["a", "b"], ["MC", "MC"], "no SC segments at all"),
     (["a", "a", "b"], ["MC", "SC", "SC"], r"subject 'b' has no MC segment"),
 ])

@@ -6,7 +6,8 @@ import pytest
 from scipy.stats import wilcoxon
 
 from pipelines.cli import main
-from pipelines.compare import compare_estimates, compare_to_file, critical_value, null_cdf, wilcoxon_signed_rank
+from pipelines.compare import compare_estimates, compare_to_file
+from pipelines.signed_rank import critical_value, null_cdf, wilcoxon_signed_rank
 from pipelines.io import StudyFileError
 
 

@@ -54,7 +54,7 @@ preview_s = 2.0            # 0: the paper's horizon
 run_s = 240.0
 subjects = 42
 trials = 1
-torque_sensor = false      # true: the simulated rig also records u_H and velocity
+torque_sensor = false      # true: the simulated rig also records u_H
 '''
 
 WEAK = AssistantSpec(kind="linear", gain=(2.0, 0.1), reference_gain=2.0)
@@ -101,7 +101,8 @@ def test_other_differs_from_the_paper_in_every_section():
 VARIANTS = {
     "rate": dict(dt=0.005), "inertia": dict(wheel=WheelParameters(0.05, 1.146, 0.286)),
     "spring": dict(wheel=WheelParameters(0.04, 1.2, 0.286)), "damper": dict(wheel=WheelParameters(0.04, 1.146, 0.3)),
-    "counts": dict(encoder_counts=4096), "levels": dict(levels=("MC", "SC", "SC2")),
+    "counts": dict(encoder_counts=4096), "levels": dict(levels=("MC", "SC", "SC2"), effects=()),
+    "effects": dict(effects=(-0.3,)),
     "baseline": dict(baseline="SC", assistants=()), "no-assistant": dict(assistants=()),
     "theta": dict(assistants=(("SC", dataclasses.replace(PAPER_ASSISTANT, theta=(5.0, 0.1, 1.0))),)),
     "horizon": dict(assistants=(("SC", dataclasses.replace(PAPER_ASSISTANT, horizon=49)),)),
@@ -291,7 +292,6 @@ MALFORMED = [
     ("[simulation]\nsubjects = true\n", "simulation.subjects", "got true"),
     ("[simulation]\ntorque_sensor = 1\n", "simulation.torque_sensor", "true or false"),
     ("[simulation]\nrun_s = 0.0\n", "simulation.run_s", "> 0"),
-    ("[simulation]\nrun_s = 100.0\n", "simulation.run_s", "analysis.whole = true"),
 ]
 
 
@@ -336,3 +336,14 @@ def test_parse_names_the_given_path_and_backs_up_design_errors(monkeypatch):
     with pytest.raises(ExperimentFileError, match=r"key 'analysis': Design.preview") as err:
         parse_experiment({})
     assert err.value.key == "analysis"
+
+
+def test_the_simulated_effects_are_one_number_or_one_per_level(tmp_path):
+    three = '[conditions]\nbaseline = "none"\nlevels = ["none", "weak", "strong"]\n'
+    assert load_experiment(write(tmp_path, three, "a.toml")).effects == (-0.7, -0.7)
+    d = load_experiment(write(tmp_path, three + "[simulation]\nbeta = -0.2\n", "b.toml"))
+    assert d.effects == (-0.2, -0.2)
+    d = load_experiment(write(tmp_path, three + "[simulation]\nbeta = [-0.35, -0.7]\n", "c.toml"))
+    assert d.effects == (-0.35, -0.7)
+    with pytest.raises(ExperimentFileError, match="simulation.beta"):
+        load_experiment(write(tmp_path, three + "[simulation]\nbeta = [-0.35]\n", "d.toml"))

@@ -13,18 +13,30 @@ from pipelines.io import MAX_ANGLE, MAX_TORQUE, MAX_VELOCITY, StudyFileError, lo
 from pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
 
 
+def _paper_law(angle, velocity, angle_ref):
+    """u_A of the paper's MPC on the given states (the law the SC human plans with)."""
+    from models.assistant import design_assistant, feedforward
+
+    a = design_assistant()
+    u = -(a.gain[0] * angle + a.gain[1] * velocity)
+    u[:-1] += feedforward(a, angle_ref)
+    u[-1] = u[-2]
+    return u
+
+
 def small_table(K=20, with_state=True):
     rows = []
     for subject in ("s1", "s2"):
         for cond in ("MC", "SC"):
             t = np.arange(K + 1) * 0.01
+            angle, velocity, ref = 0.1 * np.sin(t), 0.1 * np.cos(t), 0.1 * np.sin(t + 0.1)
             d = {
                 "subject": subject,
                 "condition": cond,
                 "t": t,
-                "angle": 0.1 * np.sin(t),
-                "angle_ref": 0.1 * np.sin(t + 0.1),
-                "u_A": np.zeros(K + 1) if cond == "MC" else 0.05 * np.cos(t),
+                "angle": angle,
+                "angle_ref": ref,
+                "u_A": np.zeros(K + 1) if cond == "MC" else _paper_law(angle, velocity, ref),
             }
             if with_state:
                 d["velocity"] = 0.1 * np.cos(t)
@@ -93,7 +105,7 @@ def test_non_uniform_time(tmp_path):
 def test_assistant_torque_in_manual_control(tmp_path):
     df = small_table()
     df.loc[3, "u_A"] = 0.1
-    _expect_error(tmp_path, df, "u_A", 3, "manual control")
+    _expect_error(tmp_path, df, "u_A", 3, "level MC, which the experiment declares unassisted")
 
 
 def test_empty_subject(tmp_path):

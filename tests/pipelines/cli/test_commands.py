@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from models.maxent import loglik_grad
@@ -74,7 +76,46 @@ def test_file_without_torque_is_refused(tmp_path, capsys):
     path = write_table_atomic(small_table(with_state=False), tmp_path / "angles.parquet")
     assert main(["loglik", str(path), "--theta", "60,0,1"]) == 3
     err = capsys.readouterr().err
-    assert "column 'velocity'" in err
+    assert "column 'u_H'" in err
+
+
+def test_a_measured_torque_without_velocity_is_used_as_measured(tmp_path, capsys):
+    # The velocity follows from the plant (the initial state fitted to the angles with the
+    # measured torques); the torque is not reconstructed.
+    from models.assistant import design_assistant, feedforward
+    from models.plant import discretize, propagate
+
+    plant = discretize(0.01)
+    K = 300
+    t = np.arange(K + 1) * 0.01
+    ref = 0.1 * np.sin(t)
+    u_H = 0.2 * np.sin(3 * t)
+    x = propagate(plant, np.array([0.05, -0.1]), u_H[:-1])
+    df = pd.DataFrame({"subject": "s1", "condition": "MC", "t": t, "angle": x[:, 0], "angle_ref": ref,
+                       "u_A": 0.0, "u_H": u_H})
+    a = design_assistant()
+    xs = propagate(plant, np.array([0.05, -0.1]), np.zeros(K))
+    sc = df.assign(condition="SC", angle=xs[:, 0], u_H=0.0)
+    sc["u_A"] = 0.0
+    # SC with the assistant alone acting: its torque follows its law on the true states.
+    x_sc = np.zeros((K + 1, 2))
+    x_sc[0] = (0.05, -0.1)
+    ff = feedforward(a, ref)
+    u_A = np.zeros(K + 1)
+    for k in range(K):
+        u_A[k] = -a.gain @ x_sc[k] + ff[k]
+        x_sc[k + 1] = plant.A @ x_sc[k] + plant.b * u_A[k]
+    u_A[K] = u_A[K - 1]
+    sc = sc.assign(angle=x_sc[:, 0], u_A=u_A)
+    path = write_table_atomic(pd.concat([df, sc], ignore_index=True), tmp_path / "torque.parquet")
+    with_velocity = write_table_atomic(pd.concat([df.assign(velocity=x[:, 1]), sc.assign(velocity=x_sc[:, 1])],
+                                                 ignore_index=True), tmp_path / "full.parquet")
+    assert main(["loglik", str(path), "--theta", "60,0,1", "--format", "json"]) == 0
+    derived = json.loads(capsys.readouterr().out)
+    assert main(["loglik", str(with_velocity), "--theta", "60,0,1", "--format", "json"]) == 0
+    recorded = json.loads(capsys.readouterr().out)
+    for a_, b_ in zip(derived, recorded):
+        assert a_["loglik"] == pytest.approx(b_["loglik"], rel=1e-8)
 
 
 def test_console_script_runs(study_file):

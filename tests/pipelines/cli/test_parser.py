@@ -8,6 +8,7 @@ import pytest
 from models.design import STUDY
 from pipelines.calibrate import DEFAULTS
 from pipelines.cli import build_parser, main
+from pipelines.cli.commands import window_settings
 from pipelines.cli.parser import PARAMETERIZATION_BLOCKS, PREVIEW, RUN_SECONDS, SAMPLE_TIME, WINDOW
 
 
@@ -94,8 +95,15 @@ def test_calibrate_help_states_the_true_defaults():
 def test_the_parsers_design_defaults_are_the_studys():
     assert (SAMPLE_TIME, WINDOW, PREVIEW, RUN_SECONDS) == (STUDY.dt, (STUDY.window_start, STUDY.window_seconds),
                                                           STUDY.preview, STUDY.run_seconds)
+    # The window and preview come from the experiment; without an experiment file they are the paper's.
     args = build_parser().parse_args(["identify", "S", "--out", "D"])
-    assert args.window == "210,15" and args.preview == STUDY.preview
+    assert args.window is None and args.preview is None and args.experiment is None
+    settings, source = window_settings(args)
+    assert source is None and settings.design == STUDY
+    assert (settings.window_start, settings.window_seconds, settings.preview) == (210.0, 15.0, 2.0)
+    args = build_parser().parse_args(["identify", "S", "--out", "D", "--window", "1,2", "--preview", "0"])
+    settings, _ = window_settings(args)
+    assert (settings.window_start, settings.window_seconds, settings.preview) == (1.0, 2.0, 0.0)
 
 
 def test_the_parameterization_options_are_the_models():

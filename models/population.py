@@ -1,0 +1,158 @@
+"""The population the simulated subjects' costs are drawn from, per condition level.
+
+The simulator (:mod:`models.simulate`) draws each subject's θ = [q11, q22, R] per
+condition level from :class:`Population` with :func:`draw_subjects`. R is given at the
+paper's 100 Hz (:data:`models.design.REFERENCE_DT`); the simulator converts θ to the
+recording's sample time (see :mod:`models.design` on how θ transforms with the rate).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from models.cost import from_log_normalized
+
+
+@dataclass(frozen=True)
+class Population:
+    """The population θ per subject and condition is drawn from (all logs natural).
+
+    For subject i::
+
+        log θ1[i, MC] ~ N(log_theta1_mc, sd_log_theta1)          θ1 = q11 / R, 1/rad²
+        log θ1[i, SC] = log θ1[i, MC] + beta + N(0, sd_change)
+        log R[i, MC]  ~ N(log_R, sd_log_R)                      R, 1/(N·m)²
+        log R[i, SC]  = log R[i, MC] + gamma + N(0, sd_R_change)
+        θ2[i, c] = q22 / R = theta2                             (the paper found 0)
+
+    The defaults make the paper's qualitative findings appear: q22 = 0; in SC the
+    normalized angle weight drops to about half (β = -0.7) for nearly every subject,
+    with between-subject spread. With R around 20 the max-ent torque variability is about
+    0.16 N·m per 10-ms sample, and the tracking error RMS about 0.02-0.05 rad for the
+    0.2-rad RMS reference.
+
+    Attributes
+    ----------
+    log_theta1_mc : float
+        Mean of log θ1 in MC (default log 20).
+    sd_log_theta1 : float
+        Between-subject SD of log θ1 (default 0.5).
+    beta : float
+        Mean SC shift of log θ1 (default -0.7).
+    sd_change : float
+        Between-subject SD of the SC shift (default 0.2).
+    log_R : float
+        Mean of log R in MC (default log 20).
+    sd_log_R : float
+        Between-subject SD of log R (default 0.3).
+    gamma : float
+        Mean SC shift of log R (default 0).
+    sd_R_change : float
+        Between-subject SD of the SC shift of log R (default 0.1).
+    theta2 : float
+        q22 / R for everyone (default 0).
+    betas : tuple of float
+        With more than two condition levels: the mean shift of log θ1 of each
+        non-baseline level in order (empty: ``beta`` for every one). Each level also gets
+        its own ``N(0, sd_change)`` and ``gamma + N(0, sd_R_change)``.
+    """
+
+    log_theta1_mc: float = float(np.log(20.0))
+    sd_log_theta1: float = 0.5
+    beta: float = -0.7
+    sd_change: float = 0.2
+    log_R: float = float(np.log(20.0))
+    sd_log_R: float = 0.3
+    gamma: float = 0.0
+    sd_R_change: float = 0.1
+    theta2: float = 0.0
+    betas: tuple[float, ...] = ()
+
+    def __post_init__(self):
+        if not all(np.isfinite(b) for b in self.betas):
+            raise ValueError(f"population parameter betas must be finite; got {self.betas!r}")
+        for name, value in asdict(self).items():
+            if name == "betas":
+                continue
+            if not np.isfinite(value):
+                raise ValueError(f"population parameter {name} must be finite; got {value!r}")
+            if name.startswith("sd") and value < 0:
+                raise ValueError(f"population parameter {name} must be >= 0; got {value!r}")
+        if self.theta2 < 0:
+            raise ValueError(f"population parameter theta2 must be >= 0; got {self.theta2!r}")
+
+
+class SubjectTheta(NamedTuple):
+    """True cost parameters of one subject: θ = [q11, q22, R] per condition level, and the run order.
+
+    Attributes
+    ----------
+    thetas : tuple of ndarray
+        θ per level, baseline first (MC, SC by default).
+    order : tuple of int
+        Level indices in the order the runs were performed.
+    """
+
+    thetas: tuple
+    order: tuple
+
+    @property
+    def mc(self) -> np.ndarray:
+        return self.thetas[0]
+
+    @property
+    def sc(self) -> np.ndarray:
+        return self.thetas[1]
+
+    @property
+    def sc_first(self) -> bool:
+        return self.order[0] == 1
+
+
+def draw_subjects(population: Population, n_subjects: int, rng: np.random.Generator,
+                  n_levels: int = 2) -> list[SubjectTheta]:
+    """Draw θ per condition level and the run order for each subject.
+
+    Parameters
+    ----------
+    population : Population
+    n_subjects : int
+    rng : numpy.random.Generator
+    n_levels : int
+        Condition levels, baseline first (2: MC and SC).
+
+    Returns
+    -------
+    list of SubjectTheta
+    """
+    if int(n_subjects) != n_subjects or n_subjects < 1:
+        raise ValueError(f"n_subjects must be a positive integer; got {n_subjects!r}")
+    if int(n_levels) != n_levels or n_levels < 2:
+        raise ValueError(f"n_levels must be an integer >= 2; got {n_levels!r}")
+    p = population
+    c = n_levels - 1
+    betas = tuple(p.betas) if p.betas else (p.beta,) * c
+    if len(betas) != c:
+        raise ValueError(f"the population gives {len(betas)} condition effects (betas) for {c} non-baseline levels")
+    out = []
+    for _ in range(int(n_subjects)):
+        # Two levels draw exactly as they always did: z = (θ1 base, θ1 change, R base, R change).
+        z = rng.standard_normal(2 + 2 * c)
+        lt1 = p.log_theta1_mc + p.sd_log_theta1 * z[0]
+        lr = p.log_R + p.sd_log_R * z[1 + c]
+        thetas = [from_log_normalized(lt1, p.theta2, lr)]
+        for j in range(c):
+            thetas.append(from_log_normalized(lt1 + betas[j] + p.sd_change * z[1 + j], p.theta2,
+                                              lr + p.gamma + p.sd_R_change * z[2 + c + j]))
+        if n_levels == 2:
+            order = (1, 0) if bool(rng.integers(0, 2)) else (0, 1)
+        else:
+            order = tuple(int(v) for v in rng.permutation(n_levels))
+        out.append(SubjectTheta(tuple(thetas), order))
+    return out
+
+
+__all__ = ["Population", "SubjectTheta", "draw_subjects"]

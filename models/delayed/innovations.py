@@ -2,28 +2,44 @@
 
 The residuals r of the ``delayed`` model (:mod:`models.delayed.likelihood`) are Gaussian
 with a covariance Σ of bandwidth d. Its factorization ``Σ = L D Lᵀ`` (L unit lower
-triangular, bandwidth d) gives the innovations ``y = L⁻¹ r`` with variances D:
-these are exactly the innovations and innovation variances of the Kalman filter over
-the motor noises (m_k, ..., m_{k-d}) (the factorization is unique), computed in
-d²/2 operations per row instead of the filter's (d+1)² and without its state::
+triangular, bandwidth d) gives the innovations ``y = L⁻¹ r`` with variances D: these
+are exactly the innovations and innovation variances of the Kalman filter over the
+motor noises (m_k, ..., m_{k-d}) (the factorization is unique)::
 
     log N(r; 0, Σ) = -½ sum_k y_k² / D_k - ½ sum_k log D_k - K/2 log 2π.
 
-Σ is Toeplitz up to row k_R (the policy is stationary there) and arbitrary after it
-(the plan's last steps). Row i of L follows from the d rows before it, so once d
-consecutive rows agree to :data:`models.maxent.FREEZE_RTOL` (the filter's steady state)
-every later Toeplitz row is the same row: it is stored once (row i_f) and rows
-i_f + 1 .. k_R are aliases of it. Only the rows before the steady state and after k_R
-cost O(d²); the others cost O(d) (the two triangular solves and the reverse pass).
+Rows 0..k_R of Σ are Toeplitz (the plan is stationary there), the rows after k_R are
+not (the plan's last steps).
+
+* Toeplitz rows: the Schur algorithm. The displacement ``Σ - Z Σ Zᵀ = x xᵀ - y yᵀ``
+  (Z the shift) has rank 2; each step reads the Cholesky column ``x`` (so
+  ``L_{k+t,k} = x_t / x_0``, ``D_k = x_0²``) and passes to the generator of the next
+  Schur complement by a hyperbolic rotation that zeroes y's leading entry (in mixed
+  form), O(d) per row instead of the d²/2 of a row of Cholesky (it is the Chandrasekhar
+  form of the Kalman filter). The generator is all the state there is. Its y part
+  decays (the reflection coefficients ρ = y_1 / x_0 of a moving average go to zero) and
+  changes x only at second order (``x' - x = O(ρ²) x + O(ρ) y``), so once d + 1
+  consecutive columns agree to :data:`models.maxent.FREEZE_RTOL` and ``|y| <= Y_RTOL |x|``
+  (the filter's steady state, at step k_f) every later column is the same to
+  rounding: rows after ``i_f = k_f + d`` are aliases of row i_f.
+* Rows after k_R: L D Lᵀ row by row, O(d²) each.
 
 Reverse mode. With ``ω = Σ⁻¹ r = L⁻ᵀ D⁻¹ y``::
 
-    ∂/∂r = -ω,   ∂/∂L_ij = ω_i y_j,   ∂/∂D_i = ½ (y_i² / D_i - 1) / D_i,
+    ∂/∂r = -ω,   ∂/∂L_ij = ω_i y_j,   ∂/∂D_i = ½ (y_i² / D_i - 1) / D_i;
 
-and the adjoint of the row recursion maps these to ∂/∂Σ_ij, row by row backward. An
-alias row has no Σ of its own: its adjoint adds to row i_f's, so the result is the exact
-derivative of the computation with the steady state held (equal to the derivative
-without it to about the steady state's tolerance times the transient's length; tested).
+the rows after k_R are reversed row by row (giving ∂/∂Σ for their entries), the
+Toeplitz rows column by column and through the Schur steps back to the first
+generator, ``x = y = γ / sqrt(γ_0)`` (giving ∂/∂γ_t). An alias adds its adjoint to its
+row's, so the gradient is the exact derivative of the computation with the steady state
+held (equal to the one without it to about the tolerance times the transient's length;
+tested).
+
+Storage: row i of L is ``Lr[i, s] = L_{i, i-d+s}``, s = 0..d-1 (zero before column 0);
+y, ω and the solve's accumulator are padded with d leading zeros (row i at i + d), so
+every inner loop runs over contiguous memory. Inner loops index with unsigned integers
+(``U``) and never slice: numba then needs neither wraparound checks nor reference counts
+there, and LLVM vectorizes them.
 """
 
 from __future__ import annotations
@@ -35,6 +51,18 @@ from numba import njit
 
 from models.maxent import FREEZE_RTOL, HALF_LOG_2PI
 
+#: The Schur columns count as stationary once d + 1 consecutive steps change x by at most
+#: FREEZE_RTOL relative and y (which drives every later change of x, to second order) is below
+#: this fraction of x.
+Y_RTOL = 1e-7
+
+#: numba options of the kernels here: contracted and reassociated sums (vectorized dot products).
+FASTMATH = {"contract", "reassoc"}
+
+
+#: Unsigned index type of the inner loops (module docstring).
+U = np.uint64
+
 
 @njit(cache=True, inline="always")
 def _row(j, i_f, i_e):
@@ -44,96 +72,104 @@ def _row(j, i_f, i_e):
     return j
 
 
-@njit(cache=True, inline="always")
-def _sigma(i, t, k_R, gam, tailS):
-    if i <= k_R:
-        return gam[t]
-    return tailS[i, t]
-
-
-@njit(cache=True, fastmath={"contract", "reassoc"}, error_model="numpy")
-def _schur_step(x, y, xn, yn):
-    """One step of the Schur algorithm: the generator of the next Schur complement (returns ρ)."""
-    d = x.shape[0] - 1
-    rho = y[1] / x[0] if d > 0 else 0.0
-    c = math.sqrt(1.0 - rho * rho)
-    ic = 1.0 / c
-    for j in range(d):
-        xn[j] = (x[j] - rho * y[j + 1]) * ic
-    xn[d] = x[d] * ic
-    yn[0] = 0.0
-    for j in range(1, d):
-        yn[j] = c * y[j + 1] - rho * xn[j]
-    if d > 0:
-        yn[d] = -rho * xn[d]
-    return rho
-
-
-@njit(cache=True, fastmath={"contract", "reassoc"}, error_model="numpy")
-def _schur_step_adjoint(x, y, xn, yn, xbn, ybn, xb, yb):
-    """Reverse of :func:`_schur_step`: from the adjoints (xbn, ybn) of (xn, yn) to (xb, yb) (overwritten)."""
-    d = x.shape[0] - 1
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def _schur_step(XY, k, d):
+    """The generator XY[k + 1, 0:2] of the next Schur complement from XY[k, 0:2] (x, y, length d + 1)."""
+    a = U(k)
+    b = U(k + 1)
+    ud = U(d)
     if d == 0:
-        xb[0] = xbn[0]
-        yb[0] = 0.0
+        XY[b, 0, 0] = XY[a, 0, 0]
+        XY[b, 1, 0] = 0.0
         return
-    rho = y[1] / x[0]
+    rho = XY[a, 1, 1] / XY[a, 0, 0]
     c = math.sqrt(1.0 - rho * rho)
     ic = 1.0 / c
-    cb = 0.0
-    rb = 0.0
-    # y'_j = c ỹ_j - ρ x'_j (j >= 1; y'_0 = 0 is a constant), ỹ_j = y_{j+1}, ỹ_d = 0
-    for j in range(d + 1):
-        xb[j] = 0.0
-        yb[j] = 0.0
-    for j in range(1, d + 1):
-        g = ybn[j]
-        yt = y[j + 1] if j < d else 0.0
-        cb += g * yt
-        rb -= g * xn[j]
-        if j < d:
-            yb[j + 1] += c * g
-    # x'_j = (x_j - ρ ỹ_j) / c
-    for j in range(d + 1):
-        g = xbn[j] - rho * (ybn[j] if j > 0 else 0.0)
-        yt = y[j + 1] if j < d else 0.0
-        xb[j] += g * ic
-        if j < d:
-            yb[j + 1] -= rho * g * ic
-        rb -= g * yt * ic
-        cb -= g * xn[j] * ic
+    for j in range(ud):
+        XY[b, 0, j] = (XY[a, 0, j] - rho * XY[a, 1, j + U(1)]) * ic
+    XY[b, 0, ud] = XY[a, 0, ud] * ic
+    for j in range(ud):
+        XY[b, 1, j] = c * XY[a, 1, j + U(1)] - rho * XY[b, 0, j]
+    XY[b, 1, 0] = 0.0
+    XY[b, 1, ud] = -rho * XY[b, 0, ud]
+
+
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def _schur_step_adjoint(XY, k, d):
+    """Reverse of :func:`_schur_step`: the adjoints XY[k - 1, 2:4] of (x, y) at k - 1, overwritten,
+    from those of step k.
+
+    Forward, with ỹ_j = y_{j+1} (ỹ_d = 0), ρ = ỹ_0 / x_0, c = sqrt(1 - ρ²):
+    ``x'_j = (x_j - ρ ỹ_j) / c`` and ``y'_j = c ỹ_j - ρ x'_j`` (j >= 1; y'_0 = 0 is a constant).
+    """
+    a = U(k - 1)
+    b = U(k)
+    ud = U(d)
+    one = U(1)
+    if d == 0:
+        XY[a, 2, 0] = XY[b, 2, 0]
+        XY[a, 3, 0] = 0.0
+        return
+    x0 = XY[a, 0, 0]
+    rho = XY[a, 1, 1] / x0
+    c = math.sqrt(1.0 - rho * rho)
+    ic = 1.0 / c
+    XY[a, 3, 0] = 0.0
+    # g_j: the whole adjoint of x'_j (its own plus through y'_j, j >= 1)
+    g0 = XY[b, 2, 0]
+    XY[a, 2, 0] = g0 * ic
+    XY[a, 3, 1] = -rho * g0 * ic
+    rb = -g0 * XY[a, 1, 1] * ic
+    cb = -g0 * XY[b, 0, 0] * ic
+    for j in range(one, ud):
+        yt = XY[a, 1, j + one]
+        gy = XY[b, 3, j]
+        xn = XY[b, 0, j]
+        g = XY[b, 2, j] - rho * gy
+        cb += gy * yt - g * xn * ic
+        rb -= gy * xn + g * yt * ic
+        XY[a, 2, j] = g * ic
+        XY[a, 3, j + one] = c * gy - rho * g * ic
+    gy = XY[b, 3, ud]
+    xn = XY[b, 0, ud]
+    g = XY[b, 2, ud] - rho * gy
+    rb -= gy * xn
+    cb -= g * xn * ic
+    XY[a, 2, ud] = g * ic
     rb -= cb * rho * ic  # c = sqrt(1 - ρ²)
-    yb[1] += rb / x[0]  # ρ = y_1 / x_0
-    xb[0] -= rb * rho / x[0]
+    XY[a, 3, 1] += rb / x0  # ρ = y_1 / x_0
+    XY[a, 2, 0] -= rb * rho / x0
 
 
-@njit(cache=True, fastmath={"contract", "reassoc"}, error_model="numpy")
-def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, y, om, q, Lbar, Dbar, Sbar, w, wb, XY, gbar):
-    """log N(r; 0, Σ), ω = Σ⁻¹ r and ∂/∂Σ (band), for Σ of bandwidth d.
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar, Sbar, w, wb, XY, gbar):
+    """log N(r; 0, Σ), ω = Σ⁻¹ r, ∂/∂γ (Toeplitz rows) and ∂/∂Σ (the other rows), Σ of bandwidth d.
 
     Parameters
     ----------
     d : int
         Bandwidth (the delay in samples).
     gam : ndarray, shape (d + 1,)
-        ``Σ_{i, i-t}`` for rows i <= k_R (Toeplitz).
+        ``γ_t = Σ_{i, i-t}`` of the rows i <= k_R.
     k_R : int
         Last Toeplitz row (-1: none).
     tailS : ndarray, shape (K, d + 1)
-        ``Σ_{i, i-t}`` for rows i > k_R (only those rows are read).
+        ``Σ_{i, i-t}`` for the rows i > k_R (only those rows are read).
     r : ndarray, shape (K,)
     freeze : bool
         Hold the factorization once stationary (module docstring).
-    Lr, D, y, om, q, Lbar, Dbar, w, wb : ndarray
-        Scratch of shapes (K, dd), (K,), (K,), (K,), (K,), (K, dd), (K,), (dd + 1,),
-        (dd + 1,) with dd = max(d, 1); ``om`` holds ω on return.
-    Sbar : ndarray, shape (K, d + 1)
-        Out: ``∂ log N / ∂Σ_{i, i-t}`` for the rows i > k_R (Σ_{i, i-t} = Σ_{i-t, i} is
-        one number).
-    XY : ndarray, shape (K + 1, 4, d + 1)
-        Scratch: the Schur generators, and their adjoints.
-    gbar : ndarray, shape (d + 1,)
-        Out: ``∂ log N / ∂γ_t`` through the Toeplitz rows.
+    Lr, D, Lbar, Dbar : ndarray, shapes (K, >= d), (K,), (K, >= d), (K,)
+        Scratch: rows of L (module docstring), D, and their adjoints.
+    yb_, ob_, q : ndarray, shape (>= K + d,)
+        Scratch, padded: the innovations y, then ω (returned: ``ob_[d:K + d]``), the solve's accumulator.
+    Sbar : ndarray, shape (K, >= d + 1)
+        Out: ``∂ log N / ∂Σ_{i, i-t}`` for the rows i > k_R (Σ_{i, i-t} = Σ_{i-t, i} is one number).
+    w, wb : ndarray, shape (>= d + 1,)
+        Scratch.
+    XY : ndarray, shape (K + 1, 4, >= d + 1)
+        Scratch: the Schur generators and their adjoints.
+    gbar : ndarray, shape (>= d + 1,)
+        Out: ``∂ log N / ∂γ_t``, t = 0..d.
 
     Returns
     -------
@@ -141,142 +177,195 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, y, om, q, Lbar, Dbar, Sb
         The log-density and the alias range (i_f, i_e]; i_f = i_e = -1 without aliases.
     """
     K = r.shape[0]
+    ud = U(d)
     nA = min(k_R + 1, K)
     i_f = -1
     i_e = -1
     k_f = nA  # first step whose generator is the steady one
-    # ---- phase A: Toeplitz rows 0..nA-1 by the Schur algorithm on the generators
+    count = 0
+    for i in range(min(d, K)):  # the padding before column 0
+        for s in range(U(d - i)):
+            Lr[i, s] = 0.0
+    for s in range(ud):
+        yb_[s] = 0.0
+        ob_[s] = 0.0
+        w[s] = 0.0
+    # ---- Toeplitz rows 0..nA-1: the Schur algorithm
     if nA > 0:
-        s = 1.0 / math.sqrt(gam[0])
-        for j in range(d + 1):
-            XY[0, 0, j] = gam[j] * s
-            XY[0, 1, j] = gam[j] * s
+        sc = 1.0 / math.sqrt(gam[0])
+        for j in range(ud + U(1)):
+            XY[0, 0, j] = gam[j] * sc
+            XY[0, 1, j] = gam[j] * sc
         XY[0, 1, 0] = 0.0
         for k in range(nA):
-            src = min(k, k_f)
-            x = XY[src, 0]
-            x0 = x[0]
+            kx = U(min(k, k_f))
+            x0 = XY[kx, 0, 0]
             D[k] = x0 * x0
+            ix0 = 1.0 / x0
             for t in range(1, min(d, nA - 1 - k) + 1):
-                Lr[k + t, t - 1] = x[t] / x0
-            if k_f < nA and k >= k_f + d:
-                break  # all later rows are the steady row
+                Lr[k + t, d - t] = XY[kx, 0, t] * ix0
+            if k >= k_f + d:
+                break  # every later row is the steady row
             if k + 1 < nA and k < k_f:
-                _schur_step(XY[k, 0], XY[k, 1], XY[k + 1, 0], XY[k + 1, 1])
+                _schur_step(XY, k, d)
                 if freeze:
+                    a = U(k)
+                    b = U(k + 1)
                     num = 0.0
                     den = 0.0
-                    for j in range(d + 1):
-                        num += abs(XY[k + 1, 0, j] - XY[k, 0, j]) + abs(XY[k + 1, 1, j] - XY[k, 1, j])
-                        den += abs(XY[k + 1, 0, j]) + abs(XY[k + 1, 1, j])
-                    if num <= FREEZE_RTOL * den:
+                    ny = 0.0
+                    for j in range(ud + U(1)):
+                        num += abs(XY[b, 0, j] - XY[a, 0, j])
+                        den += abs(XY[b, 0, j])
+                        ny += abs(XY[b, 1, j])
+                    count = count + 1 if num <= FREEZE_RTOL * den else 0
+                    if count > d and ny <= Y_RTOL * den:
                         k_f = k + 1
         if k_f + d < nA - 1:
             i_f = k_f + d
             i_e = nA - 1
-    # ---- phase B: rows after k_R, L D Lᵀ row by row
+    # ---- rows after k_R: L D Lᵀ row by row (Lr[i, s] = L_{i, j}, j = i - d + s)
     for i in range(nA, K):
-        nt = min(i, d)
-        for t in range(nt, 0, -1):
-            rj = _row(i - t, i_f, i_e)
-            acc = tailS[i, t]
-            for s in range(t + 1, nt + 1):
-                acc -= w[s] * Lr[rj, s - t - 1]
-            w[t] = acc
-            Lr[i, t - 1] = acc / D[rj]
-        acc = tailS[i, 0]
-        for t in range(1, nt + 1):
-            acc -= w[t] * Lr[i, t - 1]
+        ui = U(i)
+        s0 = max(0, d - i)
+        for s in range(s0, d):
+            rj = U(_row(i - d + s, i_f, i_e))
+            o = U(d - s)
+            acc = tailS[ui, o]
+            for u in range(U(s)):
+                acc -= w[u] * Lr[rj, o + u]
+            w[s] = acc
+            Lr[ui, s] = acc / D[rj]
+        acc = tailS[ui, 0]
+        for s in range(ud):
+            acc -= w[s] * Lr[ui, s]
         D[i] = acc
     for i in range(K):
         if not (i_f < i <= i_e):
-            for t in range(min(i, d)):
-                Lbar[i, t] = 0.0
+            for s in range(ud):
+                Lbar[i, s] = 0.0
             Dbar[i] = 0.0
-    # ---- innovations y = L⁻¹ r, log-density
+    # ---- innovations y = L⁻¹ r and the log-density (rows lo..hi-1 are the steady row i_f)
+    lo = i_f + 1 if i_f >= 0 else K
+    hi = i_e + 1 if i_f >= 0 else K
     quad = 0.0
     logs = 0.0
+    prod = 1.0
     for i in range(K):
-        ri = _row(i, i_f, i_e)
-        nt = min(i, d)
+        if lo <= i < hi:
+            continue
+        ui = U(i)
         acc = r[i]
-        for t in range(1, nt + 1):
-            acc -= Lr[ri, t - 1] * y[i - t]
-        y[i] = acc
-        quad += acc * acc / D[ri]
-        if ri == i:
-            logs += math.log(D[i])
-    if i_f >= 0:
-        logs += (i_e - i_f) * math.log(D[i_f])
+        for s in range(ud):
+            acc -= Lr[ui, s] * yb_[ui + s]
+        yb_[i + d] = acc
+        quad += acc * acc / D[i]
+        prod *= D[i]
+        if i % 16 == 15:  # one log per 16 rows
+            logs += math.log(prod)
+            prod = 1.0
+        if i + 1 == lo:
+            uf = U(i_f)
+            qa = 0.0
+            for m in range(lo, hi):
+                um = U(m)
+                acc = r[m]
+                for s in range(ud):
+                    acc -= Lr[uf, s] * yb_[um + s]
+                yb_[m + d] = acc
+                qa += acc * acc
+            quad += qa / D[i_f]
+            logs += (hi - lo) * math.log(D[i_f])
+    logs += math.log(prod)
     ll = -0.5 * quad - 0.5 * logs - K * HALF_LOG_2PI
-    # ---- ω = L⁻ᵀ D⁻¹ y (q accumulates the subtracted terms)
-    for i in range(K):
+    # ---- ω = L⁻ᵀ D⁻¹ y
+    for i in range(K + d):
         q[i] = 0.0
     for i in range(K - 1, -1, -1):
-        ri = _row(i, i_f, i_e)
-        o = y[i] / D[ri] - q[i]
-        om[i] = o
-        for t in range(1, min(i, d) + 1):
-            q[i - t] += Lr[ri, t - 1] * o
-    # ---- reverse pass: rows (phase B rows through their recursion)
+        ri = U(_row(i, i_f, i_e))
+        ui = U(i)
+        o = yb_[i + d] / D[ri] - q[i + d]
+        ob_[i + d] = o
+        for s in range(ud):
+            q[ui + s] += Lr[ri, s] * o
+    # ---- reverse: ∂/∂L and ∂/∂D of every row; rows after k_R through their recursion
+    if lo < hi:
+        uf = U(i_f)
+        iD = 1.0 / D[i_f]
+        n = U(hi - lo)
+        a = U(lo + d)
+        for s in range(ud):
+            acc = 0.0
+            b = U(lo) + s
+            for m in range(n):
+                acc += ob_[a + m] * yb_[b + m]
+            Lbar[uf, s] += acc
+        acc = 0.0
+        for m in range(n):
+            acc += yb_[a + m] * yb_[a + m]
+        Dbar[i_f] += 0.5 * (acc * iD - (hi - lo)) * iD
     for i in range(K - 1, -1, -1):
-        ri = _row(i, i_f, i_e)
-        nt = min(i, d)
-        o = om[i]
-        for t in range(1, nt + 1):
-            Lbar[ri, t - 1] += o * y[i - t]
-        Dr = D[ri]
-        Dbar[ri] += 0.5 * (y[i] * y[i] / Dr - 1.0) / Dr
+        if lo <= i < hi:
+            continue
+        ui = U(i)
+        o = ob_[i + d]
+        for s in range(ud):
+            Lbar[ui, s] += o * yb_[ui + s]
+        Dr = D[i]
+        yi = yb_[i + d]
+        Dbar[i] += 0.5 * (yi * yi / Dr - 1.0) / Dr
         if i < nA:
             continue
         db = Dbar[i]
-        Sbar[i, 0] = db
-        for t in range(1, nt + 1):
-            rj = _row(i - t, i_f, i_e)
-            lt = Lr[i, t - 1]
+        Sbar[ui, 0] = db
+        s0 = max(0, d - i)
+        for s in range(s0, d):
+            rj = _row(i - d + s, i_f, i_e)
+            lt = Lr[ui, s]
             Dj = D[rj]
-            w[t] = lt * Dj
-            wb[t] = Lbar[i, t - 1] / Dj - 2.0 * lt * db
-            Dbar[rj] += lt * lt * db - Lbar[i, t - 1] * lt / Dj
-        for t in range(1, nt + 1):
-            rj = _row(i - t, i_f, i_e)
-            g = wb[t]
-            Sbar[i, t] = g
-            for s in range(t + 1, nt + 1):
-                wb[s] -= g * Lr[rj, s - t - 1]
-                Lbar[rj, s - t - 1] -= g * w[s]
-    # ---- reverse pass: phase A columns, then the Schur steps back to the initial generator
+            lb = Lbar[ui, s]
+            w[s] = lt * Dj
+            wb[s] = lb / Dj - 2.0 * lt * db
+            Dbar[rj] += lt * lt * db - lb * lt / Dj
+        for s in range(d - 1, s0 - 1, -1):
+            rj = U(_row(i - d + s, i_f, i_e))
+            o = U(d - s)
+            g = wb[s]
+            Sbar[ui, o] = g
+            for u in range(U(s)):
+                wb[u] -= g * Lr[rj, o + u]
+            for u in range(U(s)):
+                Lbar[rj, o + u] -= g * w[u]
+    # ---- reverse: Toeplitz columns, then the Schur steps back to the first generator
     for j in range(d + 1):
         gbar[j] = 0.0
     if nA > 0:
         last = min(nA - 1, k_f)
-        for j in range(d + 1):
+        for j in range(ud + U(1)):
             XY[last, 2, j] = 0.0
             XY[last, 3, j] = 0.0
-        top = min(nA - 1, i_f) if i_f >= 0 else nA - 1
+        top = i_f if i_f >= 0 else nA - 1
         for k in range(top, -1, -1):
-            # column k's entries: L_{k+t,k} = x_t / x_0 (rows k + t <= top), D_k = x_0²
-            kk = min(k, k_f)
-            x = XY[kk, 0]
-            x0 = x[0]
-            xb = XY[kk, 2]
+            # column k: L_{k+t,k} = x_t / x_0 (rows k + t <= top hold it), D_k = x_0²
+            kk = U(min(k, k_f))
+            x0 = XY[kk, 0, 0]
+            ix0 = 1.0 / x0
             acc = 2.0 * x0 * Dbar[k]
             for t in range(1, min(d, top - k) + 1):
-                lb = Lbar[k + t, t - 1]
-                xb[t] += lb / x0
-                acc -= lb * x[t] / (x0 * x0)
-            xb[0] += acc
+                lb = Lbar[k + t, d - t] * ix0
+                XY[kk, 2, t] += lb
+                acc -= lb * XY[kk, 0, t] * ix0
+            XY[kk, 2, 0] += acc
             if 0 < k <= k_f:
-                _schur_step_adjoint(XY[k - 1, 0], XY[k - 1, 1], XY[k, 0], XY[k, 1], XY[k, 2], XY[k, 3],
-                                    XY[k - 1, 2], XY[k - 1, 3])
-        s = 1.0 / math.sqrt(gam[0])
+                _schur_step_adjoint(XY, k, d)
+        sc = 1.0 / math.sqrt(gam[0])
         acc = 0.0
         for j in range(d + 1):
             g = XY[0, 2, j] + (XY[0, 3, j] if j > 0 else 0.0)
-            gbar[j] += g * s
+            gbar[j] = g * sc
             acc += g * gam[j]
-        gbar[0] -= 0.5 * s * s * s * acc
+        gbar[0] -= 0.5 * sc * sc * sc * acc
     return ll, i_f, i_e
 
 
-__all__ = ["banded_loglik"]
+__all__ = ["FASTMATH", "U", "banded_loglik"]

@@ -26,16 +26,20 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from models.delayed.innovations import banded_loglik
-from models.delayed.riccati import plan_recursion
+from models.delayed.innovations import FASTMATH, U, banded_loglik
+from models.delayed.riccati import plan_adjoint, plan_recursion
 
 
-@njit(cache=True, fastmath={"contract"}, error_model="numpy")
-def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, r, u, ua, freeze, sc, out):
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, r, u, ua, freeze, sc, out, inn):
     """Log-likelihood and gradient of one segment, written into ``out`` (8,): ll, then
-    d/d[q11, q22, R, τ_nm, σ_m], then (as floats) k_R and the steady-state row i_f (-1: none). ``sc`` is the scratch tuple of :func:`make_scratch`."""
+    d/d[q11, q22, R, τ_nm, σ_m], then (as floats) k_R and the steady-state row i_f (-1: none).
+
+    ``sc`` is the scratch tuple of :func:`make_scratch`. If ``inn`` has K entries it receives
+    the standardized innovations ``y_k / sqrt(D_k)`` (iid N(0, 1) under the model).
+    """
     (f, df, S_t, L_t, dS_t, dL_t, cst, tau, ct, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
-     Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar) = sc
+     Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar, tailP, W, adj) = sc
     K = u.shape[0]
     # ---- planning plant and its derivatives in (q11, q22, a, α)
     Ab = np.zeros((3, 3))
@@ -54,7 +58,8 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
     dAb[3, 1, 2] = b[1]
     dbc[3, 0] = -b[0]
     dbc[3, 1] = -b[1]
-    k_R = plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K, freeze, f, df, S_t, L_t, dS_t, dL_t, cst)
+    k_R, k_z = plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K, freeze, f, df, S_t, L_t, dS_t, dL_t, cst,
+                              adj, W)
     Sc = cst[0]
     # ---- data: arm torque, effective command, residual
     tau[0] = tau0
@@ -99,21 +104,32 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
         gam[t] = s2 * acc
     if k_R >= 0:
         gam[0] += 0.5 / Sc
+    # rows k_R - d + 1 .. k_R are the tail rows' partners: give them the stationary coefficients
+    lo_t = max(0, k_R - d + 1)
+    for i in range(lo_t, min(k_R + 1, K)):
+        for j in range(d + 1):
+            ctail[i, j] = cs[j]
     for i in range(k_R + 1, K):
         ctail[i, 0] = 1.0
         for j in range(1, d + 1):
             ctail[i, j] = L_t[i, 0] * g[j - 1, 0] + L_t[i, 1] * g[j - 1, 1] + L_t[i, 2] * g[j - 1, 2]
     for i in range(k_R + 1, K):
+        ui = U(i)
         for t in range(min(i, d) + 1):
-            ip = i - t
+            up = U(i - t)
+            ut = U(t)
             acc = 0.0
-            for j in range(t, d + 1):
-                acc += ctail[i, j] * (ctail[ip, j - t] if ip > k_R else cs[j - t])
-            tailS[i, t] = s2 * acc
-        tailS[i, 0] += 0.5 / S_t[i]
+            for j in range(U(d + 1 - t)):
+                acc += ctail[ui, ut + j] * ctail[up, j]
+            tailP[ui, ut] = acc
+            tailS[ui, ut] = s2 * acc
+        tailS[ui, 0] += 0.5 / S_t[i]
     # ---- Gaussian log-density of the residuals and ∂/∂Σ
-    ll, i_f, i_e = banded_loglik(d, gam, k_R, tailS, rr, freeze, Lr, D, y, om, q, Lbar, Dbar, Sbar, w, wb, XY[:, :, :d + 1],
-                                 gbar[:d + 1])
+    ll, i_f, i_e = banded_loglik(d, gam, k_R, tailS, rr, freeze, Lr[:, :d], D, y[:K + d], om[:K + d], q[:K + d],
+                                 Lbar[:, :d], Dbar, Sbar, w, wb, XY[:, :, :d + 1], gbar[:d + 1])
+    if inn.shape[0] == K:
+        for k in range(K):
+            inn[k] = y[d + k] / math.sqrt(D[i_f if i_f < k <= i_e else k])
     # ---- adjoints of the MA coefficients, of 1/(2S) and of σ_m²
     s2bar = 0.0
     for j in range(d + 1):
@@ -127,23 +143,25 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
             cbs[j] += s2 * gam[t] * cs[j - t]
             cbs[j - t] += s2 * gam[t] * cs[j]
         s2bar += gam[t] * acc
-    for i in range(k_R + 1, K):
+    for i in range(lo_t, K):
         for j in range(d + 1):
             cbt[i, j] = 0.0
     for i in range(k_R + 1, K):
+        ui = U(i)
         for t in range(min(i, d) + 1):
-            ip = i - t
-            sb = Sbar[i, t]
-            acc = 0.0
-            for j in range(t, d + 1):
-                cp = ctail[ip, j - t] if ip > k_R else cs[j - t]
-                acc += ctail[i, j] * cp
-                cbt[i, j] += s2 * sb * cp
-                if ip > k_R:
-                    cbt[ip, j - t] += s2 * sb * ctail[i, j]
-                else:
-                    cbs[j - t] += s2 * sb * ctail[i, j]
-            s2bar += sb * acc
+            up = U(i - t)
+            ut = U(t)
+            sb = Sbar[ui, ut]
+            fs = s2 * sb
+            n = U(d + 1 - t)
+            for j in range(n):
+                cbt[ui, ut + j] += fs * ctail[up, j]
+            for j in range(n):
+                cbt[up, j] += fs * ctail[ui, ut + j]
+            s2bar += sb * tailP[ui, ut]
+    for i in range(lo_t, min(k_R + 1, K)):
+        for j in range(d + 1):
+            cbs[j] += cbt[i, j]
     # c̄ -> L̄ (per tail row, summed over the stationary rows) and ḡ
     for j in range(d):
         for i in range(3):
@@ -163,11 +181,14 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
                 gb[j, m] += cb * L_t[i, m]
     # ---- the residual's path: r̄ = -ω; chain to the tangents
     G = np.zeros(4)
+    if k_z > 0:  # f_k of the stationary plan: one adjoint sweep
+        plan_adjoint(bc, dbc, Sc, cst[4:8], r, ua, om[d:d + K], K, k_z, adj, W, G)
     hom = 0.0  # sum_k S_k ∂/∂S_k
     for k in range(K):
-        o = om[k]
-        for p in range(4):
-            G[p] += o * df[k, p]
+        o = om[d + k]
+        if k >= k_z:
+            for p in range(4):
+                G[p] += o * df[k, p]
         G[2] -= o * (dct[k, 0])
         G[3] -= o * (dct[k, 1])
         if k <= k_R:
@@ -215,21 +236,23 @@ def make_scratch(K, KM, dmax):
     return (np.empty(K), np.empty((K, 4)), np.empty(K), np.empty((K, 3)), np.empty((K, 4)), np.empty((K, 4, 3)),
             np.zeros(20), np.empty(K + 1), np.empty(K), np.empty((K + 1, 2)), np.empty((K, 2)), np.empty(K),
             np.empty((dd, 3)), np.empty((dd, 2, 3)), np.empty(dmax + 1), np.empty((K, dmax + 1)),
-            np.empty((K, dmax + 1)), np.empty((K, dd)), np.empty(K), np.empty(K), np.empty(K), np.empty(K),
-            np.empty((K, dd)), np.empty(K), np.empty((K, dmax + 1)), np.empty(dd + 1), np.empty(dd + 1),
+            np.empty((K, dmax + 1)), np.empty((K, dd)), np.empty(K), np.empty(K + dmax), np.empty(K + dmax),
+            np.empty(K + dmax), np.empty((K, dd)), np.empty(K), np.empty((K, dmax + 1)), np.empty(dd + 1), np.empty(dd + 1),
             np.empty((K, dmax + 1)), np.empty(dmax + 1), np.empty((dd, 3)), np.empty((K, 3)),
-            np.empty((K + 1, 4, dmax + 1)), np.empty(dmax + 1))
+            np.empty((K + 1, 4, dmax + 1)), np.empty(dmax + 1), np.empty((K, dmax + 1)), np.empty((KM, 3)),
+            (np.empty((3, 3)), np.empty(3), np.empty((4, 3, 3)), np.empty((4, 3)), np.empty((4, 3))))
 
 
 @njit(cache=True, parallel=True)
-def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, x1, x2, r, u, ua, freeze, nchunks, out):
+def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
     """Every segment of a batch, each on its own, in ``nchunks`` parallel chunks.
 
     Arguments are C-contiguous float64 arrays (``delay`` int64): the wheel ``A`` (2, 2),
     ``b`` (2,); ``fb`` (n, 2); ``th`` (3, n) rows q11, q22, R; ``lag`` (4, n) rows a, α,
     da/dτ_nm, dα/dτ_nm; ``sig`` (n,) σ_m; ``delay`` (n,); ``tau0`` (n,); the arrays of a
     :class:`models.segment.SegmentBatch`; output ``out`` (6, n): log-likelihood, then
-    the gradient in q11, q22, R, τ_nm, σ_m.
+    the gradient in q11, q22, R, τ_nm, σ_m; ``inn`` (n, K) receives the standardized
+    innovations, or has shape (n, 0) to skip them.
     """
     n = u.shape[0]
     K = u.shape[1]
@@ -241,7 +264,7 @@ def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, x1, x2, r, u, ua, freeze, 
         res = np.empty(8)
         for i in range(c, n, nchunks):
             segment_kernel(A, b, fb[i], th[0, i], th[1, i], th[2, i], lag[0, i], lag[1, i], lag[2, i], lag[3, i],
-                           sig[i], delay[i], tau0[i], x1[i], x2[i], r[i], u[i], ua[i], freeze, sc, res)
+                           sig[i], delay[i], tau0[i], x1[i], x2[i], r[i], u[i], ua[i], freeze, sc, res, inn[i])
             for m in range(6):
                 out[m, i] = res[m]
 

@@ -125,6 +125,35 @@ def _per_segment(value, n: int, name: str, *, integer: bool = False, minimum: fl
     return out
 
 
+def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, delay, tau0, freeze: bool,
+         params: WheelParameters, with_innovations: bool):
+    """Validate the parameters, call the batch kernel; (out (6, n), innovations (n, K or 0))."""
+    if not isinstance(batch, SegmentBatch):
+        raise TypeError(f"batch must be a models.segment.SegmentBatch (prepare_batch); got {type(batch).__name__}")
+    n = batch.n
+    th = validate_theta(theta)
+    if th.ndim == 2 and th.shape[1] != n:
+        raise ValueError(f"theta must have shape (3,) or (3, {n}); got {th.shape}")
+    # always a fresh C array: one compiled specialization, and a segment's bits never depend on the caller's layout
+    th = np.array(np.broadcast_to(th.reshape(3, -1), (3, n)), dtype=np.float64, order="C")
+    tau = _per_segment(tau_nm, n, "tau_nm")
+    sig = _per_segment(sigma_m, n, "sigma_m")
+    d = _per_segment(delay, n, "delay", integer=True)
+    t0 = _per_segment(tau0, n, "tau0", minimum=None)
+    check_wheel(plant, params)
+    lag = np.empty((4, n))
+    values, inverse = np.unique(tau, return_inverse=True)
+    coef = lag_coefficients(values, plant.dt, params)
+    for row, v in enumerate(coef):
+        lag[row] = np.asarray(v)[inverse]
+    out = np.empty((6, n))
+    inn = np.empty((n, batch.K if with_innovations else 0))
+    batch_kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, lag, sig, d, t0,
+                 batch.x1, batch.x2, batch.r, batch.u, batch.a, bool(freeze), max(1, min(n, get_num_threads())), out,
+                 inn)
+    return out, inn
+
+
 def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0, sigma_m=0.0, delay=0, tau0=0.0,
                 freeze: bool = True, params: WheelParameters = WheelParameters()) -> DelayedLoglikGrad:
     """Exact log-likelihood of the ``delayed`` human and its gradient, per segment of a batch.
@@ -166,25 +195,25 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0,
     >>> res.loglik.shape, res.grad.shape
     ((1,), (5, 1))
     """
-    n = batch.n
-    th = validate_theta(theta)
-    if th.ndim == 2 and th.shape[1] != n:
-        raise ValueError(f"theta must have shape (3,) or (3, {n}); got {th.shape}")
-    th = np.array(np.broadcast_to(th.reshape(3, -1), (3, n)), dtype=np.float64, order="C")
-    tau = _per_segment(tau_nm, n, "tau_nm")
-    sig = _per_segment(sigma_m, n, "sigma_m")
-    d = _per_segment(delay, n, "delay", integer=True)
-    t0 = _per_segment(tau0, n, "tau0", minimum=None)
-    check_wheel(plant, params)
-    lag = np.empty((4, n))
-    values, inverse = np.unique(tau, return_inverse=True)
-    coef = lag_coefficients(values, plant.dt, params)
-    for row, v in enumerate(coef):
-        lag[row] = np.asarray(v)[inverse]
-    out = np.empty((6, n))
-    batch_kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, lag, sig, d, t0,
-                 batch.x1, batch.x2, batch.r, batch.u, batch.a, bool(freeze), max(1, min(n, get_num_threads())), out)
+    out, _ = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, freeze, params, False)
     return DelayedLoglikGrad(out[0].copy(), out[1:].copy())
 
 
-__all__ = ["DelayedLoglikGrad", "PARAMETERS", "loglik_grad"]
+def innovations(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0, sigma_m=0.0, delay=0, tau0=0.0,
+                params: WheelParameters = WheelParameters()) -> np.ndarray:
+    """Standardized innovations ``y_k / sqrt(D_k)`` of every segment: iid N(0, 1) if the model holds.
+
+    The innovations of the residuals r (module docstring) against their own past,
+    divided by their SD (the Kalman filter's innovations over the motor noises); the
+    log-likelihood is ``sum_k -½ e_k² - ½ log(2π D_k)`` plus the lag's Jacobian.
+    Arguments as :func:`loglik_grad`.
+
+    Returns
+    -------
+    ndarray, shape (n, K)
+    """
+    _, inn = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, True, params, True)
+    return inn
+
+
+__all__ = ["DelayedLoglikGrad", "PARAMETERS", "innovations", "loglik_grad"]

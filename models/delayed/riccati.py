@@ -14,9 +14,11 @@ tangent of P is ``dP_k = dQ + M_kᵀ dP M_k + D_kᵀ P M_k + M_kᵀ P D_k`` with
 ``D_k = dA - db_c L_kᵀ`` at fixed L.
 
 As in :mod:`models.maxent`, P and its tangents become stationary some hundred steps
-from the end; from there on S, L, M, P b_a and their tangents are constants and only
-the s-recursion (which carries the reference and the known input) runs, with its four
-tangents, so that every observed step gets f_k and df_k.
+from the end (step k_z); from there on S, L, M, P b_a and their tangents are constants
+and only the s-recursion (which carries the reference and the known input) runs,
+without tangents: the derivative of ``sum_k ω_k f_k`` over those steps, all the
+likelihood needs of them, comes from one forward adjoint sweep
+(:func:`plan_adjoint`) once ω is known.
 """
 
 from __future__ import annotations
@@ -30,25 +32,15 @@ from models.maxent import FREEZE_RTOL
 DIRECTIONS = ("q11", "q22", "a", "alpha")
 
 
-@njit(cache=True, inline="always")
-def _rel_change(new, old):
-    num = 0.0
-    den = 0.0
-    for i in range(3):
-        for j in range(3):
-            num += abs(new[i, j] - old[i, j])
-            den += abs(new[i, j])
-    return num <= FREEZE_RTOL * den
-
-
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
-def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, df, S_t, L_t, dS_t, dL_t, cst):
-    """Run the recursion backward over the plan's K + M steps; return k_R.
+def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, df, S_t, L_t, dS_t, dL_t, cst, adj, W):
+    """Run the recursion backward over the plan's K + M steps; return (k_R, k_z).
 
     Parameters
     ----------
     Ab, bc, ba : ndarray, shapes (3, 3), (3,), (3,)
-        The planning plant (closed by the assistant's feedback), command and known-input vectors.
+        The planning plant (closed by the assistant's feedback), command and known-input
+        vectors; ``ba[2]`` must be 0.
     dAb, dbc : ndarray, shapes (4, 3, 3), (4, 3)
         Their derivatives in the :data:`DIRECTIONS` (zero for q11 and q22).
     q11, q22, R : float
@@ -61,18 +53,25 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
     freeze : bool
         Hold the step quantities once stationary (see the module docstring).
     f, df : ndarray, shapes (K,), (K, 4)
-        Out: feedforward f_k and its tangents for the observed steps.
+        Out: feedforward f_k for the observed steps, and its tangents for the observed
+        steps k >= k_z (the others come from :func:`plan_adjoint`).
     S_t, L_t, dS_t, dL_t : ndarray, shapes (K,), (K, 3), (K, 4), (K, 4, 3)
         Out: S_k, L_k and their tangents, written for the observed steps k > k_R only.
     cst : ndarray, shape (20,)
         Out: the constants of steps k <= k_R: S, L (3), dS (4), dL (4 × 3).
+    adj : tuple of ndarray
+        Out, for :func:`plan_adjoint`: M (3, 3), P b_a (3,), dM (4, 3, 3), d(P b_a) (4, 3)
+        and the tangents of s_{k_z} (4, 3).
+    W : ndarray, shape (K + M, 3)
+        Out: ``w_k = s_{k+1} - P b_a a_k`` of the steps k < k_z.
 
     Returns
     -------
-    int
-        k_R: every observed step k <= k_R has the constant S, L of ``cst``
-        (-1: none; K - 1: all).
+    (int, int)
+        k_R: every observed step k <= k_R has the constant S, L of ``cst`` (-1: none;
+        K - 1: all); k_z: the steps k < k_z have constant step quantities (0: none).
     """
+    M, pba, dM, dpba, ds = adj
     K = ua.shape[0]
     P = np.zeros((3, 3))
     P[0, 0] = q11
@@ -82,127 +81,217 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
     dP[1, 1, 1] = 1.0
     s = np.zeros(3)
     s[0] = q11 * r[K]
-    ds = np.zeros((4, 3))
+    for p in range(4):
+        for i in range(3):
+            ds[p, i] = 0.0
     ds[0, 0] = r[K]
     Pb = np.empty(3)
     L = np.empty(3)
-    M = np.empty((3, 3))
     PM = np.empty((3, 3))
-    pba = np.empty(3)
     dPb = np.empty(3)
     dS = np.empty(4)
     dL = np.empty((4, 3))
-    dM = np.empty((4, 3, 3))
-    dpba = np.empty((4, 3))
     Dk = np.empty((3, 3))
     X = np.empty((3, 3))
     nP = np.empty((3, 3))
-    ndP = np.empty((4, 3, 3))
     w = np.empty(3)
     dw = np.empty(3)
-    ns = np.empty(3)
     S = 0.0
-    k = K - 1
     k_R = -1
+    k = K - 1
     stationary = False
-    while k >= 0:
-        if not stationary:
-            # ---- step quantities from P_{k+1} and their tangents
-            for i in range(3):
-                Pb[i] = P[i, 0] * bc[0] + P[i, 1] * bc[1] + P[i, 2] * bc[2]
-                pba[i] = P[i, 0] * ba[0] + P[i, 1] * ba[1] + P[i, 2] * ba[2]
-            S = R + bc[0] * Pb[0] + bc[1] * Pb[1] + bc[2] * Pb[2]
+    # ---- phase 1: Riccati with tangents, data step with tangents
+    while k >= 0 and not stationary:
+        for i in range(3):
+            Pb[i] = P[i, 0] * bc[0] + P[i, 1] * bc[1] + P[i, 2] * bc[2]
+            pba[i] = P[i, 0] * ba[0] + P[i, 1] * ba[1]
+        S = R + bc[0] * Pb[0] + bc[1] * Pb[1] + bc[2] * Pb[2]
+        iS = 1.0 / S
+        for j in range(3):
+            L[j] = (Pb[0] * Ab[0, j] + Pb[1] * Ab[1, j] + Pb[2] * Ab[2, j]) * iS
+        for i in range(3):
             for j in range(3):
-                L[j] = (Pb[0] * Ab[0, j] + Pb[1] * Ab[1, j] + Pb[2] * Ab[2, j]) / S
+                M[i, j] = Ab[i, j] - bc[i] * L[j]
+        for p in range(4):
+            t = 0.0
+            for i in range(3):
+                dPb[i] = dP[p, i, 0] * bc[0] + dP[p, i, 1] * bc[1] + dP[p, i, 2] * bc[2]
+                if p >= 2:
+                    dPb[i] += P[i, 0] * dbc[p, 0] + P[i, 1] * dbc[p, 1] + P[i, 2] * dbc[p, 2]
+                dpba[p, i] = dP[p, i, 0] * ba[0] + dP[p, i, 1] * ba[1]
+                t += dbc[p, i] * Pb[i] + bc[i] * dPb[i]
+            dS[p] = t  # d(b_cᵀ P b_c) = db_cᵀ Pb + b_cᵀ dPb
+            for j in range(3):
+                acc = dPb[0] * Ab[0, j] + dPb[1] * Ab[1, j] + dPb[2] * Ab[2, j] - L[j] * t
+                if p >= 2:
+                    acc += Pb[0] * dAb[p, 0, j] + Pb[1] * dAb[p, 1, j] + Pb[2] * dAb[p, 2, j]
+                dL[p, j] = acc * iS
             for i in range(3):
                 for j in range(3):
-                    M[i, j] = Ab[i, j] - bc[i] * L[j]
-            for p in range(4):
-                t = 0.0
-                for i in range(3):
-                    dPb[i] = (dP[p, i, 0] * bc[0] + dP[p, i, 1] * bc[1] + dP[p, i, 2] * bc[2]
-                              + P[i, 0] * dbc[p, 0] + P[i, 1] * dbc[p, 1] + P[i, 2] * dbc[p, 2])
-                    dpba[p, i] = dP[p, i, 0] * ba[0] + dP[p, i, 1] * ba[1] + dP[p, i, 2] * ba[2]
-                    t += dbc[p, i] * Pb[i] + bc[i] * dPb[i]
-                dS[p] = t  # d(b_cᵀ P b_c) = 2 db_cᵀ P b_c + b_cᵀ dP b_c = db_cᵀ Pb + b_cᵀ dPb
-                for j in range(3):
-                    dL[p, j] = (dPb[0] * Ab[0, j] + dPb[1] * Ab[1, j] + dPb[2] * Ab[2, j]
-                                + Pb[0] * dAb[p, 0, j] + Pb[1] * dAb[p, 1, j] + Pb[2] * dAb[p, 2, j]
-                                - L[j] * dS[p]) / S
-                for i in range(3):
-                    for j in range(3):
-                        dM[p, i, j] = dAb[p, i, j] - dbc[p, i] * L[j] - bc[i] * dL[p, j]
-            # ---- P_k and its tangents (Joseph form; envelope theorem for the tangents)
+                    dM[p, i, j] = dAb[p, i, j] - dbc[p, i] * L[j] - bc[i] * dL[p, j]
+        # P_k and its tangents (Joseph form, symmetric; envelope theorem for the tangents)
+        for i in range(3):
+            for j in range(3):
+                PM[i, j] = P[i, 0] * M[0, j] + P[i, 1] * M[1, j] + P[i, 2] * M[2, j]
+        for i in range(3):
+            for j in range(i, 3):
+                nP[i, j] = R * L[i] * L[j] + M[0, i] * PM[0, j] + M[1, i] * PM[1, j] + M[2, i] * PM[2, j]
+        nP[0, 0] += q11
+        nP[1, 1] += q22
+        num = 0.0
+        den = 0.0
+        for i in range(3):
+            for j in range(i, 3):
+                num += abs(nP[i, j] - P[i, j])
+                den += abs(nP[i, j])
+                P[i, j] = nP[i, j]
+                P[j, i] = nP[i, j]
+        stationary = freeze and num <= FREEZE_RTOL * den
+        for p in range(4):
             for i in range(3):
                 for j in range(3):
-                    PM[i, j] = P[i, 0] * M[0, j] + P[i, 1] * M[1, j] + P[i, 2] * M[2, j]
-            for i in range(3):
-                for j in range(3):
-                    nP[i, j] = R * L[i] * L[j] + M[0, i] * PM[0, j] + M[1, i] * PM[1, j] + M[2, i] * PM[2, j]
-            nP[0, 0] += q11
-            nP[1, 1] += q22
-            for p in range(4):
+                    X[i, j] = dP[p, i, 0] * M[0, j] + dP[p, i, 1] * M[1, j] + dP[p, i, 2] * M[2, j]
+            if p >= 2:
                 for i in range(3):
                     for j in range(3):
                         Dk[i, j] = dAb[p, i, j] - dbc[p, i] * L[j]
-                        X[i, j] = dP[p, i, 0] * M[0, j] + dP[p, i, 1] * M[1, j] + dP[p, i, 2] * M[2, j]
-                for i in range(3):
-                    for j in range(3):
-                        ndP[p, i, j] = M[0, i] * X[0, j] + M[1, i] * X[1, j] + M[2, i] * X[2, j]
-                if p >= 2:
-                    for i in range(3):
-                        for j in range(3):
-                            X[i, j] = Dk[0, i] * PM[0, j] + Dk[1, i] * PM[1, j] + Dk[2, i] * PM[2, j]
-                    for i in range(3):
-                        for j in range(3):
-                            ndP[p, i, j] += X[i, j] + X[j, i]
-            ndP[0, 0, 0] += 1.0
-            ndP[1, 1, 1] += 1.0
-            if freeze:
-                stationary = _rel_change(nP, P)
-                for p in range(4):
-                    stationary = stationary and _rel_change(ndP[p], dP[p])
-            P[:, :] = nP
-            dP[:, :, :] = ndP
-            if k < K_obs:
-                S_t[k] = S
+            num = 0.0
+            den = 0.0
+            for i in range(3):
+                for j in range(i, 3):
+                    v = M[0, i] * X[0, j] + M[1, i] * X[1, j] + M[2, i] * X[2, j]
+                    if p >= 2:
+                        v += (Dk[0, i] * PM[0, j] + Dk[1, i] * PM[1, j] + Dk[2, i] * PM[2, j]
+                              + Dk[0, j] * PM[0, i] + Dk[1, j] * PM[1, i] + Dk[2, j] * PM[2, i])
+                    if p < 2 and i == j == p:
+                        v += 1.0  # dQ
+                    num += abs(v - dP[p, i, j])
+                    den += abs(v)
+                    dP[p, i, j] = v
+                    dP[p, j, i] = v
+            stationary = stationary and num <= FREEZE_RTOL * den
+        if k < K_obs:
+            S_t[k] = S
+            for j in range(3):
+                L_t[k, j] = L[j]
+            for p in range(4):
+                dS_t[k, p] = dS[p]
                 for j in range(3):
-                    L_t[k, j] = L[j]
-                for p in range(4):
-                    dS_t[k, p] = dS[p]
-                    for j in range(3):
-                        dL_t[k, p, j] = dL[p, j]
-            if stationary:
-                k_R = min(k, K_obs - 1)
-                cst[0] = S
-                cst[1:4] = L
-                cst[4:8] = dS
-                for p in range(4):
-                    cst[8 + 3 * p:11 + 3 * p] = dL[p]
-        # ---- the data step: f_k and s_k with tangents
+                    dL_t[k, p, j] = dL[p, j]
+        # data step k with tangents
         ak = ua[k]
         for i in range(3):
             w[i] = s[i] - pba[i] * ak
-        fk = (bc[0] * w[0] + bc[1] * w[1] + bc[2] * w[2]) / S
+        fk = (bc[0] * w[0] + bc[1] * w[1] + bc[2] * w[2]) * iS
         for p in range(4):
             for i in range(3):
                 dw[i] = ds[p, i] - dpba[p, i] * ak
             if k < K_obs:
                 df[k, p] = (dbc[p, 0] * w[0] + dbc[p, 1] * w[1] + dbc[p, 2] * w[2]
-                            + bc[0] * dw[0] + bc[1] * dw[1] + bc[2] * dw[2] - fk * dS[p]) / S
+                            + bc[0] * dw[0] + bc[1] * dw[1] + bc[2] * dw[2] - fk * dS[p]) * iS
             for j in range(3):
                 ds[p, j] = (dM[p, 0, j] * w[0] + dM[p, 1, j] * w[1] + dM[p, 2, j] * w[2]
                             + M[0, j] * dw[0] + M[1, j] * dw[1] + M[2, j] * dw[2])
-            if p == 0:
-                ds[0, 0] += r[k]
+        ds[0, 0] += r[k]
         if k < K_obs:
             f[k] = fk
         for j in range(3):
-            ns[j] = M[0, j] * w[0] + M[1, j] * w[1] + M[2, j] * w[2]
-        ns[0] += q11 * r[k]
-        s[:] = ns
+            dw[j] = M[0, j] * w[0] + M[1, j] * w[1] + M[2, j] * w[2]
+        s[0] = dw[0] + q11 * r[k]
+        s[1] = dw[1]
+        s[2] = dw[2]
         k -= 1
-    return k_R
+    k_z = k + 1 if stationary else 0
+    if stationary:
+        k_R = min(k, K_obs - 1)
+        cst[0] = S
+        for j in range(3):
+            cst[1 + j] = L[j]
+        for p in range(4):
+            cst[4 + p] = dS[p]
+            for j in range(3):
+                cst[8 + 3 * p + j] = dL[p, j]
+    # ---- phase 2: constant step quantities; the primal s-recursion only (tangents by plan_adjoint)
+    iS = 1.0 / S
+    b0, b1, b2 = bc[0] * iS, bc[1] * iS, bc[2] * iS
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = (M[0, 0], M[0, 1], M[0, 2], M[1, 0], M[1, 1], M[1, 2], M[2, 0],
+                                                   M[2, 1], M[2, 2])
+    p0, p1, p2 = pba[0], pba[1], pba[2]
+    s0, s1, s2 = s[0], s[1], s[2]
+    while k >= 0:
+        ak = ua[k]
+        w0 = s0 - p0 * ak
+        w1 = s1 - p1 * ak
+        w2 = s2 - p2 * ak
+        W[k, 0] = w0
+        W[k, 1] = w1
+        W[k, 2] = w2
+        if k < K_obs:
+            f[k] = b0 * w0 + b1 * w1 + b2 * w2
+        s0 = m00 * w0 + m10 * w1 + m20 * w2 + q11 * r[k]
+        s1 = m01 * w0 + m11 * w1 + m21 * w2
+        s2 = m02 * w0 + m12 * w1 + m22 * w2
+        k -= 1
+    return k_R, k_z
 
 
-__all__ = ["DIRECTIONS", "plan_recursion"]
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+def plan_adjoint(bc, dbc, S, dS, r, ua, om, K_obs, k_z, adj, W, G):
+    """Add ``sum_{k < k_z, k < K} om_k df_k / d(direction)`` to G (4,), by one forward adjoint sweep.
+
+    For the steps k < k_z the step quantities are constants, ``f_k = βᵀ w_k`` with
+    β = b_c / S, ``w_k = s_{k+1} - P b_a a_k``, ``s_k = Q x_ref_k + Mᵀ w_k``. With
+    λ_k = ∂F/∂s_k (λ_0 = 0) the adjoint runs forward: ``o_k = ρ_k β + M λ_k``,
+    ``λ_{k+1} = o_k``, and F's derivatives with respect to the constants are sums over k;
+    λ_{k_z} meets the tangent of s_{k_z} carried by :func:`plan_recursion`. ``om`` is
+    ρ over the observed steps (ρ_k = 0 in the preview).
+    """
+    M, pba, dM, dpba, ds = adj
+    iS = 1.0 / S
+    b0, b1, b2 = bc[0] * iS, bc[1] * iS, bc[2] * iS
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = (M[0, 0], M[0, 1], M[0, 2], M[1, 0], M[1, 1], M[1, 2], M[2, 0],
+                                                   M[2, 1], M[2, 2])
+    l0 = l1 = l2 = 0.0
+    gb0 = gb1 = gb2 = 0.0  # ∂F/∂β
+    g00 = g01 = g02 = g10 = g11 = g12 = g20 = g21 = g22 = 0.0  # ∂F/∂M_ij = sum w_i λ_j
+    gp0 = gp1 = gp2 = 0.0  # ∂F/∂(P b_a)
+    gq = 0.0  # ∂F/∂q11 through Q x_ref
+    for k in range(k_z):
+        rho = om[k] if k < K_obs else 0.0
+        w0 = W[k, 0]
+        w1 = W[k, 1]
+        w2 = W[k, 2]
+        gb0 += rho * w0
+        gb1 += rho * w1
+        gb2 += rho * w2
+        g00 += w0 * l0
+        g01 += w0 * l1
+        g02 += w0 * l2
+        g10 += w1 * l0
+        g11 += w1 * l1
+        g12 += w1 * l2
+        g20 += w2 * l0
+        g21 += w2 * l1
+        g22 += w2 * l2
+        gq += l0 * r[k]
+        o0 = rho * b0 + m00 * l0 + m01 * l1 + m02 * l2
+        o1 = rho * b1 + m10 * l0 + m11 * l1 + m12 * l2
+        o2 = rho * b2 + m20 * l0 + m21 * l1 + m22 * l2
+        ak = ua[k]
+        gp0 -= ak * o0
+        gp1 -= ak * o1
+        gp2 -= ak * o2
+        l0, l1, l2 = o0, o1, o2
+    for p in range(4):
+        # β = b_c / S: dβ = (db_c - β dS) / S
+        G[p] += (gb0 * (dbc[p, 0] - b0 * dS[p]) + gb1 * (dbc[p, 1] - b1 * dS[p])
+                 + gb2 * (dbc[p, 2] - b2 * dS[p])) * iS
+        G[p] += (g00 * dM[p, 0, 0] + g01 * dM[p, 0, 1] + g02 * dM[p, 0, 2] + g10 * dM[p, 1, 0]
+                 + g11 * dM[p, 1, 1] + g12 * dM[p, 1, 2] + g20 * dM[p, 2, 0] + g21 * dM[p, 2, 1]
+                 + g22 * dM[p, 2, 2])
+        G[p] += gp0 * dpba[p, 0] + gp1 * dpba[p, 1] + gp2 * dpba[p, 2]
+        G[p] += l0 * ds[p, 0] + l1 * ds[p, 1] + l2 * ds[p, 2]
+    G[0] += gq
+
+
+__all__ = ["DIRECTIONS", "plan_adjoint", "plan_recursion"]

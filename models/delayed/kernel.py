@@ -50,14 +50,14 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
     Ab[2, 2] = a
     bc = np.array([(1.0 - al) * b[0], (1.0 - al) * b[1], 1.0 - a])
     ba = np.array([b[0], b[1], 0.0])
-    dAb = np.zeros((4, 3, 3))
-    dbc = np.zeros((4, 3))
+    dAb = np.zeros((3, 3, 4))  # directions last: q11, q22, a, α
+    dbc = np.zeros((3, 4))
     dAb[2, 2, 2] = 1.0
     dbc[2, 2] = -1.0
-    dAb[3, 0, 2] = b[0]
-    dAb[3, 1, 2] = b[1]
-    dbc[3, 0] = -b[0]
-    dbc[3, 1] = -b[1]
+    dAb[0, 2, 3] = b[0]
+    dAb[1, 2, 3] = b[1]
+    dbc[0, 3] = -b[0]
+    dbc[1, 3] = -b[1]
     k_R, k_z = plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K, freeze, f, df, S_t, L_t, dS_t, dL_t, cst,
                               adj, W)
     Sc = cst[0]
@@ -84,13 +84,13 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
         for i in range(3):
             if j == 0:
                 g[0, i] = bc[i]
-                dg[0, 0, i] = dbc[2, i]
-                dg[0, 1, i] = dbc[3, i]
+                dg[0, 0, i] = dbc[i, 2]
+                dg[0, 1, i] = dbc[i, 3]
             else:
                 g[j, i] = Ab[i, 0] * g[j - 1, 0] + Ab[i, 1] * g[j - 1, 1] + Ab[i, 2] * g[j - 1, 2]
                 for p in range(2):
-                    dg[j, p, i] = (dAb[2 + p, i, 0] * g[j - 1, 0] + dAb[2 + p, i, 1] * g[j - 1, 1]
-                                   + dAb[2 + p, i, 2] * g[j - 1, 2] + Ab[i, 0] * dg[j - 1, p, 0]
+                    dg[j, p, i] = (dAb[i, 0, 2 + p] * g[j - 1, 0] + dAb[i, 1, 2 + p] * g[j - 1, 1]
+                                   + dAb[i, 2, 2 + p] * g[j - 1, 2] + Ab[i, 0] * dg[j - 1, p, 0]
                                    + Ab[i, 1] * dg[j - 1, p, 1] + Ab[i, 2] * dg[j - 1, p, 2])
     s2 = sig * sig
     cs[0] = 1.0
@@ -207,13 +207,13 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
             Sb = -0.5 * Sbar[k, 0] / (Sk * Sk)
             hom += Sb * Sk
             for p in range(4):
-                G[p] += Sb * dS_t[k, p] + Lbt[k, 0] * dL_t[k, p, 0] + Lbt[k, 1] * dL_t[k, p, 1] \
-                    + Lbt[k, 2] * dL_t[k, p, 2]
+                G[p] += Sb * dS_t[k, p] + Lbt[k, 0] * dL_t[k, 0, p] + Lbt[k, 1] * dL_t[k, 1, p] \
+                    + Lbt[k, 2] * dL_t[k, 2, p]
     if k_R >= 0:
         Sb = -0.5 * vbar_s / (Sc * Sc)
         hom += Sb * Sc
         for p in range(4):
-            G[p] += Sb * cst[4 + p] + Lbs0 * cst[8 + 3 * p] + Lbs1 * cst[9 + 3 * p] + Lbs2 * cst[10 + 3 * p]
+            G[p] += Sb * cst[4 + p] + Lbs0 * cst[8 + p] + Lbs1 * cst[12 + p] + Lbs2 * cst[16 + p]
     for j in range(d):
         for p in range(2):
             G[2 + p] += gb[j, 0] * dg[j, p, 0] + gb[j, 1] * dg[j, p, 1] + gb[j, 2] * dg[j, p, 2]
@@ -233,14 +233,14 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
 def make_scratch(K, KM, dmax):
     """Scratch arrays for :func:`segment_kernel`: K observed steps, K + M planned, delays <= dmax."""
     dd = max(dmax, 1)
-    return (np.empty(K), np.empty((K, 4)), np.empty(K), np.empty((K, 3)), np.empty((K, 4)), np.empty((K, 4, 3)),
+    return (np.empty(K), np.empty((K, 4)), np.empty(K), np.empty((K, 3)), np.empty((K, 4)), np.empty((K, 3, 4)),
             np.zeros(20), np.empty(K + 1), np.empty(K), np.empty((K + 1, 2)), np.empty((K, 2)), np.empty(K),
             np.empty((dd, 3)), np.empty((dd, 2, 3)), np.empty(dmax + 1), np.empty((K, dmax + 1)),
             np.empty((K, dmax + 1)), np.empty((K, dd)), np.empty(K), np.empty(K + dmax), np.empty(K + dmax),
             np.empty(K + dmax), np.empty((K, dd)), np.empty(K), np.empty((K, dmax + 1)), np.empty(dd + 1), np.empty(dd + 1),
             np.empty((K, dmax + 1)), np.empty(dmax + 1), np.empty((dd, 3)), np.empty((K, 3)),
             np.empty((K + 1, 4, dmax + 1)), np.empty(dmax + 1), np.empty((K, dmax + 1)), np.empty((KM, 3)),
-            (np.empty((3, 3)), np.empty(3), np.empty((4, 3, 3)), np.empty((4, 3)), np.empty((4, 3))))
+            (np.empty((3, 3)), np.empty(3), np.empty((3, 3, 4)), np.empty((3, 4)), np.empty((3, 4))))
 
 
 @njit(cache=True, parallel=True)

@@ -36,12 +36,15 @@ DIRECTIONS = ("q11", "q22", "a", "alpha")
 def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, df, S_t, L_t, dS_t, dL_t, cst, adj, W):
     """Run the recursion backward over the plan's K + M steps; return (k_R, k_z).
 
+    Tangent arrays carry the four :data:`DIRECTIONS` on their last axis (contiguous, so
+    that each tangent operation is one short vector operation).
+
     Parameters
     ----------
     Ab, bc, ba : ndarray, shapes (3, 3), (3,), (3,)
         The planning plant (closed by the assistant's feedback), command and known-input
         vectors; ``ba[2]`` must be 0.
-    dAb, dbc : ndarray, shapes (4, 3, 3), (4, 3)
+    dAb, dbc : ndarray, shapes (3, 3, 4), (3, 4)
         Their derivatives in the :data:`DIRECTIONS` (zero for q11 and q22).
     q11, q22, R : float
     r : ndarray, shape (K + M + 1,)
@@ -55,13 +58,13 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
     f, df : ndarray, shapes (K,), (K, 4)
         Out: feedforward f_k for the observed steps, and its tangents for the observed
         steps k >= k_z (the others come from :func:`plan_adjoint`).
-    S_t, L_t, dS_t, dL_t : ndarray, shapes (K,), (K, 3), (K, 4), (K, 4, 3)
+    S_t, L_t, dS_t, dL_t : ndarray, shapes (K,), (K, 3), (K, 4), (K, 3, 4)
         Out: S_k, L_k and their tangents, written for the observed steps k > k_R only.
     cst : ndarray, shape (20,)
-        Out: the constants of steps k <= k_R: S, L (3), dS (4), dL (4 × 3).
+        Out: the constants of steps k <= k_R: S, L (3), dS (4), dL (3 × 4).
     adj : tuple of ndarray
-        Out, for :func:`plan_adjoint`: M (3, 3), P b_a (3,), dM (4, 3, 3), d(P b_a) (4, 3)
-        and the tangents of s_{k_z} (4, 3).
+        Out, for :func:`plan_adjoint`: M (3, 3), P b_a (3,), dM (3, 3, 4), d(P b_a) (3, 4)
+        and the tangents of s_{k_z} (3, 4).
     W : ndarray, shape (K + M, 3)
         Out: ``w_k = s_{k+1} - P b_a a_k`` of the steps k < k_z.
 
@@ -76,26 +79,31 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
     P = np.zeros((3, 3))
     P[0, 0] = q11
     P[1, 1] = q22
-    dP = np.zeros((4, 3, 3))
+    dP = np.zeros((3, 3, 4))
     dP[0, 0, 0] = 1.0
     dP[1, 1, 1] = 1.0
     s = np.zeros(3)
     s[0] = q11 * r[K]
-    for p in range(4):
-        for i in range(3):
-            ds[p, i] = 0.0
+    for i in range(3):
+        for p in range(4):
+            ds[i, p] = 0.0
     ds[0, 0] = r[K]
     Pb = np.empty(3)
     L = np.empty(3)
     PM = np.empty((3, 3))
-    dPb = np.empty(3)
+    dPb = np.empty((3, 4))
     dS = np.empty(4)
-    dL = np.empty((4, 3))
-    Dk = np.empty((3, 3))
-    X = np.empty((3, 3))
+    dL = np.empty((3, 4))
+    Dk = np.empty((3, 3, 4))
+    X = np.empty((3, 3, 4))
+    Y = np.empty((3, 3, 4))
     nP = np.empty((3, 3))
+    v = np.empty(4)
+    num = np.empty(4)
+    den = np.empty(4)
     w = np.empty(3)
-    dw = np.empty(3)
+    dw = np.empty((3, 4))
+    t4 = np.empty(4)
     S = 0.0
     k_R = -1
     k = K - 1
@@ -113,93 +121,93 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
             for j in range(3):
                 M[i, j] = Ab[i, j] - bc[i] * L[j]
         for p in range(4):
-            t = 0.0
-            for i in range(3):
-                dPb[i] = dP[p, i, 0] * bc[0] + dP[p, i, 1] * bc[1] + dP[p, i, 2] * bc[2]
-                if p >= 2:
-                    dPb[i] += P[i, 0] * dbc[p, 0] + P[i, 1] * dbc[p, 1] + P[i, 2] * dbc[p, 2]
-                dpba[p, i] = dP[p, i, 0] * ba[0] + dP[p, i, 1] * ba[1]
-                t += dbc[p, i] * Pb[i] + bc[i] * dPb[i]
-            dS[p] = t  # d(b_cᵀ P b_c) = db_cᵀ Pb + b_cᵀ dPb
+            dS[p] = 0.0
+        for i in range(3):
+            for p in range(4):
+                dPb[i, p] = (dP[i, 0, p] * bc[0] + dP[i, 1, p] * bc[1] + dP[i, 2, p] * bc[2]
+                             + P[i, 0] * dbc[0, p] + P[i, 1] * dbc[1, p] + P[i, 2] * dbc[2, p])
+                dpba[i, p] = dP[i, 0, p] * ba[0] + dP[i, 1, p] * ba[1]
+                dS[p] += dbc[i, p] * Pb[i] + bc[i] * dPb[i, p]  # d(b_cᵀ P b_c) = db_cᵀ Pb + b_cᵀ dPb
+        for j in range(3):
+            for p in range(4):
+                dL[j, p] = (dPb[0, p] * Ab[0, j] + dPb[1, p] * Ab[1, j] + dPb[2, p] * Ab[2, j]
+                            + Pb[0] * dAb[0, j, p] + Pb[1] * dAb[1, j, p] + Pb[2] * dAb[2, j, p] - L[j] * dS[p]) * iS
+        for i in range(3):
             for j in range(3):
-                acc = dPb[0] * Ab[0, j] + dPb[1] * Ab[1, j] + dPb[2] * Ab[2, j] - L[j] * t
-                if p >= 2:
-                    acc += Pb[0] * dAb[p, 0, j] + Pb[1] * dAb[p, 1, j] + Pb[2] * dAb[p, 2, j]
-                dL[p, j] = acc * iS
-            for i in range(3):
-                for j in range(3):
-                    dM[p, i, j] = dAb[p, i, j] - dbc[p, i] * L[j] - bc[i] * dL[p, j]
-        # P_k and its tangents (Joseph form, symmetric; envelope theorem for the tangents)
+                for p in range(4):
+                    Dk[i, j, p] = dAb[i, j, p] - dbc[i, p] * L[j]
+                    dM[i, j, p] = Dk[i, j, p] - bc[i] * dL[j, p]
+        # P_k and its tangents (Joseph form, symmetric; envelope theorem for the tangents:
+        # dP_k = dQ + Mᵀ dP M + Dᵀ P M + Mᵀ P D with D = dA - db_c Lᵀ)
         for i in range(3):
             for j in range(3):
                 PM[i, j] = P[i, 0] * M[0, j] + P[i, 1] * M[1, j] + P[i, 2] * M[2, j]
+        for i in range(3):
+            for j in range(3):
+                for p in range(4):
+                    X[i, j, p] = dP[i, 0, p] * M[0, j] + dP[i, 1, p] * M[1, j] + dP[i, 2, p] * M[2, j]
+                    Y[i, j, p] = Dk[0, i, p] * PM[0, j] + Dk[1, i, p] * PM[1, j] + Dk[2, i, p] * PM[2, j]
         for i in range(3):
             for j in range(i, 3):
                 nP[i, j] = R * L[i] * L[j] + M[0, i] * PM[0, j] + M[1, i] * PM[1, j] + M[2, i] * PM[2, j]
         nP[0, 0] += q11
         nP[1, 1] += q22
-        num = 0.0
-        den = 0.0
+        pn = 0.0
+        pd = 0.0
+        for p in range(4):
+            num[p] = 0.0
+            den[p] = 0.0
         for i in range(3):
             for j in range(i, 3):
-                num += abs(nP[i, j] - P[i, j])
-                den += abs(nP[i, j])
+                pn += abs(nP[i, j] - P[i, j])
+                pd += abs(nP[i, j])
                 P[i, j] = nP[i, j]
                 P[j, i] = nP[i, j]
-        stationary = freeze and num <= FREEZE_RTOL * den
+                for p in range(4):
+                    v[p] = M[0, i] * X[0, j, p] + M[1, i] * X[1, j, p] + M[2, i] * X[2, j, p] + Y[i, j, p] + Y[j, i, p]
+                if i == j and i < 2:
+                    v[i] += 1.0  # dQ
+                for p in range(4):
+                    num[p] += abs(v[p] - dP[i, j, p])
+                    den[p] += abs(v[p])
+                    dP[i, j, p] = v[p]
+                    dP[j, i, p] = v[p]
+        stationary = freeze and pn <= FREEZE_RTOL * pd
         for p in range(4):
-            for i in range(3):
-                for j in range(3):
-                    X[i, j] = dP[p, i, 0] * M[0, j] + dP[p, i, 1] * M[1, j] + dP[p, i, 2] * M[2, j]
-            if p >= 2:
-                for i in range(3):
-                    for j in range(3):
-                        Dk[i, j] = dAb[p, i, j] - dbc[p, i] * L[j]
-            num = 0.0
-            den = 0.0
-            for i in range(3):
-                for j in range(i, 3):
-                    v = M[0, i] * X[0, j] + M[1, i] * X[1, j] + M[2, i] * X[2, j]
-                    if p >= 2:
-                        v += (Dk[0, i] * PM[0, j] + Dk[1, i] * PM[1, j] + Dk[2, i] * PM[2, j]
-                              + Dk[0, j] * PM[0, i] + Dk[1, j] * PM[1, i] + Dk[2, j] * PM[2, i])
-                    if p < 2 and i == j == p:
-                        v += 1.0  # dQ
-                    num += abs(v - dP[p, i, j])
-                    den += abs(v)
-                    dP[p, i, j] = v
-                    dP[p, j, i] = v
-            stationary = stationary and num <= FREEZE_RTOL * den
+            stationary = stationary and num[p] <= FREEZE_RTOL * den[p]
         if k < K_obs:
             S_t[k] = S
             for j in range(3):
                 L_t[k, j] = L[j]
+                for p in range(4):
+                    dL_t[k, j, p] = dL[j, p]
             for p in range(4):
                 dS_t[k, p] = dS[p]
-                for j in range(3):
-                    dL_t[k, p, j] = dL[p, j]
         # data step k with tangents
         ak = ua[k]
         for i in range(3):
             w[i] = s[i] - pba[i] * ak
         fk = (bc[0] * w[0] + bc[1] * w[1] + bc[2] * w[2]) * iS
+        for i in range(3):
+            for p in range(4):
+                dw[i, p] = ds[i, p] - dpba[i, p] * ak
         for p in range(4):
-            for i in range(3):
-                dw[i] = ds[p, i] - dpba[p, i] * ak
-            if k < K_obs:
-                df[k, p] = (dbc[p, 0] * w[0] + dbc[p, 1] * w[1] + dbc[p, 2] * w[2]
-                            + bc[0] * dw[0] + bc[1] * dw[1] + bc[2] * dw[2] - fk * dS[p]) * iS
-            for j in range(3):
-                ds[p, j] = (dM[p, 0, j] * w[0] + dM[p, 1, j] * w[1] + dM[p, 2, j] * w[2]
-                            + M[0, j] * dw[0] + M[1, j] * dw[1] + M[2, j] * dw[2])
-        ds[0, 0] += r[k]
+            t4[p] = (dbc[0, p] * w[0] + dbc[1, p] * w[1] + dbc[2, p] * w[2]
+                     + bc[0] * dw[0, p] + bc[1] * dw[1, p] + bc[2] * dw[2, p] - fk * dS[p]) * iS
         if k < K_obs:
             f[k] = fk
+            for p in range(4):
+                df[k, p] = t4[p]
         for j in range(3):
-            dw[j] = M[0, j] * w[0] + M[1, j] * w[1] + M[2, j] * w[2]
-        s[0] = dw[0] + q11 * r[k]
-        s[1] = dw[1]
-        s[2] = dw[2]
+            for p in range(4):
+                ds[j, p] = (dM[0, j, p] * w[0] + dM[1, j, p] * w[1] + dM[2, j, p] * w[2]
+                            + M[0, j] * dw[0, p] + M[1, j] * dw[1, p] + M[2, j] * dw[2, p])
+        ds[0, 0] += r[k]
+        for j in range(3):
+            t4[j] = M[0, j] * w[0] + M[1, j] * w[1] + M[2, j] * w[2]
+        s[0] = t4[0] + q11 * r[k]
+        s[1] = t4[1]
+        s[2] = t4[2]
         k -= 1
     k_z = k + 1 if stationary else 0
     if stationary:
@@ -207,10 +215,10 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
         cst[0] = S
         for j in range(3):
             cst[1 + j] = L[j]
+            for p in range(4):
+                cst[8 + 4 * j + p] = dL[j, p]
         for p in range(4):
             cst[4 + p] = dS[p]
-            for j in range(3):
-                cst[8 + 3 * p + j] = dL[p, j]
     # ---- phase 2: constant step quantities; the primal s-recursion only (tangents by plan_adjoint)
     iS = 1.0 / S
     b0, b1, b2 = bc[0] * iS, bc[1] * iS, bc[2] * iS
@@ -284,13 +292,13 @@ def plan_adjoint(bc, dbc, S, dS, r, ua, om, K_obs, k_z, adj, W, G):
         l0, l1, l2 = o0, o1, o2
     for p in range(4):
         # β = b_c / S: dβ = (db_c - β dS) / S
-        G[p] += (gb0 * (dbc[p, 0] - b0 * dS[p]) + gb1 * (dbc[p, 1] - b1 * dS[p])
-                 + gb2 * (dbc[p, 2] - b2 * dS[p])) * iS
-        G[p] += (g00 * dM[p, 0, 0] + g01 * dM[p, 0, 1] + g02 * dM[p, 0, 2] + g10 * dM[p, 1, 0]
-                 + g11 * dM[p, 1, 1] + g12 * dM[p, 1, 2] + g20 * dM[p, 2, 0] + g21 * dM[p, 2, 1]
-                 + g22 * dM[p, 2, 2])
-        G[p] += gp0 * dpba[p, 0] + gp1 * dpba[p, 1] + gp2 * dpba[p, 2]
-        G[p] += l0 * ds[p, 0] + l1 * ds[p, 1] + l2 * ds[p, 2]
+        G[p] += (gb0 * (dbc[0, p] - b0 * dS[p]) + gb1 * (dbc[1, p] - b1 * dS[p])
+                 + gb2 * (dbc[2, p] - b2 * dS[p])) * iS
+        G[p] += (g00 * dM[0, 0, p] + g01 * dM[0, 1, p] + g02 * dM[0, 2, p] + g10 * dM[1, 0, p]
+                 + g11 * dM[1, 1, p] + g12 * dM[1, 2, p] + g20 * dM[2, 0, p] + g21 * dM[2, 1, p]
+                 + g22 * dM[2, 2, p])
+        G[p] += gp0 * dpba[0, p] + gp1 * dpba[1, p] + gp2 * dpba[2, p]
+        G[p] += l0 * ds[0, p] + l1 * ds[1, p] + l2 * ds[2, p]
     G[0] += gq
 
 

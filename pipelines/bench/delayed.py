@@ -1,0 +1,87 @@
+"""Benchmark of the ``delayed`` likelihood with gradient on the default study batch, beside the max-ent kernel.
+
+The batch is the default simulated study's analysis windows as ``scioc run`` prepares them
+(84 segments × K = 1500, the plan looking 2 s = 200 steps further), each with its true θ.
+Delay, lag and motor noise are those of the simulated ``combined`` human
+(:mod:`models.humans`: τ_nm = 0.06 s, σ_m = 0.25 N·m); the delay is varied. The cost of
+the kernel depends on them (the lengths of the transients), not on the data. All
+timings are measured in the same run; the max-ent kernel is timed on the same batch.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from models.delayed import loglik_grad as delayed_loglik_grad
+from models.humans import MOTOR_SD, TAU_NM
+from models.maxent import loglik_grad as maxent_loglik_grad
+from models.plant import DT_HUMAN, discretize
+from models.segment import prepare_batch
+from pipelines.bench.common import timeit
+
+#: Delays timed, in samples of 0.01 s (0 to 300 ms).
+DELAYS = (0, 10, 30)
+
+
+def bench_delayed(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m: float = MOTOR_SD,
+                  threads=None, preview: float = 2.0) -> dict:
+    """Time ``delayed`` log-likelihood + gradient of the study batch per delay and thread count.
+
+    Parameters
+    ----------
+    study : dict
+        From :func:`pipelines.bench.common.default_study_segments`.
+    delays : sequence of int
+        Delays in samples.
+    tau_nm, sigma_m : float
+        Lag time constant (s) and motor-noise SD (N·m per sample).
+    threads : sequence of int, optional
+        Numba thread counts to time (default: 1 and all).
+    preview : float
+        Which of the study's preparations to use (2.0 s: scioc's default).
+
+    Returns
+    -------
+    dict
+        ``n``, ``K``, ``preview_steps``, ``maxent`` (timing dict of
+        :func:`pipelines.bench.common.timeit`) and ``rows``: one per (delay, threads)
+        with ``min_s``, ``median_s`` and the ratio to the max-ent kernel.
+    """
+    plant = discretize(DT_HUMAN)
+    batch = prepare_batch(plant, [p.segment for p in study[preview]])
+    theta = study["theta"]
+    before = numba.get_num_threads()
+    threads = tuple(threads) if threads is not None else tuple(sorted({1, before}))
+    rows = []
+    try:
+        numba.set_num_threads(before)
+        maxent = timeit(lambda: maxent_loglik_grad(theta, batch, plant))
+        for d in delays:
+            for t in threads:
+                numba.set_num_threads(t)
+                res = timeit(lambda: delayed_loglik_grad(theta, batch, plant, tau_nm=tau_nm, sigma_m=sigma_m,
+                                                         delay=d))
+                rows.append({"delay": int(d), "threads": int(t), "min_s": res["min_s"], "median_s": res["median_s"],
+                             "ratio_to_maxent": res["min_s"] / maxent["min_s"]})
+    finally:
+        numba.set_num_threads(before)
+    return {"n": batch.n, "K": batch.K, "preview_steps": int(batch.a.shape[1] - batch.K), "tau_nm": float(tau_nm),
+            "sigma_m": float(sigma_m), "maxent": maxent, "rows": rows}
+
+
+def format_delayed(res: dict) -> str:
+    """The benchmark as a plain-text table."""
+    lines = [
+        f"Delayed human: log-likelihood with gradient, {res['n']} segments × K = {res['K']} "
+        f"(+{res['preview_steps']} preview steps), τ_nm = {res['tau_nm']} s, σ_m = {res['sigma_m']} N·m",
+        f"max-ent kernel on the same batch: {res['maxent']['min_s'] * 1e3:.2f} ms",
+        f"{'delay (samples)':>16} {'threads':>8} {'min (ms)':>9} {'median (ms)':>12} {'× max-ent':>10}",
+    ]
+    for r in res["rows"]:
+        lines.append(f"{r['delay']:>16} {r['threads']:>8} {r['min_s'] * 1e3:>9.2f} {r['median_s'] * 1e3:>12.2f} "
+                     f"{r['ratio_to_maxent']:>10.1f}")
+    return "\n".join(lines)
+
+
+__all__ = ["DELAYS", "bench_delayed", "format_delayed"]

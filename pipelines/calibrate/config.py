@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from models.design import DT_HUMAN
+from models.design import STUDY, Design
 
 #: Version of how replications simulate and fit; part of every fingerprint. Bump it when
 #: the data-generating process or the fitted likelihood changes.
@@ -39,6 +39,9 @@ class CalibrationConfig:
         torque to the human.
     batch_size : int
         Replications per Dask task.
+    experiment : dict or None
+        The experiment calibrated, in the resolved form of :func:`pipelines.experiment.resolved`
+        (its rate, wheel, levels and assistants, window); None for the paper's study.
     """
 
     level: str = "unit"
@@ -53,6 +56,7 @@ class CalibrationConfig:
     negative_control: str | None = None
     batch_size: int = 10
     extra: dict = field(default_factory=dict)
+    experiment: dict | None = None
 
     def __post_init__(self):
         if self.level not in ("unit", "study"):
@@ -77,6 +81,8 @@ class CalibrationConfig:
         d = asdict(self)
         d.pop("batch_size")
         d.pop("replications")
+        if d["experiment"] is None:
+            d.pop("experiment")  # the paper's study: the fingerprints of earlier runs stay valid
         d["generator"] = GENERATOR  # results of an older simulator must not be resumed
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
@@ -97,7 +103,8 @@ NEGATIVE_DEFAULT = {"unit": "inertia", "study": "ignore-uA"}
 
 def level_configs(level: str, *, seed: int = 2018, replications: int | None = None, batch_size: int | None = None,
                   n_subjects: int | None = None, seconds: float | None = None,
-                  negative_control: str | None = None) -> list[tuple[str, CalibrationConfig]]:
+                  negative_control: str | None = None,
+                  design: Design | None = None) -> list[tuple[str, CalibrationConfig]]:
     """The calibration of one level and, unless ``negative_control == "none"``, its negative control.
 
     Parameters
@@ -107,9 +114,14 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     replications, batch_size, n_subjects : int, optional
         Override the level's :data:`DEFAULTS`.
     seconds : float, optional
-        Window length, s (K = seconds / DT_HUMAN, the 0.01-s sample time).
+        Window length, s (K = seconds / the experiment's sample time). Default: the
+        level's :data:`DEFAULTS` for the paper's study; the experiment's analysis window
+        (or its whole run) at the unit level of another experiment.
     negative_control : {"inertia", "ignore-uA", "none"}, optional
         Default :data:`NEGATIVE_DEFAULT` of the level.
+    design : Design, optional
+        The experiment to calibrate (``scioc calibrate --experiment``); None or the
+        paper's study gives the paper's configurations.
 
     Returns
     -------
@@ -123,13 +135,22 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     for key, value in (("replications", replications), ("batch_size", batch_size), ("n_subjects", n_subjects)):
         if value is not None:
             d[key] = value
+    experiment = None
+    if design is not None and design != STUDY:
+        from pipelines.experiment import resolved  # the experiment travels to the workers as data
+
+        experiment = resolved(design)
+        if level == "unit" and seconds is None:
+            seconds = design.run_seconds if design.whole else design.window_seconds
+    dt = STUDY.dt if design is None else design.dt
     if seconds is not None:
-        d["K"] = int(round(seconds / DT_HUMAN))
+        d["K"] = int(round(seconds / dt))
     runs = [(level, None)]
     nc = NEGATIVE_DEFAULT[level] if negative_control is None else negative_control
     if nc != "none":
         runs.append((f"{level}-negative", nc))
-    return [(name, CalibrationConfig(level=level, seed=seed, negative_control=wrong, **d)) for name, wrong in runs]
+    return [(name, CalibrationConfig(level=level, seed=seed, negative_control=wrong, experiment=experiment, **d))
+            for name, wrong in runs]
 
 
 def replication_seed(seed: int, i: int) -> np.random.SeedSequence:

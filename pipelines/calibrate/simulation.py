@@ -1,12 +1,17 @@
-"""What both SBC levels share: the fitted wheel, the study window, the exact SC/MC demonstration, a per-worker cache.
+"""What both SBC levels share: the fitted wheel, the window, the exact demonstration per level, a per-worker cache.
 
 Runs inside Dask workers. Compiled models and other slow-to-build objects are cached per
 worker process (compiling takes seconds, a unit fit a fraction of one), keyed by
 everything that changes them (:func:`cached`).
 
+Everything follows the experiment being calibrated (:class:`models.design.Design`; the
+paper's study by default): its sample time, wheel, levels and their assistants, and its
+analysis window (from the window's start on the study reference, or from the start of a
+trial when it is analysed whole).
+
 Negative controls (same draws, same sizes, a wrong fit): ``inertia`` fits with the wheel
-inertia 10 % too high (0.044 instead of 0.04 kg·m²), ``ignore-uA`` attributes the
-assistant's torque to the human.
+inertia 10 % too high (0.044 instead of 0.04 kg·m² on the paper's wheel), ``ignore-uA``
+attributes the assistant's torque to the human.
 """
 
 from __future__ import annotations
@@ -15,13 +20,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from models.assistant import design_assistant, human_feedback
+from models.assistant import human_feedback
 from models.bayes.op import DATA_NAMES
-from models.design import MANUAL, STUDY, WINDOW_START
+from models.design import STUDY, Design
 from models.maxent import sample_maxent
-from models.plant import DT_HUMAN, WheelParameters, discretize
+from models.plant import discretize
 from models.reference import reference_trajectory
 from models.segment import Segment, planning_plant, prepare_batch
+from pipelines.prepare import assistant_law
 
 #: Relative error of the inertia in the ``inertia`` negative control.
 INERTIA_ERROR = 0.10
@@ -36,44 +42,59 @@ def cached(key, build: Callable[[], object]):
     return _CACHE[key]
 
 
-def fit_plant(negative_control):
-    """The wheel the fit assumes: the study's, or 10 % too heavy for the ``inertia`` negative control."""
+def fit_plant(negative_control, design: Design = STUDY):
+    """The wheel the fit assumes: the experiment's, or 10 % too heavy for the ``inertia`` negative control."""
+    wheel = design.wheel
     if negative_control == "inertia":
-        return discretize(DT_HUMAN, WheelParameters(inertia=STUDY.wheel.inertia * (1 + INERTIA_ERROR)))
-    return discretize(DT_HUMAN)
+        wheel = wheel._replace(inertia=wheel.inertia * (1 + INERTIA_ERROR))
+    return discretize(design.dt, wheel)
 
 
-def window_inputs(K: int):
-    """The window's reference (K + 1,) and the assistant's feedback over it (gain, feedforward (K,))."""
+def window_start(design: Design = STUDY) -> float:
+    """Where the calibrated windows start on the study reference, s: the analysis window, or 0 for whole trials."""
+    return 0.0 if design.whole else design.window_start
+
+
+def window_inputs(K: int, design: Design = STUDY):
+    """The window's reference (K + 1,) and each level's assistant feedback over it (None where unassisted).
+
+    Returns ``(ref, {level: Feedback or None})``.
+    """
 
     def build():
-        i0 = int(round(WINDOW_START / DT_HUMAN))
-        ref = reference_trajectory(WINDOW_START + K * DT_HUMAN + 2.0).angle  # the assistant previews 1 s
-        fb = human_feedback(design_assistant(), ref)
-        return np.ascontiguousarray(ref[i0 : i0 + K + 1]), fb.window(i0, K)
+        dt = design.dt
+        i0 = int(round(window_start(design) / dt))
+        ref = reference_trajectory(window_start(design) + K * dt + 2.0, dt).angle  # the MPC previews 1 s
+        laws = {}
+        for level in design.ordered_levels:
+            law = assistant_law(design, level)
+            laws[level] = None if law is None else human_feedback(law, ref).window(i0, K)
+        return np.ascontiguousarray(ref[i0 : i0 + K + 1]), laws
 
-    return cached(("ref", K), build)
+    return cached(("ref", K, design), build)
 
 
-def rest_segment(K: int) -> Segment:
+def rest_segment(K: int, design: Design = STUDY) -> Segment:
     """A placeholder segment of the window (zero torques) that gives a model its shapes before the data."""
-    ref = window_inputs(K)[0]
+    ref = window_inputs(K, design)[0]
     return Segment(np.array([ref[0], 0.0]), ref, np.zeros(K), np.zeros(K))
 
 
-def simulate_unit(theta, condition: str, K: int, negative_control, rng: np.random.Generator) -> Segment:
+def simulate_unit(theta, condition: str, K: int, negative_control, rng: np.random.Generator,
+                  design: Design = STUDY) -> Segment:
     """One exact max-ent demonstration over the analysis window, as the fit will see it.
 
-    MC: u_A = 0. SC: the human plans with the assistant's law on the closed wheel (the
-    simulator's human), the assistant's recorded torque is ``-gain @ x_k + feedforward_k``
-    along the sampled trajectory. The returned segment carries the Feedback the
-    likelihood plans with, except for ``ignore-uA``, which attributes the assistant's
-    torque to the human and plans without it.
+    An unassisted level: u_A = 0. An assisted one: the human plans with the assistant's
+    law on the closed wheel (the simulator's human), the assistant's recorded torque is
+    ``-gain @ x_k + feedforward_k`` along the sampled trajectory. The returned segment
+    carries the Feedback the likelihood plans with, except for ``ignore-uA``, which
+    attributes the assistant's torque to the human and plans without it.
     """
-    ref, fb = window_inputs(K)
-    plant = discretize(DT_HUMAN)
+    ref, laws = window_inputs(K, design)
+    fb = laws[condition]
+    plant = discretize(design.dt, design.wheel)
     x0 = np.array([ref[0], 0.0])
-    if condition == MANUAL:
+    if fb is None:
         demo = sample_maxent(theta, x0, ref, np.zeros(K), plant, rng)
         u_A, feedback = np.zeros(K), None
     else:
@@ -84,7 +105,16 @@ def simulate_unit(theta, condition: str, K: int, negative_control, rng: np.rando
     return Segment(x0, ref, demo.u_H, u_A, feedback)
 
 
-def fitted_batch(segments, negative_control):
+def fitted_batch(segments, negative_control, design: Design = STUDY):
     """The segments as the (possibly wrong) fit sees them, and the data by the names of the models' containers."""
-    batch = prepare_batch(fit_plant(negative_control), list(segments))
+    batch = prepare_batch(fit_plant(negative_control, design), list(segments))
     return batch, {name: getattr(batch, name) for name in DATA_NAMES}
+
+
+def config_design(config) -> Design:
+    """The experiment a calibration configuration calibrates (its ``experiment``; the paper's study without one)."""
+    if config.experiment is None:
+        return STUDY
+    from pipelines.experiment import parse_experiment
+
+    return parse_experiment(config.experiment, "<calibration experiment>")

@@ -20,30 +20,39 @@ import numpy as np
 
 from models.bayes.hierarchical import POPULATION_PARAMETERS, build_model
 from models.cost import from_normalized
-from models.design import CONDITIONS
 from pipelines.calibrate.ranking import LOGLIK, Target, loglik_draws, sample_and_rank
-from pipelines.calibrate.simulation import cached, fit_plant, fitted_batch, rest_segment, simulate_unit
+from pipelines.calibrate.simulation import (cached, config_design, fit_plant, fitted_batch, rest_segment,
+                                            simulate_unit)
 
 #: Unit parameters ranked (first subject), as (variable, condition index).
 UNITS = (("log_theta1", 0), ("log_theta1", 1), ("log_R", 0), ("theta2", 0))
 
 
-def study_labels(n_subjects: int):
-    """Subjects and conditions of a simulated study's segments: S00 MC, S00 SC, S01 MC, ..."""
-    subjects = [f"S{i:02d}" for i in range(n_subjects) for _ in CONDITIONS]
-    return subjects, list(CONDITIONS) * n_subjects
+def study_labels(n_subjects: int, levels=("MC", "SC")):
+    """Subjects and conditions of a simulated study's segments: S00 MC, S00 SC, S01 MC, ... (levels baseline first)."""
+    subjects = [f"S{i:02d}" for i in range(n_subjects) for _ in levels]
+    return subjects, list(levels) * n_subjects
+
+
+def _two_levels(design):
+    if len(design.levels) != 2:
+        raise ValueError(f"study-level calibration covers two-level experiments; this one has {len(design.levels)} "
+                         f"levels ({', '.join(design.levels)}): calibrate the unit level")
+    return design.ordered_levels
 
 
 def template(config, negative_control):
     """The hierarchical model with data containers for the study design of ``config`` (cached per worker)."""
+    design = config_design(config)
+    levels = _two_levels(design)
 
     def build():
-        plant = fit_plant(negative_control)
-        batch, _ = fitted_batch([rest_segment(config.K)] * (2 * config.n_subjects), negative_control)
-        subjects, conditions = study_labels(config.n_subjects)
+        plant = fit_plant(negative_control, design)
+        batch, _ = fitted_batch([rest_segment(config.K, design)] * (2 * config.n_subjects), negative_control, design)
+        subjects, conditions = study_labels(config.n_subjects, levels)
         return build_model(subjects, conditions, batch, plant, data_containers=True)
 
-    return cached(("study-model", config.K, config.n_subjects, negative_control), build)
+    return cached(("study-model", config.K, config.n_subjects, negative_control, design), build)
 
 
 def compiled_study(config, negative_control):
@@ -89,21 +98,22 @@ def prior_variances(config) -> dict:
                         var[f"{n}[0,{c}]"] = float(d[:, 0, c].var())
         return var
 
-    return cached(("study-prior-var", config.K, config.n_subjects), build)
+    return cached(("study-prior-var", config.K, config.n_subjects, config_design(config)), build)
 
 
 def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     """Replication ``i``: draw a population and its units, simulate a study, refit, rank."""
     rng = np.random.default_rng(seed)
+    design = config_design(config)
     truth = prior_draw(config, rng)
     segs, thetas = [], []
     for s in range(config.n_subjects):
-        for c, condition in enumerate(CONDITIONS):
+        for c, condition in enumerate(_two_levels(design)):
             theta = from_normalized(truth["theta1"][s, c], truth["theta2"][s, c], truth["R"][s, c])
-            segs.append(simulate_unit(theta, condition, config.K, config.negative_control, rng))
+            segs.append(simulate_unit(theta, condition, config.K, config.negative_control, rng, design))
             thetas.append(theta)
-    plant = fit_plant(config.negative_control)
-    batch, data = fitted_batch(segs, config.negative_control)
+    plant = fit_plant(config.negative_control, design)
+    batch, data = fitted_batch(segs, config.negative_control, design)
     compiled = compiled_study(config, config.negative_control).with_data(**data)
 
     def targets(post):

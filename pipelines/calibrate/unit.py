@@ -1,9 +1,11 @@
-"""Unit-level SBC replication: one subject in one condition, θ from its prior, one 15-s window.
+"""Unit-level SBC replication: one subject in one condition, θ from its prior, one analysis window.
 
 θ ~ :class:`models.bayes.unit_model.UnitPrior`; one exact max-ent demonstration over the
-study's analysis window (the fixed reference) from rest at the reference; even
-replications are manual control (u_A = 0), odd ones shared control, where the human
-plans with the assistant's feedback law and the assistant reacts to the actual state
+experiment's analysis window (the fixed reference; by default the paper's 15 s) from rest
+at the reference; replication i is in level i mod L of the experiment's L levels
+(baseline first: for the paper's study even replications are manual control, u_A = 0,
+odd ones shared control), where on an assisted level the human plans with the
+assistant's feedback law and the assistant reacts to the actual state
 (:func:`pipelines.calibrate.simulation.simulate_unit`, the simulator's SC human); the
 likelihood is the :class:`models.segment.Feedback` model, as in the pipeline; the
 posterior is sampled with nutpie, one chain after the other (``cores=1``: the
@@ -19,24 +21,25 @@ import numpy as np
 
 from models.bayes.unit_model import UNIT_PARAMETERS, UnitPrior, build_unit_model
 from models.cost import from_normalized
-from models.design import MANUAL, SHARED
+from models.design import STUDY, Design
 from pipelines.calibrate.ranking import LOGLIK, Target, loglik_draws, sample_and_rank
-from pipelines.calibrate.simulation import cached, fit_plant, fitted_batch, rest_segment, simulate_unit
+from pipelines.calibrate.simulation import (cached, config_design, fit_plant, fitted_batch, rest_segment,
+                                            simulate_unit)
 
 
-def compiled_unit(K: int, negative_control):
-    """The unit model compiled by nutpie for windows of K samples (cached per worker)."""
+def compiled_unit(K: int, negative_control, design: Design = STUDY):
+    """The unit model compiled by nutpie for windows of K samples of ``design`` (cached per worker)."""
 
     def build():
         import nutpie  # lazy: nutpie imports numba-compiled PyMC machinery (seconds)
 
-        plant = fit_plant(negative_control)
-        batch, _ = fitted_batch([rest_segment(K)], negative_control)
+        plant = fit_plant(negative_control, design)
+        batch, _ = fitted_batch([rest_segment(K, design)], negative_control, design)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             return nutpie.compile_pymc_model(build_unit_model(batch, plant), backend="numba")
 
-    return cached(("unit", K, negative_control), build)
+    return cached(("unit", K, negative_control, design), build)
 
 
 def prior_variances(prior: UnitPrior) -> dict:
@@ -48,13 +51,15 @@ def prior_variances(prior: UnitPrior) -> dict:
 def unit_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     """Replication ``i``: draw θ, simulate one window, fit, rank θ1, θ2, R and the log-likelihood."""
     rng = np.random.default_rng(seed)
+    design = config_design(config)
     prior = UnitPrior()
     truth = prior.draw(rng)
-    condition = MANUAL if i % 2 == 0 else SHARED
-    seg = simulate_unit(truth["theta"], condition, config.K, config.negative_control, rng)
-    plant = fit_plant(config.negative_control)
-    batch, data = fitted_batch([seg], config.negative_control)
-    compiled = compiled_unit(config.K, config.negative_control).with_data(**data)
+    levels = design.ordered_levels
+    condition = levels[i % len(levels)]
+    seg = simulate_unit(truth["theta"], condition, config.K, config.negative_control, rng, design)
+    plant = fit_plant(config.negative_control, design)
+    batch, data = fitted_batch([seg], config.negative_control, design)
+    compiled = compiled_unit(config.K, config.negative_control, design).with_data(**data)
 
     def targets(post):
         out = [Target(name, post[name].values, truth[name]) for name in UNIT_PARAMETERS]

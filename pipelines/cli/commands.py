@@ -197,8 +197,12 @@ def cmd_fit(args) -> int:
 def cmd_calibrate(args) -> int:
     from pipelines.calibrate import as_expected, calibrate_runs, format_summary, level_configs
 
+    from pipelines.experiment import load_experiment
+
+    design = load_experiment(args.experiment) if args.experiment else None
     runs = level_configs(args.level, seed=args.seed, replications=args.replications, batch_size=args.batch_size,
-                         n_subjects=args.subjects, seconds=args.seconds, negative_control=args.negative_control)
+                         n_subjects=args.subjects, seconds=args.seconds, negative_control=args.negative_control,
+                         design=design)
     summaries = calibrate_runs(runs, args.out, scheduler=args.scheduler, n_workers=args.workers)
     for summary in summaries:
         print(format_summary(summary))

@@ -212,7 +212,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also run this wrong fit at the same size (default: inertia at the unit level, ignore-uA "
                         "at the study level; 'none' to skip)")
     p.add_argument("--subjects", type=_positive_int, help="subjects per simulated study (study level; default 6)")
-    p.add_argument("--seconds", type=_seconds, help="window length in s (default 15 unit, 2 study)")
+    p.add_argument("--seconds", type=_seconds,
+                   help="window length in s (default 15 unit, 2 study; with --experiment, the unit level takes its "
+                        "analysis window, or its run when analysed whole)")
+    p.add_argument("--experiment", metavar="PATH",
+                   help="calibrate this experiment's rate, wheel, levels, assistants and window (default: the "
+                        "paper's study)")
     p.set_defaults(func=commands.cmd_calibrate)
 
     p = sub.add_parser("assistant", help="the MPC assistant alone on the study reference: tracking and torques")

@@ -3,7 +3,8 @@
 One segment (see :mod:`models.delayed.likelihood` for the model and its derivation):
 
 1. the plan (:func:`models.delayed.riccati.plan_recursion`): S_k, L_k, f_k and their
-   tangents in q11, q22, a, α;
+   tangents in q11, q22, a, α (those of f_k over the stationary plan later, by
+   :func:`models.delayed.riccati.plan_adjoint`);
 2. the data: the arm torque τ_k and the effective command c̃_k from the observed
    torques (tangents in a and α), the residual ``r_k = c̃_k + L_k z_k - f_k``;
 3. the MA coefficients ``c_{k,0} = 1``, ``c_{k,j} = L_k g_j`` with ``g_j = Ā^{j-1} b_c``,
@@ -16,7 +17,13 @@ One segment (see :mod:`models.delayed.likelihood` for the model and its derivati
    change when θ is scaled, S scales with it, so ``θ · ∇_θ log p = sum_k S_k ∂/∂S_k``).
 
 Rows k <= k_R share one S and L (the stationary plan), so their adjoints are summed
-before they meet the tangents.
+before they meet the tangents. The batch runs its segments in parallel chunks
+(``prange``), each with its own scratch, and every segment on its own: its result does
+not depend on the batch it is in.
+
+The kernel (this module, :mod:`models.delayed.riccati` and
+:mod:`models.delayed.innovations`) is written for numba: no array views in inner loops
+(each costs reference counting), unsigned indices where LLVM should vectorize.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """``scioc bench``: measured speed of the likelihood kernels, the identification, the full fit and SBC.
 
 All ratios are measured in the same run on the same machine (:mod:`pipelines.bench.likelihood`,
-:mod:`pipelines.bench.identify`, :mod:`pipelines.bench.fit`, :mod:`pipelines.bench.sbc`).
+:mod:`pipelines.bench.identify`, :mod:`pipelines.bench.fit`, :mod:`pipelines.bench.sbc`), and the
+second built-in example's identification and fit (:mod:`pipelines.bench.example`).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pipelines.bench.likelihood import bench_likelihood, format_likelihood
 from pipelines.storage import write_text_atomic
 
 #: The parts of ``scioc bench``, in the order they run.
-PARTS = ("likelihood", "identify", "fit", "sbc")
+PARTS = ("likelihood", "identify", "fit", "sbc", "example")
 
 
 def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
@@ -55,6 +56,11 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
 
         result["sbc"] = bench_sbc()
         print(format_sbc(result["sbc"]), flush=True)
+    if "example" in parts:
+        from pipelines.bench.example import bench_example, format_example  # lazy: the fit imports PyMC
+
+        result["example"] = bench_example(fit=not quick)
+        print(format_example(result["example"]), flush=True)
     if json_path is not None:
         write_text_atomic(json_path, json.dumps(result, indent=2) + "\n")
     return result

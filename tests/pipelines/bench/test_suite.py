@@ -19,3 +19,7 @@ def test_bench_quick_writes_json(tmp_path, capsys):
     assert res["likelihood"]["batch_preview"]["preview_steps"] == 200
     assert np.isfinite(res["likelihood"]["batch"]["linear_s"])
     assert res["identify"]["preview_2s"]["converged"] == 4
+    # The second example's identification (its fit is left out of --quick).
+    ex = res["example"]
+    assert ex["units"] == 48 and ex["segments"] == 144 and ex["samples_per_segment"] == 2400
+    assert ex["identify_s"] > 0 and "fit_s" not in ex

@@ -73,12 +73,13 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
     dtau[0, 0] = 0.0
     dtau[0, 1] = 0.0
     om1 = 1.0 - al
+    iom1 = 1.0 / om1
     for k in range(K):
         tk = tau[k]
-        c = (u[k] - al * tk) / om1
+        c = (u[k] - al * tk) * iom1
         ct[k] = c
-        dct[k, 0] = -al * dtau[k, 0] / om1
-        dct[k, 1] = (c - tk - al * dtau[k, 1]) / om1
+        dct[k, 0] = -al * dtau[k, 0] * iom1
+        dct[k, 1] = (c - tk - al * dtau[k, 1]) * iom1
         tau[k + 1] = a * tk + (1.0 - a) * c
         dtau[k + 1, 0] = tk + a * dtau[k, 0] - c + (1.0 - a) * dct[k, 0]
         dtau[k + 1, 1] = a * dtau[k, 1] + (1.0 - a) * dct[k, 1]

@@ -32,6 +32,19 @@ from models.maxent import FREEZE_RTOL
 DIRECTIONS = ("q11", "q22", "a", "alpha")
 
 
+def _layout(*sizes):
+    """Offsets of consecutive blocks of the given sizes in one flat buffer, and its size."""
+    offsets = np.cumsum((0,) + sizes)
+    return tuple(int(o) for o in offsets)
+
+
+# Phase 1's flat buffer: A, b_c, b_a, dA, db_c, P, dP, Pb, L, M, PM, dPb, dS, dL, D, dM, X, Y,
+# P b_a, d(P b_a), s, ds, w, dw, and four 4-vectors; tangent blocks have the directions last.
+(_AB, _BC, _BA, _DAB, _DBC, _P, _DP, _PB, _L, _M, _PM, _DPB, _DS, _DL, _DK, _DM, _X, _Y, _PBA, _DPBA, _S, _DSV, _W,
+ _DW, _NUM, _DEN, _T4, _SIZE) = _layout(9, 3, 3, 36, 12, 9, 36, 3, 3, 9, 9, 12, 4, 12, 36, 36, 36, 36, 3, 12, 3, 12,
+                                        3, 12, 4, 4, 4)
+
+
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, df, S_t, L_t, dS_t, dL_t, cst, adj, W):
     """Run the recursion backward over the plan's K + M steps; return (k_R, k_z).
@@ -76,34 +89,25 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
     """
     M, pba, dM, dpba, ds = adj
     K = ua.shape[0]
-    P = np.zeros((3, 3))
-    P[0, 0] = q11
-    P[1, 1] = q22
-    dP = np.zeros((3, 3, 4))
-    dP[0, 0, 0] = 1.0
-    dP[1, 1, 1] = 1.0
-    s = np.zeros(3)
-    s[0] = q11 * r[K]
+    # Everything phase 1 touches lives in one flat buffer at fixed offsets (see _layout):
+    # LLVM can then tell every load and store apart and keep values in registers, which
+    # separate small arrays (any of which might alias another) do not allow.
+    T = np.zeros(_SIZE)
     for i in range(3):
+        T[_BC + i] = bc[i]
+        T[_BA + i] = ba[i]
+        for j in range(3):
+            T[_AB + 3 * i + j] = Ab[i, j]
+            for p in range(4):
+                T[_DAB + 12 * i + 4 * j + p] = dAb[i, j, p]
         for p in range(4):
-            ds[i, p] = 0.0
-    ds[0, 0] = r[K]
-    Pb = np.empty(3)
-    L = np.empty(3)
-    PM = np.empty((3, 3))
-    dPb = np.empty((3, 4))
-    dS = np.empty(4)
-    dL = np.empty((3, 4))
-    Dk = np.empty((3, 3, 4))
-    X = np.empty((3, 3, 4))
-    Y = np.empty((3, 3, 4))
-    nP = np.empty((3, 3))
-    v = np.empty(4)
-    num = np.empty(4)
-    den = np.empty(4)
-    w = np.empty(3)
-    dw = np.empty((3, 4))
-    t4 = np.empty(4)
+            T[_DBC + 4 * i + p] = dbc[i, p]
+    T[_P + 0] = q11
+    T[_P + 4] = q22
+    T[_DP + 0] = 1.0  # dP[0, 0, q11]
+    T[_DP + 16 + 1] = 1.0  # dP[1, 1, q22]
+    T[_S] = q11 * r[K]
+    T[_DSV] = r[K]  # ds[0, q11]
     S = 0.0
     k_R = -1
     k = K - 1
@@ -111,104 +115,124 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
     # ---- phase 1: Riccati with tangents, data step with tangents
     while k >= 0 and not stationary:
         for i in range(3):
-            Pb[i] = P[i, 0] * bc[0] + P[i, 1] * bc[1] + P[i, 2] * bc[2]
-            pba[i] = P[i, 0] * ba[0] + P[i, 1] * ba[1]
-        S = R + bc[0] * Pb[0] + bc[1] * Pb[1] + bc[2] * Pb[2]
+            T[_PB + i] = T[_P + 3 * i] * T[_BC] + T[_P + 3 * i + 1] * T[_BC + 1] + T[_P + 3 * i + 2] * T[_BC + 2]
+            T[_PBA + i] = T[_P + 3 * i] * T[_BA] + T[_P + 3 * i + 1] * T[_BA + 1]
+        S = R + T[_BC] * T[_PB] + T[_BC + 1] * T[_PB + 1] + T[_BC + 2] * T[_PB + 2]
         iS = 1.0 / S
         for j in range(3):
-            L[j] = (Pb[0] * Ab[0, j] + Pb[1] * Ab[1, j] + Pb[2] * Ab[2, j]) * iS
+            T[_L + j] = (T[_PB] * T[_AB + j] + T[_PB + 1] * T[_AB + 3 + j] + T[_PB + 2] * T[_AB + 6 + j]) * iS
         for i in range(3):
             for j in range(3):
-                M[i, j] = Ab[i, j] - bc[i] * L[j]
+                T[_M + 3 * i + j] = T[_AB + 3 * i + j] - T[_BC + i] * T[_L + j]
         for p in range(4):
-            dS[p] = 0.0
+            T[_DS + p] = 0.0
         for i in range(3):
             for p in range(4):
-                dPb[i, p] = (dP[i, 0, p] * bc[0] + dP[i, 1, p] * bc[1] + dP[i, 2, p] * bc[2]
-                             + P[i, 0] * dbc[0, p] + P[i, 1] * dbc[1, p] + P[i, 2] * dbc[2, p])
-                dpba[i, p] = dP[i, 0, p] * ba[0] + dP[i, 1, p] * ba[1]
-                dS[p] += dbc[i, p] * Pb[i] + bc[i] * dPb[i, p]  # d(b_cᵀ P b_c) = db_cᵀ Pb + b_cᵀ dPb
+                v = (T[_DP + 12 * i + p] * T[_BC] + T[_DP + 12 * i + 4 + p] * T[_BC + 1]
+                     + T[_DP + 12 * i + 8 + p] * T[_BC + 2] + T[_P + 3 * i] * T[_DBC + p]
+                     + T[_P + 3 * i + 1] * T[_DBC + 4 + p] + T[_P + 3 * i + 2] * T[_DBC + 8 + p])
+                T[_DPB + 4 * i + p] = v
+                T[_DPBA + 4 * i + p] = T[_DP + 12 * i + p] * T[_BA] + T[_DP + 12 * i + 4 + p] * T[_BA + 1]
+                T[_DS + p] += T[_DBC + 4 * i + p] * T[_PB + i] + T[_BC + i] * v  # db_cᵀ Pb + b_cᵀ dPb
         for j in range(3):
             for p in range(4):
-                dL[j, p] = (dPb[0, p] * Ab[0, j] + dPb[1, p] * Ab[1, j] + dPb[2, p] * Ab[2, j]
-                            + Pb[0] * dAb[0, j, p] + Pb[1] * dAb[1, j, p] + Pb[2] * dAb[2, j, p] - L[j] * dS[p]) * iS
+                T[_DL + 4 * j + p] = (T[_DPB + p] * T[_AB + j] + T[_DPB + 4 + p] * T[_AB + 3 + j]
+                                      + T[_DPB + 8 + p] * T[_AB + 6 + j] + T[_PB] * T[_DAB + 4 * j + p]
+                                      + T[_PB + 1] * T[_DAB + 12 + 4 * j + p] + T[_PB + 2] * T[_DAB + 24 + 4 * j + p]
+                                      - T[_L + j] * T[_DS + p]) * iS
         for i in range(3):
             for j in range(3):
                 for p in range(4):
-                    Dk[i, j, p] = dAb[i, j, p] - dbc[i, p] * L[j]
-                    dM[i, j, p] = Dk[i, j, p] - bc[i] * dL[j, p]
+                    v = T[_DAB + 12 * i + 4 * j + p] - T[_DBC + 4 * i + p] * T[_L + j]
+                    T[_DK + 12 * i + 4 * j + p] = v
+                    T[_DM + 12 * i + 4 * j + p] = v - T[_BC + i] * T[_DL + 4 * j + p]
         # P_k and its tangents (Joseph form, symmetric; envelope theorem for the tangents:
         # dP_k = dQ + Mᵀ dP M + Dᵀ P M + Mᵀ P D with D = dA - db_c Lᵀ)
         for i in range(3):
             for j in range(3):
-                PM[i, j] = P[i, 0] * M[0, j] + P[i, 1] * M[1, j] + P[i, 2] * M[2, j]
+                T[_PM + 3 * i + j] = (T[_P + 3 * i] * T[_M + j] + T[_P + 3 * i + 1] * T[_M + 3 + j]
+                                      + T[_P + 3 * i + 2] * T[_M + 6 + j])
         for i in range(3):
             for j in range(3):
                 for p in range(4):
-                    X[i, j, p] = dP[i, 0, p] * M[0, j] + dP[i, 1, p] * M[1, j] + dP[i, 2, p] * M[2, j]
-                    Y[i, j, p] = Dk[0, i, p] * PM[0, j] + Dk[1, i, p] * PM[1, j] + Dk[2, i, p] * PM[2, j]
-        for i in range(3):
-            for j in range(i, 3):
-                nP[i, j] = R * L[i] * L[j] + M[0, i] * PM[0, j] + M[1, i] * PM[1, j] + M[2, i] * PM[2, j]
-        nP[0, 0] += q11
-        nP[1, 1] += q22
+                    T[_X + 12 * i + 4 * j + p] = (T[_DP + 12 * i + p] * T[_M + j] + T[_DP + 12 * i + 4 + p] * T[_M + 3 + j]
+                                                  + T[_DP + 12 * i + 8 + p] * T[_M + 6 + j])
+                    T[_Y + 12 * i + 4 * j + p] = (T[_DK + 4 * i + p] * T[_PM + j] + T[_DK + 12 + 4 * i + p] * T[_PM + 3 + j]
+                                                  + T[_DK + 24 + 4 * i + p] * T[_PM + 6 + j])
         pn = 0.0
         pd = 0.0
         for p in range(4):
-            num[p] = 0.0
-            den[p] = 0.0
+            T[_NUM + p] = 0.0
+            T[_DEN + p] = 0.0
         for i in range(3):
             for j in range(i, 3):
-                pn += abs(nP[i, j] - P[i, j])
-                pd += abs(nP[i, j])
-                P[i, j] = nP[i, j]
-                P[j, i] = nP[i, j]
-                for p in range(4):
-                    v[p] = M[0, i] * X[0, j, p] + M[1, i] * X[1, j, p] + M[2, i] * X[2, j, p] + Y[i, j, p] + Y[j, i, p]
+                v = (R * T[_L + i] * T[_L + j] + T[_M + i] * T[_PM + j] + T[_M + 3 + i] * T[_PM + 3 + j]
+                     + T[_M + 6 + i] * T[_PM + 6 + j])
                 if i == j and i < 2:
-                    v[i] += 1.0  # dQ
+                    v += q11 if i == 0 else q22
+                pn += abs(v - T[_P + 3 * i + j])
+                pd += abs(v)
+                T[_P + 3 * i + j] = v
+                T[_P + 3 * j + i] = v
                 for p in range(4):
-                    num[p] += abs(v[p] - dP[i, j, p])
-                    den[p] += abs(v[p])
-                    dP[i, j, p] = v[p]
-                    dP[j, i, p] = v[p]
+                    v = (T[_M + i] * T[_X + 4 * j + p] + T[_M + 3 + i] * T[_X + 12 + 4 * j + p]
+                         + T[_M + 6 + i] * T[_X + 24 + 4 * j + p] + T[_Y + 12 * i + 4 * j + p] + T[_Y + 12 * j + 4 * i + p])
+                    if p == i and p == j and p < 2:
+                        v += 1.0  # dQ
+                    T[_NUM + p] += abs(v - T[_DP + 12 * i + 4 * j + p])
+                    T[_DEN + p] += abs(v)
+                    T[_DP + 12 * i + 4 * j + p] = v
+                    T[_DP + 12 * j + 4 * i + p] = v
         stationary = freeze and pn <= FREEZE_RTOL * pd
         for p in range(4):
-            stationary = stationary and num[p] <= FREEZE_RTOL * den[p]
-        if k < K_obs:
-            S_t[k] = S
-            for j in range(3):
-                L_t[k, j] = L[j]
-                for p in range(4):
-                    dL_t[k, j, p] = dL[j, p]
-            for p in range(4):
-                dS_t[k, p] = dS[p]
+            stationary = stationary and T[_NUM + p] <= FREEZE_RTOL * T[_DEN + p]
         # data step k with tangents
         ak = ua[k]
         for i in range(3):
-            w[i] = s[i] - pba[i] * ak
-        fk = (bc[0] * w[0] + bc[1] * w[1] + bc[2] * w[2]) * iS
+            T[_W + i] = T[_S + i] - T[_PBA + i] * ak
+        fk = (T[_BC] * T[_W] + T[_BC + 1] * T[_W + 1] + T[_BC + 2] * T[_W + 2]) * iS
         for i in range(3):
             for p in range(4):
-                dw[i, p] = ds[i, p] - dpba[i, p] * ak
+                T[_DW + 4 * i + p] = T[_DSV + 4 * i + p] - T[_DPBA + 4 * i + p] * ak
         for p in range(4):
-            t4[p] = (dbc[0, p] * w[0] + dbc[1, p] * w[1] + dbc[2, p] * w[2]
-                     + bc[0] * dw[0, p] + bc[1] * dw[1, p] + bc[2] * dw[2, p] - fk * dS[p]) * iS
-        if k < K_obs:
+            T[_T4 + p] = (T[_DBC + p] * T[_W] + T[_DBC + 4 + p] * T[_W + 1] + T[_DBC + 8 + p] * T[_W + 2]
+                          + T[_BC] * T[_DW + p] + T[_BC + 1] * T[_DW + 4 + p] + T[_BC + 2] * T[_DW + 8 + p]
+                          - fk * T[_DS + p]) * iS
+        for j in range(3):
+            for p in range(4):
+                T[_DSV + 4 * j + p] = (T[_DM + 4 * j + p] * T[_W] + T[_DM + 12 + 4 * j + p] * T[_W + 1]
+                                       + T[_DM + 24 + 4 * j + p] * T[_W + 2] + T[_M + j] * T[_DW + p]
+                                       + T[_M + 3 + j] * T[_DW + 4 + p] + T[_M + 6 + j] * T[_DW + 8 + p])
+        T[_DSV] += r[k]
+        for j in range(3):
+            T[_S + j] = T[_M + j] * T[_W] + T[_M + 3 + j] * T[_W + 1] + T[_M + 6 + j] * T[_W + 2]
+        T[_S] += q11 * r[k]
+        if k < K_obs:  # outputs last: their stores might alias the buffer as far as LLVM knows
             f[k] = fk
+            S_t[k] = S
             for p in range(4):
-                df[k, p] = t4[p]
-        for j in range(3):
-            for p in range(4):
-                ds[j, p] = (dM[0, j, p] * w[0] + dM[1, j, p] * w[1] + dM[2, j, p] * w[2]
-                            + M[0, j] * dw[0, p] + M[1, j] * dw[1, p] + M[2, j] * dw[2, p])
-        ds[0, 0] += r[k]
-        for j in range(3):
-            t4[j] = M[0, j] * w[0] + M[1, j] * w[1] + M[2, j] * w[2]
-        s[0] = t4[0] + q11 * r[k]
-        s[1] = t4[1]
-        s[2] = t4[2]
+                df[k, p] = T[_T4 + p]
+                dS_t[k, p] = T[_DS + p]
+            for j in range(3):
+                L_t[k, j] = T[_L + j]
+                for p in range(4):
+                    dL_t[k, j, p] = T[_DL + 4 * j + p]
         k -= 1
+    for i in range(3):
+        pba[i] = T[_PBA + i]
+        for j in range(3):
+            M[i, j] = T[_M + 3 * i + j]
+            for p in range(4):
+                dM[i, j, p] = T[_DM + 12 * i + 4 * j + p]
+        for p in range(4):
+            dpba[i, p] = T[_DPBA + 4 * i + p]
+            ds[i, p] = T[_DSV + 4 * i + p]
+    s = np.empty(3)
+    for i in range(3):
+        s[i] = T[_S + i]
+    L = T[_L:_L + 3]
+    dS = T[_DS:_DS + 4]
+    dL = T[_DL:_DL + 12].reshape((3, 4))
     k_z = k + 1 if stationary else 0
     if stationary:
         k_R = min(k, K_obs - 1)

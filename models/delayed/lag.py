@@ -39,6 +39,7 @@ its angle row differs from the lagged plant's by the within-sample shape of the 
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -100,13 +101,11 @@ def lag_coefficients(tau_nm, dt: float = DT_HUMAN, params: WheelParameters = Whe
     (0.8465, 0.9202)
     """
     tau = _check_tau(tau_nm)
-    A_c, b_w = continuous_matrices(params)
-    Phi = discretize(dt, params).A
-    b1 = discretize(dt, params).b[1]
+    A_c, b_w, wheel, lam = _wheel(float(dt), WheelParameters(*params))
+    b1 = wheel.b[1]
     flat = tau.reshape(-1)
     out = np.zeros((4, flat.shape[0]))
-    Pb = Phi @ b_w
-    lam = np.linalg.eigvals(A_c)
+    Pb = wheel.A @ b_w
     for i, t in enumerate(flat):
         if t == 0.0:
             out[3, i] = Pb[1] / b1
@@ -181,9 +180,17 @@ def lagged_planning_plant(plant: DiscretePlant, a: float, alpha: float, gain=Non
     return LaggedPlanningPlant(A, b_c, b_a)
 
 
+@lru_cache(maxsize=16)
+def _wheel(dt: float, params: WheelParameters):
+    """The continuous wheel, its discretization and its poles (computed once per wheel and dt: the
+    likelihood asks for them at every evaluation)."""
+    A_c, b_w = continuous_matrices(params)
+    return A_c, b_w, discretize(dt, params), np.linalg.eigvals(A_c)
+
+
 def check_wheel(plant: DiscretePlant, params: WheelParameters) -> None:
     """ValueError unless ``plant`` is the discretization of ``params`` at its own sample time."""
-    wheel = discretize(plant.dt, params)
+    wheel = _wheel(float(plant.dt), WheelParameters(*params))[2]
     if not (np.allclose(wheel.A, plant.A, rtol=1e-12, atol=1e-15) and np.allclose(wheel.b, plant.b, rtol=1e-12,
                                                                                  atol=1e-15)):
         raise ValueError("plant is not the discretization of params; pass the WheelParameters it came from")

@@ -144,7 +144,12 @@ def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, dela
     if not isinstance(batch, SegmentBatch):
         raise TypeError(f"batch must be a models.segment.SegmentBatch (prepare_batch); got {type(batch).__name__}")
     n = batch.n
-    th = validate_theta(theta)
+    th = np.asarray(theta, dtype=float)
+    # validate_theta names the first bad entry but loops in Python; the likelihood is called
+    # tens of thousands of times in a fit, so it runs only when the vectorized check fails
+    if th.ndim not in (1, 2) or th.shape[0] != 3 or not (np.all(np.isfinite(th)) and np.all(th[:2] >= 0)
+                                                         and np.all(th[2] > 0)):
+        th = validate_theta(theta)
     if th.ndim == 2 and th.shape[1] != n:
         raise ValueError(f"theta must have shape (3,) or (3, {n}); got {th.shape}")
     # always a fresh C array: one compiled specialization, and a segment's bits never depend on the caller's layout
@@ -154,10 +159,12 @@ def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, dela
     d = _per_segment(delay, n, "delay", integer=True)
     t0 = _per_segment(tau0, n, "tau0", minimum=None)
     check_wheel(plant, params)
+    if np.all(tau == tau[0]):  # one lag for the batch (the common case)
+        values, inverse = tau[:1], np.zeros(n, dtype=np.intp)
+    else:
+        values, inverse = np.unique(tau, return_inverse=True)
     lag = np.empty((4, n))
-    values, inverse = np.unique(tau, return_inverse=True)
-    coef = lag_coefficients(values, plant.dt, params)
-    for row, v in enumerate(coef):
+    for row, v in enumerate(lag_coefficients(values, plant.dt, params)):
         lag[row] = np.asarray(v)[inverse]
     out = np.empty((6, n))
     inn = np.empty((n, batch.K if with_innovations else 0))

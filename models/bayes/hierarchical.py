@@ -1,7 +1,9 @@
-"""Hierarchical Bayesian model of the human cost parameters in manual and shared control.
+"""Hierarchical Bayesian model of the human cost parameters across condition levels.
 
-One *unit* is a subject i in a condition c (MC = manual, SC = shared control). Its cost
-θ = [q11, q22, R] (paper Eq. 6) enters the max-ent likelihood (paper Eq. 8) only through
+One *unit* is a subject i in a condition level c: by default the paper's MC (manual
+control, the baseline) and SC (shared control); an experiment may have L >= 2 levels, the
+baseline first (:class:`models.design.Design`). Its cost θ = [q11, q22, R] (paper Eq. 6)
+enters the max-ent likelihood (paper Eq. 8) only through
 
 * θ1 = q11 / R and θ2 = q22 / R, which fix the optimal policy (scaling J keeps the
   optimum, paper Section V-A), and
@@ -17,18 +19,38 @@ so the model is written in (θ1, θ2, R)::
     θ2[i, c]      ~ HalfNormal(τ)                (θ2 >= 0; τ -> 0 says "θ2 = 0 for everyone")
     u_H[segment] ~ max-ent(q11 = θ1 R, q22 = θ2 R, R | x0, angle_ref, u_A)
 
-(in SC the max-ent human plans with the assistant's feedback law when the segment
-carries :class:`models.segment.Feedback`, as ``scioc fit`` does by default, or with the
-recorded u_A as a known input, the paper's model).
+(on an assisted level the max-ent human plans with the assistant's feedback law when the
+segment carries :class:`models.segment.Feedback`, as ``scioc fit`` does by default, or with
+the recorded u_A as a known input, the paper's model).
 
-Several segments may belong to one unit (they share its θ); every subject needs at least
-one segment in each condition.
+More levels. With levels 0 (the baseline), 1, ..., L-1 every non-baseline level c gets
+its own change of each subject against the baseline, b_ic ~ N(0, σ_β,c) with its own mean
+β_c, and likewise for log R (β_R,c, σ_βR,c); a subject's changes are independent across
+levels. β, σ_β, β_R and σ_βR then have dims ``contrast`` (the non-baseline levels), and
+with L = 2 the model is exactly the one above (scalar β; the names of
+:mod:`models.bayes.blocks`). Each level's own σ_β rather than one shared: the
+between-subject spread of the response to a weak and to a strong assistant need not be
+alike, and a shared σ_β would pull the smaller spread up and the larger one down,
+widening or narrowing the per-subject contrasts of both. The marginal model of the
+baseline and any one level is then the two-level model. The price is one scale per
+level, each learnt from that level's changes alone; their changes are non-centred by
+default (see below), so a small σ_β,c does not form a funnel.
+
+Several segments may belong to one unit (trials: they share its θ); every subject needs
+at least one segment in each level.
 
 Priors (:class:`Priors`; units: θ1, θ2 in rad⁻² and (rad/s)⁻² per (N·m)⁻², R in (N·m)⁻²)::
 
     μ   ~ N(3, 1)          β   ~ N(0, 1)      σ   ~ HalfN(0.5)   σ_β  ~ HalfN(0.3)
     μ_R ~ N(3, 1)          β_R ~ N(0, 0.5)    σ_R ~ HalfN(0.5)   σ_βR ~ HalfN(0.3)
     τ   ~ HalfN(0.5)
+
+(each β_c, σ_β,c, β_R,c, σ_βR,c with the prior of β, σ_β, β_R, σ_βR above).
+
+R is a per-sample precision and scales with the sample time (:mod:`models.design`), θ1 and
+θ2 do not: μ_R's prior is stated at the paper's 100 Hz and :meth:`Priors.for_design`
+shifts its centre by log(dt / 0.01) (``Design.r_scale``), so that the prior says the same
+about the human at any rate; at 100 Hz it is exactly :class:`Priors` ``()``.
 
 The centres say what the parameters mean physically. θ1 = e³ ≈ 20 rad⁻² weighs a 0.2-rad
 error (the RMS of the reference) like a 0.9 N·m torque. R sets the human's torque jitter:
@@ -40,7 +62,7 @@ The priors pass a prior predictive check on the default study; :mod:`models.baye
 holds the check, its numbers and why the first priors were replaced.
 
 Pooled model (``build_model(..., condition_effects=False)``), the alternative for the
-PSIS-LOO comparison: log θ1[i, SC] = log θ1[i, MC] = m_i ~ N(μ, σ) (β = σ_β = 0), with the
+PSIS-LOO comparison: log θ1[i, c] = m_i ~ N(μ, σ) in every level (β = σ_β = 0), with the
 log R and θ2 blocks unchanged, so that the two models differ only in the paper's question.
 
 Parameterization (:class:`Parameterization`), chosen by measurement. Per unit at K = 1500
@@ -72,29 +94,33 @@ unit (3-s windows) every transition of every chain diverged in the σ_β funnel.
 default keeps the change non-centred, which passes on all three data sets, at about half
 the ESS of C / C where that works; pass ``Parameterization(theta1_mc="centred",
 theta1_sc="centred")`` for long windows when speed matters. (Session 1 measured the same
-pattern on an earlier stand-in simulator, no longer in the repository.)
+pattern on an earlier stand-in simulator, no longer in the repository.) The table is the
+two-level study's; with more levels every change gets the form ``theta1_sc`` / ``R_sc``
+says, a choice carried over from it, not measured again.
 
 The pointwise log-likelihood of each segment is the element-wise log density of the
 observed variable ``u_H`` (dims segment × step, one value per segment), so
 ``pm.compute_log_likelihood(idata, model=model)`` gives a ``log_likelihood`` group with
 dims (chain, draw, segment) for ``arviz.loo``. With one segment per unit, leaving a segment
 out removes all data on that unit's θ, so expect large Pareto k: compare models with
-``loo`` only alongside its k diagnostics (or with K-fold by subject).
+``loo`` only alongside its k diagnostics (or with K-fold by subject). Trials are separate
+segments, so with several trials per unit leaving one out keeps the unit's other data.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Literal, NamedTuple
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
+from models.bayes.blocks import Parameterization, pooled_block, unit_block
 from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp
-from models.design import CONDITIONS
+from models.design import CONDITIONS, Design
 from models.maxent import sample_maxent
 from models.plant import DiscretePlant
 from models.segment import as_batch, planning_plant
@@ -105,12 +131,13 @@ from models.units import index_study
 POPULATION_PARAMETERS = ("mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R",
                          "sigma_log_R", "sigma_beta_log_R", "tau_theta2")
 
-Form = Literal["centred", "noncentred", "mean"]
-
 
 @dataclass(frozen=True)
 class Priors:
-    """Hyperprior parameters (see the module docstring for the model).
+    """Hyperprior parameters (see the module docstring for the model), stated at 100 Hz.
+
+    "MC" below is the baseline and "SC" every other level (each its own β, σ_β, β_R, σ_βR
+    with these priors). Use :meth:`for_design` for another sample time.
 
     Attributes
     ----------
@@ -123,7 +150,7 @@ class Priors:
     sigma_beta : float
         Scale of the HalfNormal prior on σ_β (between-subject SD of the SC change).
     mu_log_R : (float, float)
-        Mean and SD of the Normal prior on μ_R.
+        Mean and SD of the Normal prior on μ_R, at 100 Hz (:meth:`for_design` shifts the mean).
     beta_log_R_sd : float
         SD of the Normal(0, ·) prior on β_R.
     sigma_log_R : float
@@ -144,73 +171,24 @@ class Priors:
     sigma_beta_log_R: float = 0.3
     tau_theta2: float = 0.5
 
+    @classmethod
+    def for_design(cls, design: Design, **overrides) -> "Priors":
+        """The priors at ``design``'s sample time: μ_R's centre + log(dt / 0.01), the rest as stated.
 
-@dataclass(frozen=True)
-class Parameterization:
-    """Centred or non-centred form of each block of unit parameters.
+        R ∝ dt (:mod:`models.design`), so the prior centre of log R at 100 Hz moves by
+        ``log(design.r_scale)``; its SD and every other prior are rate-free. At 100 Hz
+        ``log(1.0) = 0.0`` and the priors are exactly ``Priors()``.
 
-    For log θ1 and log R there are two blocks: the MC value of each subject (the
-    subject intercept) and its SC change. ``centred`` samples the unit values
-    themselves (log θ1[i, MC] ~ N(μ, σ); log θ1[i, SC] ~ N(log θ1[i, MC] + β, σ_β));
-    ``noncentred`` samples standard-normal z and sets ``μ + σ z`` (intercept) or
-    ``log θ1[i, MC] + β + σ_β z`` (change). ``mean`` (intercept only) samples the
-    subject mean m_i = (log θ1[i, MC] + log θ1[i, SC]) / 2 ~ N(μ + d_i / 2, σ) centred,
-    after the change d_i (in the form ``theta1_sc`` says, as d_i ~ N(β, σ_β) when
-    centred): the same model, with the data acting on nearly orthogonal coordinates. For
-    θ2, ``centred`` samples θ2 ~ HalfNormal(τ) and ``noncentred`` samples z ~
-    HalfNormal(1) with θ2 = τ z.
-
-    Attributes
-    ----------
-    theta1_mc, R_mc : {"centred", "noncentred", "mean"}
-    theta1_sc, R_sc, theta2 : {"centred", "noncentred"}
-    """
-
-    theta1_mc: Form = "mean"
-    theta1_sc: Form = "noncentred"
-    R_mc: Form = "centred"
-    R_sc: Form = "centred"
-    theta2: Form = "noncentred"
-
-    def __post_init__(self):
-        for name in ("theta1_mc", "theta1_sc", "R_mc", "R_sc", "theta2"):
-            allowed = ("centred", "noncentred", "mean") if name in ("theta1_mc", "R_mc") else ("centred", "noncentred")
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"Parameterization.{name} must be one of {allowed}; got {getattr(self, name)!r}")
-
-
-def _unit_block(name: str, mu, beta, sigma, sigma_beta, form_mc: Form, form_sc: Form):
-    """log-parameter of every unit, (subject, condition), as MC intercept + SC change.
-
-    ``beta is None``: the pooled block, one value per subject for both conditions.
-    """
-    if beta is None:
-        # No SC change: the subject value is its own mean, so "mean" is the centred form.
-        if form_mc == "noncentred":
-            m = mu + sigma * pm.Normal(f"z_{name}_mean", 0.0, 1.0, dims="subject")
-        else:
-            m = pm.Normal(f"{name}_mean", mu, sigma, dims="subject")
-        return pm.Deterministic(name, pt.stack([m, m], axis=1), dims=("subject", "condition"))
-    if form_sc == "centred":
-        change = None if form_mc != "mean" else pm.Normal(f"{name}_change", beta, sigma_beta, dims="subject")
-    else:
-        change = beta + sigma_beta * pm.Normal(f"z_{name}_SC", 0.0, 1.0, dims="subject")
-    if form_mc == "mean":
-        # log θ[i, MC] ~ N(μ, σ) and change d_i independent  <=>  d_i, then the subject
-        # mean m_i = log θ[i, MC] + d_i / 2 ~ N(μ + d_i / 2, σ). The MC and SC data inform
-        # m_i - d_i / 2 and m_i + d_i / 2, so (m_i, d_i) are nearly uncorrelated a posteriori.
-        m = pm.Normal(f"{name}_mean", mu + 0.5 * change, sigma, dims="subject")
-        mc, sc = m - 0.5 * change, m + 0.5 * change
-    else:
-        if form_mc == "centred":
-            mc = pm.Normal(f"{name}_MC", mu, sigma, dims="subject")
-        else:
-            mc = mu + sigma * pm.Normal(f"z_{name}_MC", 0.0, 1.0, dims="subject")
-        if form_sc == "centred":
-            sc = pm.Normal(f"{name}_SC", mc + beta, sigma_beta, dims="subject")
-        else:
-            sc = mc + change
-    return pm.Deterministic(name, pt.stack([mc, sc], axis=1), dims=("subject", "condition"))
+        Examples
+        --------
+        >>> Priors.for_design(Design()) == Priors()
+        True
+        >>> round(Priors.for_design(Design(dt=0.001)).mu_log_R[0], 4)
+        0.6974
+        """
+        base = cls(**overrides)
+        centre, sd = base.mu_log_R
+        return replace(base, mu_log_R=(centre + math.log(design.r_scale), sd))
 
 
 def build_model(
@@ -224,6 +202,7 @@ def build_model(
     segment_ids: Sequence | None = None,
     data_containers: bool = False,
     condition_effects: bool = True,
+    levels: Sequence = CONDITIONS,
 ) -> pm.Model:
     """The hierarchical max-ent model of a study (see the module docstring).
 
@@ -231,14 +210,15 @@ def build_model(
     ----------
     subjects : sequence, length n
         Subject label of each segment.
-    conditions : sequence of {"MC", "SC"}, length n
-        Condition of each segment.
+    conditions : sequence of str, length n
+        Condition level of each segment (one of ``levels``).
     segments : SegmentBatch or sequence of Segment
         The n demonstrations, all with K observed torques and the same preview M >= 0
         (x0 in rad, rad/s; angle_ref (K + M + 1,) in rad; u_H (K,), u_A (K + M,) in N·m).
     plant : DiscretePlant
-        The 0.01-s wheel discretization.
+        The wheel discretized at the recording's sample time.
     priors : Priors
+        At the recording's rate: :meth:`Priors.for_design` (``Priors()`` is 100 Hz).
     parameterization : Parameterization
     segment_ids : sequence, length n, optional
         Labels of the ``segment`` coordinate (default 0..n-1).
@@ -251,21 +231,27 @@ def build_model(
         log-likelihood and no predictive draws.
     condition_effects : bool
         False builds the *pooled* model for the PSIS-LOO comparison: log θ1 of a subject
-        is the same in MC and SC (β = 0, σ_β = 0; no ``beta``, ``sigma_beta`` or SC change
+        is the same in every level (β = 0, σ_β = 0; no ``beta``, ``sigma_beta`` or change
         variables), sampled as ``log_theta1_mean`` ~ N(μ, σ) (centred unless
         ``parameterization.theta1_mc`` is ``noncentred``). The log R block and θ2 keep
         their condition effects, so the comparison is about θ1 alone, the paper's
-        question. The design check (every subject in both conditions) is the same.
+        question. The design check (every subject in every level) is the same.
+    levels : sequence of str
+        The condition levels, baseline first (default MC, SC; ``Design.ordered_levels``).
 
     Returns
     -------
     pymc.Model
-        Coordinates ``subject``, ``condition`` (MC, SC), ``segment`` and ``step``
-        (0..K-1). Free variables: the population parameters ``mu_log_theta1``,
+        Coordinates ``subject``, ``condition`` (``levels``), ``segment`` and ``step``
+        (0..K-1); with more than two levels also ``contrast`` (the non-baseline levels),
+        the dims of ``beta``, ``sigma_beta``, ``beta_log_R`` and ``sigma_beta_log_R``
+        (scalars with two levels). Free variables: the population parameters ``mu_log_theta1``,
         ``beta``, ``sigma_log_theta1``, ``sigma_beta``, ``mu_log_R``, ``beta_log_R``,
         ``sigma_log_R``, ``sigma_beta_log_R``, ``tau_theta2`` and the unit parameters
         in the chosen form (by default ``log_theta1_mean``, ``z_log_theta1_SC``,
-        ``log_R_MC``, ``log_R_SC``, ``z_theta2``). Deterministics ``log_theta1``, ``log_R``, ``theta1``,
+        ``log_R_MC``, ``log_R_SC``, ``z_theta2``; with more levels ``log_theta1_mean``,
+        ``z_log_theta1_contrast``, ``log_R_baseline``, ``log_R_contrast``, ``z_theta2``:
+        :mod:`models.bayes.blocks`). Deterministics ``log_theta1``, ``log_R``, ``theta1``,
         ``R``, ``theta2`` (subject, condition). Observed ``u_H`` (segment, step),
         whose element-wise log density is one log-likelihood per segment.
 
@@ -284,8 +270,13 @@ def build_model(
     >>> m = build_model(["a", "a"], ["MC", "SC"], [seg, seg], discretize(0.01))
     >>> m.coords["condition"]
     ('MC', 'SC')
+    >>> m3 = build_model(["a"] * 3, ["none", "weak", "strong"], [seg] * 3, discretize(0.01),
+    ...                  levels=("none", "weak", "strong"))
+    >>> m3.coords["contrast"], m3.named_vars_to_dims["beta"]
+    (('weak', 'strong'), ('contrast',))
     """
-    index = index_study(subjects, conditions)
+    levels = tuple(str(v) for v in levels)
+    index = index_study(subjects, conditions, levels)
     batch = as_batch(segments, plant)
     n, K = batch.n, batch.K
     if n != index.subject_idx.shape[0]:
@@ -293,7 +284,12 @@ def build_model(
     ids = list(range(n)) if segment_ids is None else list(segment_ids)
     if len(ids) != n:
         raise ValueError(f"segment_ids must have {n} entries; got {len(ids)}")
-    coords = {"subject": index.subjects, "condition": CONDITIONS, "segment": ids, "step": np.arange(K)}
+    coords = {"subject": index.subjects, "condition": levels, "segment": ids, "step": np.arange(K)}
+    L = len(levels)
+    # Two levels: scalar condition effects, the graph of every earlier version (models.bayes.blocks).
+    effect = {} if L == 2 else {"dims": "contrast"}
+    if L > 2:
+        coords["contrast"] = levels[1:]
     s_idx, c_idx = index.subject_idx, index.condition_idx
     op = MaxEntLoglikOp(batch, plant)
     u_obs = op.u  # the Op's own read-only copy
@@ -327,21 +323,21 @@ def build_model(
     with pm.Model(coords=coords) as model:
         mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
         if condition_effects:
-            beta = pm.Normal("beta", 0.0, priors.beta_sd)
+            beta = pm.Normal("beta", 0.0, priors.beta_sd, **effect)
         sigma = pm.HalfNormal("sigma_log_theta1", priors.sigma_log_theta1)
         if condition_effects:
-            sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta)
+            sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta, **effect)
         mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
-        beta_R = pm.Normal("beta_log_R", 0.0, priors.beta_log_R_sd)
+        beta_R = pm.Normal("beta_log_R", 0.0, priors.beta_log_R_sd, **effect)
         sigma_R = pm.HalfNormal("sigma_log_R", priors.sigma_log_R)
-        sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R)
+        sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R, **effect)
         tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
 
         if condition_effects:
-            log_theta1 = _unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc)
+            log_theta1 = unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc, L)
         else:
-            log_theta1 = _unit_block("log_theta1", mu, None, sigma, None, form.theta1_mc, form.theta1_sc)
-        log_R = _unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form.R_mc, form.R_sc)
+            log_theta1 = pooled_block("log_theta1", mu, sigma, form.theta1_mc, L)
+        log_R = unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form.R_mc, form.R_sc, L)
         if form.theta2 == "centred":
             theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))
         else:

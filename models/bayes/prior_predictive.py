@@ -2,7 +2,10 @@
 
 :func:`prior_predictive_summary` draws all unit parameters jointly from the model's prior,
 simulates every segment of a study exactly from the max-ent human the likelihood
-assumes, and summarizes the RMS torque and RMS tracking error against the observed ones.
+assumes, and summarizes the RMS torque and RMS tracking error against the observed ones,
+per condition level. It works for any design: pass the levels (baseline first), the wheel
+discretized at the recording's sample time and the priors at that rate
+(:meth:`models.bayes.hierarchical.Priors.for_design`).
 
 Prior predictive check: :func:`prior_predictive_summary` on the default study of ``scioc run``
 (``reports/default-study/data/study.parquet``, seed 2018, 42 subjects; every segment through
@@ -44,8 +47,8 @@ import numpy as np
 import pymc as pm
 
 from models.bayes.hierarchical import Priors, build_model
-from models.cost import from_normalized
 from models.design import CONDITIONS
+from models.cost import from_normalized
 from models.maxent import sample_maxent
 from models.plant import DiscretePlant
 from models.segment import as_batch, planning_plant
@@ -53,7 +56,7 @@ from models.units import index_study
 
 
 class PriorPredictive(NamedTuple):
-    """Prior predictive torques and tracking errors, per condition.
+    """Prior predictive torques and tracking errors, per condition level.
 
     Attributes
     ----------
@@ -83,6 +86,7 @@ def prior_predictive_summary(
     *,
     draws: int = 200,
     priors: Priors = Priors(),
+    levels: Sequence = CONDITIONS,
 ) -> PriorPredictive:
     """Simulate the study's segments under prior draws and summarize torques and errors.
 
@@ -95,19 +99,24 @@ def prior_predictive_summary(
     Parameters
     ----------
     subjects, conditions, segments, plant
-        As for :func:`models.bayes.hierarchical.build_model`.
+        As for :func:`models.bayes.hierarchical.build_model` (``plant`` at the
+        recording's sample time).
     rng : numpy.random.Generator
     draws : int
         Number of prior draws.
     priors : Priors
+        At the recording's rate (``Priors.for_design(design)``; ``Priors()`` is 100 Hz).
+    levels : sequence of str
+        The condition levels, baseline first (default MC, SC): the keys of the summaries.
 
     Returns
     -------
     PriorPredictive
     """
     batch = as_batch(segments, plant)
-    index = index_study(subjects, conditions)
-    model = build_model(subjects, conditions, batch, plant, priors=priors)
+    levels = tuple(str(v) for v in levels)
+    index = index_study(subjects, conditions, levels)
+    model = build_model(subjects, conditions, batch, plant, priors=priors, levels=levels)
     seed = int(rng.integers(2**63))
     lt1, lR, t2 = pm.draw([model["log_theta1"], model["log_R"], model["theta2"]], draws=draws, random_seed=seed)
     x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
@@ -128,7 +137,7 @@ def prior_predictive_summary(
     obs_tq = np.sqrt(np.mean(batch.u**2, axis=1))
     obs_er = np.sqrt(np.mean((batch.x1[:, 1:] - batch.r[:, 1 : K + 1]) ** 2, axis=1))
     out = {k: {} for k in ("tq", "er", "otq", "oer")}
-    for ci, cname in enumerate(CONDITIONS):
+    for ci, cname in enumerate(levels):
         m = c == ci
         out["tq"][cname] = np.quantile(tq[:, m], probs)
         out["er"][cname] = np.quantile(er[:, m], probs)

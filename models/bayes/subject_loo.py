@@ -4,7 +4,7 @@ PSIS-LOO over segments fails here: one segment holds all the data on its unit's 
 leaving it out moves that θ's posterior far and the importance ratios have Pareto k
 well above 0.7. The question the model comparison asks ("does a condition effect
 predict new subjects better?") is anyway one about subjects. For subject i with data
-y_i (its MC and SC segments) and unit parameters φ_i, and ψ the population parameters::
+y_i (its segments in every level, every trial) and unit parameters φ_i, and ψ the population parameters::
 
     p(y_i | y_-i) = E_{ψ ~ p(ψ | y_-i)} [ p(y_i | ψ) ],   p(y_i | ψ) = ∫ p(y_i | φ) p(φ | ψ) dφ.
 
@@ -15,9 +15,9 @@ cross-validation approximations for Gaussian latent variable models", Section 3.
 Merkle, Furr and Rabe-Hesketh 2019 for mixed models). The inner integral is computed by
 importance sampling with one proposal per subject: a multivariate Student-t (ν = 4) with
 the mean and 1.5²× the covariance of the subject's own posterior draws in (log θ1, log R);
-for the two θ2 ≥ 0 a defensive mixture, half of it independent half-t's (ν = 4) scaled
+for the L θ2 ≥ 0 (one per level) a defensive mixture, half of it independent half-t's (ν = 4) scaled
 to 1.5× the draws' root mean square, half the population's own half-normals with τ on a
-64-point geometric grid spanning its posterior draws (both conditions from the same τ).
+64-point geometric grid spanning its posterior draws (every level from the same τ).
 The second half matters when the data leave θ2 at the prior's scale (the paper's
 θ2 = 0): τ's posterior then spreads over orders of magnitude, and a small-τ draw
 would otherwise find no proposal points.
@@ -25,8 +25,12 @@ The same M proposal points serve every ψ_s, so the exact max-ent likelihood is 
 only M times per segment. Returned with each value: the importance-sampling effective
 sample size, min over ψ_s, so a poor proposal shows.
 
-Unit parameters per subject: condition model (log θ1 MC, log θ1 SC, log R MC, log R SC,
-θ2 MC, θ2 SC); pooled model (log θ1 shared, log R MC, log R SC, θ2 MC, θ2 SC).
+Unit parameters per subject, with L levels (baseline first; MC, SC by default): condition
+model (log θ1 of each level, log R of each level, θ2 of each level: 3L); pooled model
+(log θ1 shared, then the same: 2L + 1). The conditional prior of a non-baseline level c is
+N(baseline value + β_c, σ_β,c), as :mod:`models.bayes.hierarchical` states it (whatever form
+the sampler used: the forms are the same model). Trials are further segments of their
+unit: their log-likelihoods add.
 """
 
 from __future__ import annotations
@@ -112,18 +116,20 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         Flattened posterior draws (S first): population parameters ``mu_log_theta1``,
         ``sigma_log_theta1``, ``mu_log_R``, ``beta_log_R``, ``sigma_log_R``,
         ``sigma_beta_log_R``, ``tau_theta2`` and, with condition effects, ``beta`` and
-        ``sigma_beta``, each (S,); unit parameters ``log_theta1``, ``log_R``, ``theta2``,
-        each (S, n_subjects, 2) with conditions (MC, SC).
+        ``sigma_beta``, each (S,), or (S, L - 1) with more than two levels (``beta_log_R``,
+        ``sigma_beta_log_R``, ``beta``, ``sigma_beta``: one column per non-baseline level);
+        unit parameters ``log_theta1``, ``log_R``, ``theta2``, each (S, n_subjects, L) with
+        the levels baseline first (MC, SC by default).
     batch : SegmentBatch
         The segments the model was fitted to.
     subject_idx, condition_idx : array_like of int, shape (n_segments,)
-        Each segment's subject and condition (0 = MC, 1 = SC), as in
-        :func:`models.units.index_study`.
+        Each segment's subject and level (0 = the baseline), as in
+        :func:`models.units.index_study`; several segments of one unit are its trials.
     plant : DiscretePlant
     rng : numpy.random.Generator
         For the proposal points.
     condition_effects : bool
-        The condition model (True) or the pooled one (log θ1 shared by both conditions).
+        The condition model (True) or the pooled one (log θ1 shared by all levels).
     M : int
         Proposal points per subject.
 
@@ -134,57 +140,66 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
     s_idx = np.asarray(subject_idx)
     c_idx = np.asarray(condition_idx)
     lt_all, lR_all, t2_all = (np.asarray(post[k], dtype=float) for k in ("log_theta1", "log_R", "theta2"))
-    S, n_subj = lt_all.shape[0], lt_all.shape[1]
+    S, n_subj, L = lt_all.shape
+
+    def per_level(name):  # (S, L - 1): one column per non-baseline level
+        return np.asarray(post[name], dtype=float).reshape(S, L - 1)
+
     mu, sig = post["mu_log_theta1"][:, None], post["sigma_log_theta1"][:, None]
-    muR, betR = post["mu_log_R"][:, None], post["beta_log_R"][:, None]
-    sigR, sigbR = post["sigma_log_R"][:, None], post["sigma_beta_log_R"][:, None]
+    muR, betR = post["mu_log_R"][:, None], per_level("beta_log_R")
+    sigR, sigbR = post["sigma_log_R"][:, None], per_level("sigma_beta_log_R")
     tau = post["tau_theta2"][:, None]
     if condition_effects:
-        beta, sigb = post["beta"][:, None], post["sigma_beta"][:, None]
+        beta, sigb = per_level("beta"), per_level("sigma_beta")
     # The τ grid of the θ2 proposal's prior half (the same for every subject).
     tau_lo, tau_hi = np.min(post["tau_theta2"]) + 1e-300, np.max(post["tau_theta2"]) + 1e-300
     taus = np.geomspace(tau_lo, max(tau_hi, tau_lo), TAU_GRID)
     out = np.empty((S, n_subj))
     ess = np.empty(n_subj)
     for i in range(n_subj):
-        # Gaussian-ish block: log θ1 (one or two) and log R MC, SC.
+        # Gaussian-ish block: log θ1 (one, or one per level) and log R of every level.
         if condition_effects:
-            cols = [lt_all[:, i, 0], lt_all[:, i, 1]]
+            cols = [lt_all[:, i, c] for c in range(L)]
         else:
             cols = [lt_all[:, i, 0]]
-        cols += [lR_all[:, i, 0], lR_all[:, i, 1]]
+        cols += [lR_all[:, i, c] for c in range(L)]
         draws = np.column_stack(cols)
         mean = draws.mean(axis=0)
         cov = np.cov(draws, rowvar=False) * INFLATE**2 + 1e-12 * np.eye(draws.shape[1])
         x, chol = _mvt_draw(rng, mean, cov, M)
         logq = _mvt_logpdf(x, mean, chol)
-        # θ2 >= 0, both conditions: defensive mixture of fitted half-t's and the prior on the τ grid.
+        # θ2 >= 0, every level: defensive mixture of fitted half-t's and the prior on the τ grid.
         scales = INFLATE * np.sqrt(np.mean(t2_all[:, i, :] ** 2, axis=0)) + 1e-300
         from_fit = rng.uniform(size=M) < 0.5
         k = rng.integers(0, TAU_GRID, M)
-        t2 = np.where(from_fit[:, None], np.abs(scales * rng.standard_t(NU, (M, 2))),
-                      np.abs(taus[k][:, None] * rng.standard_normal((M, 2))))
+        t2 = np.where(from_fit[:, None], np.abs(scales * rng.standard_t(NU, (M, L))),
+                      np.abs(taus[k][:, None] * rng.standard_normal((M, L))))
         log_fit = np.sum(np.log(2.0) + stats.t.logpdf(t2, NU, scale=scales), axis=1)
-        log_prior = special.logsumexp(_halfnorm(t2[:, None, 0], taus[None, :])
-                                      + _halfnorm(t2[:, None, 1], taus[None, :]), axis=1) - np.log(TAU_GRID)
+        grid = _halfnorm(t2[:, None, 0], taus[None, :])
+        for c in range(1, L):
+            grid = grid + _halfnorm(t2[:, None, c], taus[None, :])
+        log_prior = special.logsumexp(grid, axis=1) - np.log(TAU_GRID)
         logq += np.logaddexp(log_fit, log_prior) - np.log(2.0)
         if condition_effects:
-            lt = x[:, :2]
+            lt = x[:, :L]
         else:
-            lt = np.column_stack([x[:, 0], x[:, 0]])
-        lR = x[:, -2:]
+            lt = np.column_stack([x[:, 0]] * L)
+        lR = x[:, -L:]
         # Likelihood of the subject's segments at the M points.
         ll = np.zeros(M)
         for j in np.flatnonzero(s_idx == i):
             c = int(c_idx[j])
             ll += _segment_loglik(batch, j, plant, lt[:, c], lR[:, c], t2[:, c])
         # Conditional prior of the subject's unit parameters under each population draw (S, M).
+        lp = _norm(lt[None, :, 0], mu, sig)
         if condition_effects:
-            lp = _norm(lt[None, :, 0], mu, sig) + _norm(lt[None, :, 1], lt[None, :, 0] + beta, sigb)
-        else:
-            lp = _norm(lt[None, :, 0], mu, sig)
-        lp = lp + _norm(lR[None, :, 0], muR, sigR) + _norm(lR[None, :, 1], lR[None, :, 0] + betR, sigbR)
-        lp = lp + _halfnorm(t2[None, :, 0], tau) + _halfnorm(t2[None, :, 1], tau)
+            for c in range(1, L):
+                lp = lp + _norm(lt[None, :, c], lt[None, :, 0] + beta[:, c - 1 : c], sigb[:, c - 1 : c])
+        lp = lp + _norm(lR[None, :, 0], muR, sigR)
+        for c in range(1, L):
+            lp = lp + _norm(lR[None, :, c], lR[None, :, 0] + betR[:, c - 1 : c], sigbR[:, c - 1 : c])
+        for c in range(L):
+            lp = lp + _halfnorm(t2[None, :, c], tau)
         logw = lp + (ll - logq)[None, :]
         out[:, i] = special.logsumexp(logw, axis=1) - np.log(M)
         w = np.exp(logw - logw.max(axis=1, keepdims=True))

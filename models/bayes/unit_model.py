@@ -10,13 +10,16 @@ normalized parameters of the paper (Section V-A)::
 
 The prior is centred on the simulated study's population (:class:`models.simulate.Population`)
 and wide enough to cover it: θ1 from about 5 to 90 and R from 7 to 55 (central 95 %),
-i.e. torque variability per sample from about 0.1 to 0.27 N·m. The data enter through
+i.e. torque variability per sample from about 0.1 to 0.27 N·m. R is stated at 100 Hz;
+:meth:`UnitPrior.for_design` shifts log R's centre by log(dt / 0.01) for another sample
+time (R ∝ dt, :mod:`models.design`). The data enter through
 ``pm.Data`` containers, so a model compiled once serves any data set of the same shape.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pymc as pm
@@ -24,6 +27,7 @@ import pytensor.tensor as pt
 
 from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp
 from models.cost import from_normalized
+from models.design import Design
 from models.plant import DiscretePlant
 from models.segment import SegmentBatch
 
@@ -33,11 +37,18 @@ UNIT_PARAMETERS = ("theta1", "theta2", "R")
 
 @dataclass(frozen=True)
 class UnitPrior:
-    """Prior of one unit's normalized cost (see the module docstring)."""
+    """Prior of one unit's normalized cost (see the module docstring), R at 100 Hz."""
 
     log_theta1: tuple[float, float] = (float(np.log(20.0)), 0.75)
     theta2_scale: float = 0.05
     log_R: tuple[float, float] = (float(np.log(20.0)), 0.5)
+
+    @classmethod
+    def for_design(cls, design: Design, **overrides) -> "UnitPrior":
+        """The prior at ``design``'s sample time: log R's centre + log(dt / 0.01); exactly ``UnitPrior()`` at 100 Hz."""
+        base = cls(**overrides)
+        centre, sd = base.log_R
+        return replace(base, log_R=(centre + math.log(design.r_scale), sd))
 
     def draw(self, rng: np.random.Generator) -> dict:
         """One draw: ``theta1``, ``theta2``, ``R`` and the raw ``theta`` = [q11, q22, R]."""

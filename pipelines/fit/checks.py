@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from pathlib import Path
 
@@ -11,36 +12,64 @@ import pandas as pd
 import statsmodels.formula.api as smf
 
 from models.cost import from_normalized
-from models.design import CONDITIONS, SHARED
+from models.design import CONDITIONS, STUDY, Design
 from pipelines.adequacy import assess_study, not_checked
-from pipelines.fit.contrasts import HDI_PROB, condition_change, hdi
+from pipelines.fit.contrasts import HDI_PROB, condition_change, effect_draws, hdi, levels_of
 from pipelines.prepare import PreparedStudy
 
 
-def mixedlm_check(estimates: pd.DataFrame) -> dict:
-    """Frequentist cross-check: linear mixed model of log θ1 from the per-segment ML estimates.
+def _fixed_effect(fit, column: str) -> dict:
+    lo, hi = (float(x) for x in fit.conf_int(alpha=0.05).loc[column])
+    coef = float(fit.fe_params[column])
+    return {"coef": coef, "se": float(fit.bse_fe[column]), "ci95": [lo, hi], "p_value": float(fit.pvalues[column]),
+            "ratio": float(np.exp(coef)), "ratio_ci95": [float(np.exp(lo)), float(np.exp(hi))]}
+
+
+def mixedlm_check(estimates: pd.DataFrame, levels=CONDITIONS) -> dict:
+    """Frequentist cross-check: linear mixed model of log θ1 from the per-unit ML estimates.
 
     ``log θ1 ~ 1 + SC`` with a random intercept per subject (REML, statsmodels
-    ``MixedLM``); the SC coefficient estimates β. The ML estimates enter as data: their
-    own standard errors are ignored.
+    ``MixedLM``); the SC coefficient estimates β. With more than two ``levels`` (baseline
+    first) one indicator, and one coefficient, per non-baseline level (treatment coding
+    against the baseline), reported under ``coefficients``. The ML estimates enter as
+    data, one row per subject × level (``scioc identify`` gives one estimate per unit,
+    whatever its number of trials): their own standard errors are ignored.
+
+    Raises
+    ------
+    ValueError
+        If a subject × level has more than one row (trials must be one value per unit).
     """
+    levels = tuple(levels)
     d = estimates[["subject", "condition", "theta1"]].copy()
+    d["subject"], d["condition"] = d["subject"].astype(str), d["condition"].astype(str)
+    twice = d.duplicated(["subject", "condition"])
+    if twice.any():
+        first = d[twice].iloc[0]
+        raise ValueError("the mixed-model check needs one estimate per subject × condition; got several for "
+                         f"subject {first.subject!r}, condition {first.condition!r}")
     d["log_theta1"] = np.log(d["theta1"].astype(float))
-    d["SC"] = (d["condition"] == SHARED).astype(float)
+    # Indicator columns with formula-safe names (level labels may be any text).
+    columns = ["SC"] if len(levels) == 2 else [f"level_{j}" for j in range(1, len(levels))]
+    for column, level in zip(columns, levels[1:]):
+        d[column] = (d["condition"] == level).astype(float)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        fit = smf.mixedlm("log_theta1 ~ SC", d, groups=d["subject"]).fit(reml=True)
-    lo, hi = (float(x) for x in fit.conf_int(alpha=0.05).loc["SC"])
-    coef = float(fit.fe_params["SC"])
-    return {
-        "formula": "log_theta1 ~ 1 + SC, random intercept per subject (REML)",
-        "coef": coef, "se": float(fit.bse_fe["SC"]), "ci95": [lo, hi], "p_value": float(fit.pvalues["SC"]),
-        "ratio": float(np.exp(coef)), "ratio_ci95": [float(np.exp(lo)), float(np.exp(hi))],
+        fit = smf.mixedlm("log_theta1 ~ " + " + ".join(columns), d, groups=d["subject"]).fit(reml=True)
+    common = {
         "intercept": float(fit.fe_params["Intercept"]),
         "subject_sd": float(np.sqrt(fit.cov_re.values[0, 0])), "residual_sd": float(np.sqrt(fit.scale)),
         "n_obs": int(fit.nobs), "n_subjects": int(d["subject"].nunique()), "converged": bool(fit.converged),
         "warnings": sorted({str(w.message) for w in caught}),
     }
+    if len(levels) == 2:
+        return {"formula": "log_theta1 ~ 1 + SC, random intercept per subject (REML)",
+                **_fixed_effect(fit, "SC"), **common}
+    return {"formula": f"log_theta1 ~ 1 + one indicator per level other than the baseline {levels[0]}, "
+                       "random intercept per subject (REML)",
+            "baseline": levels[0],
+            "coefficients": {level: _fixed_effect(fit, column) for column, level in zip(columns, levels[1:])},
+            **common}
 
 
 #: simulation.json population names for the model's population parameters.
@@ -49,58 +78,92 @@ TRUE_NAMES = {"mu_log_theta1": "log_theta1_mc", "sigma_log_theta1": "sd_log_thet
               "sigma_beta_log_R": "sd_R_change", "tau_theta2": "theta2"}
 
 
-def truth_check(idata, truth_dir, estimates: pd.DataFrame | None = None) -> dict:
+def _interval(x: np.ndarray, t: float) -> dict:
+    """The posterior draws ``x`` of one parameter against its true value ``t``."""
+    if t == 0.0 and x.min() >= 0.0:
+        lo, hi, kind = 0.0, float(np.quantile(x, HDI_PROB)), "one-sided [0, q94]"
+    else:
+        (lo, hi), kind = hdi(x), "hdi94"
+    return {"truth": t, "mean": float(x.mean()), "interval": [lo, hi], "interval_kind": kind,
+            "in_interval": bool(lo <= t <= hi)}
+
+
+def _true_population(pop: dict, v: str, key: str, j: int, design: Design) -> float:
+    """The simulator's value of the model's population parameter ``v`` (non-baseline level ``j``, from 0)."""
+    if v == "beta" and pop.get("betas"):
+        return float(pop["betas"][j])
+    if v == "mu_log_R":  # the population's R is stated at 100 Hz; the model's at the recording's rate
+        return float(pop[key]) + math.log(design.r_scale)
+    return float(pop[key])
+
+
+def _contrast_truth(post, level: str, b: dict, true_change: pd.Series) -> tuple[dict, dict]:
+    """β of ``level`` against its truth and the realized mean change; per-subject HDIs holding the true change."""
+    sd = float(effect_draws(post, "beta", level).std(ddof=1))
+    beta = {"truth": b["truth"], "hdi": b["interval"], "in_hdi": b["in_interval"],
+            "posterior_mean": b["mean"], "discrepancy": b["mean"] - b["truth"],
+            "discrepancy_in_sd": (b["mean"] - b["truth"]) / sd,
+            "realized_mean_change": float(true_change.mean()),
+            "realized_in_hdi": bool(b["interval"][0] <= true_change.mean() <= b["interval"][1])}
+    change = condition_change(post, level=level)
+    covered = []
+    for j, s in enumerate(change["subject"].values):
+        lo, hi = hdi(change.values[:, :, j])
+        covered.append(bool(lo <= true_change[str(s)] <= hi))
+    return beta, {"n": len(covered), "true_change_in_hdi": int(sum(covered))}
+
+
+def truth_check(idata, truth_dir, estimates: pd.DataFrame | None = None, design: Design = STUDY) -> dict:
     """Compare the posterior with the simulator's truth (``simulation.json``, ``truth.parquet``).
 
     Returns the true β, whether it is in the 94 % HDI and by how much the posterior mean
-    misses it (also in posterior SDs); the realized mean of the 42 true changes; every
+    misses it (also in posterior SDs); the realized mean of the true changes; every
     population parameter against its true value (a scale whose truth is 0 against the
     one-sided interval [0, q94]); how many per-subject HDIs hold the true change; and,
-    with ``estimates``, the mean log error of the ML θ1 per condition (the closed-loop
-    bias of the likelihood plus the reconstruction). None when the simulated human has
-    no cost θ (``truth.parquet`` holds NaN).
+    with ``estimates``, the mean log error of the ML θ1 per level (the closed-loop
+    bias of the likelihood plus the reconstruction). With more than two levels ``beta``
+    and ``subjects`` are given per non-baseline level under ``contrasts``, and the
+    population parameters with a level are named ``beta[level]`` and so on. The true
+    μ_R is the population's log R (stated at 100 Hz) at ``design``'s sample time. A
+    ``truth.parquet`` with a ``trial`` column repeats its unit's θ per trial: one truth
+    per unit is used. None when the simulated human has no cost θ (``truth.parquet``
+    holds NaN).
     """
     truth_dir = Path(truth_dir)
     sim = json.loads((truth_dir / "simulation.json").read_text())
     truth = pd.read_parquet(truth_dir / "truth.parquet")
     if not np.isfinite(truth["theta1"].to_numpy(dtype=float)).any():
         return None  # a simulated human without a cost θ (the crossover operator): nothing to check against
+    truth = truth.drop_duplicates(["subject", "condition"]).drop(columns=["trial"], errors="ignore")
     pop = sim["population"]
     post = idata["posterior"]
+    levels = levels_of(post)
     out = {"source": str(truth_dir)}
     params = {}
     for v, key in TRUE_NAMES.items():
         if v not in post or key not in pop:
             continue
-        x = post[v].values.ravel()
-        t = float(pop[key])
-        if t == 0.0 and x.min() >= 0.0:
-            lo, hi, kind = 0.0, float(np.quantile(x, HDI_PROB)), "one-sided [0, q94]"
-        else:
-            (lo, hi), kind = hdi(x), "hdi94"
-        params[v] = {"truth": t, "mean": float(x.mean()), "interval": [lo, hi], "interval_kind": kind,
-                     "in_interval": bool(lo <= t <= hi)}
+        if "contrast" not in post[v].dims:
+            params[v] = _interval(post[v].values.ravel(), _true_population(pop, v, key, 0, design))
+            continue
+        for j, level in enumerate(levels[1:]):
+            x = effect_draws(post, v, level).ravel()
+            params[f"{v}[{level}]"] = _interval(x, _true_population(pop, v, key, j, design))
     out["population"] = params
     w = truth.pivot_table(index="subject", columns="condition", values="theta1")
-    true_change = np.log(w["SC"] / w["MC"])
-    b = params["beta"]
-    sd = float(post["beta"].values.std(ddof=1))
-    out["beta"] = {"truth": b["truth"], "hdi": b["interval"], "in_hdi": b["in_interval"],
-                   "posterior_mean": b["mean"], "discrepancy": b["mean"] - b["truth"],
-                   "discrepancy_in_sd": (b["mean"] - b["truth"]) / sd,
-                   "realized_mean_change": float(true_change.mean()),
-                   "realized_in_hdi": bool(b["interval"][0] <= true_change.mean() <= b["interval"][1])}
-    change = condition_change(post)
-    covered = []
-    for j, s in enumerate(change["subject"].values):
-        lo, hi = hdi(change.values[:, :, j])
-        covered.append(bool(lo <= true_change[str(s)] <= hi))
-    out["subjects"] = {"n": len(covered), "true_change_in_hdi": int(sum(covered))}
+    blocks = {c: _contrast_truth(post, c, params["beta" if len(levels) == 2 else f"beta[{c}]"],
+                                 np.log(w[c] / w[levels[0]]))
+              for c in levels[1:]}
+    if len(levels) == 2:
+        out["beta"], out["subjects"] = blocks[levels[1]]
+    else:
+        out["contrasts"] = {c: {"beta": b, "subjects": n} for c, (b, n) in blocks.items()}
     if estimates is not None:
         m = estimates.merge(truth, on=["subject", "condition"], suffixes=("", "_true"))
         out["ml_log_error"] = {c: float(np.mean(np.log(m.theta1[m.condition == c] / m.theta1_true[m.condition == c])))
-                               for c in CONDITIONS}
-        out["ml_log_error"]["SC_minus_MC"] = out["ml_log_error"]["SC"] - out["ml_log_error"]["MC"]
+                               for c in levels}
+        for c in levels[1:]:
+            out["ml_log_error"][f"{c}_minus_{levels[0]}"] = out["ml_log_error"][c] - out["ml_log_error"][levels[0]]
     return out
 
 
@@ -108,7 +171,10 @@ def posterior_adequacy(idata, prepared: PreparedStudy, plant) -> dict:
     """Model adequacy (:func:`pipelines.adequacy.assess_study`) at each segment's posterior θ.
 
     The plug-in θ of a segment is exp(posterior mean of log θ1) and of log R, and the
-    posterior mean of θ2, of its subject × condition.
+    posterior mean of θ2, of its subject × condition: the trials of a unit share it, and
+    the verdict then counts units (:func:`pipelines.adequacy.assess_study`). ``plant`` is
+    the wheel at the recording's sample time; the assistants and the encoder come from
+    the study's settings.
     """
     if prepared.settings.adequacy_boot == 0:
         return not_checked("switched off (adequacy bootstrap size 0)")

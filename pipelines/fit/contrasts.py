@@ -1,11 +1,13 @@
-"""The paper's question on the posterior: β, exp(β), P(β < 0) and the per-subject MC→SC contrasts."""
+"""The paper's question on the posterior: β, exp(β), P(β < 0) and the per-subject contrasts against the baseline.
+
+With two levels (the paper's MC and SC) the summary has one β at the top level; with more,
+one block of the same layout per non-baseline level under ``contrasts``.
+"""
 
 from __future__ import annotations
 
 import arviz as az
 import numpy as np
-
-from models.design import MANUAL, SHARED
 
 #: Probability of every highest-density interval reported.
 HDI_PROB = 0.94
@@ -29,37 +31,70 @@ def summary(x: np.ndarray) -> dict:
     return {"mean": float(x.mean()), "sd": float(x.std(ddof=1)), "median": float(np.median(x)), "hdi": hdi(x)}
 
 
-def condition_change(posterior, name: str = "log_theta1"):
-    """Per-subject draws of ``name``[SC] − ``name``[MC], dims (chain, draw, subject)."""
-    v = posterior[name]
-    return (v.sel(condition=SHARED) - v.sel(condition=MANUAL)).transpose("chain", "draw", "subject")
+def levels_of(posterior) -> tuple[str, ...]:
+    """The condition levels of a fit, baseline first (the model's ``condition`` coordinate)."""
+    return tuple(str(v) for v in posterior["log_theta1"].coords["condition"].values)
 
 
-def contrasts(idata) -> dict:
-    """β, exp(β), P(β < 0) and the per-subject MC→SC contrasts of log θ1.
+def condition_change(posterior, name: str = "log_theta1", level: str | None = None):
+    """Per-subject draws of ``name``[level] − ``name``[baseline], dims (chain, draw, subject).
 
-    Returns
-    -------
-    dict
-        ``beta`` (mean, sd, median, 94 % HDI, ``p_negative``), ``ratio`` (exp β: the
-        factor by which SC multiplies the population median θ1; median, mean, HDI of the
-        exp-transformed draws), ``beta_log_R`` and ``sigma_beta`` summaries, and
-        ``subjects``: per subject log θ1[SC] − log θ1[MC] (mean, sd, HDI, P(< 0)).
+    ``level`` defaults to the first non-baseline level (SC in the paper's study); the
+    baseline is the first level of the ``condition`` coordinate.
     """
-    post = idata["posterior"]
-    beta = post["beta"].values
+    v = posterior[name]
+    conds = [str(c) for c in v.coords["condition"].values]
+    level = conds[1] if level is None else level
+    return (v.sel(condition=level) - v.sel(condition=conds[0])).transpose("chain", "draw", "subject")
+
+
+def effect_draws(posterior, name: str, level: str) -> np.ndarray:
+    """Draws (chain, draw) of a condition effect (``beta``, ``sigma_beta``, ...) of one non-baseline level."""
+    v = posterior[name]
+    return (v.sel(contrast=level) if "contrast" in v.dims else v).values
+
+
+def level_contrast(posterior, level: str) -> dict:
+    """β, exp(β), σ_β, β_R and the per-subject changes of log θ1 of a non-baseline ``level``, against the baseline."""
+    beta = effect_draws(posterior, "beta", level)
     ratio = np.exp(beta)
-    change = condition_change(post)
+    change = condition_change(posterior, level=level)
     subjects = []
     for j, s in enumerate(change["subject"].values):
         d = change.values[:, :, j]
         subjects.append({"subject": str(s), **summary(d), "p_negative": float((d < 0).mean())})
     return {
-        "hdi_prob": HDI_PROB,
         "beta": {**summary(beta), "p_negative": float((beta < 0).mean())},
         "ratio": {"median": float(np.median(ratio)), "mean": float(ratio.mean()), "hdi": hdi(ratio)},
-        "sigma_beta": summary(post["sigma_beta"].values),
-        "beta_log_R": summary(post["beta_log_R"].values),
+        "sigma_beta": summary(effect_draws(posterior, "sigma_beta", level)),
+        "beta_log_R": summary(effect_draws(posterior, "beta_log_R", level)),
         "subjects": subjects,
         "subjects_with_hdi_below_zero": int(sum(s["hdi"][1] < 0 for s in subjects)),
     }
+
+
+def contrasts(idata) -> dict:
+    """β, exp(β), P(β < 0) and the per-subject contrasts of log θ1 against the baseline.
+
+    Returns
+    -------
+    dict
+        Two levels: ``hdi_prob``, ``beta`` (mean, sd, median, 94 % HDI, ``p_negative``),
+        ``ratio`` (exp β: the factor by which SC multiplies the population median θ1;
+        median, mean, HDI of the exp-transformed draws), ``beta_log_R`` and
+        ``sigma_beta`` summaries, and ``subjects``: per subject log θ1[SC] − log θ1[MC]
+        (mean, sd, HDI, P(< 0)). More levels: ``hdi_prob``, ``baseline``, ``levels``
+        (baseline first) and ``contrasts``: per non-baseline level a block with those
+        keys (``beta``, ``ratio``, ``sigma_beta``, ``beta_log_R``, ``subjects``,
+        ``subjects_with_hdi_below_zero``).
+    """
+    post = idata["posterior"]
+    levels = levels_of(post)
+    if len(levels) == 2:
+        return {"hdi_prob": HDI_PROB, **level_contrast(post, levels[1])}
+    return {"hdi_prob": HDI_PROB, "baseline": levels[0], "levels": list(levels),
+            "contrasts": {c: level_contrast(post, c) for c in levels[1:]}}
+
+
+__all__ = ["HDI_PROB", "hdi", "summary", "levels_of", "condition_change", "effect_draws", "level_contrast",
+           "contrasts"]

@@ -18,11 +18,24 @@ ESS_MIN = 400
 EBFMI_MIN = 0.3
 
 
+def _elements(draws):
+    """``(label, selection)`` of each element of a population parameter: the name alone for a scalar,
+    ``name[level]`` per element along its one further dim (``contrast``)."""
+    extra = [d for d in draws.dims if d not in ("chain", "draw")]
+    if not extra:
+        return [(draws.name, {})]
+    (dim,) = extra
+    return [(f"{draws.name}[{c}]", {dim: c}) for c in draws[dim].values]
+
+
 def diagnostics(idata, sample_seconds: float) -> dict:
     """Sampler and convergence diagnostics of one fit, with the verdict.
 
     Population parameters get R-hat (rank-normalized), bulk and tail ESS and bulk ESS
     per second of sampling; unit-level quantities the worst of each over their elements.
+    With more than two condition levels the condition effects (``beta``, ``sigma_beta``,
+    ``beta_log_R``, ``sigma_beta_log_R``) have one value per non-baseline level, each
+    reported and judged on its own as ``beta[level]``.
     The verdict requires no divergences, R-hat ≤ :data:`RHAT_MAX` and bulk and tail ESS
     ≥ :data:`ESS_MIN` for every population parameter; E-BFMI and tree depth are reported
     beside it.
@@ -34,11 +47,12 @@ def diagnostics(idata, sample_seconds: float) -> dict:
     # cached accessor holding only those variables for later calls.
     pop = post[names]
     rhat, bulk, tail = az.rhat(pop), az.ess(pop, method="bulk"), az.ess(pop, method="tail")
-    population = {
-        v: {"rhat": float(rhat[v]), "ess_bulk": float(bulk[v]), "ess_tail": float(tail[v]),
-            "ess_bulk_per_s": float(bulk[v]) / sample_seconds}
-        for v in names
-    }
+    population = {}
+    for v in names:
+        for label, at in _elements(pop[v]):
+            b = float(bulk[v].sel(at))
+            population[label] = {"rhat": float(rhat[v].sel(at)), "ess_bulk": b, "ess_tail": float(tail[v].sel(at)),
+                                 "ess_bulk_per_s": b / sample_seconds}
     units = {}
     for v in UNITS:
         ds = post[[v]]

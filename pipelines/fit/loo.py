@@ -9,6 +9,7 @@ import numpy as np
 import xarray as xr
 
 from models.bayes.subject_loo import subject_loglik
+from models.design import CONDITIONS
 from models.units import index_study
 
 
@@ -59,7 +60,8 @@ def loo_comparison(idata, idata_pooled) -> dict:
 
     With one segment per subject × condition, leaving a segment out removes every datum
     on that unit's θ, so the importance ratios are heavy-tailed and many Pareto k exceed
-    the threshold: the comparison is then unreliable and says so (``reliable``).
+    the threshold: the comparison is then unreliable and says so (``reliable``). With
+    trials each trial is a segment (left out alone, its unit's other trials stay).
     """
     out, pointwise = {}, {}
     for name, d in (("condition", idata), ("pooled", idata_pooled)):
@@ -79,16 +81,19 @@ LOSO_DRAWS = 1000
 LOSO_POINTS = 2000
 
 
-def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, plant, rng: np.random.Generator) -> dict:
+def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, plant, rng: np.random.Generator,
+                           levels=CONDITIONS) -> dict:
     """Leave-one-subject-out ELPD of both models by integrated PSIS, and their difference.
 
     The pointwise term is ``log p(y_i | ψ_s)``, subject i's data with its unit parameters
     integrated out under population draw ψ_s (:mod:`models.bayes.subject_loo`); PSIS then
     reweights only the population draws, which one subject of many barely moves, so the
     Pareto k stay low where the segment-wise PSIS-LOO fails. The posterior is thinned
-    evenly to :data:`LOSO_DRAWS` draws over the chains.
+    evenly to :data:`LOSO_DRAWS` draws over the chains. ``levels``: the condition levels,
+    baseline first, as the models were built with; a subject's data are all its segments
+    (every level, every trial).
     """
-    index = index_study(subjects, conditions)
+    index = index_study(subjects, conditions, levels)
     out, pointwise = {}, {}
     for name, d, effects in (("condition", idata, True), ("pooled", idata_pooled, False)):
         post = d["posterior"].to_dataset()
@@ -100,6 +105,8 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
         order = [str(x) for x in keep["log_theta1"].coords["subject"].values]
         if order != [str(x) for x in index.subjects]:
             raise ValueError("posterior subjects are not in the order of the study index")
+        if [str(x) for x in keep["log_theta1"].coords["condition"].values] != [str(v) for v in levels]:
+            raise ValueError("posterior condition levels are not the study's levels, baseline first")
         res = subject_loglik(flat, batch, index.subject_idx, index.condition_idx, plant, rng,
                              condition_effects=effects, M=LOSO_POINTS)
         ll = xr.DataArray(res.loglik.reshape(keep.sizes["chain"], keep.sizes["draw"], -1),

@@ -16,7 +16,7 @@ import xarray as xr
 
 from models.cost import from_normalized
 from models.maxent import forward_optimal_control, sample_maxent
-from models.plant import DT_HUMAN, discretize
+from models.plant import discretize
 from models.segment import plan_inputs
 from pipelines.prepare import PreparedStudy
 
@@ -31,9 +31,9 @@ class PosteriorPredictive(NamedTuple):
     ----------
     bands : DataFrame
         One row per window sample k = 0..K of each of the subject's segments: subject,
-        condition, t (s), angle_ref, angle (measured), u_H (reconstructed or recorded),
-        u_A (N·m), ``angle_q05/q50/q95`` (rad), ``u_H_q05/q50/q95`` (N·m), ``angle_opt``,
-        ``u_H_opt``; torques NaN at k = K.
+        condition (and trial, when the study has trials), t (s), angle_ref, angle (measured),
+        u_H (reconstructed or recorded), u_A (N·m), ``angle_q05/q50/q95`` (rad),
+        ``u_H_q05/q50/q95`` (N·m), ``angle_opt``, ``u_H_opt``; torques NaN at k = K.
     draws : xarray.Dataset
         ``u_H`` (chain, draw, segment, step), N·m, and ``angle`` (chain, draw, segment,
         sample), rad: the draws themselves, for the DataTree's ``posterior_predictive``
@@ -47,26 +47,29 @@ class PosteriorPredictive(NamedTuple):
 
 def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.random.Generator,
                          n_draws: int = PPC_DRAWS) -> PosteriorPredictive:
-    """Posterior predictive angle and torque of one subject, both conditions.
+    """Posterior predictive angle and torque of one subject, every level (and trial).
 
     ``n_draws`` posterior draws, evenly spaced over chains × draws; for each, one exact
     max-ent demonstration per segment given its x0 and reference, from the human the
     likelihood assumes (planning with the recorded u_A, or in closed loop with the
     assistant's law; preview included, the first K torques kept); then the 5/50/95 %
     quantiles per time step. Also the forward optimal control at the posterior median θ.
+    The wheel and its sample time are the study's (``prepared.settings.design``); the
+    trials of a unit share its posterior θ, each with its own x0, reference and u_A.
 
     Raises
     ------
     ValueError
         If ``subject`` is not in the study.
     """
-    plant = discretize(DT_HUMAN)
+    design = prepared.settings.design
+    plant = discretize(design.dt, design.wheel)
     post = idata["posterior"]
     n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
     flat = np.linspace(0, n_chain * n_draw - 1, min(n_draws, n_chain * n_draw)).round().astype(int)
     ci, di = np.divmod(flat, n_draw)
     frames, labels, angles, torques = [], [], [], []
-    for p in prepared.segments:
+    for p, label in zip(prepared.segments, prepared.labels):
         if p.data.subject != subject:
             continue
         cond = p.data.condition
@@ -89,14 +92,15 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
         qa = np.quantile(ang, [0.05, 0.5, 0.95], axis=0)
         qu = np.quantile(tq, [0.05, 0.5, 0.95], axis=0)
         pad = lambda x: np.append(x, np.nan)  # noqa: E731  torques act from k to k + 1: none at k = K
+        trial = {} if p.data.trial is None else {"trial": p.data.trial}
         frames.append(pd.DataFrame({
-            "subject": subject, "condition": cond, "t": p.data.t[p.rows], "angle_ref": seg.angle_ref[: K + 1],
+            "subject": subject, "condition": cond, **trial, "t": p.data.t[p.rows], "angle_ref": seg.angle_ref[: K + 1],
             "angle": p.data.angle[p.rows], "u_H": pad(p.u_H[:K]), "u_A": pad(seg.u_A[:K]),
             "angle_q05": qa[0], "angle_q50": qa[1], "angle_q95": qa[2],
             "u_H_q05": pad(qu[0]), "u_H_q50": pad(qu[1]), "u_H_q95": pad(qu[2]),
             "angle_opt": opt.x[: K + 1, 0], "u_H_opt": pad(opt.u_H[:K]),
         }))
-        labels.append(f"{subject}/{cond}")
+        labels.append(label)
         angles.append(ang)
         torques.append(tq)
     if not frames:
@@ -121,6 +125,7 @@ def constant_data(prepared: PreparedStudy) -> xr.Dataset:
     """
     segs = prepared.segments
     K = segs[0].segment.K
+    trials = {} if segs[0].data.trial is None else {"trial": ("segment", [p.data.trial for p in segs])}
     return xr.Dataset(
         {"x0": (("segment", "state"), np.stack([p.segment.x0 for p in segs])),
          "t": (("segment", "sample"), np.stack([p.data.t[p.rows] for p in segs])),
@@ -129,12 +134,13 @@ def constant_data(prepared: PreparedStudy) -> xr.Dataset:
          "u_A": (("segment", "step"), np.stack([p.segment.u_A[:K] for p in segs]))},
         coords={"segment": prepared.labels, "state": ["angle", "velocity"], "step": np.arange(K),
                 "sample": np.arange(K + 1),
-                "subject": ("segment", prepared.subjects), "condition": ("segment", prepared.conditions)},
+                "subject": ("segment", prepared.subjects), "condition": ("segment", prepared.conditions),
+                **trials},
         attrs={"units": "x0: rad, rad/s; t: s; angle, angle_ref: rad; u_A: N·m"})
 
 
 def ppc_coverage(ppc: pd.DataFrame) -> dict:
-    """Share of the data inside the 5-95 % band, per condition (0.9 if calibrated per sample)."""
+    """Share of the data inside the 5-95 % band, per condition level (0.9 if calibrated per sample; trials pooled)."""
     out = {}
     for c, d in ppc.groupby("condition", sort=False):
         u = d.dropna(subset=["u_H_q05"])

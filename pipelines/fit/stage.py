@@ -5,8 +5,13 @@ The segments are cut and reconstructed exactly as ``scioc identify`` does
 both), then two models of
 :func:`models.bayes.hierarchical.build_model` are sampled with nutpie through ``pm.sample``:
 the model with condition effects (β, the mean SC change of log θ1, is the paper's
-question) and the pooled model without them (log θ1 the same in MC and SC), which only
-serves the PSIS-LOO comparison.
+question; with more levels one β per level against the baseline) and the pooled model
+without them (log θ1 the same in every level), which only serves the PSIS-LOO comparison.
+
+The experiment (:class:`models.design.Design`, ``settings.design``) gives the wheel and
+the sample time of the likelihood, the levels (baseline first) and their assistants, and
+the rate of the prior on log R (:meth:`models.bayes.hierarchical.Priors.for_design`).
+Several trials of one subject × level are segments of one unit: they share its θ.
 
 Artifacts in ``--out DIR``:
 
@@ -16,16 +21,18 @@ Artifacts in ``--out DIR``:
   predictive draws of one subject's segments, same dims) and ``constant_data`` (x0,
   reference, u_A, time and recorded angle per segment).
 * ``posterior_pooled.nc`` — the pooled model's posterior (no predictive groups).
-* ``posterior.json`` — sidecar: seeds, sampler settings, diagnostics of both fits with a
-  verdict (no divergences, R-hat ≤ 1.01, bulk and tail ESS ≥ 400 for every population
-  parameter), wall times, ESS per second, inputs and package versions.
+* ``posterior.json`` — sidecar: seeds, sampler settings, the priors, diagnostics of both fits
+  with a verdict (no divergences, R-hat ≤ 1.01, bulk and tail ESS ≥ 400 for every population
+  parameter), wall times, ESS per second, inputs, the experiment (resolved, its hash and
+  file) and package versions.
 * ``contrasts.json`` — β (mean, SD, 94 % HDI, P(β < 0)), the ratio exp(β) with its HDI,
-  per-subject MC→SC contrasts of log θ1, the LOO comparisons (PSIS over segments, which
+  per-subject MC→SC contrasts of log θ1 (with more than two levels: ``baseline`` and one
+  such block per non-baseline level under ``contrasts``), the LOO comparisons (PSIS over segments, which
   one segment per unit defeats, and integrated PSIS leaving out whole subjects,
   :func:`pipelines.fit.loo.subject_loo_comparison`), the frequentist mixed-model
   cross-check on the per-segment ML estimates and, for a simulated study, the truth check.
 * ``ppc.parquet`` — the report's summary of the predictive draws: 5/50/95 % bands of angle
-  and torque of one subject (both conditions) over exact max-ent draws of the human the
+  and torque of one subject (every level and trial) over exact max-ent draws of the human the
   likelihood assumes (:func:`models.maxent.sample_maxent`), beside the data.
 
 Randomness: the root ``seed`` is split with ``SeedSequence(seed).spawn(4)`` into the seeds
@@ -45,10 +52,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.bayes.hierarchical import build_model
-from models.plant import DT_HUMAN, discretize
+from models.bayes.hierarchical import Priors, build_model
+from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.adequacy import format_adequacy, not_checked
+from pipelines.experiment import sidecar as experiment_fields
 from pipelines.fit.checks import mixedlm_check, posterior_adequacy, truth_check
 from pipelines.fit.contrasts import contrasts
 from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, RHAT_MAX, diagnostics
@@ -121,7 +129,7 @@ MIN_TOTAL_DRAWS = 25
 def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 1000,
                settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
-               force: bool = False, prepared: PreparedStudy | None = None) -> dict:
+               force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None) -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -135,7 +143,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     chains, draws, tune : int
         nutpie chains, and draws kept per chain after ``tune`` warm-up draws.
     settings : IdentifySettings
-        Window, preview and reconstruction, as for ``scioc identify``.
+        Window, preview and reconstruction, as for ``scioc identify``, and the experiment
+        (``settings.design``: wheel, sample time, levels, assistants).
     subject : str, optional
         Subject of the posterior predictive bands (default: the third in sorted order,
         as in the report's Fig. 6).
@@ -155,6 +164,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     prepared : PreparedStudy, optional
         The study file already prepared with ``settings`` (``scioc run`` shares the
         identification's); by default it is loaded and prepared here.
+    experiment_file : str, optional
+        Where ``settings.design`` came from (None: the built-in study), recorded in the
+        sidecar beside the resolved experiment and its hash.
 
     Returns
     -------
@@ -164,8 +176,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     Raises
     ------
     ValueError
-        For a bad study design (a subject lacking a condition, no SC at all: the message
-        of :func:`models.units.index_study`), a malformed file, or an unknown
+        For a bad study design (a subject lacking a level, a level with no segment at all:
+        the message of :func:`models.units.index_study`), a malformed file, or an unknown
         ``subject``; nothing is written then.
     """
     require_netcdf()
@@ -180,27 +192,31 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     refuse_inputs_inside(out, study_path, estimates_path, truth_dir)
     check_output_dir(out, force=force)  # before minutes of sampling, not after
     t_start = time.perf_counter()
+    design = settings.design
+    levels = design.ordered_levels
     if prepared is None:
-        study = load_study(study_path)
-        check_design(study.path, [s.subject for s in study.segments], [s.condition for s in study.segments])
+        study = load_study(study_path, design)
+        check_design(study.path, [s.subject for s in study.segments], [s.condition for s in study.segments],
+                     levels=levels)
         prepared = prepare_study(study, settings, show_progress=show_progress)
     elif prepared.settings != settings:
         raise ValueError("the prepared study was cut with other settings than these")
     else:
-        check_design(prepared.path, prepared.subjects, prepared.conditions)
+        check_design(prepared.path, prepared.subjects, prepared.conditions, levels=levels)
     subjects = sorted(dict.fromkeys(prepared.subjects))
     subject = subject or (subjects[2] if len(subjects) > 2 else subjects[0])
     if subject not in subjects:
         raise ValueError(f"--subject {subject!r} is not in the study (subjects: {', '.join(subjects)})")
     t_prepared = time.perf_counter()
-    plant = discretize(DT_HUMAN)
+    plant = discretize(design.dt, design.wheel)
+    priors = Priors.for_design(design)
     batch = prepare_batch(plant, [p.segment for p in prepared.segments])
     seeds = child_seeds(seed)
     fits, timing = {}, {"prepare_s": t_prepared - t_start}
     for name, effects in (("condition", True), ("pooled", False)):
         t0 = time.perf_counter()
         model = build_model(prepared.subjects, prepared.conditions, batch, plant, segment_ids=prepared.labels,
-                            condition_effects=effects)
+                            condition_effects=effects, priors=priors, levels=levels)
         t1 = time.perf_counter()
         idata, sec = sample_model(model, seed=seeds[name], chains=chains, draws=draws, tune=tune, cores=cores,
                                   show_progress=show_progress)
@@ -213,7 +229,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
            **contrasts(fits["condition"])}
     res["loo"] = loo_comparison(fits["condition"], fits["pooled"])
     res["loo_subject"] = subject_loo_comparison(fits["condition"], fits["pooled"], batch, prepared.subjects,
-                                                prepared.conditions, plant, np.random.default_rng(seeds["loso"]))
+                                                prepared.conditions, plant, np.random.default_rng(seeds["loso"]),
+                                                levels=levels)
     estimates = pd.read_parquet(estimates_path) if estimates_path is not None else None
     if estimates is not None:
         units = set(zip(prepared.subjects, prepared.conditions))
@@ -223,12 +240,13 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                 f"{estimates_path}: its subjects × conditions ({len(theirs)}) are not those of {study_path} "
                 f"({len(units)}); e.g. {sorted(units ^ theirs)[:3]}. Pass the estimates identified from this study "
                 "with --estimates")
-    res["mixedlm"] = mixedlm_check(estimates) if estimates is not None else None
-    res["truth"] = truth_check(fits["condition"], truth_dir, estimates) if truth_dir is not None else None
+    res["mixedlm"] = mixedlm_check(estimates, levels) if estimates is not None else None
+    res["truth"] = truth_check(fits["condition"], truth_dir, estimates, design) if truth_dir is not None else None
+    assisted = ", ".join(v for v in levels if design.assistant(v) is not None) or "no level"
     ppc, ppc_draws = posterior_predictive(fits["condition"], prepared, subject, np.random.default_rng(seeds["ppc"]))
     res["ppc"] = {"subject": subject, "draws": int(min(PPC_DRAWS, chains * draws)), "coverage_5_95": ppc_coverage(ppc),
-                  "note": "exact max-ent draws of the human the likelihood assumes (in SC: " + settings.assistant_model
-                          + " assistant model); "
+                  "note": f"exact max-ent draws of the human the likelihood assumes (in {assisted}: "
+                          + settings.assistant_model + " assistant model); "
                           "u_H is the reconstructed torque where the file has none"}
     timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -243,7 +261,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "sampler": {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')", "chains": int(chains),
                     "draws": int(draws), "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)),
                     "target_accept": 0.8, "adaptation": "diag (nutpie default)"},
-        "identify_settings": asdict(settings),
+        "identify_settings": settings.as_dict(),
+        "priors": asdict(priors),
         "n_segments": len(prepared.segments),
         "n_subjects": len(subjects),
         "K": int(batch.K),
@@ -255,6 +274,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "inputs": {"estimates": None if estimates_path is None else str(estimates_path),
                    "truth_dir": None if truth_dir is None else str(truth_dir)},
         "note_timing": "wall-clock times on a shared machine: other jobs may have competed for the CPU",
+        **experiment_fields(design, experiment_file),
         "versions": versions(),
     }
     fits["condition"]["posterior_predictive"] = ppc_draws
@@ -271,33 +291,50 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     return {k: str(out / v) for k, v in names.items()}
 
 
+def _beta_lines(b: dict, r: dict, what: str) -> list:
+    return [f"beta ({what}): {b['mean']:.3f} ± {b['sd']:.3f}, 94 % HDI "
+            f"[{b['hdi'][0]:.3f}, {b['hdi'][1]:.3f}], P(beta < 0) = {b['p_negative']:.3f}",
+            f"exp(beta): {r['median']:.3f} (94 % HDI {r['hdi'][0]:.3f}-{r['hdi'][1]:.3f})"]
+
+
+def _truth_line(t: dict, level: str = "") -> str:
+    return (f"true beta{level} {t['truth']:g}: {'inside' if t['in_hdi'] else 'outside'} the HDI "
+            f"(posterior mean - truth = {t['discrepancy']:+.3f})")
+
+
 def format_fit(out) -> str:
-    """A few lines summarizing a fit folder's sidecar and contrasts, the adequacy verdict first."""
+    """A few lines summarizing a fit folder's sidecar and contrasts, the adequacy verdict first.
+
+    With more than two levels, β and exp(β) (and the truth check) of every non-baseline level.
+    """
     out = Path(out)
     side = json.loads((out / "posterior.json").read_text())
     res = json.loads((out / "contrasts.json").read_text())
-    b, r, loo = res["beta"], res["ratio"], res["loo"]["difference"]
+    loo = res["loo"]["difference"]
     conv = side["convergence_verdict"]
     adequacy = res.get("adequacy") or not_checked("not in this fit's contrasts.json")
     lines = [format_adequacy(adequacy)]
     if adequacy["verdict"] == "fail":
         lines.append("CAVEAT: the numbers below assume a human model that fails its adequacy checks; "
                      "beta may be an artifact of model misfit")
-    lines += [
-        f"sampler convergence: condition model {conv['condition']}; pooled model {conv['pooled']}",
-        f"beta (mean SC change of log theta1): {b['mean']:.3f} ± {b['sd']:.3f}, 94 % HDI "
-        f"[{b['hdi'][0]:.3f}, {b['hdi'][1]:.3f}], P(beta < 0) = {b['p_negative']:.3f}",
-        f"exp(beta): {r['median']:.3f} (94 % HDI {r['hdi'][0]:.3f}-{r['hdi'][1]:.3f})",
-        f"LOO: elpd(condition) - elpd(pooled) = {loo['elpd_diff']:.1f} ± {loo['se']:.1f} "
-        f"({'reliable' if loo['reliable'] else 'Pareto k high: unreliable'})",
-    ]
+    lines.append(f"sampler convergence: condition model {conv['condition']}; pooled model {conv['pooled']}")
+    if "contrasts" in res:
+        for level, c in res["contrasts"].items():
+            lines += _beta_lines(c["beta"], c["ratio"], f"mean change of log theta1, {level} against {res['baseline']}")
+    else:
+        cond = side.get("experiment", {}).get("conditions", {"levels": ["MC", "SC"], "baseline": "MC"})
+        other = next(v for v in cond["levels"] if v != cond["baseline"])
+        lines += _beta_lines(res["beta"], res["ratio"], f"mean {other} change of log theta1")
+    lines.append(f"LOO: elpd(condition) - elpd(pooled) = {loo['elpd_diff']:.1f} ± {loo['se']:.1f} "
+                 f"({'reliable' if loo['reliable'] else 'Pareto k high: unreliable'})")
     if res.get("loo_subject"):
         ls = res["loo_subject"]["difference"]
         se = "n/a (one subject)" if ls.get("se") is None else f"{ls['se']:.1f}"
         lines.append(f"leave-one-subject-out: elpd(condition) - elpd(pooled) = {ls['elpd_diff']:.1f} ± {se} "
                      f"({'reliable' if ls['reliable'] else 'Pareto k high: unreliable'})")
-    if res.get("truth"):
-        t = res["truth"]["beta"]
-        lines.append(f"true beta {t['truth']:g}: {'inside' if t['in_hdi'] else 'outside'} the HDI "
-                     f"(posterior mean - truth = {t['discrepancy']:+.3f})")
+    truth = res.get("truth")
+    if truth and "contrasts" in truth:
+        lines += [_truth_line(c["beta"], f" ({level})") for level, c in truth["contrasts"].items()]
+    elif truth:
+        lines.append(_truth_line(truth["beta"]))
     return "\n".join(lines)

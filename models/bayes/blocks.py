@@ -1,0 +1,152 @@
+"""The unit-parameter blocks of the hierarchical model: baseline value plus condition changes, in a chosen form.
+
+A block is one log-parameter (log θ1 or log R) of every unit, dims (subject, condition),
+written as the subject's baseline value and its change in each non-baseline level::
+
+    x[i, 0] = baseline value of subject i          x[i, 0] ~ N(μ, σ)
+    x[i, c] = x[i, 0] + d[i, c]                    d[i, c] ~ N(β_c, σ_β,c),  c = 1..L-1
+
+(the changes of one subject independent across levels). :class:`Parameterization` says
+how each part is sampled; :func:`unit_block` declares it inside a ``pm.Model``.
+
+With two levels (the paper's MC and SC) the variables are named as they always were
+(``log_theta1_MC``, ``z_log_theta1_SC``, ...; "MC" names the baseline and "SC" the other
+level whatever the labels), scalars β, σ_β and changes with dims ``subject``: the model,
+and so its draws for a seed, is exactly the two-level model of earlier versions. With
+L > 2 levels β and σ_β have dims ``contrast`` (the non-baseline levels), the changes dims
+(subject, contrast), and the names say ``baseline`` and ``contrast`` instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import pymc as pm
+import pytensor.tensor as pt
+
+Form = Literal["centred", "noncentred", "mean"]
+
+#: Dims of a block's unit values.
+UNIT_DIMS = ("subject", "condition")
+
+
+@dataclass(frozen=True)
+class Parameterization:
+    """Centred or non-centred form of each block of unit parameters.
+
+    For log θ1 and log R there are two blocks: the baseline value of each subject (the
+    subject intercept; ``*_mc``, named after the paper's manual control) and its changes
+    in the other levels (``*_sc``). ``centred`` samples the unit values themselves
+    (log θ1[i, MC] ~ N(μ, σ); log θ1[i, SC] ~ N(log θ1[i, MC] + β, σ_β));
+    ``noncentred`` samples standard-normal z and sets ``μ + σ z`` (intercept) or
+    ``log θ1[i, MC] + β + σ_β z`` (change). ``mean`` (intercept only) samples the
+    subject mean over the L levels, m_i = (1/L) Σ_c log θ1[i, c] ~ N(μ + Σ_c d_ic / L, σ)
+    centred, after the changes d_ic (in the form ``theta1_sc`` says, as d_ic ~ N(β_c, σ_β,c)
+    when centred): the same model, with the data acting on nearly orthogonal
+    coordinates (for two levels m_i = (log θ1[i, MC] + log θ1[i, SC]) / 2 and the shift
+    is d_i / 2). For θ2, ``centred`` samples θ2 ~ HalfNormal(τ) and ``noncentred``
+    samples z ~ HalfNormal(1) with θ2 = τ z.
+
+    Attributes
+    ----------
+    theta1_mc, R_mc : {"centred", "noncentred", "mean"}
+    theta1_sc, R_sc, theta2 : {"centred", "noncentred"}
+    """
+
+    theta1_mc: Form = "mean"
+    theta1_sc: Form = "noncentred"
+    R_mc: Form = "centred"
+    R_sc: Form = "centred"
+    theta2: Form = "noncentred"
+
+    def __post_init__(self):
+        for name in ("theta1_mc", "theta1_sc", "R_mc", "R_sc", "theta2"):
+            allowed = ("centred", "noncentred", "mean") if name in ("theta1_mc", "R_mc") else ("centred", "noncentred")
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"Parameterization.{name} must be one of {allowed}; got {getattr(self, name)!r}")
+
+
+def pooled_block(name: str, mu, sigma, form_mc: Form, n_levels: int):
+    """log-parameter of every unit without condition changes: one value per subject for all levels.
+
+    The subject value is its own mean, so "mean" is the centred form.
+    """
+    if form_mc == "noncentred":
+        m = mu + sigma * pm.Normal(f"z_{name}_mean", 0.0, 1.0, dims="subject")
+    else:
+        m = pm.Normal(f"{name}_mean", mu, sigma, dims="subject")
+    return pm.Deterministic(name, pt.stack([m] * n_levels, axis=1), dims=UNIT_DIMS)
+
+
+def unit_block(name: str, mu, beta, sigma, sigma_beta, form_mc: Form, form_sc: Form, n_levels: int = 2):
+    """log-parameter of every unit, (subject, condition), as baseline intercept + changes.
+
+    Parameters
+    ----------
+    name : str
+        The deterministic's name (``log_theta1``, ``log_R``); the free variables are named after it.
+    mu, sigma : scalar tensors
+        Population mean and SD of the baseline value.
+    beta, sigma_beta : tensors
+        Mean and SD of the changes: scalars for two levels, dims ``contrast`` for more.
+    form_mc, form_sc : str
+        The forms of the intercept and of the changes (:class:`Parameterization`).
+    n_levels : int
+        L >= 2, the baseline included.
+    """
+    if n_levels == 2:
+        return _two_levels(name, mu, beta, sigma, sigma_beta, form_mc, form_sc)
+    return _many_levels(name, mu, beta, sigma, sigma_beta, form_mc, form_sc, n_levels)
+
+
+def _two_levels(name, mu, beta, sigma, sigma_beta, form_mc, form_sc):
+    # The two-level graph exactly as scioc has always built it (names, dims, operations).
+    if form_sc == "centred":
+        change = None if form_mc != "mean" else pm.Normal(f"{name}_change", beta, sigma_beta, dims="subject")
+    else:
+        change = beta + sigma_beta * pm.Normal(f"z_{name}_SC", 0.0, 1.0, dims="subject")
+    if form_mc == "mean":
+        # log θ[i, MC] ~ N(μ, σ) and change d_i independent  <=>  d_i, then the subject
+        # mean m_i = log θ[i, MC] + d_i / 2 ~ N(μ + d_i / 2, σ). The MC and SC data inform
+        # m_i - d_i / 2 and m_i + d_i / 2, so (m_i, d_i) are nearly uncorrelated a posteriori.
+        m = pm.Normal(f"{name}_mean", mu + 0.5 * change, sigma, dims="subject")
+        mc, sc = m - 0.5 * change, m + 0.5 * change
+    else:
+        if form_mc == "centred":
+            mc = pm.Normal(f"{name}_MC", mu, sigma, dims="subject")
+        else:
+            mc = mu + sigma * pm.Normal(f"z_{name}_MC", 0.0, 1.0, dims="subject")
+        if form_sc == "centred":
+            sc = pm.Normal(f"{name}_SC", mc + beta, sigma_beta, dims="subject")
+        else:
+            sc = mc + change
+    return pm.Deterministic(name, pt.stack([mc, sc], axis=1), dims=UNIT_DIMS)
+
+
+def _many_levels(name, mu, beta, sigma, sigma_beta, form_mc, form_sc, n_levels):
+    changes = ("subject", "contrast")
+    if form_sc == "centred":
+        change = None if form_mc != "mean" else pm.Normal(f"{name}_change", beta, sigma_beta, dims=changes)
+    else:
+        change = beta + sigma_beta * pm.Normal(f"z_{name}_contrast", 0.0, 1.0, dims=changes)
+    if form_mc == "mean":
+        # The subject mean over all L levels (the baseline's change is 0): the baseline
+        # value is m_i - Σ_c d_ic / L, and the level values follow from it.
+        shift = change.sum(axis=1) / n_levels
+        m = pm.Normal(f"{name}_mean", mu + shift, sigma, dims="subject")
+        base = m - shift
+        others = base[:, None] + change
+    else:
+        if form_mc == "centred":
+            base = pm.Normal(f"{name}_baseline", mu, sigma, dims="subject")
+        else:
+            base = mu + sigma * pm.Normal(f"z_{name}_baseline", 0.0, 1.0, dims="subject")
+        if form_sc == "centred":
+            others = pm.Normal(f"{name}_contrast", base[:, None] + beta, sigma_beta, dims=changes)
+        else:
+            others = base[:, None] + change
+    return pm.Deterministic(name, pt.concatenate([base[:, None], others], axis=1), dims=UNIT_DIMS)
+
+
+__all__ = ["Form", "Parameterization", "UNIT_DIMS", "pooled_block", "unit_block"]

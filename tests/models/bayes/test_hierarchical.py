@@ -235,7 +235,7 @@ def test_design_errors_are_named(plant):
         build_model(["a", "a", "b", "b"], ["MC", "SC", "MC", "MC"], segs, plant)
     with pytest.raises(ValueError, match=r"no SC segments at all"):
         build_model(["a", "b", "c", "d"], ["MC"] * 4, segs, plant)
-    with pytest.raises(ValueError, match=r"segment 2 must be 'MC' or 'SC'"):
+    with pytest.raises(ValueError, match=r"segment 2 must be one of 'MC', 'SC'"):
         build_model(["a", "a", "b", "b"], ["MC", "SC", "mc", "SC"], segs, plant)
     with pytest.raises(ValueError, match=r"got 4 segments but 2"):
         build_model(["a", "a"], ["MC", "SC"], segs, plant)

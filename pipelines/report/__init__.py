@@ -6,10 +6,12 @@ module                     what it holds
 :mod:`.build`              :func:`build_report`: reads the artifacts, orders the sections
 :mod:`.render`             the HTML layer: jinja2 templates (``templates/``), tables, figures
 :mod:`.figures`            every matplotlib figure
+:mod:`.levels`             the run's experiment and the words for it (levels, assistants, rig)
 :mod:`.design`             study design and reference trajectory
-:mod:`.identify`           θ1 histogram, Wilcoxon test, Fig. 6, cross-prediction, details
+:mod:`.identify`           θ1 histogram, Wilcoxon tests, Fig. 6, cross-prediction, details
 :mod:`.truth`              reconstruction error, truth vs estimates (simulated studies)
-:mod:`.bayes`              the hierarchical fit: contrasts, diagnostics, LOO, PPC, truth
+:mod:`.bayes`              the hierarchical fit: diagnostics, LOO, PPC
+:mod:`.contrasts`          per contrast: three methods side by side, forest plot, truth check
 :mod:`.adequacy`           the model-adequacy verdict, caveats and section
 :mod:`.calibration`        simulation-based calibration
 =========================  ===========================================================

@@ -21,13 +21,15 @@ def _failed_names(adequacy: dict) -> str:
     return "; ".join(CHECK_TEXT.get(k, k) for k in adequacy.get("failed_checks", []))
 
 
-def headline(adequacy: dict | None, fit_adequacy: dict | None = None) -> Markup:
-    """The box the report opens with."""
+def headline(adequacy: dict | None, fit_adequacy: dict | None = None,
+             chain: str = "the same encoder and reconstruction") -> Markup:
+    """The box the report opens with; ``chain`` names the acquisition the checks repeat
+    (:func:`pipelines.report.levels.acquisition`)."""
     verdict = (adequacy or {}).get("verdict", "not checked")
     fit_verdict = (fit_adequacy or {}).get("verdict")
     return render("adequacy_headline.html.j2", verdict=verdict, a=adequacy,
                   reason=None if not adequacy else adequacy.get("reason", ""),
-                  failed=_failed_names(adequacy or {}),
+                  failed=_failed_names(adequacy or {}), chain=chain,
                   fit_verdict=None if fit_verdict in (None, "not checked") else fit_verdict)
 
 
@@ -39,8 +41,13 @@ def caveat(adequacy: dict | None) -> Markup:
     return render("adequacy_caveat.html.j2", verdict=verdict, failed=_failed_names(adequacy or {}))
 
 
-def section(est: pd.DataFrame, adequacy: dict | None, power: dict | None) -> Markup:
-    """The model-adequacy section: per-check results, flagged segments, and the power table."""
+def section(est: pd.DataFrame, adequacy: dict | None, power: dict | None,
+            chain: str = "quantized by the same encoder and reconstructed by the same smoother") -> Markup:
+    """The model-adequacy section: per-check results, flagged segments, and the power table.
+
+    ``chain`` says how the bootstrap's data sets pass the acquisition
+    (:func:`pipelines.report.levels.acquisition`).
+    """
     checked = adequacy and adequacy.get("verdict") != "not checked"
     rows, flagged = [], []
     if checked:
@@ -55,7 +62,7 @@ def section(est: pd.DataFrame, adequacy: dict | None, power: dict | None) -> Mar
                          "recorded (mean over segments)": f"{obs:.3f}" if scalar else "vector",
                          "model (mean over segments)": f"{mod:.3f}" if scalar else "vector"})
         flagged = adequacy.get("flagged_segments", [])
-    return render("adequacy.html.j2", a=adequacy if checked else None,
+    return render("adequacy.html.j2", a=adequacy if checked else None, chain=chain,
                   table=table(pd.DataFrame(rows), fmt={"combined p": lambda v: f"{v:.3g}"},
                               left=("check", "result", "recorded (mean over segments)",
                                     "model (mean over segments)")) if rows else None,

@@ -12,6 +12,11 @@ Reads what the stages wrote under a run folder and never refits:
 
 Sections whose artifacts are missing are left out with a note. The page is the template
 ``templates/page.html.j2``; every section renders its own (:mod:`pipelines.report.render`).
+
+The text and the tables follow the experiment recorded in the run
+(:func:`pipelines.report.levels.run_experiment`: ``identify.json``, else
+``simulation.json``, else the paper's study): its rate, rig, levels and assistants, window
+and trials. With the paper's study the report reads as the paper's analysis.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from pipelines.report.calibration import section_calibration
 from pipelines.report.design import section_design, section_reference
 from pipelines.report.identify import (section_cross_prediction, section_fig6, section_histogram,
                                        section_identification, section_wilcoxon)
+from pipelines.report.levels import acquisition, joined, paper_labels, run_experiment
 from pipelines.report.render import read_artifact, render
 from pipelines.report.truth import section_reconstruction, section_truth
 from pipelines.storage import write_text_atomic
@@ -33,6 +39,11 @@ from pipelines.storage import write_text_atomic
 
 def _h2(text: str) -> Markup:
     return render("heading.html.j2", text=text)
+
+
+def _torque_measured(est) -> bool:
+    """Whether every unit's u_H was recorded (a torque sensor) rather than reconstructed from the angle."""
+    return "reconstructed" in est and not est["reconstructed"].astype(bool).any()
 
 
 def build_report(root, *, subject: str | None = None, out=None, calibration=None, title: str | None = None) -> Path:
@@ -76,31 +87,42 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
         raise FileNotFoundError(f"{root / 'identify' / 'estimates.parquet'}: no estimates; run `scioc identify` first")
     subjects = sorted(est.subject.unique())
     subject = subject or (subjects[2] if len(subjects) > 2 else subjects[0])
+    exp = run_experiment(meta, sim)
+    design = exp.design
+    measured = _torque_measured(est)
+    trials = int(est["trials"].max()) if "trials" in est else 1
+    chain = acquisition(design, not measured)
 
-    body = [report_adequacy.headline(adequacy, fit_adequacy), section_design(sim, meta)]
+    body = [report_adequacy.headline(adequacy, fit_adequacy, chain[0]),
+            section_design(sim, meta, exp, trials=trials, torque_measured=measured)]
     if study is not None:
-        body.append(section_reference(study, meta))
-    body += [_h2("Identified parameters and the paper's test"), section_histogram(est),
+        body.append(section_reference(study, meta, design))
+    tests = "the paper's test" if len(design.levels) == 2 else f"the paper's test against {design.baseline}"
+    body += [_h2(f"Identified parameters and {tests}"), section_histogram(est, design),
              report_adequacy.caveat(adequacy),
-             section_wilcoxon(cmp) if cmp else render("note.html.j2", text="No compare.json: run `scioc compare`.")]
+             section_wilcoxon(cmp, design) if cmp else
+             render("note.html.j2", text="No compare.json: run `scioc compare`.")]
     if (root / "fit").exists():
         body += [_h2("Hierarchical Bayesian model"), report_adequacy.caveat(fit_adequacy if fit_adequacy else adequacy),
-                 section_bayes(root)]
-    body += [report_adequacy.section(est, adequacy, power), _h2("Model validation (Fig. 6)")]
+                 section_bayes(root, design, not measured, trials > 1)]
+    body += [report_adequacy.section(est, adequacy, power, chain[1]), _h2("Model validation (Fig. 6)")]
     if traj is not None:
-        body.append(section_fig6(traj, subject))
+        body.append(section_fig6(traj, subject, design, not measured))
     if val is not None:
-        body.append(section_cross_prediction(val))
-    body.append(_h2("Data acquisition: reconstruction from the angle"))
+        body.append(section_cross_prediction(val, design))
+    body.append(_h2("Data acquisition: " + ("the recorded torque" if measured else "reconstruction from the angle")))
     if traj is not None:
-        body.append(section_reconstruction(traj, truth_traj))
+        body.append(section_reconstruction(traj, truth_traj, design, measured))
     if truth is not None and truth["theta1"].notna().any():  # the crossover operator has no cost θ
-        body += [_h2("Ground truth vs estimates"), section_truth(est, truth, est_true, est_paper)]
+        body += [_h2("Ground truth vs estimates"),
+                 section_truth(est, truth, est_true, est_paper, design, measured)]
     body += [_h2("Identification details"), section_identification(est, meta),
              _h2("Simulation-based calibration"),
              section_calibration(Path(calibration) if calibration else root.parent / "calibration")]
     if sim and "versions" in sim:
         body.append(render("provenance.html.j2", versions={k: v for k, v in sim["versions"].items() if v}))
     path = Path(out) if out else root / "index.html"
-    write_text_atomic(path, render("page.html.j2", title=title or root.name, sections=body) + "\n")
+    what = ("in manual and shared control" if paper_labels(design) else
+            f"in the conditions {joined(design.ordered_levels)} (baseline {design.baseline})")
+    write_text_atomic(path, render("page.html.j2", title=title or root.name, sections=body, what=what) + "\n")
     return path

@@ -8,6 +8,8 @@ import pandas as pd
 import xarray as xr
 from markupsafe import Markup
 
+from models.design import STUDY
+from pipelines.experiment import parse_experiment
 from pipelines.report import figures
 from pipelines.report.render import figure, number, read_artifact, render, table
 
@@ -31,9 +33,15 @@ def section_calibration(cal_dir: Path) -> Markup:
             continue
         bad = read_artifact(bad_dir / "summary.json")
         cfg = good["config"]
-        design = ((f"{cfg['n_subjects']} subjects × 2 conditions, " if level == "study" else "one unit, ")
-                  + f"K = {cfg['K']} samples ({cfg['K'] / 100:g} s), {cfg['chains']} chains × {cfg['draws']} draws "
-                  f"after {cfg['tune']} tuning, ranks against L = {good['L']} thinned draws")
+        # The experiment calibrated (scioc calibrate --experiment); none recorded: the paper's study.
+        exp = (parse_experiment(cfg["experiment"], f"{good_dir / 'summary.json'} (config.experiment)")
+               if cfg.get("experiment") else STUDY)
+        same = exp.dt == STUDY.dt and exp.ordered_levels == STUDY.ordered_levels
+        rig = "" if same else f" at {exp.rate_hz:g} Hz, levels {', '.join(exp.ordered_levels)}"
+        design = ((f"{cfg['n_subjects']} subjects × {len(exp.levels)} conditions, " if level == "study"
+                   else "one unit, ")
+                  + f"K = {cfg['K']} samples ({cfg['K'] * exp.dt:g} s{rig}), {cfg['chains']} chains × "
+                  f"{cfg['draws']} draws after {cfg['tune']} tuning, ranks against L = {good['L']} thinned draws")
         rows = []
         for tag, sm in (("correct", good), ("negative control", bad)):
             if sm is None:

@@ -1,6 +1,8 @@
 """The report's figures (matplotlib), each from stored artifacts; the sections put them on the page.
 
-Colours follow the paper's Fig. 6: MC red, SC green.
+Colours follow the paper's Fig. 6: the baseline (MC) red, the next level (SC) green; further
+levels take the next colours of :data:`PALETTE`. Every figure takes the levels in the
+experiment's order, baseline first (:attr:`models.design.Design.ordered_levels`).
 """
 
 from __future__ import annotations
@@ -15,12 +17,29 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy.stats import binom  # noqa: E402
 
-from models.design import CONDITIONS, MANUAL, SHARED  # noqa: E402
+from models.design import CONDITIONS  # noqa: E402
 
 MC_COLOR = "#c0392b"  # red, as in the paper's Fig. 6
 SC_COLOR = "#27ae60"  # green
-#: Colour of each condition.
-COLORS = {MANUAL: MC_COLOR, SHARED: SC_COLOR}
+#: Colours of the levels in order (baseline first): the paper's MC red and SC green, then others.
+PALETTE = (MC_COLOR, SC_COLOR, "#2471a3", "#b9770e", "#7d3c98", "#17a589", "#566573", "#cb4335")
+#: Darker shades of :data:`PALETTE`, for the predictions drawn over the data.
+DARK = ("#7f1d1d", "#14532d", "#1b4f72", "#7e5109", "#4a235a", "#0e6251", "#212f3c", "#78281f")
+
+
+def level_colors(levels) -> dict:
+    """``{level: colour}`` for the levels in order, baseline first (cycling after 8 levels)."""
+    return {v: PALETTE[i % len(PALETTE)] for i, v in enumerate(levels)}
+
+
+def first_segment(d: pd.DataFrame) -> pd.DataFrame:
+    """The rows of ``d``'s first subject × condition (× trial, when the table has trials)."""
+    keys = [c for c in ("subject", "condition", "trial") if c in d.columns]
+    first = d.iloc[0]
+    mask = np.ones(len(d), bool)
+    for c in keys:
+        mask &= (d[c] == first[c]).to_numpy()
+    return d[mask]
 
 
 def plain_log_axis(axis) -> None:
@@ -35,20 +54,25 @@ def plain_log_axis(axis) -> None:
 
 
 def reference(study: pd.DataFrame, start: float | None, length: float | None):
-    """The reference angle of the first segment: in and after the analysis window, and the whole run (Fig. 4)."""
-    key = study.iloc[0][["subject", "condition"]]
-    seg = study[(study.subject == key.subject) & (study.condition == key.condition)]
+    """The reference angle of the first segment: in and after the analysis window, and the whole run (Fig. 4).
+
+    ``start`` None: every trial is analysed whole, and the whole trial is the one panel.
+    """
+    seg = first_segment(study)
     t, ref = seg["t"].to_numpy(), seg["angle_ref"].to_numpy()
+    if start is None:
+        fig, ax = plt.subplots(figsize=(11, 3.2))
+        ax.plot(t, ref, color="k")
+        ax.set_title("Reference over a whole trial (every trial is analysed whole)")
+        ax.set_xlabel("time t (s)")
+        ax.set_ylabel("reference angle φ_ref (rad)")
+        return fig
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.2), gridspec_kw={"width_ratios": [2, 1]})
-    if start is not None:
-        m = (t >= start) & (t <= start + 2 * length)
-        axes[0].plot(t[m], ref[m], color="k")
-        axes[0].axvspan(start, start + length, color="#ddd", label="analysis window")
-        axes[0].legend(loc="upper right")
-        axes[0].set_title("Reference in and after the analysis window (Fig. 4)")
-    else:
-        axes[0].plot(t, ref, color="k")
-        axes[0].set_title("Reference (whole run is analysed)")
+    m = (t >= start) & (t <= start + 2 * length)
+    axes[0].plot(t[m], ref[m], color="k")
+    axes[0].axvspan(start, start + length, color="#ddd", label="analysis window")
+    axes[0].legend(loc="upper right")
+    axes[0].set_title("Reference in and after the analysis window (Fig. 4)")
     axes[0].set_xlabel("time t (s)")
     axes[0].set_ylabel("reference angle φ_ref (rad)")
     axes[1].plot(t, ref, color="k", lw=0.6)
@@ -58,13 +82,15 @@ def reference(study: pd.DataFrame, start: float | None, length: float | None):
     return fig
 
 
-def theta1_histogram(est: pd.DataFrame):
-    """Histogram of the identified θ1 in MC and SC on a log axis (Fig. 5)."""
+def theta1_histogram(est: pd.DataFrame, levels=CONDITIONS):
+    """Histogram of the identified θ1 per level (baseline first; default MC, SC) on a log axis (Fig. 5)."""
     fig, ax = plt.subplots(figsize=(7, 3.6))
     vals = est["theta1"].to_numpy()
     bins = np.geomspace(vals.min() / 1.2, vals.max() * 1.2, 25)
-    for c in CONDITIONS:
-        ax.hist(est.loc[est.condition == c, "theta1"], bins=bins, alpha=0.6, color=COLORS[c], label=c)
+    colors = level_colors(levels)
+    alpha = 0.6 if len(levels) <= 2 else 0.45
+    for c in levels:
+        ax.hist(est.loc[est.condition == c, "theta1"], bins=bins, alpha=alpha, color=colors[c], label=c)
     ax.set_xscale("log")
     plain_log_axis(ax.xaxis)
     ax.set_xlabel("identified θ1 = q11/R (1/rad²)")
@@ -73,54 +99,69 @@ def theta1_histogram(est: pd.DataFrame):
     return fig
 
 
-def trajectories(d: pd.DataFrame, subject: str):
-    """One subject's measured angle, velocity and torque beside forward optimal control with θ_MC and θ_SC (Fig. 6)."""
-    fig, axes = plt.subplots(3, 2, figsize=(12, 7.5), sharex="col")
-    for j, cond in enumerate(CONDITIONS):
+def trajectories(d: pd.DataFrame, subject: str, levels=CONDITIONS, reconstructed: bool = True):
+    """One subject's measured angle, velocity and torque beside forward optimal control with each level's θ (Fig. 6).
+
+    One column per level (baseline first; default MC, SC), the first trial of each; the
+    dashed curves are forward optimal control with θ of every level (``pred_{level}_*``
+    columns of ``trajectories.parquet``, level in lower case). ``reconstructed``: whether
+    the velocity and torque were reconstructed from the angle (else u_H was recorded).
+    """
+    levels = list(levels)
+    colors = dict(zip(levels, DARK))
+    fig, axes = plt.subplots(3, len(levels), figsize=(6 * len(levels), 7.5), sharex="col", squeeze=False)
+    for j, cond in enumerate(levels):
         s = d[d.condition == cond]
         if s.empty:
             continue
+        s = first_segment(s)
         t = s["t"].to_numpy()
         for i, (q, label) in enumerate((("angle", "angle φ (rad)"), ("velocity", "velocity φ̇ (rad/s)"),
                                         ("u_H", "human torque u_H (N·m)"))):
             ax = axes[i, j]
-            ax.plot(t, s[q], color=COLORS[cond], lw=0.9,
-                    label=f"measured {cond}" + (" (reconstructed)" if q != "angle" else ""))
-            ax.plot(t, s[f"pred_mc_{q}"], "--", color="#7f1d1d", lw=1.1, label="optimal control with θ_MC")
-            ax.plot(t, s[f"pred_sc_{q}"], "--", color="#14532d", lw=1.1, label="optimal control with θ_SC")
+            how = "" if q == "angle" else " (reconstructed)" if reconstructed else \
+                " (derived)" if q == "velocity" else " (recorded)"
+            ax.plot(t, s[q], color=level_colors(levels)[cond], lw=0.9, label=f"measured {cond}{how}")
+            for other in levels:
+                column = f"pred_{other.lower()}_{q}"
+                if column in s:
+                    ax.plot(t, s[column], "--", color=colors.get(other, "#333"), lw=1.1,
+                            label=f"optimal control with θ_{other}")
             if q == "angle":
                 ax.plot(t, s["angle_ref"], color="#999", lw=0.8, label="reference")
             ax.set_ylabel(label)
             if i == 0:
-                ax.set_title(f"{subject}, {cond} data")
+                trial = f", trial {s['trial'].iloc[0]}" if "trial" in s and s["trial"].notna().any() else ""
+                ax.set_title(f"{subject}, {cond} data{trial}")
                 ax.legend(fontsize=7, loc="upper right")
         axes[2, j].set_xlabel("time t (s)")
     return fig
 
 
-def reconstructed_torque(s: pd.DataFrame):
-    """The true and the reconstructed torque of a stretch of one segment."""
+def reconstructed_torque(s: pd.DataFrame, source: str = "the encoder angle", color: str = SC_COLOR):
+    """The true and the reconstructed torque of a stretch of one segment (reconstructed from ``source``)."""
     fig, ax = plt.subplots(figsize=(10, 3))
     ax.plot(s.t, s.true_u_H, color="#555", lw=0.8, label="true u_H")
-    ax.plot(s.t, s.u_H, color=SC_COLOR, lw=1.2, label="reconstructed from the encoder angle")
+    ax.plot(s.t, s.u_H, color=color, lw=1.2, label=f"reconstructed from {source}")
     ax.set_xlabel("time t (s)")
     ax.set_ylabel("human torque u_H (N·m)")
     ax.legend(fontsize=8)
     return fig
 
 
-def truth_scatter(sources):
-    """True against estimated θ1 with ±1 SE, one panel per source of estimates (label, merged frame)."""
+def truth_scatter(sources, levels=CONDITIONS):
+    """True against estimated θ1 with ±1 SE, one panel per source of estimates (label, merged frame), per level."""
+    colors = level_colors(levels)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, (label, d) in zip(axes, list(sources) + [(None, None)] * (2 - len(sources))):
         if d is None:
             ax.axis("off")
             continue
-        for c in CONDITIONS:
+        for c in levels:
             s = d[d.condition == c]
             ax.errorbar(s.theta1_true, s.theta1, yerr=[s.theta1 * (1 - np.exp(-s.se_log_theta1)),
                                                          s.theta1 * (np.exp(s.se_log_theta1) - 1)],
-                        fmt="o", ms=3, color=COLORS[c], label=c, alpha=0.8)
+                        fmt="o", ms=3, color=colors[c], label=c, alpha=0.8)
         lo, hi = d[["theta1", "theta1_true"]].min().min() / 1.3, d[["theta1", "theta1_true"]].max().max() * 1.3
         ax.plot([lo, hi], [lo, hi], color="#888", lw=0.8)
         ax.set_xscale("log")
@@ -134,8 +175,10 @@ def truth_scatter(sources):
     return fig
 
 
-def forest(subjects: list, beta: dict, true_change: np.ndarray | None):
-    """Per-subject MC→SC change of log θ1 (posterior mean and 94 % HDI from ``contrasts.json``) with β's band.
+def forest(subjects: list, beta: dict, true_change: np.ndarray | None, pair: tuple = CONDITIONS,
+           color: str = SC_COLOR):
+    """Per-subject change of log θ1 from ``pair[0]`` to ``pair[1]`` (default MC→SC; posterior mean and 94 % HDI
+    from ``contrasts.json``) with β's band.
 
     Drawn here rather than by ``arviz_plots.plot_forest``: the report reads the stored
     contrasts (the same HDIs the text quotes, from :func:`pipelines.fit.contrasts.hdi`) and
@@ -151,26 +194,28 @@ def forest(subjects: list, beta: dict, true_change: np.ndarray | None):
     ax.axvspan(*beta["hdi"], color="#cfe3f3", label=f"β, 94 % HDI [{beta['hdi'][0]:.2f}, {beta['hdi'][1]:.2f}]")
     ax.axvline(beta["mean"], color="#1f77b4", lw=1)
     ax.axvline(0.0, color="#555", lw=0.8, ls=":")
-    ax.hlines(y, lo, hi, color=SC_COLOR, lw=1.4)
-    ax.plot(mean, y, "o", color=SC_COLOR, ms=3.5, label="subject: posterior mean, 94 % HDI")
+    ax.hlines(y, lo, hi, color=color, lw=1.4)
+    ax.plot(mean, y, "o", color=color, ms=3.5, label="subject: posterior mean, 94 % HDI")
     if true_change is not None:
         ax.plot(true_change, y, "x", color="k", ms=4, label="true change (simulation)")
     ax.set_yticks(y, [s["subject"] for s in subjects], fontsize=7)
-    ax.set_xlabel("change of log θ1 from MC to SC: log(θ1[SC] / θ1[MC]) (dimensionless)")
+    base, level = pair
+    ax.set_xlabel(f"change of log θ1 from {base} to {level}: log(θ1[{level}] / θ1[{base}]) (dimensionless)")
     ax.set_ylabel("subject")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return fig
 
 
-def predictive_bands(ppc: pd.DataFrame, subject: str):
-    """Posterior predictive Fig. 6: angle, tracking error and torque with 5-95 % bands, per condition."""
-    conds = [c for c in CONDITIONS if c in set(ppc.condition)]
+def predictive_bands(ppc: pd.DataFrame, subject: str, levels=CONDITIONS, reconstructed: bool = True):
+    """Posterior predictive Fig. 6: angle, tracking error and torque with 5-95 % bands, per level (its first trial)."""
+    conds = [c for c in levels if c in set(ppc.condition)]
+    colors = level_colors(levels)
     fig, axes = plt.subplots(3, len(conds), figsize=(6 * len(conds), 8.5), sharex="col", squeeze=False)
     for j, cond in enumerate(conds):
-        s = ppc[ppc.condition == cond]
+        s = first_segment(ppc[ppc.condition == cond])
         t = s["t"].to_numpy()
         ref = s["angle_ref"].to_numpy()
-        col = COLORS[cond]
+        col = colors[cond]
         band = {"color": col, "alpha": 0.3, "lw": 0, "label": "posterior predictive 5-95 %"}
         ax = axes[0, j]
         ax.plot(t, ref, color="#999", lw=0.8, label="reference φ_ref")
@@ -185,7 +230,8 @@ def predictive_bands(ppc: pd.DataFrame, subject: str):
         ax.axhline(0.0, color="#999", lw=0.6)
         ax.set_ylabel("tracking error φ − φ_ref (rad)")
         ax = axes[2, j]
-        ax.plot(t, s.u_H, color="#777", lw=0.4, label="u_H (reconstructed from the angle)")
+        ax.plot(t, s.u_H, color="#777", lw=0.4,
+                label="u_H (reconstructed from the angle)" if reconstructed else "u_H (recorded)")
         ax.fill_between(t, s.u_H_q05, s.u_H_q95, **band)
         ax.plot(t, s.u_H_opt, color="k", lw=1.1, label="optimal control at the posterior median θ")
         ax.set_ylabel("human torque u_H (N·m)")

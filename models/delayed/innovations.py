@@ -11,35 +11,36 @@ motor noises (m_k, ..., m_{k-d}) (the factorization is unique)::
 Rows 0..k_R of Σ are Toeplitz (the plan is stationary there), the rows after k_R are
 not (the plan's last steps).
 
-* Toeplitz rows: the Schur algorithm. The displacement ``Σ - Z Σ Zᵀ = x xᵀ - y yᵀ``
-  (Z the shift) has rank 2; each step reads the Cholesky column ``x`` (so
-  ``L_{k+t,k} = x_t / x_0``, ``D_k = x_0²``) and passes to the generator of the next
-  Schur complement by a hyperbolic rotation that zeroes y's leading entry (in mixed
-  form), O(d) per row instead of the d²/2 of a row of Cholesky (it is the Chandrasekhar
-  form of the Kalman filter). The generator is all the state there is. Its y part
-  decays (the reflection coefficients ρ = y_1 / x_0 of a moving average go to zero) and
-  changes x only at second order (``x' - x = O(ρ²) x + O(ρ) y``), so once d + 1
-  consecutive columns agree to :data:`models.maxent.FREEZE_RTOL` and ``|y| <= Y_RTOL |x|``
-  (the filter's steady state, at step k_f) every later column is the same to
-  rounding: rows after ``i_f = k_f + d`` are aliases of row i_f.
-* Rows after k_R: L D Lᵀ row by row, O(d²) each.
+* Toeplitz rows: the Schur algorithm, by columns. The displacement
+  ``Σ - Z Σ Zᵀ = x xᵀ - y yᵀ`` (Z the shift) has rank 2; step k reads the Cholesky
+  column x (``L_{k+t,k} = x_t / x_0``, ``D_k = x_0²``) and passes to the generator of
+  the next Schur complement by a hyperbolic rotation that zeroes y's leading entry (in
+  mixed form): O(d) per column instead of the d²/2 of a row of Cholesky (it is the
+  Chandrasekhar form of the Kalman filter). The generator is all the state there is. Its
+  y part decays (the reflection coefficients ρ = y_1 / x_0 of a moving average go to
+  zero) and changes x only at second order (``x' - x = O(ρ²) x + O(ρ) y``), so once
+  d + 1 consecutive columns agree to :data:`models.maxent.FREEZE_RTOL` and
+  ``|y| <= Y_RTOL |x|`` (the filter's steady state, at step k_f) every later column is
+  the same to rounding and is not computed again. The solves run by columns there.
+* Rows after k_R: L D Lᵀ row by row, O(d²) each, from the d rows before (the last
+  Toeplitz rows are written out as rows for them).
 
 Reverse mode. With ``ω = Σ⁻¹ r = L⁻ᵀ D⁻¹ y``::
 
     ∂/∂r = -ω,   ∂/∂L_ij = ω_i y_j,   ∂/∂D_i = ½ (y_i² / D_i - 1) / D_i;
 
 the rows after k_R are reversed row by row (giving ∂/∂Σ for their entries), the
-Toeplitz rows column by column and through the Schur steps back to the first
-generator, ``x = y = γ / sqrt(γ_0)`` (giving ∂/∂γ_t). An alias adds its adjoint to its
-row's, so the gradient is the exact derivative of the computation with the steady state
-held (equal to the one without it to about the tolerance times the transient's length;
-tested).
+Toeplitz columns one by one and through the Schur steps back to the first generator,
+``x = y = γ / sqrt(γ_0)`` (giving ∂/∂γ_t). The held columns add their adjoints to the
+steady column's, so the gradient is the exact derivative of the computation with the
+steady state held (equal to the one without it to about the tolerance times the
+transient's length; tested).
 
-Storage: row i of L is ``Lr[i, s] = L_{i, i-d+s}``, s = 0..d-1 (zero before column 0);
-y, ω and the solve's accumulator are padded with d leading zeros (row i at i + d), so
-every inner loop runs over contiguous memory. Inner loops index with unsigned integers
-(``U``) and never slice: numba then needs neither wraparound checks nor reference counts
-there, and LLVM vectorizes them.
+Storage: row i of L (rows after k_R and the d before) is ``Lr[i, s] = L_{i, i-d+s}``,
+s = 0..d-1 (zero before column 0); y, ω and the solves' accumulators are padded with d
+leading zeros (row i at i + d), so every inner loop runs over contiguous memory. Inner
+loops index with unsigned integers (``U``) and never slice: numba then needs neither
+wraparound checks nor reference counts there, and LLVM vectorizes them.
 """
 
 from __future__ import annotations
@@ -62,14 +63,6 @@ FASTMATH = {"contract", "reassoc"}
 
 #: Unsigned index type of the inner loops (module docstring).
 U = np.uint64
-
-
-@njit(cache=True, inline="always")
-def _row(j, i_f, i_e):
-    """Where row j of L is stored: aliases of the steady-state row map to it."""
-    if i_f < j <= i_e:
-        return i_f
-    return j
 
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -159,9 +152,10 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
     freeze : bool
         Hold the factorization once stationary (module docstring).
     Lr, D, Lbar, Dbar : ndarray, shapes (K, >= d), (K,), (K, >= d), (K,)
-        Scratch: rows of L (module docstring), D, and their adjoints.
+        Scratch: rows of L (module docstring), D (returned: every row's), and adjoints.
     yb_, ob_, q : ndarray, shape (>= K + d,)
-        Scratch, padded: the innovations y, then ω (returned: ``ob_[d:K + d]``), the solve's accumulator.
+        Scratch, padded: the innovations y (returned: ``yb_[d:K + d]``), ω (returned:
+        ``ob_[d:K + d]``), the solves' accumulator.
     Sbar : ndarray, shape (K, >= d + 1)
         Out: ``∂ log N / ∂Σ_{i, i-t}`` for the rows i > k_R (Σ_{i, i-t} = Σ_{i-t, i} is one number).
     w, wb : ndarray, shape (>= d + 1,)
@@ -173,24 +167,29 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
 
     Returns
     -------
-    (float, int, int)
-        The log-density and the alias range (i_f, i_e]; i_f = i_e = -1 without aliases.
+    (float, int)
+        The log-density and k_f, the first column of the steady state (nA = min(k_R + 1, K)
+        if the columns never became steady).
     """
     K = r.shape[0]
     ud = U(d)
     nA = min(k_R + 1, K)
-    i_f = -1
-    i_e = -1
-    k_f = nA  # first step whose generator is the steady one
+    k_f = nA  # first column whose generator is the steady one
     count = 0
-    for i in range(min(d, K)):  # the padding before column 0
-        for s in range(U(d - i)):
+    lo_r = max(0, nA - d)  # Toeplitz rows written out as rows for the rows after k_R
+    for i in range(lo_r, min(lo_r + d, K)):  # the padding before column 0
+        for s in range(U(max(0, d - i))):
             Lr[i, s] = 0.0
+    for i in range(K + d):
+        q[i] = 0.0
     for s in range(ud):
         yb_[s] = 0.0
         ob_[s] = 0.0
         w[s] = 0.0
-    # ---- Toeplitz rows 0..nA-1: the Schur algorithm
+    quad = 0.0
+    logs = 0.0
+    prod = 1.0
+    # ---- Toeplitz rows 0..nA-1: the Schur algorithm by columns, and y = L⁻¹ r by columns
     if nA > 0:
         sc = 1.0 / math.sqrt(gam[0])
         for j in range(ud + U(1)):
@@ -200,12 +199,21 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
         for k in range(nA):
             kx = U(min(k, k_f))
             x0 = XY[kx, 0, 0]
-            D[k] = x0 * x0
-            ix0 = 1.0 / x0
-            for t in range(1, min(d, nA - 1 - k) + 1):
-                Lr[k + t, d - t] = XY[kx, 0, t] * ix0
-            if k >= k_f + d:
-                break  # every later row is the steady row
+            ix0 = 1.0 / x0  # off the recursion's critical path, as the rest but y_k and the update
+            Dk = x0 * x0
+            D[k] = Dk
+            yk = r[k] - q[k + d]
+            yb_[k + d] = yk
+            f = yk * ix0
+            quad += f * f
+            if k <= k_f:
+                prod *= Dk
+                if k % 16 == 15:  # one log per 16 columns
+                    logs += math.log(prod)
+                    prod = 1.0
+            uk = U(k + d)
+            for t in range(U(1), U(min(d, nA - 1 - k) + 1)):
+                q[uk + t] += XY[kx, 0, t] * f
             if k + 1 < nA and k < k_f:
                 _schur_step(XY, k, d)
                 if freeze:
@@ -221,15 +229,20 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
                     count = count + 1 if num <= FREEZE_RTOL * den else 0
                     if count > d and ny <= Y_RTOL * den:
                         k_f = k + 1
-        if k_f + d < nA - 1:
-            i_f = k_f + d
-            i_e = nA - 1
-    # ---- rows after k_R: L D Lᵀ row by row (Lr[i, s] = L_{i, j}, j = i - d + s)
+        logs += math.log(prod)
+        if k_f < nA - 1:
+            logs += (nA - 1 - k_f) * math.log(D[k_f])
+        # the last d Toeplitz rows as rows: L_{i, i-d+s} = column (i-d+s)'s entry d - s
+        for i in range(lo_r, nA):
+            for s in range(max(0, d - i), d):
+                c = min(i - d + s, k_f)
+                Lr[i, s] = XY[c, 0, d - s] / XY[c, 0, 0]
+    # ---- rows after k_R: L D Lᵀ row by row (Lr[i, s] = L_{i, j}, j = i - d + s), and y
     for i in range(nA, K):
         ui = U(i)
         s0 = max(0, d - i)
         for s in range(s0, d):
-            rj = U(_row(i - d + s, i_f, i_e))
+            rj = U(i - d + s)
             o = U(d - s)
             acc = tailS[ui, o]
             for u in range(U(s)):
@@ -240,87 +253,61 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
         for s in range(ud):
             acc -= w[s] * Lr[ui, s]
         D[i] = acc
-    for i in range(K):
-        if not (i_f < i <= i_e):
-            for s in range(ud):
-                Lbar[i, s] = 0.0
-            Dbar[i] = 0.0
-    # ---- innovations y = L⁻¹ r and the log-density (rows lo..hi-1 are the steady row i_f)
-    lo = i_f + 1 if i_f >= 0 else K
-    hi = i_e + 1 if i_f >= 0 else K
-    quad = 0.0
-    logs = 0.0
-    prod = 1.0
-    for i in range(K):
-        if lo <= i < hi:
-            continue
-        ui = U(i)
         acc = r[i]
         for s in range(ud):
             acc -= Lr[ui, s] * yb_[ui + s]
         yb_[i + d] = acc
         quad += acc * acc / D[i]
-        prod *= D[i]
-        if i % 16 == 15:  # one log per 16 rows
-            logs += math.log(prod)
-            prod = 1.0
-        if i + 1 == lo:
-            uf = U(i_f)
-            qa = 0.0
-            for m in range(lo, hi):
-                um = U(m)
-                acc = r[m]
-                for s in range(ud):
-                    acc -= Lr[uf, s] * yb_[um + s]
-                yb_[m + d] = acc
-                qa += acc * acc
-            quad += qa / D[i_f]
-            logs += (hi - lo) * math.log(D[i_f])
-    logs += math.log(prod)
+        logs += math.log(D[i])
     ll = -0.5 * quad - 0.5 * logs - K * HALF_LOG_2PI
-    # ---- ω = L⁻ᵀ D⁻¹ y
+    # ---- ω = L⁻ᵀ D⁻¹ y: rows after k_R by rows, then the Toeplitz rows by columns
     for i in range(K + d):
         q[i] = 0.0
-    for i in range(K - 1, -1, -1):
-        ri = U(_row(i, i_f, i_e))
+    for i in range(K - 1, nA - 1, -1):
         ui = U(i)
-        o = yb_[i + d] / D[ri] - q[i + d]
+        o = yb_[i + d] / D[i] - q[i + d]
         ob_[i + d] = o
         for s in range(ud):
-            q[ui + s] += Lr[ri, s] * o
-    # ---- reverse: ∂/∂L and ∂/∂D of every row; rows after k_R through their recursion
-    if lo < hi:
-        uf = U(i_f)
-        iD = 1.0 / D[i_f]
-        n = U(hi - lo)
-        a = U(lo + d)
-        for s in range(ud):
-            acc = 0.0
-            b = U(lo) + s
-            for m in range(n):
-                acc += ob_[a + m] * yb_[b + m]
-            Lbar[uf, s] += acc
+            q[ui + s] += Lr[ui, s] * o
+    hi = min(nA, k_f + d)  # rows hi.. are the steady row: by rows (a short recursion) ...
+    if hi < nA:
+        for s in range(d):
+            w[s] = XY[k_f, 0, d - s] / XY[k_f, 0, 0]
+        iD = 1.0 / D[k_f]
+        for i in range(nA - 1, hi - 1, -1):
+            ui = U(i)
+            o = yb_[i + d] * iD - q[i + d]
+            ob_[i + d] = o
+            for s in range(ud):
+                q[ui + s] += w[s] * o
+        for s in range(d):
+            w[s] = 0.0
+    for k in range(hi - 1, -1, -1):  # ... the columns before by columns
+        kx = U(min(k, k_f))
+        uk = U(k + d)
+        head = yb_[k + d] / D[k] - q[k + d]  # off the recursion's critical path
+        ix0 = 1.0 / XY[kx, 0, 0]
         acc = 0.0
-        for m in range(n):
-            acc += yb_[a + m] * yb_[a + m]
-        Dbar[i_f] += 0.5 * (acc * iD - (hi - lo)) * iD
-    for i in range(K - 1, -1, -1):
-        if lo <= i < hi:
-            continue
+        for t in range(U(1), U(min(d, hi - 1 - k) + 1)):
+            acc += XY[kx, 0, t] * ob_[uk + t]
+        ob_[k + d] = head - acc * ix0
+    # ---- reverse: rows after k_R through their recursion (they add to the d rows before them)
+    for i in range(lo_r, K):
+        for s in range(ud):
+            Lbar[i, s] = 0.0
+        Dbar[i] = 0.0
+    for i in range(K - 1, nA - 1, -1):
         ui = U(i)
         o = ob_[i + d]
         for s in range(ud):
             Lbar[ui, s] += o * yb_[ui + s]
         Dr = D[i]
         yi = yb_[i + d]
-        Dbar[i] += 0.5 * (yi * yi / Dr - 1.0) / Dr
-        if i < nA:
-            continue
-        db = Dbar[i]
+        db = Dbar[i] + 0.5 * (yi * yi / Dr - 1.0) / Dr
         Sbar[ui, 0] = db
         s0 = max(0, d - i)
         for s in range(s0, d):
-            rj = _row(i - d + s, i_f, i_e)
+            rj = i - d + s
             lt = Lr[ui, s]
             Dj = D[rj]
             lb = Lbar[ui, s]
@@ -328,7 +315,7 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
             wb[s] = lb / Dj - 2.0 * lt * db
             Dbar[rj] += lt * lt * db - lb * lt / Dj
         for s in range(d - 1, s0 - 1, -1):
-            rj = U(_row(i - d + s, i_f, i_e))
+            rj = U(i - d + s)
             o = U(d - s)
             g = wb[s]
             Sbar[ui, o] = g
@@ -336,7 +323,7 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
                 wb[u] -= g * Lr[rj, o + u]
             for u in range(U(s)):
                 Lbar[rj, o + u] -= g * w[u]
-    # ---- reverse: Toeplitz columns, then the Schur steps back to the first generator
+    # ---- reverse: the Toeplitz columns, then the Schur steps back to the first generator
     for j in range(d + 1):
         gbar[j] = 0.0
     if nA > 0:
@@ -344,19 +331,59 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
         for j in range(ud + U(1)):
             XY[last, 2, j] = 0.0
             XY[last, 3, j] = 0.0
-        top = i_f if i_f >= 0 else nA - 1
-        for k in range(top, -1, -1):
-            # column k: L_{k+t,k} = x_t / x_0 (rows k + t <= top hold it), D_k = x_0²
-            kk = U(min(k, k_f))
-            x0 = XY[kk, 0, 0]
+        top = nA - 1
+        if k_f < nA:  # the held columns k_f .. nA - 1 share one x: their adjoints add up
+            uf = U(k_f)
+            x0 = XY[uf, 0, 0]
             ix0 = 1.0 / x0
-            acc = 2.0 * x0 * Dbar[k]
-            for t in range(1, min(d, top - k) + 1):
-                lb = Lbar[k + t, d - t] * ix0
-                XY[kk, 2, t] += lb
-                acc -= lb * XY[kk, 0, t] * ix0
-            XY[kk, 2, 0] += acc
-            if 0 < k <= k_f:
+            iD = 1.0 / D[k_f]
+            yy = 0.0
+            for m in range(U(k_f + d), U(nA + d)):
+                yy += yb_[m] * yb_[m]
+            db = 0.5 * (yy * iD - (nA - k_f)) * iD
+            for k in range(max(lo_r, k_f), nA):
+                db += Dbar[k]
+            a = U(k_f + d)
+            for t in range(U(1), U(min(d, nA - 1 - k_f) + 1)):  # ∂/∂L_{k+t,k} = ω_{k+t} y_k, summed
+                acc = 0.0
+                for m in range(U(nA - k_f) - t):
+                    acc += ob_[a + t + m] * yb_[a + m]
+                XY[uf, 2, t] += acc * ix0
+            for i in range(max(lo_r, k_f + 1), nA):  # what the rows after k_R added to these rows
+                for t in range(1, min(d, i - k_f) + 1):
+                    XY[uf, 2, t] += Lbar[i, d - t] * ix0
+            acc = 2.0 * x0 * db
+            for t in range(1, d + 1):
+                acc -= XY[uf, 2, t] * XY[uf, 0, t] * ix0
+            XY[uf, 2, 0] += acc
+            if k_f > 0:
+                _schur_step_adjoint(XY, k_f, d)
+            top = k_f - 1
+        for k in range(top, -1, -1):
+            # column k: L_{k+t,k} = x_t / x_0 (rows k + t < nA), D_k = x_0²
+            kx = U(k)
+            uk = U(k + d)
+            x0 = XY[kx, 0, 0]
+            ix0 = 1.0 / x0
+            yk = yb_[k + d]
+            Dk = D[k]
+            db = 0.5 * (yk * yk / Dk - 1.0) / Dk
+            if k >= lo_r:
+                db += Dbar[k]
+            acc = 2.0 * x0 * db
+            f = yk * ix0
+            tmax = min(d, nA - 1 - k)
+            for t in range(U(1), U(tmax + 1)):  # ∂/∂L_{k+t,k} = ω_{k+t} y_k
+                lb = ob_[uk + t] * f
+                XY[kx, 2, t] += lb
+                acc -= lb * XY[kx, 0, t] * ix0
+            if k + tmax >= lo_r:  # rows written out as rows: what the rows after k_R added
+                for t in range(max(1, lo_r - k), tmax + 1):
+                    lb = Lbar[k + t, d - t] * ix0
+                    XY[kx, 2, t] += lb
+                    acc -= lb * XY[kx, 0, t] * ix0
+            XY[kx, 2, 0] += acc
+            if k > 0:
                 _schur_step_adjoint(XY, k, d)
         sc = 1.0 / math.sqrt(gam[0])
         acc = 0.0
@@ -365,7 +392,7 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
             gbar[j] = g * sc
             acc += g * gam[j]
         gbar[0] -= 0.5 * sc * sc * sc * acc
-    return ll, i_f, i_e
+    return ll, k_f
 
 
 __all__ = ["FASTMATH", "U", "banded_loglik"]

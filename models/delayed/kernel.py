@@ -23,7 +23,10 @@ not depend on the batch it is in.
 
 The kernel (this module, :mod:`models.delayed.riccati` and
 :mod:`models.delayed.innovations`) is written for numba: no array views in inner loops
-(each costs reference counting), unsigned indices where LLVM should vectorize.
+(each costs reference counting), unsigned indices where LLVM should vectorize. numba's
+on-disk cache of a function holds the compiled code of what it calls but is invalidated
+only by changes to its own file: after editing riccati.py or innovations.py, delete the
+``*.nbi``/``*.nbc`` files of ``models/delayed/__pycache__`` (a fresh checkout has none).
 """
 
 from __future__ import annotations
@@ -40,7 +43,7 @@ from models.delayed.riccati import plan_adjoint, plan_recursion
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, r, u, ua, freeze, sc, out, inn):
     """Log-likelihood and gradient of one segment, written into ``out`` (8,): ll, then
-    d/d[q11, q22, R, τ_nm, σ_m], then (as floats) k_R and the steady-state row i_f (-1: none).
+    d/d[q11, q22, R, τ_nm, σ_m], then (as floats) k_R and the first steady column k_f of the factorization.
 
     ``sc`` is the scratch tuple of :func:`make_scratch`. If ``inn`` has K entries it receives
     the standardized innovations ``y_k / sqrt(D_k)`` (iid N(0, 1) under the model).
@@ -133,11 +136,11 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
             tailS[ui, ut] = s2 * acc
         tailS[ui, 0] += 0.5 / S_t[i]
     # ---- Gaussian log-density of the residuals and ∂/∂Σ
-    ll, i_f, i_e = banded_loglik(d, gam, k_R, tailS, rr, freeze, Lr[:, :d], D, y[:K + d], om[:K + d], q[:K + d],
+    ll, k_f = banded_loglik(d, gam, k_R, tailS, rr, freeze, Lr[:, :d], D, y[:K + d], om[:K + d], q[:K + d],
                                  Lbar[:, :d], Dbar, Sbar, w, wb, XY[:, :, :d + 1], gbar[:d + 1])
     if inn.shape[0] == K:
         for k in range(K):
-            inn[k] = y[d + k] / math.sqrt(D[i_f if i_f < k <= i_e else k])
+            inn[k] = y[d + k] / math.sqrt(D[k])
     # ---- adjoints of the MA coefficients, of 1/(2S) and of σ_m²
     s2bar = 0.0
     for j in range(d + 1):
@@ -234,7 +237,7 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
     out[4] = G[2] * da + G[3] * dal
     out[5] = 2.0 * sig * s2bar
     out[6] = k_R
-    out[7] = i_f
+    out[7] = k_f
 
 
 @njit(cache=True)

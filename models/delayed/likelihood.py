@@ -59,7 +59,7 @@ With d = 0, τ_nm = 0 and σ_m = 0 this is :func:`models.maxent.loglik_grad`'s
 
 Computation
 -----------
-Per segment, in O(K d) plus O(d²) for each row of two short stretches:
+Per segment, in O(K d) plus O(d²) for each row after the plan's stationary part:
 
 * the plan (:mod:`models.delayed.riccati`): the LQ recursion backward with forward
   tangents in q11, q22, a, α until P and its tangents are stationary to
@@ -70,10 +70,11 @@ Per segment, in O(K d) plus O(d²) for each row of two short stretches:
 * log N(r; 0, Σ) in innovations form, ``Σ = L D Lᵀ`` (:mod:`models.delayed.innovations`;
   the innovations of a Kalman filter over the last d + 1 motor noises, without its
   covariance state). Where the plan is stationary Σ is Toeplitz and the Schur algorithm
-  gives its factor in O(d) per row; once its columns are stationary (the filter's steady
-  state) every later row is the same and costs nothing. The rows after the plan's
-  stationary part (the last steps of a plan that ends with the window, fewer with
-  preview) are factored row by row, O(d²) each;
+  gives its factor column by column in O(d); once the columns are stationary (the
+  filter's steady state, a few hundred steps for d = 30) they are not computed again and
+  the solves cost O(d) per row. The rows after the plan's stationary part (the last steps
+  of a plan that ends with the window, fewer with preview) are factored row by row,
+  O(d²) each;
 * the gradient: reverse mode through the factorization (∂/∂Σ for those rows, ∂/∂γ for the
   Toeplitz ones, back through the Schur steps), then the chain rule through the MA
   coefficients, the data recursion and the plan (:mod:`models.delayed.kernel`): one

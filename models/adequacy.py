@@ -13,8 +13,8 @@ reconstruction (or, for recorded torques, the same exact measurement):
 
 ``whiteness``
     Autocorrelation of the standardized policy residuals ``z_k = v_k √(2 S_k)`` at lags
-    1..:data:`WHITENESS_LAGS` (a portmanteau statistic). ``v_k`` is the deviation of the
-    torque from the optimal law at the state driven by the observed torques
+    from one sample to :data:`WHITENESS_SECONDS` (1..10 at 100 Hz; a portmanteau
+    statistic). ``v_k`` is the deviation of the torque from the optimal law at the state driven by the observed torques
     (:mod:`models.maxent`), so under the model and for the true torque the z_k are iid
     N(0, 1). A reconstructed torque is smoothed, which makes z autocorrelated even under
     the model (lag 1 about 0.3 on the default study); that is why the null comes from the
@@ -25,8 +25,8 @@ reconstruction (or, for recorded torques, the same exact measurement):
     ``log mean z²``: the policy noise is as large as R says.
 ``xcorr``
     Cross-correlation of tracking error (angle − reference) and torque at lags
-    0..:data:`XCORR_LAGS` samples (0-300 ms at 100 Hz): how long after an error the torque
-    reacts, which is where a perceptual delay shows.
+    0..:data:`XCORR_SECONDS` (0-300 ms: lags 0..30 at 100 Hz): how long after an error the
+    torque reacts, which is where a perceptual delay shows.
 ``spectrum``
     Log power of the torque in the bands :data:`BANDS_HZ`.
 ``coverage_angle``, ``coverage_torque``
@@ -62,10 +62,10 @@ from scipy import stats as sps
 
 from models.bootstrap import Records
 
-#: Autocorrelation lags of the residuals, samples.
-WHITENESS_LAGS = 10
-#: Cross-correlation lags of tracking error -> torque, samples (0..300 ms at 100 Hz).
-XCORR_LAGS = 30
+#: Autocorrelation lags of the residuals, s (10 lags of 10 ms at 100 Hz; the lag count scales with the rate).
+WHITENESS_SECONDS = 0.1
+#: Cross-correlation lags of tracking error -> torque, s (0..300 ms: 30 lags at 100 Hz).
+XCORR_SECONDS = 0.3
 #: Torque spectrum bands, Hz.
 BANDS_HZ = ((0.0, 0.5), (0.5, 1.5), (1.5, 4.0), (4.0, 10.0), (10.0, 50.0))
 #: Central probability of the pointwise predictive bands.
@@ -132,9 +132,9 @@ def coverage(x: np.ndarray, prob: float = COVERAGE) -> np.ndarray:
 def statistics(rec: Records, dt: float) -> dict:
     """Every statistic of every row: arrays of shape (n,) or (n, d)."""
     return {
-        "whiteness": autocorrelation(rec.z, WHITENESS_LAGS),
+        "whiteness": autocorrelation(rec.z, max(1, round(WHITENESS_SECONDS / dt))),
         "variance": np.log(np.mean(rec.z * rec.z, axis=1)),
-        "xcorr": cross_correlation(rec.error[:, :-1], rec.torque, XCORR_LAGS),
+        "xcorr": cross_correlation(rec.error[:, :-1], rec.torque, max(1, round(XCORR_SECONDS / dt))),
         "spectrum": band_log_power(rec.torque, dt),
         "coverage_angle": coverage(rec.angle),
         "coverage_torque": coverage(rec.torque),

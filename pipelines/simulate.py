@@ -124,7 +124,9 @@ def simulate_to_dir(
         "assistant": res["conditions"]["assistant"],
         "human": {"name": human, **asdict(spec)},
         "sc_human": "plans with the assistant's feedback law (models.segment.Feedback), in closed loop",
-        "assistant_alone": assistant_alone(seconds) if design == STUDY else None,
+        # The paper's assistant alone on the study reference (scioc assistant), for the paper's rig.
+        "assistant_alone": (assistant_alone(seconds) if (design.dt, design.wheel, design.assistants)
+                            == (STUDY.dt, STUDY.wheel, STUDY.assistants) else None),
         **sidecar(design, EXPERIMENT_FILE),
         "versions": versions(),
     }

@@ -48,7 +48,7 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
     ``sc`` is the scratch tuple of :func:`make_scratch`. If ``inn`` has K entries it receives
     the standardized innovations ``y_k / sqrt(D_k)`` (iid N(0, 1) under the model).
     """
-    (f, df, S_t, L_t, dS_t, dL_t, cst, tau, ct, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
+    (f, df, S_t, L_t, dS_t, dL_t, cst, tau, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
      Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar, tailP, W, adj) = sc
     K = u.shape[0]
     # ---- planning plant and its derivatives in (q11, q22, a, α)
@@ -80,7 +80,6 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
     for k in range(K):
         tk = tau[k]
         c = (u[k] - al * tk) * iom1
-        ct[k] = c
         dct[k, 0] = -al * dtau[k, 0] * iom1
         dct[k, 1] = (c - tk - al * dtau[k, 1]) * iom1
         tau[k + 1] = a * tk + (1.0 - a) * c
@@ -200,8 +199,8 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
         if k >= k_z:
             for p in range(4):
                 G[p] += o * df[k, p]
-        G[2] -= o * (dct[k, 0])
-        G[3] -= o * (dct[k, 1])
+        G[2] -= o * dct[k, 0]
+        G[3] -= o * dct[k, 1]
         if k <= k_R:
             Lbs0 -= o * x1[k]
             Lbs1 -= o * x2[k]
@@ -245,7 +244,7 @@ def make_scratch(K, KM, dmax):
     """Scratch arrays for :func:`segment_kernel`: K observed steps, K + M planned, delays <= dmax."""
     dd = max(dmax, 1)
     return (np.empty(K), np.empty((K, 4)), np.empty(K), np.empty((K, 3)), np.empty((K, 4)), np.empty((K, 3, 4)),
-            np.zeros(20), np.empty(K + 1), np.empty(K), np.empty((K + 1, 2)), np.empty((K, 2)), np.empty(K),
+            np.zeros(20), np.empty(K + 1), np.empty((K + 1, 2)), np.empty((K, 2)), np.empty(K),
             np.empty((dd, 3)), np.empty((dd, 2, 3)), np.empty(dmax + 1), np.empty((K, dmax + 1)),
             np.empty((K, dmax + 1)), np.empty((K, dd)), np.empty(K), np.empty(K + dmax), np.empty(K + dmax),
             np.empty(K + dmax), np.empty((K, dd)), np.empty(K), np.empty((K, dmax + 1)), np.empty(dd + 1), np.empty(dd + 1),

@@ -11,7 +11,6 @@ timings are measured in the same run; the max-ent kernel is timed on the same ba
 from __future__ import annotations
 
 import numba
-import numpy as np
 
 from models.delayed import loglik_grad as delayed_loglik_grad
 from models.humans import MOTOR_SD, TAU_NM

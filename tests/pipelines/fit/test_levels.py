@@ -157,3 +157,17 @@ def test_mixedlm_of_three_balanced_levels_gives_the_mean_differences():
     assert mm["n_obs"] == 3 * n
     with pytest.raises(ValueError, match="one estimate per subject × condition"):
         mixedlm_check(pd.concat([est, est.iloc[:1]]), LEVELS)
+
+
+def test_the_log_theta1_form_follows_how_tightly_the_data_pin_each_unit():
+    import pandas as pd
+
+    from models.bayes.hierarchical import Parameterization
+    from pipelines.fit.stage import CENTRED_SE_LOG_THETA1, choose_parameterization
+
+    assert choose_parameterization(None)[0] == Parameterization()
+    loose = pd.DataFrame({"se_log_theta1": [0.04, 0.06, 0.09]})  # like the default study's 15-s windows
+    tight = pd.DataFrame({"se_log_theta1": [0.015, 0.02, 0.06]})  # like the example's three 12-s trials
+    assert choose_parameterization(loose)[0] == Parameterization()
+    form, reason = choose_parameterization(tight)
+    assert (form.theta1_mc, form.theta1_sc) == ("centred", "centred") and str(CENTRED_SE_LOG_THETA1) in reason

@@ -53,6 +53,7 @@ import numpy as np
 import pandas as pd
 
 from models.bayes.hierarchical import Parameterization, Priors, build_model
+from models.identify import identify_unit
 from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.adequacy import format_adequacy, not_checked
@@ -135,15 +136,23 @@ MIN_TOTAL_DRAWS = 25
 CENTRED_SE_LOG_THETA1 = 0.03
 
 
+def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
+    """``se_log_theta1`` of every unit's ML estimate (its trials together), as ``scioc identify`` computes it."""
+    units: dict = {}
+    for p in prepared.segments:
+        units.setdefault((p.data.subject, p.data.condition), []).append(prepare_batch(plant, [p.segment]))
+    return pd.DataFrame({"se_log_theta1": [identify_unit(b, plant).se_log_theta1 for b in units.values()]})
+
+
 def choose_parameterization(estimates) -> tuple[Parameterization, str]:
     """The form of the log θ1 blocks for these data, and why (recorded in the sidecar).
 
-    Centred when the identify estimates' median ``se_log_theta1`` is at most
-    :data:`CENTRED_SE_LOG_THETA1`; the default :class:`Parameterization` otherwise, and
-    without estimates.
+    Centred when the estimates' median ``se_log_theta1`` (``scioc identify``'s, or
+    :func:`unit_se_log_theta1`) is at most :data:`CENTRED_SE_LOG_THETA1`; the default
+    :class:`Parameterization` otherwise, and without estimates.
     """
     if estimates is None or "se_log_theta1" not in estimates.columns:
-        return Parameterization(), "default (no identify estimates to measure the data per unit)"
+        return Parameterization(), "default (no estimates to measure the data per unit)"
     se = float(pd.to_numeric(estimates["se_log_theta1"], errors="coerce").median())
     if np.isfinite(se) and se <= CENTRED_SE_LOG_THETA1:
         return (Parameterization(theta1_mc="centred", theta1_sc="centred"),
@@ -245,7 +254,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                 f"{estimates_path}: its subjects × conditions ({len(theirs)}) are not those of {study_path} "
                 f"({len(units)}); e.g. {sorted(units ^ theirs)[:3]}. Pass the estimates identified from this study "
                 "with --estimates")
-    form, form_reason = choose_parameterization(estimates)
+    form, form_reason = choose_parameterization(estimates if estimates is not None
+                                                else unit_se_log_theta1(prepared, plant))
     seeds = child_seeds(seed)
     fits, timing = {}, {"prepare_s": t_prepared - t_start}
     for name, effects in (("condition", True), ("pooled", False)):

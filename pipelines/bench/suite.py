@@ -15,7 +15,7 @@ from pipelines.bench.likelihood import bench_likelihood, format_likelihood
 from pipelines.storage import write_text_atomic
 
 #: The parts of ``scioc bench``, in the order they run.
-PARTS = ("likelihood", "identify", "fit", "sbc", "example")
+PARTS = ("likelihood", "delayed", "identify", "fit", "sbc", "example")
 
 
 def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
@@ -39,6 +39,11 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
     if "likelihood" in parts:
         result["likelihood"] = bench_likelihood(study, **kw)
         print(format_likelihood(result["likelihood"]), flush=True)
+    if "delayed" in parts:
+        from pipelines.bench.delayed import bench_delayed, format_delayed
+
+        result["delayed"] = bench_delayed(study)
+        print(format_delayed(result["delayed"]), flush=True)
     if "identify" in parts:
         result["identify"] = bench_identify(study)
         print(format_identify(result["identify"]), flush=True)

@@ -242,9 +242,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="measured speed of the kernels, the identification, the full fit and SBC")
     p.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
-    p.add_argument("--parts", default="likelihood,identify,fit,sbc,example", metavar="LIST",
-                   help="comma-separated subset of likelihood, identify, fit (the full default-study fit, about "
-                   "3 min), sbc and example (the second example's identify and fit; default: all)")
+    p.add_argument("--parts", default="likelihood,delayed,identify,fit,sbc,example", metavar="LIST",
+                   help="comma-separated subset of likelihood, delayed (the delayed human model's likelihood), "
+                   "identify, fit (the full default-study fit, about 3 min), sbc and example (the second example's "
+                   "identify and fit; default: all)")
     p.set_defaults(func=commands.cmd_bench)
 
     p = sub.add_parser("bench-fit", help="one fit of the default simulated study in a chosen parameterization (how "

@@ -113,7 +113,7 @@ def _start(batches, plant: DiscretePlant) -> np.ndarray:
     return np.array([np.log(START_GRID[i]), 0.0, np.log(R_hat[i])])
 
 
-def _observed_information(z, batch, plant, free) -> np.ndarray:
+def _observed_information(z, batches, plant, free) -> np.ndarray:
     h = 1e-4
     idx = np.flatnonzero(free)
     H = np.empty((idx.size, idx.size))
@@ -122,8 +122,8 @@ def _observed_information(z, batch, plant, free) -> np.ndarray:
         step = h if j != 1 else h * max(abs(z[1]), 1e-3)
         zp[j] += step
         zm[j] -= step
-        gp = _ll_grad_z(zp, batch, plant)[1]
-        gm = _ll_grad_z(zm, batch, plant)[1]
+        gp = _ll_grad_z(zp, batches, plant)[1]
+        gm = _ll_grad_z(zm, batches, plant)[1]
         H[a] = -(gp[idx] - gm[idx]) / (2 * step)
     return 0.5 * (H + H.T)
 
@@ -155,13 +155,12 @@ def identify_unit(batches, plant: DiscretePlant, *, maxiter: int = 200) -> Estim
     batches = list(batches)
     if not batches or any(b.n < 1 for b in batches):
         raise ValueError("identify_unit needs at least one segment")
-    batch = batches
     K = sum(b.K * b.n for b in batches)
-    z0 = _start(batch, plant)
+    z0 = _start(batches, plant)
     scale = 1.0 / K  # per-sample log-likelihood: O(1) numbers for SLSQP's tolerances
 
     def fun(z):
-        ll, g = _ll_grad_z(z, batch, plant)
+        ll, g = _ll_grad_z(z, batches, plant)
         return -ll * scale, -g * scale
 
     res = minimize(
@@ -175,7 +174,7 @@ def identify_unit(batches, plant: DiscretePlant, *, maxiter: int = 200) -> Estim
     z = np.array(res.x, dtype=float)
     if z[1] <= BOUND_TOL:
         z[1] = 0.0  # on the bound: report θ2 = 0 exactly, not the optimizer's 1e-18
-    ll, g = _ll_grad_z(z, batch, plant)
+    ll, g = _ll_grad_z(z, batches, plant)
     at_bound = z[1] <= BOUND_TOL
     proj = g.copy()
     if at_bound and proj[1] < 0:
@@ -183,7 +182,7 @@ def identify_unit(batches, plant: DiscretePlant, *, maxiter: int = 200) -> Estim
     free = np.array([True, not at_bound, True])
     se = np.full(3, np.nan)
     try:
-        H = _observed_information(z, batch, plant, free)
+        H = _observed_information(z, batches, plant, free)
         cov = np.linalg.inv(H)
         if np.all(np.diag(cov) > 0):
             se[free] = np.sqrt(np.diag(cov))

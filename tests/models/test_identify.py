@@ -74,3 +74,30 @@ def test_rejects_a_batch_of_two():
     seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
     with pytest.raises(ValueError, match="one segment"):
         identify_segment(prepare_batch(plant, [seg, seg]), plant)
+
+
+def test_a_units_trials_are_fitted_together():
+    # Two trials of one unit (the same θ): identify_unit maximizes the sum of their log-likelihoods,
+    # whether the trials come as one batch of two rows or as two batches (trials of different lengths).
+    from models.identify import identify_unit
+    from models.maxent import loglik_grad
+
+    plant = discretize(0.01)
+    ref = reference_trajectory(8.0).angle
+    rng = np.random.default_rng(4)
+    theta = np.array([400.0, 0.0, 20.0])
+    segs = []
+    for K in (600, 600, 400):
+        demo = sample_maxent(theta, np.array([ref[0], 0.0]), ref[: K + 1], np.zeros(K), plant, rng)
+        segs.append(Segment(np.array([ref[0], 0.0]), ref[: K + 1], demo.u_H[:K], np.zeros(K)))
+    one = identify_unit([prepare_batch(plant, segs[:2])], plant)
+    two = identify_unit([prepare_batch(plant, [s]) for s in segs[:2]], plant)
+    assert one.loglik == pytest.approx(two.loglik, rel=1e-12)
+    np.testing.assert_allclose(one.theta, two.theta, rtol=1e-6)
+    parts = [loglik_grad(one.theta, prepare_batch(plant, [s]), plant).loglik[0] for s in segs[:2]]
+    assert one.loglik == pytest.approx(sum(parts), rel=1e-12)
+    # Three trials of unequal length, and more data: a smaller standard error than one trial's.
+    three = identify_unit([prepare_batch(plant, segs[:2]), prepare_batch(plant, [segs[2]])], plant)
+    single = identify_unit([prepare_batch(plant, [segs[0]])], plant)
+    assert three.converged and three.se_log_theta1 < single.se_log_theta1
+    assert abs(np.log(three.theta1 / 20.0)) < 3 * three.se_log_theta1

@@ -26,7 +26,6 @@ import numpy as np
 import pandas as pd
 
 from models.design import DT_HUMAN, STUDY, Design
-from models.segment import Segment
 
 REQUIRED = ("subject", "condition", "t", "angle", "angle_ref", "u_A")
 OPTIONAL = ("trial", "velocity", "u_H")
@@ -328,30 +327,6 @@ def _check_plausible(cols: dict, fail) -> None:
                 i = _first(bad)
                 fail(f"{cols[col][i]:g} {unit} is beyond the plausible ±{limit:.4g} {unit} for a steering wheel; "
                      f"the column must be in {wanted}", column=col, row=i)
-
-
-def to_maxent_segment(seg: SegmentData, path="<table>") -> Segment:
-    """The likelihood's view of a recorded segment: x_0, references and torques.
-
-    Raises
-    ------
-    StudyFileError
-        If the segment lacks velocity or u_H (they must be reconstructed first).
-    """
-    for col in ("velocity", "u_H"):
-        if getattr(seg, col) is None:
-            raise StudyFileError(
-                path,
-                f"column is missing; segment ({seg.subject}, {seg.condition}) needs it for the likelihood "
-                "(reconstruct it from the angle first)",
-                column=col,
-            )
-    return Segment(
-        x0=np.array([seg.angle[0], seg.velocity[0]]),
-        angle_ref=seg.angle_ref,
-        u_H=seg.u_H[:-1],
-        u_A=seg.u_A[:-1],
-    )
 
 
 def segments_to_table(segments) -> pd.DataFrame:

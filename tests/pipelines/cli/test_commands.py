@@ -14,7 +14,8 @@ from models.maxent_dense import loglik_dense
 from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.cli import main
-from pipelines.io import load_study, to_maxent_segment
+from models.segment import Segment
+from pipelines.io import load_study
 from pipelines.prepare import with_assistant_model
 from pipelines.storage import write_table_atomic
 from tests.pipelines.test_io import small_table
@@ -23,6 +24,11 @@ from tests.pipelines.test_io import small_table
 @pytest.fixture()
 def study_file(tmp_path):
     return write_table_atomic(small_table(K=40), tmp_path / "study.parquet")
+
+
+def to_maxent_segment(seg):
+    """The likelihood's view of a recorded segment with velocity and u_H, built here by hand: x_0, whole run."""
+    return Segment(np.array([seg.angle[0], seg.velocity[0]]), seg.angle_ref, seg.u_H[:-1], seg.u_A[:-1])
 
 
 def test_loglik_json_matches_dense_reference(study_file, capsys):

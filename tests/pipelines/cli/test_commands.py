@@ -12,9 +12,8 @@ import pytest
 from models.maxent import loglik_grad
 from models.maxent_dense import loglik_dense
 from models.plant import discretize
-from models.segment import prepare_batch
+from models.segment import Segment, prepare_batch
 from pipelines.cli import main
-from models.segment import Segment
 from pipelines.io import load_study
 from pipelines.prepare import with_assistant_model
 from pipelines.storage import write_table_atomic

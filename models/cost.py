@@ -67,6 +67,10 @@ def validate_theta(theta, *, name: str = "theta") -> np.ndarray:
     arr = np.asarray(theta, dtype=float)
     if arr.ndim not in (1, 2) or arr.shape[0] != 3:
         raise ValueError(f"{name} must have shape (3,) or (3, n) as [q11, q22, R]; got shape {arr.shape}")
+    # The likelihoods call this tens of thousands of times in a fit: one vectorized check,
+    # and the loop below only to name the first bad entry.
+    if np.all(np.isfinite(arr)) and np.all(arr[:2] >= 0) and np.all(arr[2] > 0):
+        return arr
     cols = arr.reshape(3, -1)
     for j in range(cols.shape[1]):
         where = "" if arr.ndim == 1 else f" (segment {j})"

@@ -84,6 +84,14 @@ class Population:
         if self.theta2 < 0:
             raise ValueError(f"population parameter theta2 must be >= 0; got {self.theta2!r}")
 
+    def effects(self, n_contrasts: int) -> tuple[float, ...]:
+        """The mean shift of log θ1 of each of ``n_contrasts`` non-baseline levels (``betas``, else ``beta`` each)."""
+        betas = tuple(self.betas) if self.betas else (self.beta,) * n_contrasts
+        if len(betas) != n_contrasts:
+            raise ValueError(f"the population gives {len(betas)} condition effects (betas) for {n_contrasts} "
+                             "non-baseline levels")
+        return betas
+
 
 class SubjectTheta(NamedTuple):
     """True cost parameters of one subject: θ = [q11, q22, R] per condition level, and the run order.
@@ -134,9 +142,7 @@ def draw_subjects(population: Population, n_subjects: int, rng: np.random.Genera
         raise ValueError(f"n_levels must be an integer >= 2; got {n_levels!r}")
     p = population
     c = n_levels - 1
-    betas = tuple(p.betas) if p.betas else (p.beta,) * c
-    if len(betas) != c:
-        raise ValueError(f"the population gives {len(betas)} condition effects (betas) for {c} non-baseline levels")
+    betas = p.effects(c)
     out = []
     for _ in range(int(n_subjects)):
         # Two levels draw exactly as they always did: z = (θ1 base, θ1 change, R base, R change).

@@ -1,6 +1,6 @@
 """``scioc identify``: per subject × condition maximum-likelihood θ, like the paper (Section IV-F).
 
-Each segment is cut to its analysis window and, where the file lacks velocity and u_H,
+Each segment is cut to its analysis window and, where the file lacks u_H,
 reconstructed from the angle by the shared preparation step (:mod:`pipelines.prepare`,
 which also says how the SC human models the assistant); then the max-ent likelihood is
 maximized (:mod:`models.identify`) and the model's adequacy checked
@@ -81,9 +81,7 @@ def identify_prepared(study: PreparedStudy) -> Identification:
     """:func:`identify_study` on a study already prepared (with ``study.settings``)."""
     settings, prepared = study.settings, study.segments
     plant = discretize(settings.design.dt, settings.design.wheel)
-    units = {}  # (subject, condition) -> positions of its segments (trials), in file order
-    for i, p in enumerate(prepared):
-        units.setdefault((p.data.subject, p.data.condition), []).append(i)
+    units = study.units
     trials = any(p.data.trial is not None for p in prepared)
     t0 = time.perf_counter()
     estimates = {u: identify_unit([prepare_batch(plant, [prepared[i].segment]) for i in idx], plant)

@@ -25,14 +25,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.design import DT_HUMAN, STUDY, Design
+from models.design import STUDY, Design
 
 REQUIRED = ("subject", "condition", "t", "angle", "angle_ref", "u_A")
 OPTIONAL = ("trial", "velocity", "u_H")
 NUMERIC = ("t", "angle", "angle_ref", "u_A", "velocity", "u_H")
-#: Sample time of the data convention without an experiment file, s.
-DT = DT_HUMAN
-#: Allowed deviation of a time step from DT, s (recording clocks print rounded times).
+#: Allowed deviation of a time step from the experiment's sample time, s (recording clocks print rounded times).
 DT_TOL = 1e-6
 #: Largest plausible |angle| and |angle_ref|, rad: one full turn. The study's reference peaks
 #: at about ±0.6 rad; the same in degrees (±34) lies far beyond.

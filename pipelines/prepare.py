@@ -35,7 +35,7 @@ import numpy as np
 
 from models.adequacy import N_BOOT
 from models.assistant import MPCAssistant, build_assistant, human_feedback
-from models.design import PREVIEW_SECONDS, STUDY, WINDOW_SECONDS, WINDOW_START, Design
+from models.design import CONDITIONS, PREVIEW_SECONDS, STUDY, WINDOW_SECONDS, WINDOW_START, Design
 from models.plant import discretize, propagate
 from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, initial_state, reconstruct
 from models.segment import Segment
@@ -50,7 +50,7 @@ ASSISTANT_MODELS = ("feedback", "exogenous")
 UNQUANTIZED_RESOLUTION = 1e-6
 #: The recorded u_A follows the declared law if the RMS of their difference over the
 #: window is at most this fraction of the recorded u_A's RMS plus :data:`LAW_ATOL`
-#: (measured on the simulated study from the reconstructed states: about 0.02).
+#: (measured on the simulated study from the reconstructed states: about 0.01).
 LAW_RTOL = 0.1
 #: Absolute part of the law check's tolerance, N·m.
 LAW_ATOL = 0.01
@@ -77,7 +77,7 @@ class IdentifySettings:
     margin : float
         Extra seconds on each side of the window used by the reconstruction.
     reconstruct : str
-        ``auto`` (only when velocity or u_H are missing) or ``always``.
+        ``auto`` (only when u_H is missing) or ``always``.
     resolution : float
         Encoder increment, rad (sets the reconstruction's measurement noise).
     assistant_model : str
@@ -144,11 +144,6 @@ def assistant_law(design: Design, level: str) -> MPCAssistant | None:
     """The assistant of ``level`` in ``design`` (:func:`models.assistant.build_assistant`), built once; None if unassisted."""
     spec = design.assistant(level)
     return None if spec is None else build_assistant(spec, design)
-
-
-def paper_assistant() -> MPCAssistant:
-    """The paper's assistant (the MPC of Section IV-D) on the paper's wheel at 100 Hz."""
-    return assistant_law(STUDY, STUDY.contrasts[0])
 
 
 def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start: int, assistant_model: str,
@@ -313,13 +308,21 @@ class PreparedStudy:
         return [p.data.condition for p in self.segments]
 
     @property
+    def units(self) -> dict:
+        """``{(subject, condition): [positions of its segments]}``: each unit's trials, in file order."""
+        out: dict = {}
+        for i, p in enumerate(self.segments):
+            out.setdefault((p.data.subject, p.data.condition), []).append(i)
+        return out
+
+    @property
     def labels(self) -> list:
         """``subject/condition`` per segment, with ``/trial`` when the file has trials."""
         return [f"{p.data.subject}/{p.data.condition}" + (f"/{p.data.trial}" if p.data.trial is not None else "")
                 for p in self.segments]
 
 
-def check_design(path, subjects, conditions, levels=None) -> None:
+def check_design(path, subjects, conditions, levels=CONDITIONS) -> None:
     """Raise :class:`pipelines.io.InputDataError` unless every subject has every level.
 
     ``levels``: baseline first (default MC, SC). The message is that of
@@ -327,7 +330,7 @@ def check_design(path, subjects, conditions, levels=None) -> None:
     with no segment at all), prefixed with the file ``path``.
     """
     try:
-        index_study(list(subjects), list(conditions), *(() if levels is None else (levels,)))
+        index_study(list(subjects), list(conditions), levels)
     except ValueError as exc:  # the data do not have the design the model needs: bad input (exit 3)
         raise InputDataError(f"{path}: {exc}") from None
 

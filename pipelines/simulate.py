@@ -25,7 +25,7 @@ from models.humans import HUMANS
 from models.reference import reference_trajectory
 from models.simulate import Population, simulate_study
 from pipelines.assistant_check import assistant_alone
-from pipelines.experiment import EXPERIMENT_FILE, resolved, sidecar, to_toml
+from pipelines.experiment import EXPERIMENT_FILE, resolved, sidecar, write_experiment
 from pipelines.provenance import versions
 from pipelines.storage import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 
@@ -97,8 +97,8 @@ def simulate_to_dir(
     if int(seed) != seed or seed < 0:
         raise ValueError(f"--seed must be a non-negative integer; got {seed!r}")
     population = Population(betas=design.effects) if population is None else population
-    effects = population.betas or (population.beta,) * len(design.contrasts)
-    design = replace(design, subjects=int(n_subjects), run_seconds=float(seconds), effects=tuple(effects))
+    design = replace(design, subjects=int(n_subjects), run_seconds=float(seconds),
+                     effects=population.effects(len(design.contrasts)))
     out = check_output_dir(out, force=force)
     rng = np.random.default_rng(np.random.SeedSequence(int(seed)))
     t, segs = simulate_study(int(n_subjects), rng, population, seconds, human=human, design=design)
@@ -132,7 +132,7 @@ def simulate_to_dir(
     }
     with staged_dir(out, force=force) as tmp:
         write_table_atomic(study, tmp / "study.parquet")
-        write_text_atomic(tmp / EXPERIMENT_FILE, to_toml(design))
+        write_experiment(design, tmp / EXPERIMENT_FILE)
         write_table_atomic(pd.DataFrame(truth), tmp / "truth.parquet")
         write_table_atomic(pd.concat(traj, ignore_index=True), tmp / "truth_trajectories.parquet")
         write_text_atomic(tmp / "simulation.json", json.dumps(meta, indent=2) + "\n")

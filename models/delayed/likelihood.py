@@ -145,12 +145,7 @@ def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, dela
     if not isinstance(batch, SegmentBatch):
         raise TypeError(f"batch must be a models.segment.SegmentBatch (prepare_batch); got {type(batch).__name__}")
     n = batch.n
-    th = np.asarray(theta, dtype=float)
-    # validate_theta names the first bad entry but loops in Python; the likelihood is called
-    # tens of thousands of times in a fit, so it runs only when the vectorized check fails
-    if th.ndim not in (1, 2) or th.shape[0] != 3 or not (np.all(np.isfinite(th)) and np.all(th[:2] >= 0)
-                                                         and np.all(th[2] > 0)):
-        th = validate_theta(theta)
+    th = validate_theta(theta)
     if th.ndim == 2 and th.shape[1] != n:
         raise ValueError(f"theta must have shape (3,) or (3, {n}); got {th.shape}")
     # always a fresh C array: one compiled specialization, and a segment's bits never depend on the caller's layout

@@ -30,7 +30,7 @@ class CalibrationConfig:
     chains, tune, draws : int
         Sampler settings per fit.
     K : int
-        Samples per segment (window length × 100 Hz).
+        Samples per segment (window length × the experiment's rate).
     n_subjects : int
         Subjects per simulated study (study level only).
     negative_control : str or None

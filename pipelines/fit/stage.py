@@ -138,10 +138,10 @@ CENTRED_SE_LOG_THETA1 = 0.03
 
 def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
     """``se_log_theta1`` of every unit's ML estimate (its trials together), as ``scioc identify`` computes it."""
-    units: dict = {}
-    for p in prepared.segments:
-        units.setdefault((p.data.subject, p.data.condition), []).append(prepare_batch(plant, [p.segment]))
-    return pd.DataFrame({"se_log_theta1": [identify_unit(b, plant).se_log_theta1 for b in units.values()]})
+    segs = prepared.segments
+    return pd.DataFrame({"se_log_theta1": [identify_unit([prepare_batch(plant, [segs[i].segment]) for i in idx],
+                                                         plant).se_log_theta1
+                                           for idx in prepared.units.values()]})
 
 
 def choose_parameterization(estimates) -> tuple[Parameterization, str]:

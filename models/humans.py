@@ -28,6 +28,13 @@ manual-control literature:
 ``combined``
     Delay 0.12 s, lag 0.06 s and white motor noise entering before the lag, as in the
     optimal control model of Kleinman, Baron & Levison (1970).
+``kbl``
+    The ``combined`` human with its delay and lag varying between subjects: each subject
+    draws its delay uniformly from 0.10-0.20 s and its lag from 0.05-0.10 s once and keeps
+    them in every level and trial (the human does not change between conditions); white
+    motor noise enters before the lag, so the torque's motor noise is coloured by it. The
+    ranges are those of issue 13's "no spurious effect" criterion and span the literature
+    values below.
 ``crossover``
     Not an LQ controller: McRuer's compensatory operator with remnant (below). Its
     cost θ is not used.
@@ -94,7 +101,7 @@ recursion over the whole run, as :func:`models.simulate.simulate_run` does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from numba import njit
@@ -142,6 +149,9 @@ class HumanSpec:
         Lead time constant T_L, s (``crossover`` only).
     lag_s : float
         Lag time constant T_I, s (``crossover`` only).
+    delay_spread_s, tau_spread : float
+        If > 0, each subject's delay (lag) is ``delay_s`` (``tau_nm``) plus a uniform draw
+        from [0, spread) (:meth:`for_subject`); 0: every subject has the same.
     """
 
     name: str
@@ -153,6 +163,8 @@ class HumanSpec:
     crossover_gain: float = 0.0
     lead_s: float = 0.0
     lag_s: float = 0.0
+    delay_spread_s: float = 0.0
+    tau_spread: float = 0.0
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
@@ -169,6 +181,24 @@ class HumanSpec:
             for name in ("crossover_gain", "lead_s", "lag_s"):
                 if getattr(self, name) != 0:
                     raise ValueError(f"human {self.name!r}: {name} applies to kind 'crossover' only")
+        if self.tau_spread > 0 and self.tau_nm == 0:
+            raise ValueError(f"human {self.name!r}: a spread of the lag needs tau_nm > 0 (its smallest value)")
+
+    @property
+    def varies(self) -> bool:
+        """Whether subjects differ in delay or lag (:meth:`for_subject` draws them)."""
+        return self.delay_spread_s > 0 or self.tau_spread > 0
+
+    def for_subject(self, rng: np.random.Generator) -> HumanSpec:
+        """One subject of this human: delay and lag drawn from their spreads (two uniforms from ``rng``).
+
+        A human without spreads is returned as it is and ``rng`` is not used.
+        """
+        if not self.varies:
+            return self
+        u = rng.random(2)
+        return replace(self, delay_s=self.delay_s + u[0] * self.delay_spread_s,
+                       tau_nm=self.tau_nm + u[1] * self.tau_spread, delay_spread_s=0.0, tau_spread=0.0)
 
 
 #: The simulated humans by name (``scioc simulate --human NAME``).
@@ -180,6 +210,7 @@ HUMANS: dict[str, HumanSpec] = {
         HumanSpec("lag", "lq", tau_nm=TAU_NM),
         HumanSpec("coloured", "lq", motor_sd=MOTOR_SD, motor_tau=MOTOR_TAU),
         HumanSpec("combined", "lq", delay_s=DELAY_S, tau_nm=TAU_NM, motor_sd=MOTOR_SD),
+        HumanSpec("kbl", "lq", delay_s=0.10, delay_spread_s=0.10, tau_nm=0.05, tau_spread=0.05, motor_sd=MOTOR_SD),
         HumanSpec("crossover", "crossover", delay_s=0.15, tau_nm=0.1, motor_sd=0.4, motor_tau=0.1,
                   crossover_gain=23.0, lead_s=0.3, lag_s=10.0),
     )
@@ -349,6 +380,9 @@ def simulate_human(
         A, b_c, b_a = plant.A, plant.b, plant.b
         z0 = x0.copy()
     n = A.shape[0]
+    if spec.varies:
+        raise ValueError(f"human {spec.name!r} varies between subjects; simulate one subject of it "
+                         "(spec.for_subject(rng))")
     d = int(round(spec.delay_s / dt))
     a_m = _decay(dt, spec.motor_tau)
 

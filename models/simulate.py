@@ -32,7 +32,7 @@ import numpy as np
 from models.assistant import MPCAssistant, design_assistant, human_feedback, simulate_closed_loop
 from models.assistant import build_assistant
 from models.design import ENCODER_STEP, MANUAL, PREVIEW_SECONDS, RUN_SECONDS, SHARED, STUDY, WINDOW_SECONDS, Design
-from models.humans import HUMANS, simulate_human
+from models.humans import HUMANS, HumanSpec, simulate_human
 from models.lq import lq_policy
 from models.maxent import maxent_noise
 from models.plant import DT_HUMAN, DiscretePlant, discretize
@@ -142,20 +142,25 @@ class SimulatedSegment(NamedTuple):
     theta: np.ndarray
     run: Run
     trial: int | None = None
+    human: HumanSpec | None = None
 
 
 def simulate_human_run(human: str, theta, condition: str, angle_ref, plant: DiscretePlant,
                        assistant: MPCAssistant | None, rng: np.random.Generator, *,
-                       encoder_step: float = ENCODER_STEP, design: Design = STUDY) -> Run:
+                       encoder_step: float = ENCODER_STEP, design: Design = STUDY,
+                       subject: HumanSpec | None = None) -> Run:
     """One run of the named human of :data:`models.humans.HUMANS`, recorded like :func:`simulate_run`.
 
     ``maxent`` is :func:`simulate_run` itself (the paper's agent, bit for bit); every other
     name is a human the max-ent likelihood does not describe (negative controls).
-    ``design`` gives the wheel of the lagged humans.
+    ``design`` gives the wheel of the lagged humans. ``subject`` is the subject's own draw
+    of a human that varies between subjects (:meth:`models.humans.HumanSpec.for_subject`).
     """
     spec = HUMANS.get(human)
     if spec is None:
         raise ValueError(f"unknown human {human!r}; choose one of {', '.join(HUMANS)}")
+    if subject is not None:
+        spec = subject
     if human == "maxent":
         return simulate_run(theta, condition, angle_ref, plant, assistant, rng, encoder_step=encoder_step)
     run = simulate_human(spec, theta, condition, angle_ref, plant, _assisted(condition, assistant), rng,
@@ -202,6 +207,8 @@ def simulate_study(
         Subject by subject, in the order the runs were performed (a level's trials one
         after another); ``trial`` is None with one trial per level.
     """
+    if human not in HUMANS:
+        raise ValueError(f"unknown human {human!r}; choose one of {', '.join(HUMANS)}")
     plant = discretize(design.dt, design.wheel)
     levels = design.ordered_levels
     laws = [None if design.assistant(v) is None else build_assistant(design.assistant(v), design) for v in levels]
@@ -217,12 +224,17 @@ def simulate_study(
             sub = sub._replace(thetas=tuple(th * scale for th in sub.thetas))
         name = f"S{i + 1:0{width}d}"
         runs = child.spawn(len(levels) * T)  # level-major: level j, trial t is runs[j * T + t]
+        # A human that varies between subjects draws this subject's delay and lag from the next child
+        # (spawned after the runs', so the runs' streams are those of every other human).
+        spec = HUMANS[human].for_subject(child.spawn(1)[0]) if HUMANS[human].varies else None
         n = 0
         for j in sub.order:
             for t in range(T):
                 run = simulate_human_run(human, sub.thetas[j], levels[j], ref.angle, plant, laws[j],
-                                         runs[j * T + t], encoder_step=design.encoder_step, design=design)
-                out.append(SimulatedSegment(name, levels[j], n, sub.thetas[j], run, t + 1 if T > 1 else None))
+                                         runs[j * T + t], encoder_step=design.encoder_step, design=design,
+                                         subject=spec)
+                out.append(SimulatedSegment(name, levels[j], n, sub.thetas[j], run, t + 1 if T > 1 else None,
+                                            spec or HUMANS[human]))
                 n += 1
     return ref.t, out
 

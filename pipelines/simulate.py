@@ -111,8 +111,12 @@ def simulate_to_dir(
                                   "velocity": s.run.true_velocity, "u_H": s.run.u_H}))
         q11, q22, R = s.theta if spec.kind == "lq" else (np.nan, np.nan, np.nan)
         trial = {} if s.trial is None else {"trial": s.trial}
+        # The human's own delay, lag and motor noise (per subject for a human that varies); not for the
+        # paper's agent, whose truth file stays as it was.
+        body = {} if human == "maxent" else {"delay_s": round(s.human.delay_s / design.dt) * design.dt, "tau_nm": s.human.tau_nm,
+                                              "motor_sd": s.human.motor_sd}
         truth.append({"subject": s.subject, "condition": s.condition, **trial, "run_index": s.run_index,
-                      "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R})
+                      "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R, **body})
     res = resolved(design)
     meta = {
         "seed": int(seed),

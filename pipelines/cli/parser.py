@@ -94,7 +94,7 @@ def _add_window_options(p):
 
 
 # The names of models.humans.HUMANS, spelled out so parsing imports no model code (a test holds them equal).
-HUMAN_NAMES = ("maxent", "delay", "lag", "coloured", "combined", "crossover")
+HUMAN_NAMES = ("maxent", "delay", "lag", "coloured", "combined", "kbl", "crossover")
 
 
 def _add_human_options(p):

@@ -53,9 +53,10 @@ def test_delay_is_invisible_without_unknown_noise(tau_nm, cond, plant, assistant
 
 @pytest.mark.parametrize("name", list(HUMANS))
 def test_same_seed_same_bits(name, plant, assistant, ref60):
-    a = run(HUMANS[name], "SC", ref60, plant, assistant, seed=11)
-    b = run(HUMANS[name], "SC", ref60, plant, assistant, seed=11)
-    c = run(HUMANS[name], "SC", ref60, plant, assistant, seed=12)
+    spec = HUMANS[name].for_subject(np.random.default_rng(0))
+    a = run(spec, "SC", ref60, plant, assistant, seed=11)
+    b = run(spec, "SC", ref60, plant, assistant, seed=11)
+    c = run(spec, "SC", ref60, plant, assistant, seed=12)
     for u, v in zip(a, b):
         assert np.array_equal(u, v)
     assert not np.array_equal(a.u_H, c.u_H)
@@ -70,6 +71,7 @@ TRACKING_RMS = {
     "lag": (0.005, 0.04),
     "coloured": (0.005, 0.04),
     "combined": (0.005, 0.05),
+    "kbl": (0.005, 0.05),
     "crossover": (0.01, 0.15),
 }
 
@@ -77,7 +79,7 @@ TRACKING_RMS = {
 @pytest.mark.parametrize("cond", ["MC", "SC"])
 @pytest.mark.parametrize("name", list(HUMANS))
 def test_every_human_is_stable_and_tracks(name, cond, plant, assistant, ref60):
-    cl = run(HUMANS[name], cond, ref60, plant, assistant)
+    cl = run(HUMANS[name].for_subject(np.random.default_rng(0)), cond, ref60, plant, assistant)
     e = cl.x[200:, 0] - ref60[200:]
     lo, hi = TRACKING_RMS[name]
     assert lo < np.sqrt(np.mean(e**2)) < hi
@@ -134,7 +136,7 @@ def test_lag_smooths_the_torque(plant, assistant, ref60):
 @pytest.mark.parametrize("name", list(HUMANS))
 def test_motor_noise_where_specified(name, plant, assistant, ref60):
     # The same seed without motor noise gives the same max-ent draws: the difference is the motor noise's doing.
-    spec = HUMANS[name]
+    spec = HUMANS[name].for_subject(np.random.default_rng(0))
     a = run(spec, "MC", ref60, plant, assistant)
     b = run(dataclasses.replace(spec, motor_sd=0.0), "MC", ref60, plant, assistant)
     sd = np.std(a.u_H - b.u_H)
@@ -185,7 +187,7 @@ def test_delayed_human_acts_on_the_prediction_from_the_old_state(plant, assistan
 def test_lagged_torque_keeps_the_data_convention(name, plant, assistant, ref60):
     # u_H is the ZOH-equivalent of the lagged torque: the velocity step is exact, the angle step is off by
     # the within-sample change of the torque (about 1e-5 rad), and it does not accumulate.
-    cl = run(HUMANS[name], "SC", ref60, plant, assistant)
+    cl = run(HUMANS[name].for_subject(np.random.default_rng(0)), "SC", ref60, plant, assistant)
     step = cl.x[1:] - (cl.x[:-1] @ plant.A.T + np.outer(cl.u_H + cl.u_A, plant.b))
     assert np.max(np.abs(step[:, 1])) < 1e-12
     assert np.max(np.abs(step[:, 0])) < 1e-4
@@ -233,3 +235,35 @@ def test_bad_calls_are_rejected(plant, assistant, ref60):
         run(HUMANS["maxent"], "SC", ref60, plant, design_assistant(period=0.02))
     with pytest.raises(ValueError, match="R must be > 0"):
         simulate_human(HUMANS["maxent"], [1.0, 0.0, 0.0], "MC", ref60, plant, assistant, np.random.default_rng(0))
+
+
+def test_kbl_subjects_draw_delay_and_lag_within_their_ranges(plant, assistant, ref60):
+    kbl = HUMANS["kbl"]
+    assert kbl.varies and not HUMANS["combined"].varies
+    draws = [kbl.for_subject(np.random.default_rng(s)) for s in range(200)]
+    delays = np.array([h.delay_s for h in draws])
+    lags = np.array([h.tau_nm for h in draws])
+    assert delays.min() >= 0.10 and delays.max() < 0.20 and lags.min() >= 0.05 and lags.max() < 0.10
+    assert np.ptp(delays) > 0.08 and np.ptp(lags) > 0.04  # they do vary
+    assert not any(h.varies for h in draws)
+    with pytest.raises(ValueError, match="varies between subjects"):
+        run(kbl, "MC", ref60, plant, assistant)
+    # A human that does not vary is returned as it is, and the generator is not touched.
+    rng = np.random.default_rng(5)
+    assert HUMANS["combined"].for_subject(rng) is HUMANS["combined"]
+    assert rng.random() == np.random.default_rng(5).random()
+
+
+def test_kbl_study_keeps_each_subjects_delay_and_lag_across_levels():
+    from models.simulate import simulate_study
+
+    _, segs = simulate_study(4, np.random.default_rng(7), seconds=3.0, human="kbl")
+    by_subject = {}
+    for s in segs:
+        by_subject.setdefault(s.subject, set()).add((s.human.delay_s, s.human.tau_nm))
+    assert all(len(v) == 1 for v in by_subject.values())  # the human does not change between MC and SC
+    assert len({next(iter(v)) for v in by_subject.values()}) == 4  # subjects differ
+    # Other humans' runs are unchanged by the extra draw: the same seed gives the same combined study.
+    _, a = simulate_study(2, np.random.default_rng(7), seconds=3.0, human="combined")
+    _, b = simulate_study(2, np.random.default_rng(7), seconds=3.0, human="combined")
+    assert all(np.array_equal(x.run.angle, y.run.angle) for x, y in zip(a, b))

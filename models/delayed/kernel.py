@@ -6,7 +6,8 @@ One segment (see :mod:`models.delayed.likelihood` for the model and its derivati
    tangents in q11, q22, a, α (those of f_k over the stationary plan later, by
    :func:`models.delayed.riccati.plan_adjoint`);
 2. the data: the arm torque τ_k and the effective command c̃_k from the observed
-   torques (tangents in a and α), the residual ``r_k = c̃_k + L_k z_k - f_k``;
+   torques (tangents in a and α, :func:`models.delayed.lag.arm_torque_recursion`, seeded
+   with τ_0's own tangents), the residual ``r_k = c̃_k + L_k z_k - f_k``;
 3. the MA coefficients ``c_{k,0} = 1``, ``c_{k,j} = L_k g_j`` with ``g_j = Ā^{j-1} b_c``,
    and the band of Σ = diag(1/(2 S_k)) + σ_m² C Cᵀ::
 
@@ -25,7 +26,7 @@ The kernel (this module, :mod:`models.delayed.riccati` and
 :mod:`models.delayed.innovations`) is written for numba: no array views in inner loops
 (each costs reference counting), unsigned indices where LLVM should vectorize. numba's
 on-disk cache of a function holds the compiled code of what it calls but is invalidated
-only by changes to its own file: after editing riccati.py or innovations.py, delete the
+only by changes to its own file: after editing riccati.py, innovations.py or lag.py, delete the
 ``*.nbi``/``*.nbc`` files of ``models/delayed/__pycache__`` (a fresh checkout has none).
 """
 
@@ -37,15 +38,18 @@ import numpy as np
 from numba import njit, prange
 
 from models.delayed.innovations import FASTMATH, U, banded_loglik
+from models.delayed.lag import arm_torque_recursion
 from models.delayed.riccati import plan_adjoint, plan_recursion
 
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, r, u, ua, freeze, sc, out, inn):
+def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a, dtau0_al, x1, x2, r, u, ua, freeze,
+                   sc, out, inn):
     """Log-likelihood and gradient of one segment, written into ``out`` (8,): ll, then
     d/d[q11, q22, R, τ_nm, σ_m], then (as floats) k_R and the first steady column k_f of the factorization.
 
-    ``sc`` is the scratch tuple of :func:`make_scratch`. If ``inn`` has K entries it receives
+    ``tau0`` is the arm torque at the start, ``dtau0_a`` and ``dtau0_al`` its derivatives in a and α
+    (0 for a fixed τ_0). ``sc`` is the scratch tuple of :func:`make_scratch`. If ``inn`` has K entries it receives
     the standardized innovations ``y_k / sqrt(D_k)`` (iid N(0, 1) under the model).
     """
     (f, df, S_t, L_t, dS_t, dL_t, cst, tau, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
@@ -73,18 +77,14 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, x1, x2, 
     Sc = cst[0]
     # ---- data: arm torque, effective command, residual
     tau[0] = tau0
-    dtau[0, 0] = 0.0
-    dtau[0, 1] = 0.0
+    dtau[0, 0] = dtau0_a  # τ_0's own dependence on the lag (a warm-up over the torques before the window)
+    dtau[0, 1] = dtau0_al
+    arm_torque_recursion(u, a, al, tau, dtau, dct)
     om1 = 1.0 - al
     iom1 = 1.0 / om1
     for k in range(K):
         tk = tau[k]
         c = (u[k] - al * tk) * iom1
-        dct[k, 0] = -al * dtau[k, 0] * iom1
-        dct[k, 1] = (c - tk - al * dtau[k, 1]) * iom1
-        tau[k + 1] = a * tk + (1.0 - a) * c
-        dtau[k + 1, 0] = tk + a * dtau[k, 0] - c + (1.0 - a) * dct[k, 0]
-        dtau[k + 1, 1] = a * dtau[k, 1] + (1.0 - a) * dct[k, 1]
         if k <= k_R:
             rr[k] = c + cst[1] * x1[k] + cst[2] * x2[k] + cst[3] * tk - f[k]
         else:
@@ -253,13 +253,13 @@ def make_scratch(K, KM, dmax):
             (np.empty((3, 3)), np.empty(3), np.empty((3, 3, 4)), np.empty((3, 4)), np.empty((3, 4))))
 
 
-@njit(cache=True, parallel=True)
-def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
-    """Every segment of a batch, each on its own, in ``nchunks`` parallel chunks.
+def _batch(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
+    """Every segment of a batch, each on its own, in ``nchunks`` chunks (compiled twice, see below).
 
     Arguments are C-contiguous float64 arrays (``delay`` int64): the wheel ``A`` (2, 2),
     ``b`` (2,); ``fb`` (n, 2); ``th`` (3, n) rows q11, q22, R; ``lag`` (4, n) rows a, α,
-    da/dτ_nm, dα/dτ_nm; ``sig`` (n,) σ_m; ``delay`` (n,); ``tau0`` (n,); the arrays of a
+    da/dτ_nm, dα/dτ_nm; ``sig`` (n,) σ_m; ``delay`` (n,); ``tau0`` (n,) and its tangents in
+    (a, α) ``dtau0`` (n, 2); the arrays of a
     :class:`models.segment.SegmentBatch`; output ``out`` (6, n): log-likelihood, then
     the gradient in q11, q22, R, τ_nm, σ_m; ``inn`` (n, K) receives the standardized
     innovations, or has shape (n, 0) to skip them.
@@ -274,9 +274,18 @@ def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, x1, x2, r, u, ua, freeze, 
         res = np.empty(8)
         for i in range(c, n, nchunks):
             segment_kernel(A, b, fb[i], th[0, i], th[1, i], th[2, i], lag[0, i], lag[1, i], lag[2, i], lag[3, i],
-                           sig[i], delay[i], tau0[i], x1[i], x2[i], r[i], u[i], ua[i], freeze, sc, res, inn[i])
+                           sig[i], delay[i], tau0[i], dtau0[i, 0], dtau0[i, 1], x1[i], x2[i], r[i], u[i], ua[i],
+                           freeze, sc, res, inn[i])
             for m in range(6):
                 out[m, i] = res[m]
 
 
-__all__ = ["batch_kernel", "make_scratch", "segment_kernel"]
+#: The batch in parallel chunks (``prange`` over the chunks).
+batch_kernel = njit(cache=True, parallel=True)(_batch)
+#: The same loop in the calling thread, for one chunk: a parallel region costs a wake-up of
+#: every thread and waits for the slowest, which on a busy machine measured 7 ms for a
+#: single 1500-step segment whose own work takes 0.15 ms (the optimizer calls it thousands of times).
+batch_kernel_serial = njit(cache=True)(_batch)
+
+
+__all__ = ["batch_kernel", "batch_kernel_serial", "make_scratch", "segment_kernel"]

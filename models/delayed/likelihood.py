@@ -45,7 +45,10 @@ enter r_0..r_{d-1}; they are taken independent of z_0 with their prior N(0, σ_m
 propagated effect; see :func:`models.delayed.sample.closed_loop`). The observed states
 z_k (x_k propagated from x_0 with the observed torques, as
 :func:`models.segment.prepare_batch` does, and τ_k from the recursion) depend on θ only
-through (a, α) in τ_k.
+through (a, α) in τ_k. A window that starts inside a run has τ_0 = the arm torque
+after the torques before it (:func:`models.delayed.lag.arm_torque`, from rest at the
+recording's start), which depends on (a, α) as well; ``dtau0`` passes those tangents in
+and the recursion carries them on.
 
 *Likelihood.* r = ε + C m with C banded (c_{k,0} = 1, c_{k,j} = h_{k,j}, m over
 -d..K-1), all terms independent and Gaussian, so r ~ N(0, Σ) with Σ = diag(1 / (2 S_k))
@@ -96,7 +99,7 @@ import numpy as np
 from numba import get_num_threads
 
 from models.cost import validate_theta
-from models.delayed.kernel import batch_kernel
+from models.delayed.kernel import batch_kernel, batch_kernel_serial
 from models.delayed.lag import check_wheel, lag_coefficients
 from models.design import WheelParameters
 from models.plant import DiscretePlant
@@ -139,7 +142,18 @@ def _per_segment(value, n: int, name: str, *, integer: bool = False, minimum: fl
     return out
 
 
-def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, delay, tau0, freeze: bool,
+def _per_segment_tangents(value, n: int) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim == 0 and arr == 0.0:
+        return np.zeros((n, 2))
+    if arr.shape not in ((2,), (n, 2)):
+        raise ValueError(f"dtau0 must have shape (2,) or ({n}, 2) (d tau0 / d[a, alpha]); got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"dtau0 must be finite; got {value!r}")
+    return np.array(np.broadcast_to(arr, (n, 2)), dtype=np.float64, order="C")
+
+
+def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, delay, tau0, dtau0, freeze: bool,
          params: WheelParameters, with_innovations: bool):
     """Validate the parameters, call the batch kernel; (out (6, n), innovations (n, K or 0))."""
     if not isinstance(batch, SegmentBatch):
@@ -154,6 +168,7 @@ def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, dela
     sig = _per_segment(sigma_m, n, "sigma_m")
     d = _per_segment(delay, n, "delay", integer=True)
     t0 = _per_segment(tau0, n, "tau0", minimum=None)
+    dt0 = _per_segment_tangents(dtau0, n)
     check_wheel(plant, params)
     if np.all(tau == tau[0]):  # one lag for the batch (the common case)
         values, inverse = tau[:1], np.zeros(n, dtype=np.intp)
@@ -164,14 +179,15 @@ def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, dela
         lag[row] = np.asarray(v)[inverse]
     out = np.empty((6, n))
     inn = np.empty((n, batch.K if with_innovations else 0))
-    batch_kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, lag, sig, d, t0,
-                 batch.x1, batch.x2, batch.r, batch.u, batch.a, bool(freeze), max(1, min(n, get_num_threads())), out,
-                 inn)
+    nchunks = max(1, min(n, get_num_threads()))
+    kernel = batch_kernel if nchunks > 1 else batch_kernel_serial
+    kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, lag, sig, d, t0, dt0, batch.x1,
+           batch.x2, batch.r, batch.u, batch.a, bool(freeze), nchunks, out, inn)
     return out, inn
 
 
 def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0, sigma_m=0.0, delay=0, tau0=0.0,
-                freeze: bool = True, params: WheelParameters = WheelParameters()) -> DelayedLoglikGrad:
+                dtau0=0.0, freeze: bool = True, params: WheelParameters = WheelParameters()) -> DelayedLoglikGrad:
     """Exact log-likelihood of the ``delayed`` human and its gradient, per segment of a batch.
 
     Parameters
@@ -190,6 +206,11 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0,
         Perceptual delay d in samples, >= 0.
     tau0 : float or array_like (n,)
         Arm torque at each segment's start, N·m (0 at rest).
+    dtau0 : 0.0 or array_like (2,) or (n, 2)
+        d tau0 / d[a, α] (:class:`models.delayed.lag.LagCoefficients`): τ_0's own dependence
+        on the lag when it is the arm torque after the torques before the window
+        (:func:`models.delayed.lag.arm_torque`); the τ_nm-derivative then includes it.
+        Default 0: τ_0 fixed.
     freeze : bool
         Hold the plan and the innovations once stationary (default); ``False`` computes
         every step, to test the fast path.
@@ -211,7 +232,7 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0,
     >>> res.loglik.shape, res.grad.shape
     ((1,), (5, 1))
     """
-    out, _ = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, freeze, params, False)
+    out, _ = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, dtau0, freeze, params, False)
     return DelayedLoglikGrad(out[0].copy(), out[1:].copy())
 
 
@@ -228,7 +249,7 @@ def innovations(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0,
     -------
     ndarray, shape (n, K)
     """
-    _, inn = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, True, params, True)
+    _, inn = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, 0.0, True, params, True)
     return inn
 
 

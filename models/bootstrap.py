@@ -118,24 +118,39 @@ class Chain(NamedTuple):
 
 
 @njit(cache=True)
-def _measure(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, L, f, S, angle_out, err_out, u_out, z_out):
-    """One data set through the acquisition chain and the residual pass (writes the out rows)."""
+def measure_span(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, angle_out, err_out, u_out):
+    """One data set of a span through the acquisition chain: what the statistics see of its window.
+
+    With ``recon_on`` the angle ``y`` (encoder) goes through the reconstruction with its
+    variances fixed (:func:`models.reconstruct.apply_reconstruction`, a linear smoother);
+    otherwise ``y``, ``vel`` and ``uh`` are the measured angle, velocity and torque. Writes
+    the window's encoder angle, tracking error and torque into the out rows and returns
+    ``(angle, velocity, u_H)`` over the whole span (shape (n,) each), from which a human
+    model's residual pass starts. ``a`` is the assistant's torque over the span.
+    """
     if recon_on:
-        # The reconstruction of models.reconstruct with its variances fixed: a linear smoother.
         ang, v, u = apply_reconstruction(F, b, A, Kg, Sv, C, y, a)
     else:
         ang = y
         v = vel
         u = uh
-    x1 = ang[w0]
-    x2 = v[w0]
     for k in range(K + 1):
         angle_out[k] = y[w0 + k]
         err_out[k] = ang[w0 + k] - ref[w0 + k]
     for k in range(K):
+        u_out[k] = u[w0 + k]
+    return ang, v, u
+
+
+@njit(cache=True)
+def _measure(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, L, f, S, angle_out, err_out, u_out, z_out):
+    """One data set through the acquisition chain and the max-ent residual pass (writes the out rows)."""
+    ang, v, u = measure_span(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, angle_out, err_out, u_out)
+    x1 = ang[w0]
+    x2 = v[w0]
+    for k in range(K):
         j = w0 + k
         uk = u[j]
-        u_out[k] = uk
         dev = uk + L[j, 0] * x1 + L[j, 1] * x2 - f[j]
         z_out[k] = dev * np.sqrt(2.0 * S[j])
         tot = uk + a[j]

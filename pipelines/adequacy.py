@@ -16,8 +16,10 @@ import numpy as np
 import pandas as pd
 
 from models import adequacy as adq
-from models.bootstrap import Chain, bootstrap_records
 from models.assistant import human_feedback
+from models.bootstrap import Chain, bootstrap_records
+from models.delayed.bootstrap import DelayedChain, delayed_records
+from models.design import WheelParameters
 from models.lq import lq_policy
 from models.segment import planning_plant
 from pipelines.prepare import IdentifySettings, assistant_law
@@ -31,6 +33,45 @@ CHECK_TEXT = {
     "coverage_angle": "90 % predictive coverage of the recorded angle",
     "coverage_torque": "90 % predictive coverage of the torque",
 }
+#: The same checks' wording when the human model is ``delayed`` (z: its standardized innovations).
+CHECK_TEXT_DELAYED = {
+    **CHECK_TEXT,
+    "whiteness": "innovation whiteness (autocorrelation of the delayed model's standardized innovations, "
+                 "lags 10-100 ms)",
+    "variance": "innovation variance (is the torque as variable as the delayed model says)",
+}
+#: What the bootstrap draws from, per human model (recorded in the summary).
+DRAWS_FROM = {
+    "maxent": "the fitted max-ent model at theta, its policy noise at the reconstruction's sigma_eps where the "
+              "torque is reconstructed (models.bootstrap)",
+    "delayed": "the fitted delayed model at theta, tau_nm, sigma_m, delay and tau0, its noises as the model states "
+               "(models.delayed.bootstrap)",
+}
+#: The delayed human's per-segment parameters :func:`assess_study` takes besides θ.
+DELAYED_KEYS = ("tau_nm", "sigma_m", "delay", "tau0")
+
+
+def _acquisition(p, assistant):
+    """What every human model's chain takes from a prepared segment: the assistant as the human models it
+    (gain, known input from the span's start), the recorded velocity and the reconstruction's filter."""
+    d = p.data
+    j0 = p.span.start
+    if p.segment.feedback is not None:
+        if assistant is None:
+            raise ValueError("a feedback segment needs the assistant to rebuild its law over the span")
+        fb = human_feedback(assistant, d.angle_ref[j0:])
+        gain, known = np.asarray(fb.gain, dtype=float), fb.feedforward
+    else:
+        gain, known = np.zeros(2), d.u_A[j0:]
+    velocity = d.velocity
+    if velocity is None and not p.reconstructed:  # measured torque: the velocity the plant implies
+        velocity = np.full(d.t.shape[0], np.nan)
+        velocity[p.rows] = p.velocity
+    recon = None
+    if p.reconstructed:
+        r = p.smoother  # the very filter the recorded segment went through
+        recon = (r.F, r.Kg, r.Sv, r.C)
+    return gain, known, velocity, recon
 
 
 def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chain:
@@ -45,14 +86,8 @@ def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chai
     i0, K, M = p.rows.start, p.segment.K, p.segment.preview
     n = j1 - j0
     end = i0 + K + M  # the plan's last state (sample index in the segment)
-    if p.segment.feedback is not None:
-        if assistant is None:
-            raise ValueError("a feedback segment needs the assistant to rebuild its law over the span")
-        fb = human_feedback(assistant, d.angle_ref[j0:])
-        gain, known = np.asarray(fb.gain, dtype=float), fb.feedforward
-        plan_plant = planning_plant(plant, gain)
-    else:
-        gain, known, plan_plant = np.zeros(2), d.u_A[j0:], plant
+    gain, known, velocity, recon = _acquisition(p, assistant)
+    plan_plant = planning_plant(plant, gain) if p.segment.feedback is not None else plant
     pol = lq_policy(plan_plant, theta, d.angle_ref[j0 : end + 1], known[: end - j0])
     L, f, S = pol.L, pol.f, pol.S
     if end < j1 - 1:
@@ -60,14 +95,8 @@ def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chai
         L = np.concatenate([L, tail.L[end - j0 :]])
         f = np.concatenate([f, tail.f[end - j0 :]])
         S = np.concatenate([S, tail.S[end - j0 :]])
-    velocity = d.velocity
-    if velocity is None and not p.reconstructed:  # measured torque: the velocity the plant implies
-        velocity = np.full(d.t.shape[0], np.nan)
-        velocity[p.rows] = p.velocity
-    recon, scale = None, 1.0
+    scale = 1.0
     if p.reconstructed:
-        r = p.smoother  # the very filter the recorded segment went through
-        recon = (r.F, r.Kg, r.Sv, r.C)
         # Draw the policy noise at the level the reconstruction measured (models.adequacy).
         scale = p.sigma_eps * np.sqrt(2.0 * S[i0 - j0])
     c = np.ascontiguousarray
@@ -79,8 +108,34 @@ def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chai
         w0=i0 - j0, K=K, recon=recon, resolution=float(resolution), noise_scale=float(scale))
 
 
-def assess_study(prepared, thetas, plant, settings: IdentifySettings):
-    """Bootstrap adequacy of every segment at its θ, and the study verdict.
+def delayed_segment_chain(p, theta, plant, *, tau_nm: float, sigma_m: float, delay: int, tau0: float,
+                          resolution: float, assistant=None, params: WheelParameters = WheelParameters()
+                          ) -> DelayedChain:
+    """The acquisition chain of one prepared segment fitted with the ``delayed`` human.
+
+    The same span, assistant, encoder and reconstruction as :func:`segment_chain`; the
+    replicates are drawn at the fitted θ, τ_nm (s), σ_m (N·m), delay (samples) with the
+    arm torque ``tau0`` (N·m) at the window's start, and at the policy noise the model
+    states (:mod:`models.delayed.bootstrap` says why not the reconstruction's σ_ε).
+    """
+    d = p.data
+    j0, j1 = p.span.start, p.span.stop
+    i0, K, M = p.rows.start, p.segment.K, p.segment.preview
+    gain, known, velocity, recon = _acquisition(p, assistant)
+    end = i0 + K + M  # the plan's last state (sample index in the segment)
+    c = np.ascontiguousarray
+    return DelayedChain(
+        plant=plant, params=params, theta=c(theta, dtype=float), tau_nm=float(tau_nm), sigma_m=float(sigma_m),
+        delay=int(delay), tau0=float(tau0), gain=gain, feedback=p.segment.feedback is not None,
+        known=c(known[: max(end, j1 - 1) - j0], dtype=float), ref=c(d.angle_ref[j0 : max(end + 1, j1)], dtype=float),
+        x0=c(p.span_state0, dtype=float), x0_window=c(p.segment.x0, dtype=float), angle=c(d.angle[j0:j1]),
+        velocity=None if velocity is None else c(velocity[j0:j1]),
+        u_H=None if d.u_H is None else c(d.u_H[j0:j1]), u_A=c(d.u_A[j0:j1]), w0=i0 - j0, K=K, M=M, recon=recon,
+        resolution=float(resolution))
+
+
+def assess_study(prepared, thetas, plant, settings: IdentifySettings, *, delayed: dict | None = None):
+    """Bootstrap adequacy of every segment at its fitted human model, and the study verdict.
 
     Parameters
     ----------
@@ -93,6 +148,13 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings):
     settings : IdentifySettings
         ``adequacy_boot`` data sets per segment (segment i draws from
         ``SeedSequence(adequacy_seed).spawn(n)[i]``) and the encoder ``resolution``.
+    delayed : dict, optional
+        None: the human model is ``maxent`` (the bootstrap draws from the max-ent model at
+        θ). Otherwise the ``delayed`` human's other fitted parameters per segment, in the
+        order of ``prepared``: ``tau_nm`` (n,) s, ``sigma_m`` (n,) N·m, ``delay`` (n,)
+        whole samples and ``tau0`` (n,) N·m, the arm torque at the window's start
+        (:func:`delayed_segment_chain`); the bootstrap then draws from that model and z is
+        its standardized innovations. The statistics and their combination are the same.
 
     Returns
     -------
@@ -105,13 +167,21 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings):
         settings (no timings: the same seed gives the same summary).
     """
     n_boot, seed, design = settings.adequacy_boot, settings.adequacy_seed, settings.design
+    thetas = np.asarray(thetas, dtype=float)
+    extra = None if delayed is None else _check_delayed(delayed, len(prepared))
     seeds = np.random.SeedSequence(int(seed)).spawn(len(prepared))
     rows, details = [], []
-    for p, th, ss in zip(prepared, np.asarray(thetas, dtype=float), seeds):
+    for i, (p, th, ss) in enumerate(zip(prepared, thetas, seeds)):
         rng = np.random.default_rng(ss)
-        chain = segment_chain(p, th, plant, resolution=settings.resolution,
-                              assistant=assistant_law(design, p.data.condition))
-        res = adq.segment_adequacy(bootstrap_records(chain, n_boot, rng), design.dt)
+        law = assistant_law(design, p.data.condition)
+        if extra is None:
+            chain = segment_chain(p, th, plant, resolution=settings.resolution, assistant=law)
+            rec = bootstrap_records(chain, n_boot, rng)
+        else:
+            chain = delayed_segment_chain(p, th, plant, **{k: v[i] for k, v in extra.items()},
+                                          resolution=settings.resolution, assistant=law, params=design.wheel)
+            rec = delayed_records(chain, n_boot, rng)
+        res = adq.segment_adequacy(rec, design.dt)
         rows.append({"adequacy_p": res.p_segment, "adequacy_flagged": res.p_segment <= adq.SEGMENT_ALPHA,
                      **{f"adequacy_p_{k}": v for k, v in res.p.items()}})
         details.append(res)
@@ -132,13 +202,33 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings):
     summary.update({
         "judges": "the human model (does it describe the data?), not the sampler or the optimizer",
         "flagged_segments": flagged,
-        "checks": {k: CHECK_TEXT[k] for k in adq.STATISTICS},
+        "checks": {k: (CHECK_TEXT if extra is None else CHECK_TEXT_DELAYED)[k] for k in adq.STATISTICS},
         "bootstrap": {"replicates_per_segment": int(n_boot), "seed": int(seed),
+                      "human_model": "maxent" if extra is None else "delayed",
+                      "draws_from": DRAWS_FROM["maxent" if extra is None else "delayed"],
                       "theta": "plug-in (not refitted per replicate: conservative)",
                       "reconstruction": "variances held at the recorded segment's values"},
         "null_statistic_means": _mean_null(details),
     })
     return cols, summary
+
+
+def _check_delayed(delayed: dict, n: int) -> dict:
+    """The delayed human's per-segment parameters as arrays of shape (n,), or ValueError naming the bad one."""
+    if not isinstance(delayed, dict) or set(delayed) != set(DELAYED_KEYS):
+        got = sorted(delayed) if isinstance(delayed, dict) else type(delayed).__name__
+        raise ValueError(f"delayed must be a dict with exactly the keys {', '.join(DELAYED_KEYS)}; got {got}")
+    out = {}
+    for k in DELAYED_KEYS:
+        v = np.asarray(delayed[k], dtype=float)
+        if v.shape != (n,) or not np.all(np.isfinite(v)):
+            raise ValueError(f"delayed[{k!r}] must hold {n} finite values, one per segment; got shape {v.shape}")
+        if k != "tau0" and np.any(v < 0):
+            raise ValueError(f"delayed[{k!r}] must be >= 0; got {v[v < 0][0]!r}")
+        if k == "delay" and np.any(v != np.round(v)):
+            raise ValueError(f"delayed['delay'] must be whole samples; got {v[v != np.round(v)][0]!r}")
+        out[k] = v.astype(np.int64) if k == "delay" else v
+    return out
 
 
 def _per_unit(cols: pd.DataFrame, keys: list):
@@ -187,7 +277,7 @@ def format_adequacy(summary: dict) -> str:
     lines = [head]
     for k in summary["combined_p"]:
         mark = "FAIL" if k in summary["failed_checks"] else "ok"
-        lines.append(f"  {mark:4s} {k:16s} combined p = {summary['combined_p'][k]:.2g}  ({CHECK_TEXT[k]})")
+        lines.append(f"  {mark:4s} {k:16s} combined p = {summary['combined_p'][k]:.2g}  ({summary.get('checks', CHECK_TEXT)[k]})")
     lines.append(f"  segments flagged at the {summary['segment_alpha']:.0%} per-segment level: "
                  f"{summary['segments_flagged']} of {summary['segments']} "
                  f"(about {summary['segments_flagged_expected_by_chance']:.1f} expected by chance); "

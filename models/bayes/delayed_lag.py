@@ -1,0 +1,114 @@
+"""The neuromuscular lag's coefficients inside compiled code: :func:`models.delayed.lag.lag_coefficients` in numba.
+
+The ``delayed`` likelihood Op (:mod:`models.bayes.delayed_op`) needs the pole a, the mixing
+α and their τ_nm-derivatives at every evaluation, for every segment, inside the numba
+function nutpie calls; :func:`models.delayed.lag.lag_coefficients` is NumPy/SciPy code.
+:func:`lag_nb` computes the same numbers (tested equal to rounding on both of its
+branches) from the wheel's constants (:func:`wheel_constants`, once per Op):
+
+* where ``A_c + μ I`` (μ = 1/τ_nm) is well conditioned (the criterion of
+  :func:`models.delayed.lag.lag_coefficients`: every pole λ of the wheel at relative
+  distance > 5 % from -μ) the closed form ``v = (A_c + μ I)⁻¹ (Φ - a I) b_w``,
+  ``dv/dμ = (A_c + μ I)⁻¹ (dt a b_w - v)``, by the explicit 2 × 2 inverse;
+* otherwise (a wheel with a real pole near -μ; never for the paper's wheel, whose poles
+  are complex, but a wheel without a centring spring has one at -damper/inertia) the
+  same integrals as entire functions of X = (A_c + μ I) dt, which have no singularity::
+
+      v = a dt φ1(X) b_w,          φ1(X) = ∫_0^1 e^{X s} ds,
+      dv/dμ = -dt v + a dt² ψ(X) b_w,   ψ(X) = ∫_0^1 s e^{X s} ds,
+
+  by scaling and squaring: Taylor series at X / 2^s (norm <= 1/2, 24 terms), then s
+  doublings ``φ1(2Z) = ½ (I + e^Z) φ1(Z)``, ``ψ(2Z) = ¼ (ψ(Z) + e^Z (φ1(Z) + ψ(Z)))``,
+  ``e^{2Z} = (e^Z)²`` (this replaces SciPy's Fréchet derivative of the block exponential,
+  which numba cannot call).
+
+Then ``α = v_1 / b_1``, ``dα/dτ_nm = -μ² (dv/dμ)_1 / b_1``, ``a = e^{-μ dt}``,
+``da/dτ_nm = a dt μ²``; τ_nm = 0 gives a = α = da = 0 and the one-sided
+``dα/dτ_nm = (Φ b_w)_1 / b_1``, as there.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from models.design import WheelParameters
+from models.plant import continuous_matrices, discretize
+
+#: Taylor terms of the series branch (at norm <= 1/2: 0.5^24 / 24! is far below rounding).
+_TERMS = 24
+
+
+def wheel_constants(dt: float, params: WheelParameters = WheelParameters()) -> tuple:
+    """``(dt, A_c, b_w, Φ b_w, b_1, poles)`` for :func:`lag_nb`: the continuous wheel, its ZOH step, its poles (complex)."""
+    A_c, b_w = continuous_matrices(params)
+    wheel = discretize(float(dt), params)
+    return (float(dt), np.ascontiguousarray(A_c), np.ascontiguousarray(b_w), np.ascontiguousarray(wheel.A @ b_w),
+            float(wheel.b[1]), np.linalg.eigvals(A_c).astype(np.complex128))
+
+
+@njit(cache=True)
+def _mm(X, Y):
+    Z = np.empty((2, 2))
+    for i in range(2):
+        for j in range(2):
+            Z[i, j] = X[i, 0] * Y[0, j] + X[i, 1] * Y[1, j]
+    return Z
+
+
+@njit(cache=True)
+def _phi_series(X):
+    """(φ1(X), ψ(X)) of a 2 × 2 matrix by scaling and squaring (module docstring)."""
+    norm = max(abs(X[0, 0]) + abs(X[1, 0]), abs(X[0, 1]) + abs(X[1, 1]))
+    s = 0
+    while norm > 0.5:
+        norm *= 0.5
+        s += 1
+    Y = X / 2.0**s
+    E = np.eye(2)
+    P1 = np.eye(2)
+    P2 = 0.5 * np.eye(2)
+    term = np.eye(2)  # Y^k / k!
+    for k in range(1, _TERMS):
+        term = _mm(term, Y) / k
+        E += term
+        P1 += term / (k + 1)
+        P2 += term / (k + 2)
+    eye = np.eye(2)
+    for _ in range(s):
+        P2 = 0.25 * (P2 + _mm(E, P1 + P2))
+        P1 = 0.5 * _mm(eye + E, P1)
+        E = _mm(E, E)
+    return P1, P2
+
+
+@njit(cache=True)
+def lag_nb(tau_nm, dt, A_c, b_w, Pb, b1, poles):
+    """``(a, α, da/dτ_nm, dα/dτ_nm)`` of one τ_nm >= 0 (s); the wheel's constants from :func:`wheel_constants`."""
+    if tau_nm == 0.0:
+        return 0.0, 0.0, 0.0, Pb[1] / b1
+    mu = 1.0 / tau_nm
+    a = math.exp(-dt * mu)
+    dist = np.inf
+    for lam in poles:
+        dist = min(dist, abs(mu + lam) / (mu + abs(lam)))
+    if dist > 0.05:
+        m00, m01, m10, m11 = A_c[0, 0] + mu, A_c[0, 1], A_c[1, 0], A_c[1, 1] + mu
+        det = m00 * m11 - m01 * m10
+        r0, r1 = Pb[0] - a * b_w[0], Pb[1] - a * b_w[1]
+        v0, v1 = (m11 * r0 - m01 * r1) / det, (m00 * r1 - m10 * r0) / det
+        s0, s1 = dt * a * b_w[0] - v0, dt * a * b_w[1] - v1
+        dv1 = (m00 * s1 - m10 * s0) / det
+        alpha = v1 / b1
+    else:
+        X = (A_c + mu * np.eye(2)) * dt
+        P1, P2 = _phi_series(X)
+        v1 = a * dt * (P1[1, 0] * b_w[0] + P1[1, 1] * b_w[1])
+        dv1 = -dt * v1 + a * dt * dt * (P2[1, 0] * b_w[0] + P2[1, 1] * b_w[1])
+        alpha = v1 / b1
+    return a, alpha, a * dt * mu * mu, -mu * mu * dv1 / b1
+
+
+__all__ = ["lag_nb", "wheel_constants"]

@@ -1,0 +1,296 @@
+"""The batched ``delayed`` log-likelihood as a PyTensor Op, with a numba implementation.
+
+One node computes, in one call of the numba kernel
+(:data:`models.delayed.kernel.batch_kernel_serial`),
+
+* ``loglik`` (n,): the exact log-likelihood of each segment under the ``delayed`` human
+  (:mod:`models.delayed.likelihood`), nats, and
+* ``grad`` (5, n): its derivatives in that segment's ``q11, q22, R`` (rows 0-2), ``τ_nm``
+  (row 3) and ``σ_m`` (row 4), in the order of :data:`models.delayed.PARAMETERS`.
+
+The differentiable inputs are θ (3, n), τ_nm (n,) and σ_m (n,). The delay (whole samples
+per segment) is data: the hierarchical model fixes it per unit (:mod:`models.bayes.delayed_model`
+says why). So is what fixes the arm torque at each window's start, τ_0: either a number
+per segment (held fixed), or the observed torques before the window
+(:class:`models.delayed.lag.Warmup`), from which τ_0 follows by the arm's recursion
+(:func:`models.delayed.lag.arm_torque_recursion`) at the current τ_nm, with its
+tangents, exactly as :func:`models.delayed.identify.identify_unit_delayed` treats it.
+Warm-ups are stored right-aligned in one (n, J) array with each row's first index
+(:func:`pack_tau0`).
+
+As :mod:`models.bayes.op` for the max-ent likelihood: the pullback multiplies the
+kernel's gradient by the cotangent, so a compiled logp-and-gradient function runs the
+kernel once per evaluation; second derivatives are refused. The numba implementation
+computes the lag's coefficients (:func:`models.bayes.delayed_lag.lag_nb`), the warm-ups
+and the batch in the calling thread (the serial kernel: nutpie already runs one chain
+per thread, and a parallel region inside each would oversubscribe the cores), and
+allocates its outputs and scratch per call, so concurrent calls share nothing they write.
+
+:class:`DelayedLoglikDataOp` takes the data as inputs (a model compiled once refits new
+data of the same shape); :class:`DelayedLoglikOp` binds one batch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytensor.tensor as pt
+from numba import njit
+from pytensor.gradient import DisconnectedType, disconnected_type, grad_not_implemented
+from pytensor.graph.basic import Apply
+from pytensor.graph.op import Op
+from pytensor.link.numba.dispatch import basic as numba_basic
+from pytensor.link.numba.dispatch.basic import numba_funcify
+
+from models.bayes.delayed_lag import lag_nb, wheel_constants
+from models.bayes.op import DATA_NAMES
+from models.delayed.kernel import batch_kernel_serial
+from models.delayed.lag import Warmup, arm_torque_recursion, check_wheel
+from models.design import WheelParameters
+from models.plant import DiscretePlant
+from models.segment import SegmentBatch
+
+#: The data inputs after θ, τ_nm and σ_m: the batch's arrays, the delay and the packed τ_0 (:func:`pack_tau0`).
+DELAYED_DATA_NAMES = (*DATA_NAMES, "delay", "warm", "warm_start", "tau_start")
+#: Number of differentiable inputs (θ, τ_nm, σ_m).
+N_PARAMETER_INPUTS = 3
+
+
+@njit(cache=True)
+def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, wstart,
+              tstart):
+    n = u.shape[0]
+    J = warm.shape[1]
+    lag = np.empty((4, n))
+    t0 = np.empty(n)
+    dt0 = np.empty((n, 2))
+    tau = np.empty(J + 1)
+    dtau = np.empty((J + 1, 2))
+    dct = np.empty((max(J, 1), 2))
+    for i in range(n):
+        la, al, da, dal = lag_nb(tau_nm[i], dt, A_c, b_w, Pb, b1, poles)
+        lag[0, i] = la
+        lag[1, i] = al
+        lag[2, i] = da
+        lag[3, i] = dal
+        j0 = wstart[i]
+        tau[j0] = tstart[i]
+        dtau[j0, 0] = 0.0
+        dtau[j0, 1] = 0.0
+        arm_torque_recursion(warm[i, j0:], la, al, tau[j0:], dtau[j0:], dct)
+        t0[i] = tau[J]
+        dt0[i, 0] = dtau[J, 0]
+        dt0[i, 1] = dtau[J, 1]
+    out = np.empty((6, n))
+    batch_kernel_serial(A, b, fb, theta, lag, sigma_m, delay, t0, dt0, x1, x2, r, u, a, True, 1, out,
+                        np.empty((n, 0)))
+    return out[0].copy(), out[1:].copy()
+
+
+def pack_tau0(tau0, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(warm (n, J), warm_start (n,), tau_start (n,))`` for the Op from a τ_0 specification.
+
+    Parameters
+    ----------
+    tau0 : float, array_like (n,), or sequence of Warmup or None (n)
+        A fixed arm torque at each window's start (N·m; J = 0), or per segment the
+        torques before the window (:class:`models.delayed.lag.Warmup`; None: at rest,
+        τ_0 = 0).
+    n : int
+        Segments.
+    """
+    if isinstance(tau0, (list, tuple)) and any(w is None or isinstance(w, Warmup) for w in tau0):
+        if len(tau0) != n or not all(w is None or isinstance(w, Warmup) for w in tau0):
+            raise ValueError(f"tau0 as warm-ups needs one Warmup or None per segment ({n})")
+        lens = [0 if w is None else np.asarray(w.u).shape[0] for w in tau0]
+        J = max(lens)
+        warm = np.zeros((n, J))
+        start = np.empty(n, dtype=np.int64)
+        tstart = np.zeros(n)
+        for i, (w, m) in enumerate(zip(tau0, lens)):
+            start[i] = J - m
+            if w is not None:
+                warm[i, J - m:] = np.asarray(w.u, dtype=float)
+                tstart[i] = float(w.tau_start)
+        if not (np.isfinite(warm).all() and np.isfinite(tstart).all()):
+            raise ValueError("the warm-up torques and their tau_start must be finite")
+        return warm, start, tstart
+    fixed = np.broadcast_to(np.asarray(tau0, dtype=float), (n,))
+    if not np.isfinite(fixed).all():
+        raise ValueError(f"tau0 must be finite; got {tau0!r}")
+    return np.zeros((n, 0)), np.zeros(n, dtype=np.int64), np.array(fixed)
+
+
+def _frozen(x, dtype=np.float64) -> np.ndarray:
+    arr = np.array(x, dtype=dtype, order="C", copy=True)
+    arr.flags.writeable = False
+    return arr
+
+
+class DelayedLoglikDataOp(Op):
+    """Per-segment ``delayed`` log-likelihood and its gradient in (θ, τ_nm, σ_m), the data as inputs.
+
+    Parameters
+    ----------
+    plant : DiscretePlant
+        The wheel at the recording's sample time.
+    params : WheelParameters
+        The wheel ``plant`` was discretized from (the lag needs it).
+
+    Notes
+    -----
+    Inputs: ``theta`` (3, n) rows q11, q22, R; ``tau_nm`` (n,), s; ``sigma_m`` (n,), N·m;
+    then :data:`DELAYED_DATA_NAMES`: ``x1, x2, r, u, a, fb`` of a
+    :class:`models.segment.SegmentBatch`, ``delay`` (n,) int64 samples, and ``warm``,
+    ``warm_start``, ``tau_start`` from :func:`pack_tau0`. Outputs ``loglik`` (n,) and
+    ``grad`` (5, n), as :func:`models.delayed.loglik_grad` returns them. Parameters are not
+    validated in the graph (the sampler proposes what its transforms allow); a non-finite
+    value gives a non-finite log-likelihood, which the sampler rejects.
+    """
+
+    __props__ = ("key",)
+    bound = None
+
+    def __init__(self, plant: DiscretePlant, params: WheelParameters = WheelParameters()):
+        check_wheel(plant, params)
+        self.A = _frozen(plant.A)
+        self.b = _frozen(plant.b)
+        self.wheel = wheel_constants(plant.dt, params)
+        self.key = (tuple(self.A.ravel().tolist()), tuple(self.b.tolist()), float(plant.dt), tuple(params))
+
+    def make_node(self, theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, warm_start, tau_start):
+        theta, tau_nm, sigma_m = (pt.cast(pt.as_tensor_variable(v), "float64") for v in (theta, tau_nm, sigma_m))
+        if theta.type.ndim != 2 or tau_nm.type.ndim != 1 or sigma_m.type.ndim != 1:
+            raise TypeError("theta must be a matrix (3, n), tau_nm and sigma_m vectors (n,)")
+        mats = [pt.cast(pt.as_tensor_variable(v), "float64") for v in (x1, x2, r, u, a, fb, warm)]
+        ints = [pt.cast(pt.as_tensor_variable(v), "int64") for v in (delay, warm_start)]
+        tstart = pt.cast(pt.as_tensor_variable(tau_start), "float64")
+        data = [*mats[:6], ints[0], mats[6], ints[1], tstart]
+        return Apply(self, [theta, tau_nm, sigma_m, *data], [pt.dvector(), pt.dmatrix()])
+
+    def perform(self, node, inputs, output_storage):
+        theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:3])
+        data = inputs[3:] or self.bound
+        data = [np.ascontiguousarray(v, dtype=np.int64 if j in (6, 8) else np.float64) for j, v in enumerate(data)]
+        ll, g = _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data)
+        output_storage[0][0] = ll
+        output_storage[1][0] = g
+
+    def infer_shape(self, node, input_shapes):
+        n = input_shapes[1][0]
+        return [(n,), (5, n)]
+
+    def pullback(self, inputs, outputs, cotangents):
+        _, grad = outputs
+        g_ll, g_grad = cotangents
+        params = inputs[:N_PARAMETER_INPUTS]
+        rest = [disconnected_type() for _ in inputs[N_PARAMETER_INPUTS:]]
+        if not isinstance(g_grad.type, DisconnectedType):
+            return [grad_not_implemented(self, j, v, "second derivatives of the delayed likelihood")
+                    for j, v in enumerate(params)] + rest
+        if isinstance(g_ll.type, DisconnectedType):
+            return [pt.zeros_like(v) for v in params] + rest
+        return [grad[:3] * g_ll[None, :], grad[3] * g_ll, grad[4] * g_ll, *rest]
+
+    def connection_pattern(self, node):
+        return [[True, True]] * N_PARAMETER_INPUTS + [[False, False] for _ in node.inputs[N_PARAMETER_INPUTS:]]
+
+
+class DelayedLoglikOp(DelayedLoglikDataOp):
+    """Per-segment ``delayed`` log-likelihood for fixed data: inputs θ (3, n), τ_nm (n,), σ_m (n,).
+
+    Parameters
+    ----------
+    batch : SegmentBatch
+        From :func:`models.segment.prepare_batch` with ``plant``.
+    plant : DiscretePlant
+    delay : int or array_like of int (n,)
+        Perceptual delay per segment, samples (>= 0).
+    tau0 : float, array_like (n,) or sequence of Warmup or None
+        As :func:`pack_tau0` (default: every window starts with the arm at rest).
+    params : WheelParameters
+
+    Examples
+    --------
+    >>> import numpy as np, pytensor.tensor as pt
+    >>> from models.segment import Segment, prepare_batch
+    >>> from models.plant import discretize
+    >>> plant = discretize(0.01)
+    >>> seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
+    >>> op = DelayedLoglikOp(prepare_batch(plant, [seg]), plant, delay=3)
+    >>> th, tau, sig = pt.dmatrix("theta"), pt.dvector("tau"), pt.dvector("sig")
+    >>> ll, g = op(th, tau, sig)
+    >>> ll.eval({th: np.array([[10.0], [0.0], [1.0]]), tau: [0.06], sig: [0.2]}).shape
+    (1,)
+    """
+
+    __eq__ = object.__eq__
+    __hash__ = object.__hash__
+
+    def __init__(self, batch: SegmentBatch, plant: DiscretePlant, *, delay, tau0=0.0,
+                 params: WheelParameters = WheelParameters()):
+        super().__init__(plant, params)
+        n = int(batch.n)
+        d = np.broadcast_to(np.asarray(delay), (n,))
+        if not (np.all(np.isfinite(d.astype(float))) and np.all(d == np.round(d)) and np.all(d >= 0)):
+            raise ValueError(f"delay must be whole numbers of samples >= 0, one per segment; got {delay!r}")
+        arrays = [getattr(batch, name) for name in DATA_NAMES]
+        warm, start, tstart = pack_tau0(tau0, n)
+        self.bound = tuple(_frozen(v) for v in arrays) + (_frozen(d, np.int64), _frozen(warm),
+                                                          _frozen(start, np.int64), _frozen(tstart))
+        self.n, self.K, self.delay = n, int(batch.K), self.bound[6]
+
+    def __str__(self):
+        return f"DelayedLoglik{{n={self.n}, K={self.K}, d={int(self.delay.min())}..{int(self.delay.max())}}}"
+
+    def make_node(self, theta, tau_nm, sigma_m):
+        theta, tau_nm, sigma_m = (pt.cast(pt.as_tensor_variable(v), "float64") for v in (theta, tau_nm, sigma_m))
+        if theta.type.ndim != 2 or tau_nm.type.ndim != 1 or sigma_m.type.ndim != 1:
+            raise TypeError(f"theta must be a matrix (3, {self.n}), tau_nm and sigma_m vectors ({self.n},)")
+        if theta.type.shape[0] not in (None, 3) or any(s not in (None, self.n) for s in
+                                                        (theta.type.shape[1], tau_nm.type.shape[0],
+                                                         sigma_m.type.shape[0])):
+            raise ValueError(f"theta must have shape (3, {self.n}), tau_nm and sigma_m ({self.n},)")
+        theta = pt.specify_shape(theta, (3, self.n))
+        tau_nm = pt.specify_shape(tau_nm, (self.n,))
+        sigma_m = pt.specify_shape(sigma_m, (self.n,))
+        return Apply(self, [theta, tau_nm, sigma_m], [pt.dvector(shape=(self.n,)), pt.dmatrix(shape=(5, self.n))])
+
+    def infer_shape(self, node, input_shapes):
+        return [(self.n,), (5, self.n)]
+
+
+@numba_funcify.register(DelayedLoglikDataOp)
+def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, **kwargs):
+    """Numba implementation of both Ops: the lag, the warm-ups and the serial batch kernel, no object mode."""
+    A, b = op.A, op.b
+    dt, A_c, b_w, Pb, b1, poles = op.wheel
+    evaluate = _evaluate
+    if op.bound is None:
+
+        @numba_basic.numba_njit
+        def delayed_loglik_data(theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, wstart, tstart):
+            c = np.ascontiguousarray
+            return evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, c(theta), c(tau_nm), c(sigma_m), c(x1), c(x2), c(r),
+                            c(u), c(a), c(fb), c(delay), c(warm), c(wstart), c(tstart))
+
+        return delayed_loglik_data
+    x1, x2, r, u, a, fb, delay, warm, wstart, tstart = op.bound
+
+    @numba_basic.numba_njit
+    def delayed_loglik(theta, tau_nm, sigma_m):
+        c = np.ascontiguousarray
+        return evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, c(theta), c(tau_nm), c(sigma_m), x1, x2, r, u, a, fb,
+                        delay, warm, wstart, tstart)
+
+    return delayed_loglik
+
+
+def delayed_loglik(theta, tau_nm, sigma_m, batch: SegmentBatch, plant: DiscretePlant, *, delay, tau0=0.0,
+                   params: WheelParameters = WheelParameters()):
+    """Symbolic per-segment ``delayed`` log-likelihood (a new :class:`DelayedLoglikOp`), nats, shape (n,)."""
+    ll, _ = DelayedLoglikOp(batch, plant, delay=delay, tau0=tau0, params=params)(theta, tau_nm, sigma_m)
+    return ll
+
+
+__all__ = ["DELAYED_DATA_NAMES", "DelayedLoglikDataOp", "DelayedLoglikOp", "delayed_loglik",
+           "numba_funcify_delayed_loglik", "pack_tau0"]

@@ -4,7 +4,10 @@ Glue between the prepared segments of ``scioc identify``/``scioc fit`` and the
 mathematics in :mod:`models.adequacy`: for each segment it builds the acquisition chain
 (the fitted model's policy over the reconstruction span, the assistant as the human
 model assumes it, the encoder and the reconstruction with the segment's variances),
-draws the bootstrap, and combines the segments into one verdict. The verdict judges the
+draws the bootstrap, and combines the segments into one verdict. The bootstrap draws
+from the human model the segments were fitted with: ``maxent`` (:mod:`models.bootstrap`)
+or ``delayed`` (:mod:`models.delayed.bootstrap`, z its standardized innovations); the
+statistics and their calibration are the same for both, and the summary records which. The verdict judges the
 *human model*, not the sampler or the optimizer: "pass" means no check found the data
 unlike the model's own data; "fail" means the identified costs, and any difference
 between conditions, may be artifacts of model misfit.

@@ -4,24 +4,36 @@
 module                     what it holds
 =========================  ===========================================================
 :mod:`.likelihood`         the model, its derivation, :func:`loglik_grad`, :func:`innovations`
-:mod:`.lag`                τ_nm -> (a, α) with derivatives; the plant the human plans on
+:mod:`.lag`                τ_nm -> (a, α) with derivatives; the plant the human plans on; the
+                           arm torque from observed torques (a window's τ_0 from its warm-up)
 :mod:`.riccati`            the plan: 3-state LQ recursion with tangents, its adjoint (numba)
 :mod:`.innovations`        log N(r; 0, Σ) for banded Σ: Schur algorithm, rows, reverse mode (numba)
 :mod:`.kernel`             one segment and the batch: assembly and chain rule (numba)
 :mod:`.sample`             the generative closed loop and :func:`sample_delayed`
 :mod:`.dense`              the dense joint Gaussian, the reference of the tests
+:mod:`.identify`           maximum likelihood: θ, τ_nm, σ_m, and the delay by profile
 =========================  ===========================================================
 
 With delay, lag and motor noise at zero the model is the paper's (:mod:`models.maxent`).
 """
 
 from models.delayed.dense import DelayedDense, loglik_dense
-from models.delayed.lag import LagCoefficients, LaggedPlanningPlant, lag_coefficients, lagged_planning_plant
+from models.delayed.identify import DELAY_GRID_S, DelayedEstimate, delay_grid, identify_unit_delayed
+from models.delayed.lag import (ArmTorque, LagCoefficients, LaggedPlanningPlant, Warmup, arm_torque, lag_coefficients,
+                                lagged_planning_plant, window_tau0)
 from models.delayed.likelihood import PARAMETERS, DelayedLoglikGrad, innovations, loglik_grad
 from models.delayed.sample import DelayedDraw, closed_loop, sample_delayed
 
 __all__ = [
+    "DELAY_GRID_S",
     "PARAMETERS",
+    "ArmTorque",
+    "DelayedEstimate",
+    "Warmup",
+    "arm_torque",
+    "delay_grid",
+    "identify_unit_delayed",
+    "window_tau0",
     "DelayedDense",
     "DelayedDraw",
     "DelayedLoglikGrad",

@@ -112,36 +112,43 @@ def lag_coefficients(tau_nm, dt: float = DT_HUMAN, params: WheelParameters = Whe
     (0.8465, 0.9202)
     """
     tau = _check_tau(tau_nm)
-    A_c, b_w, wheel, lam = _wheel(float(dt), WheelParameters(*params))
-    b1 = wheel.b[1]
+    dt, params = float(dt), WheelParameters(*params)
     flat = tau.reshape(-1)
     out = np.zeros((4, flat.shape[0]))
-    Pb = wheel.A @ b_w
     for i, t in enumerate(flat):
-        if t == 0.0:
-            out[3, i] = Pb[1] / b1
-            continue
-        mu = 1.0 / t
-        a = np.exp(-dt * mu)
-        Mu = A_c + mu * np.eye(2)
-        # The solve loses about 1e-15 / (relative distance of μ from a pole) in α.
-        if np.min(np.abs(mu + lam) / (mu + np.abs(lam))) > 0.05:
-            v = np.linalg.solve(Mu, Pb - a * b_w)
-            dv_dmu = np.linalg.solve(Mu, dt * a * b_w - v)
-            alpha, dalpha = v[1] / b1, -mu * mu * dv_dmu[1] / b1
-        else:  # A_c + μ I (nearly) singular: the block exponential, by value and Fréchet derivative
-            M = np.zeros((4, 4))
-            M[:2, :2] = A_c
-            M[:2, 2] = b_w
-            M[2, 2], M[2, 3] = -mu, mu
-            dM = np.zeros((4, 4))
-            dM[2, 2], dM[2, 3] = mu * mu, -mu * mu  # d/dτ_nm of -1/τ_nm and 1/τ_nm
-            E, dE = expm_frechet(M * dt, dM * dt)
-            alpha, dalpha = E[1, 2] / b1, dE[1, 2] / b1
-        out[:, i] = a, alpha, a * dt * mu * mu, dalpha
+        out[:, i] = _lag_one(float(t), dt, params)
     if tau.ndim == 0:
         return LagCoefficients(*(float(v[0]) for v in out))
     return LagCoefficients(*(v.reshape(tau.shape) for v in out))
+
+
+@lru_cache(maxsize=256)
+def _lag_one(t: float, dt: float, params: WheelParameters) -> tuple:
+    """(a, α, da/dτ_nm, dα/dτ_nm) of one τ_nm (kept: a search asks for the same τ_nm in the likelihood and in the
+    warm-up of every segment)."""
+    A_c, b_w, wheel, lam = _wheel(dt, params)
+    b1 = wheel.b[1]
+    Pb = wheel.A @ b_w
+    if t == 0.0:
+        return 0.0, 0.0, 0.0, float(Pb[1] / b1)
+    mu = 1.0 / t
+    a = np.exp(-dt * mu)
+    Mu = A_c + mu * np.eye(2)
+    # The solve loses about 1e-15 / (relative distance of μ from a pole) in α.
+    if np.min(np.abs(mu + lam) / (mu + np.abs(lam))) > 0.05:
+        v = np.linalg.solve(Mu, Pb - a * b_w)
+        dv_dmu = np.linalg.solve(Mu, dt * a * b_w - v)
+        alpha, dalpha = v[1] / b1, -mu * mu * dv_dmu[1] / b1
+    else:  # A_c + μ I (nearly) singular: the block exponential, by value and Fréchet derivative
+        M = np.zeros((4, 4))
+        M[:2, :2] = A_c
+        M[:2, 2] = b_w
+        M[2, 2], M[2, 3] = -mu, mu
+        dM = np.zeros((4, 4))
+        dM[2, 2], dM[2, 3] = mu * mu, -mu * mu  # d/dτ_nm of -1/τ_nm and 1/τ_nm
+        E, dE = expm_frechet(M * dt, dM * dt)
+        alpha, dalpha = E[1, 2] / b1, dE[1, 2] / b1
+    return float(a), float(alpha), float(a * dt * mu * mu), float(dalpha)
 
 
 class LaggedPlanningPlant(NamedTuple):
@@ -202,6 +209,8 @@ def _wheel(dt: float, params: WheelParameters):
 def check_wheel(plant: DiscretePlant, params: WheelParameters) -> None:
     """ValueError unless ``plant`` is the discretization of ``params`` at its own sample time."""
     wheel = _wheel(float(plant.dt), WheelParameters(*params))[2]
+    if np.array_equal(wheel.A, plant.A) and np.array_equal(wheel.b, plant.b):
+        return  # the usual case, checked exactly (a search calls this thousands of times)
     if not (np.allclose(wheel.A, plant.A, rtol=1e-12, atol=1e-15) and np.allclose(wheel.b, plant.b, rtol=1e-12,
                                                                                  atol=1e-15)):
         raise ValueError("plant is not the discretization of params; pass the WheelParameters it came from")
@@ -242,7 +251,9 @@ class ArmTorque(NamedTuple):
 
 
 def arm_torque(u, a: float, alpha: float, tau_start: float = 0.0) -> ArmTorque:
-    """The arm torque ``τ_{k+1} = a τ_k + (1 - a) c̃_k``, ``c̃_k = (u_k - α τ_k) / (1 - α)``, and its (a, α)-tangents.
+    """The arm torque over observed torques and its tangents in (a, α).
+
+    ``τ_{k+1} = a τ_k + (1 - a) c̃_k`` with ``c̃_k = (u_k - α τ_k) / (1 - α)``.
 
     The recursion of the module docstring run over observed (ZOH-equivalent) torques;
     ``tau[-1]`` is the arm torque after them, e.g. at the start of an analysis window

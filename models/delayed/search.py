@@ -1,0 +1,172 @@
+"""The search at one delay of :mod:`models.delayed.identify`: log-likelihood in z, bounds, L-BFGS-B, information.
+
+A unit's parameters at delay d, in the optimizer's coordinates::
+
+    z = (log θ1, θ2 >= 0, w = R_0 / R >= 1/R_SPAN, τ_nm in [0, TAU_NM_MAX], σ_m >= 0)
+
+with R_0 the max-ent estimate's R (:mod:`models.delayed.identify` says why w and not
+log R). σ_m is held at 0 for d = 0. The objective handed to L-BFGS-B is minus the
+log-likelihood per torque sample, with τ_nm and σ_m in the units of :data:`Z_SCALE`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import minimize
+
+from models.cost import from_normalized
+from models.delayed.lag import lag_coefficients, window_tau0
+from models.delayed.likelihood import loglik_grad
+from models.design import WheelParameters
+from models.identify import BOUND_TOL
+from models.plant import DiscretePlant
+
+#: Largest τ_nm searched, s (McRuer & Jex: about 0.1 s; 10 times that is no longer a neuromuscular lag).
+TAU_NM_MAX = 1.0
+#: Units of z's coordinates in the optimizer: τ_nm in 0.1 s, σ_m in 0.1 N·m, the others as they are.
+Z_SCALE = np.array([1.0, 1.0, 1.0, 0.1, 0.1])
+#: τ_nm (s) or σ_m (N·m) below this counts as on its bound 0.
+LAG_NOISE_TOL = 1e-6
+#: R is searched up to this multiple of the max-ent estimate's R (w >= 1/R_SPAN): the policy
+#: noise then has 1/1000 of the SD it has in the max-ent fit. A bound like θ2 = 0.
+R_SPAN = 1e6
+#: A search counts as converged where the largest projected gradient component in the
+#: optimizer's units, per torque sample, is at most this (L-BFGS-B's line search can stop
+#: on rounding just short of its own tolerance).
+CONVERGED_GTOL = 1e-6
+#: σ_m (N·m) at which a search that ended at σ_m = 0 checks the slope (:func:`maximize`).
+SADDLE_PROBE = 1e-3
+
+
+class SearchUnit(NamedTuple):
+    """One unit's data and the search's fixed settings.
+
+    ``warmups`` per batch, one :class:`models.delayed.lag.Warmup` or None per row; ``K`` the
+    torque samples of all rows; ``R0`` the max-ent estimate's R (the scale of w).
+    """
+
+    batches: list
+    warmups: list
+    plant: DiscretePlant
+    params: WheelParameters
+    K: int
+    R0: float
+
+
+def theta_from_z(z, R0: float) -> np.ndarray:
+    """[q11, q22, R] of z: θ1 = exp(z0), θ2 = z1, R = R0 / z2."""
+    return from_normalized(np.exp(z[0]), max(z[1], 0.0), R0 / z[2])
+
+
+def loglik_grad_z(z, d: int, unit: SearchUnit):
+    """Log-likelihood of the unit at delay d and z (unscaled) and its gradient in z."""
+    th = theta_from_z(z, unit.R0)
+    tau, sig = max(z[3], 0.0), max(z[4], 0.0)
+    lag = lag_coefficients(tau, unit.plant.dt, unit.params)
+    ll = 0.0
+    g = np.zeros(5)
+    for batch, warm in zip(unit.batches, unit.warmups):
+        t0, dt0 = window_tau0(warm, lag.a, lag.alpha)
+        res = loglik_grad(th, batch, unit.plant, tau_nm=tau, sigma_m=sig, delay=d, tau0=t0, dtau0=dt0,
+                          params=unit.params)
+        ll += float(res.loglik.sum())
+        g += res.grad.sum(axis=1)
+    q11, q22, R = th
+    # θ = (θ1 R, θ2 R, R) with R = R0/w: d/dw = -(1/w) (q11 ∂_q11 + q22 ∂_q22 + R ∂_R)
+    gz = np.array([q11 * g[0], R * g[1], -(q11 * g[0] + q22 * g[1] + R * g[2]) / z[2], g[3], g[4]])
+    return ll, gz
+
+
+def limits(d: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of z (unscaled); σ_m is held at 0 for d = 0 (module docstring)."""
+    lo = np.array([-np.inf, 0.0, 1.0 / R_SPAN, 0.0, 0.0])
+    hi = np.array([np.inf, np.inf, np.inf, TAU_NM_MAX, 0.0 if d == 0 else np.inf])
+    return lo, hi
+
+
+def at_bound(z, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """Which coordinates sit on their lower and on their upper bound."""
+    lo, hi = limits(d)
+    tol = np.array([0.0, BOUND_TOL, 1e-6 / R_SPAN, LAG_NOISE_TOL, LAG_NOISE_TOL])
+    return z <= lo + tol, (z >= hi - tol) & np.isfinite(hi)
+
+
+def projected(g, z, d: int) -> np.ndarray:
+    """The gradient without its components that push into an active bound (KKT)."""
+    low, high = at_bound(z, d)
+    out = g.copy()
+    out[(low & (g < 0)) | (high & (g > 0)) | (low & high)] = 0.0
+    return out
+
+
+class SearchResult(NamedTuple):
+    """One search: z (unscaled), its log-likelihood, whether it converged, iterations, the optimizer's message."""
+
+    z: np.ndarray
+    loglik: float
+    converged: bool
+    iterations: int
+    message: str
+
+
+def _lbfgsb(z0, d: int, unit: SearchUnit, maxiter: int) -> SearchResult:
+    def fun(y):
+        ll, g = loglik_grad_z(y * Z_SCALE, d, unit)
+        return -ll / unit.K, -g * Z_SCALE / unit.K
+
+    lo, hi = limits(d)
+    bounds = [(None if not np.isfinite(a) else a / c, None if not np.isfinite(b) else b / c)
+              for a, b, c in zip(lo, hi, Z_SCALE)]
+    res = minimize(fun, z0 / Z_SCALE, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options={"maxiter": maxiter, "ftol": 1e-13, "gtol": 1e-8})
+    z = np.array(res.x, dtype=float) * Z_SCALE
+    # Converged: the optimizer says so, or it stopped (a line search that cannot improve on
+    # rounding) where the projected gradient per sample is below CONVERGED_GTOL.
+    g = -np.asarray(res.jac) / Z_SCALE * unit.K
+    kkt = np.max(np.abs(projected(g, z, d) * Z_SCALE)) / unit.K <= CONVERGED_GTOL
+    return SearchResult(z, -float(res.fun) * unit.K, bool(res.success) or bool(kkt), int(res.nit), str(res.message))
+
+
+def maximize(z0, d: int, unit: SearchUnit, maxiter: int) -> SearchResult:
+    """The profile's inner maximization at delay d from z0 (unscaled).
+
+    σ_m = 0 is a stationary point at every d (the likelihood depends on σ_m²); if the
+    search ends there although the likelihood rises with σ_m² (the derivative at
+    σ_m = :data:`SADDLE_PROBE`, divided by 2σ_m, is positive), it is restarted from that σ_m.
+    """
+    z0 = np.array(z0, dtype=float)
+    if d == 0:
+        z0[4] = 0.0
+    fit = _lbfgsb(z0, d, unit, maxiter)
+    if d > 0 and fit.z[4] <= LAG_NOISE_TOL:
+        probe = fit.z.copy()
+        probe[4] = SADDLE_PROBE
+        if loglik_grad_z(probe, d, unit)[1][4] > 0:
+            again = _lbfgsb(probe, d, unit, maxiter)
+            if again.loglik > fit.loglik:
+                fit = again._replace(iterations=again.iterations + fit.iterations)
+    return fit
+
+
+def observed_information(z, d: int, unit: SearchUnit, free) -> np.ndarray:
+    """Minus the Hessian of the log-likelihood in z over the ``free`` coordinates (central differences)."""
+    h = 1e-4
+    idx = np.flatnonzero(free)
+    H = np.empty((idx.size, idx.size))
+    floor = np.array([1.0, 1e-3, 1.0, 1e-2 * Z_SCALE[3], 1e-2 * Z_SCALE[4]])
+    for a, j in enumerate(idx):
+        step = h * (1.0 if j == 0 else max(abs(z[j]), floor[j]))
+        if j > 0:
+            step = min(step, 0.5 * z[j])  # stay inside θ2, w, τ_nm, σ_m > 0 (τ_nm's derivative is two-sided there)
+        zp, zm = z.copy(), z.copy()
+        zp[j] += step
+        zm[j] -= step
+        H[a] = -(loglik_grad_z(zp, d, unit)[1][idx] - loglik_grad_z(zm, d, unit)[1][idx]) / (2 * step)
+    return 0.5 * (H + H.T)
+
+
+__all__ = ["CONVERGED_GTOL", "LAG_NOISE_TOL", "R_SPAN", "SADDLE_PROBE", "SearchResult", "SearchUnit", "TAU_NM_MAX",
+           "Z_SCALE", "at_bound", "limits", "loglik_grad_z", "maximize", "observed_information", "projected",
+           "theta_from_z"]

@@ -81,7 +81,7 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, tau_nm: float
 
     def run(z0, known, f, eps, m):
         return closed_loop(plant.A, plant.b, setup.a, setup.alpha, setup.A, setup.b_c, setup.b_a, setup.gain,
-                           setup.feedback, known, pol.L, f, z0, eps, m, d)[1]
+                           setup.feedback, known, pol.L, f, z0, eps, m, d, setup.true_A, setup.true_b, False)[1]
 
     z0 = np.array([seg.x0[0], seg.x0[1], float(tau0)])
     mean = run(z0, setup.known, pol.f, np.zeros((K, 1)), np.zeros((K + d, 1)))[:, 0]

@@ -32,12 +32,12 @@ from models.cost import validate_theta
 from models.delayed.lag import check_wheel, lag_coefficients, lagged_planning_plant
 from models.design import WheelParameters
 from models.lq import Policy, lq_tracking_policy
-from models.plant import DiscretePlant
+from models.plant import DiscretePlant, discretize_lagged
 from models.segment import Feedback, Segment
 
 
 @njit(cache=True)
-def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps, m, d):
+def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps, m, d, At, bt, physical):
     """Run the closed loop for every column of the noises.
 
     Parameters
@@ -65,6 +65,14 @@ def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps,
         Motor noise m_{-d}..m_{K-1}, N·m.
     d : int
         Delay, samples.
+    At, bt : ndarray, shapes (3, 3), (3,)
+        The physically lagged wheel (:func:`models.plant.discretize_lagged`: A and b_c),
+        used if ``physical``.
+    physical : bool
+        The true state moves on the physically lagged wheel (the arm torque acts
+        continuously within the sample) and u_H is its ZOH-equivalent torque, read off
+        the velocity row; otherwise it moves with u_H = α τ + (1 - α) c̃ held over the
+        sample (the likelihood's convention).
 
     Returns
     -------
@@ -108,12 +116,19 @@ def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps,
             x2 = z[k, 1, col]
             tk = z[k, 2, col]
             ua = known[k] - (gain[0] * x1 + gain[1] * x2) if feedback else known[k]
-            u = al * tk + (1.0 - al) * cm
-            uH[k, col] = u
             uA[k, col] = ua
-            z[k + 1, 0, col] = Aw[0, 0] * x1 + Aw[0, 1] * x2 + bw[0] * (u + ua)
-            z[k + 1, 1, col] = Aw[1, 0] * x1 + Aw[1, 1] * x2 + bw[1] * (u + ua)
-            z[k + 1, 2, col] = a * tk + (1.0 - a) * cm
+            if physical:
+                for i in range(3):
+                    z[k + 1, i, col] = At[i, 0] * x1 + At[i, 1] * x2 + At[i, 2] * tk + bt[i] * cm
+                z[k + 1, 0, col] += bw[0] * ua
+                z[k + 1, 1, col] += bw[1] * ua
+                uH[k, col] = (z[k + 1, 1, col] - Aw[1, 0] * x1 - Aw[1, 1] * x2) / bw[1] - ua
+            else:
+                u = al * tk + (1.0 - al) * cm
+                uH[k, col] = u
+                z[k + 1, 0, col] = Aw[0, 0] * x1 + Aw[0, 1] * x2 + bw[0] * (u + ua)
+                z[k + 1, 1, col] = Aw[1, 0] * x1 + Aw[1, 1] * x2 + bw[1] * (u + ua)
+                z[k + 1, 2, col] = a * tk + (1.0 - a) * cm
     return z, uH, uA
 
 
@@ -129,14 +144,21 @@ class DelayedSetup(NamedTuple):
     feedback: bool
     known: np.ndarray
     policy: Policy
+    true_A: np.ndarray
+    true_b: np.ndarray
+    physical: bool
 
 
 def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback: Feedback | None = None,
-                  tau_nm: float = 0.0, params: WheelParameters = WheelParameters()) -> DelayedSetup:
+                  tau_nm: float = 0.0, params: WheelParameters = WheelParameters(),
+                  physical: bool = False) -> DelayedSetup:
     """The lag, the planning plant, the assistant and the policy (command cost θ) of one window.
 
     ``angle_ref`` has K + M + 1 entries; ``u_A`` (given sequence) or ``feedback`` (the law,
     its feedforward over K + M steps) describes the assistant; neither is manual control.
+    ``physical``: the true state moves on the physically lagged wheel (:func:`closed_loop`),
+    and the human plans and predicts with it; the same as the likelihood's convention when
+    τ_nm = 0.
     """
     q11, q22, R = validate_theta(theta)
     check_wheel(plant, params)
@@ -157,10 +179,20 @@ def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback:
                          f"got shape {known.shape}")
     lag = lag_coefficients(float(tau_nm), plant.dt, params)
     pp = lagged_planning_plant(plant, lag.a, lag.alpha, gain)
+    physical = bool(physical) and float(tau_nm) > 0.0
+    if physical:
+        # A physical arm: the wheel moves on the physically lagged plant, and the human plans and
+        # predicts with that plant (as models.humans' humans do).
+        lp = discretize_lagged(float(tau_nm), plant.dt, params)
+        true_A, true_b = np.ascontiguousarray(lp.A), np.ascontiguousarray(lp.b_c)
+        pp = pp._replace(A=true_A - np.outer(pp.b_a, np.append(gain, 0.0)), b_c=true_b)
+    else:
+        true_A, true_b = np.zeros((3, 3)), np.zeros(3)
     x_ref = np.zeros((n_plan + 1, 3))
     x_ref[:, 0] = ref
     pol = lq_tracking_policy(pp.A, pp.b_c, pp.b_a, np.diag([q11, q22, 0.0]), R, x_ref, known)
-    return DelayedSetup(lag.a, lag.alpha, pp.A, pp.b_c, pp.b_a, gain, feedback is not None, known, pol)
+    return DelayedSetup(lag.a, lag.alpha, pp.A, pp.b_c, pp.b_a, gain, feedback is not None, known, pol, true_A,
+                        true_b, physical)
 
 
 class DelayedDraw(NamedTuple):
@@ -191,7 +223,7 @@ class DelayedDraw(NamedTuple):
 def sample_delayed(theta, x0, angle_ref, plant: DiscretePlant, rng: np.random.Generator, *, u_A=None,
                    feedback: Feedback | None = None, tau_nm: float = 0.0, sigma_m: float = 0.0, delay: int = 0,
                    tau0: float = 0.0, n_obs: int | None = None, size: int | None = None,
-                   params: WheelParameters = WheelParameters()) -> DelayedDraw:
+                   params: WheelParameters = WheelParameters(), physical: bool = True) -> DelayedDraw:
     """Draw (x, u_H, u_A) from the ``delayed`` human in closed loop, exactly.
 
     Parameters
@@ -218,12 +250,21 @@ def sample_delayed(theta, x0, angle_ref, plant: DiscretePlant, rng: np.random.Ge
     size : int, optional
         Number of independent draws (a trailing axis); None for one draw without it.
     params : WheelParameters
+    physical : bool
+        The wheel feels the arm torque continuously within each sample (the physically
+        lagged wheel, :func:`models.plant.discretize_lagged`; default), as a real arm
+        does, and the human plans and predicts on that wheel; the recorded u_H is its
+        ZOH-equivalent torque. ``False``: the state moves
+        with that torque held over the sample, the convention in which
+        :mod:`models.delayed.likelihood` is exact; the two differ in the angle by about
+        1e-5 rad per step (:mod:`models.humans`).
 
     Returns
     -------
     DelayedDraw
     """
-    setup = delayed_setup(theta, angle_ref, plant, u_A=u_A, feedback=feedback, tau_nm=tau_nm, params=params)
+    setup = delayed_setup(theta, angle_ref, plant, u_A=u_A, feedback=feedback, tau_nm=tau_nm, params=params,
+                          physical=physical)
     n_plan = setup.known.shape[0]
     K = n_plan if n_obs is None else int(n_obs)
     d = int(delay)
@@ -235,7 +276,8 @@ def sample_delayed(theta, x0, angle_ref, plant: DiscretePlant, rng: np.random.Ge
     m = rng.standard_normal((K + d, N)) * float(sigma_m)
     z0 = np.array([*np.asarray(x0, dtype=float).reshape(2), float(tau0)])
     z, uH, uA = closed_loop(plant.A, plant.b, setup.a, setup.alpha, setup.A, setup.b_c, setup.b_a, setup.gain,
-                            setup.feedback, setup.known, setup.policy.L, setup.policy.f, z0, eps, m, d)
+                            setup.feedback, setup.known, setup.policy.L, setup.policy.f, z0, eps, m, d, setup.true_A,
+                            setup.true_b, setup.physical)
     ref = np.asarray(angle_ref, dtype=float)
     segs = [Segment(z0[:2].copy(), ref, uH[:, j].copy(), np.concatenate([uA[:, j], setup.known[K:]]), feedback)
             for j in range(N)]

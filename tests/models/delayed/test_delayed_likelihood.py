@@ -27,7 +27,7 @@ def window(rng, plant, K, M, mode, *, drawn, theta=None, tau_nm=0.0, sigma_m=0.0
     kw = {"feedback": fb} if mode == "SC feedback" else {"u_A": u_A} if mode == "SC exogenous" else {}
     if drawn:
         return sample_delayed(theta, x0, ref, plant, rng, tau_nm=tau_nm, sigma_m=sigma_m, delay=delay, tau0=tau0,
-                              n_obs=K, **kw).segments[0]
+                              n_obs=K, physical=False, **kw).segments[0]  # the likelihood's convention
     u_H = rng.normal(0.0, 0.5, K)
     if mode == "MC":
         return Segment(x0, ref, u_H, np.zeros(K + M))

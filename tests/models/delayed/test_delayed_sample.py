@@ -85,7 +85,8 @@ def test_draws_keep_the_data_convention(plant):
     t = np.arange(K + M + 1) * plant.dt
     ref = 0.3 * np.sin(2 * np.pi * 0.4 * t)
     fb = Feedback(np.array([2.0, 0.2]), 0.1 * np.sin(t[:-1]))
-    draw = sample_delayed(THETA, [0.05, 0.0], ref, plant, np.random.default_rng(35), feedback=fb, n_obs=K, **PAR)
+    draw = sample_delayed(THETA, [0.05, 0.0], ref, plant, np.random.default_rng(35), feedback=fb, n_obs=K,
+                          physical=False, **PAR)
     # the wheel moves with the recorded torques; the assistant's law acts on the true state
     np.testing.assert_allclose(propagate(plant, draw.x[0], draw.u_H + draw.u_A), draw.x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(draw.u_A, fb.feedforward[:K] - draw.x[:-1] @ fb.gain, rtol=0, atol=1e-13)
@@ -120,3 +121,25 @@ def test_invalid_arguments_are_refused(plant):
             sample_delayed(THETA, [0, 0], ref, plant, rng, **kw)
     with pytest.raises(ValueError, match="tau_nm"):
         sample_delayed(THETA, [0, 0], ref, plant, rng, tau_nm=-0.1)
+
+
+def test_physical_draws_move_on_the_lagged_wheel(plant):
+    # A physical arm: u_H is the ZOH-equivalent torque (the velocity row is exact), the angle differs from
+    # the held-torque convention by the torque's shape within the sample; without a lag both are one thing.
+    t = np.arange(K + M + 1) * plant.dt
+    ref = 0.3 * np.sin(2 * np.pi * 0.4 * t)
+    fb = Feedback(np.array([2.0, 0.2]), 0.1 * np.sin(t[:-1]))
+    draw = sample_delayed(THETA, [0.05, 0.0], ref, plant, np.random.default_rng(35), feedback=fb, n_obs=K, **PAR)
+    held = np.empty_like(draw.x)
+    held[0] = draw.x[0]
+    for k in range(K):  # one step from the true state with the recorded torques held
+        held[k + 1] = plant.A @ draw.x[k] + plant.b * (draw.u_H[k] + draw.u_A[k])
+    np.testing.assert_allclose(held[1:, 1], draw.x[1:, 1], rtol=0, atol=1e-12)
+    step = np.abs(held[1:, 0] - draw.x[1:, 0])
+    assert 1e-8 < np.max(step) < 5e-5  # rad per step: present, and small
+    np.testing.assert_allclose(draw.u_A, fb.feedforward[:K] - draw.x[:-1] @ fb.gain, rtol=0, atol=1e-13)
+    no_lag = {**PAR, "tau_nm": 0.0}
+    a = sample_delayed(THETA, [0.05, 0.0], ref, plant, np.random.default_rng(35), feedback=fb, n_obs=K, **no_lag)
+    b = sample_delayed(THETA, [0.05, 0.0], ref, plant, np.random.default_rng(35), feedback=fb, n_obs=K,
+                       physical=False, **no_lag)
+    assert np.array_equal(a.u_H, b.u_H) and np.array_equal(a.x, b.x)

@@ -42,6 +42,10 @@ class CalibrationConfig:
     experiment : dict or None
         The experiment calibrated, in the resolved form of :func:`pipelines.experiment.resolved`
         (its rate, wheel, levels and assistants, window); None for the paper's study.
+    human_model : {"maxent", "delayed"}
+        The human model simulated and fitted (``delayed``: unit level only,
+        :mod:`pipelines.calibrate.unit_delayed`; its negative control ``no-delay`` fits
+        with the delay fixed at 0 instead of the profile's).
     """
 
     level: str = "unit"
@@ -57,18 +61,25 @@ class CalibrationConfig:
     batch_size: int = 10
     extra: dict = field(default_factory=dict)
     experiment: dict | None = None
+    human_model: str = "maxent"
 
     def __post_init__(self):
         if self.level not in ("unit", "study"):
             raise ValueError(f"level must be 'unit' or 'study'; got {self.level!r}")
+        if self.human_model not in HUMAN_MODELS:
+            raise ValueError(f"human_model must be one of {', '.join(HUMAN_MODELS)}; got {self.human_model!r}")
+        if self.human_model != "maxent" and self.level != "unit":
+            raise ValueError(f"the {self.human_model} human model is calibrated at the unit level only")
         for name in ("replications", "L", "chains", "tune", "draws", "K", "n_subjects", "batch_size"):
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"{name} must be a positive integer; got {value!r}")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0; got {self.seed!r}")
-        if self.negative_control not in (None, "inertia", "ignore-uA"):
-            raise ValueError(f"negative_control must be None, 'inertia' or 'ignore-uA'; got {self.negative_control!r}")
+        allowed = NEGATIVE_CONTROLS[self.human_model]
+        if self.negative_control not in (None, *allowed):
+            raise ValueError(f"negative_control of the {self.human_model} model must be None or one of "
+                             f"{', '.join(map(repr, allowed))}; got {self.negative_control!r}")
         if self.chains * self.draws < self.L:
             raise ValueError(f"chains × draws = {self.chains * self.draws} cannot give L = {self.L} draws")
 
@@ -83,8 +94,15 @@ class CalibrationConfig:
         d.pop("replications")
         if d["experiment"] is None:
             d.pop("experiment")  # the paper's study: the fingerprints of earlier runs stay valid
+        if d["human_model"] == "maxent":
+            d.pop("human_model")  # likewise for the paper's human model
         d["generator"] = GENERATOR  # results of an older simulator must not be resumed
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
+
+#: The human models a calibration can simulate and fit (:data:`pipelines.prepare.HUMAN_MODELS`).
+HUMAN_MODELS = ("maxent", "delayed")
+#: The negative controls each human model can run.
+NEGATIVE_CONTROLS = {"maxent": ("inertia", "ignore-uA"), "delayed": ("no-delay", "inertia")}
 
 #: Default designs. The study level is reduced (documented in the README): 6 subjects,
 #: 2-s windows, 2 chains × 200 draws ranked against L = 39, so that 200 replications fit
@@ -99,12 +117,14 @@ DEFAULTS = {
 #: Default negative control per level: the unit level must catch a 10 % inertia error, the
 #: study level a likelihood that gives the assistant's torque to the human.
 NEGATIVE_DEFAULT = {"unit": "inertia", "study": "ignore-uA"}
+#: The ``delayed`` model's default negative control: the delay ignored (fixed at 0).
+NEGATIVE_DEFAULT_DELAYED = "no-delay"
 
 
 def level_configs(level: str, *, seed: int = 2018, replications: int | None = None, batch_size: int | None = None,
                   n_subjects: int | None = None, seconds: float | None = None,
-                  negative_control: str | None = None,
-                  design: Design | None = None) -> list[tuple[str, CalibrationConfig]]:
+                  negative_control: str | None = None, design: Design | None = None,
+                  human_model: str = "maxent") -> list[tuple[str, CalibrationConfig]]:
     """The calibration of one level and, unless ``negative_control == "none"``, its negative control.
 
     Parameters
@@ -122,6 +142,9 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     design : Design, optional
         The experiment to calibrate (``scioc calibrate --experiment``); None or the
         paper's study gives the paper's configurations.
+    human_model : {"maxent", "delayed"}
+        ``delayed``: unit level only, default negative control ``no-delay``, folders
+        ``unit-delayed`` and ``unit-delayed-negative``.
 
     Returns
     -------
@@ -145,11 +168,14 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     dt = STUDY.dt if design is None else design.dt
     if seconds is not None:
         d["K"] = int(round(seconds / dt))
-    runs = [(level, None)]
-    nc = NEGATIVE_DEFAULT[level] if negative_control is None else negative_control
+    stem = level if human_model == "maxent" else f"{level}-{human_model}"
+    runs = [(stem, None)]
+    default_nc = NEGATIVE_DEFAULT[level] if human_model == "maxent" else NEGATIVE_DEFAULT_DELAYED
+    nc = default_nc if negative_control is None else negative_control
     if nc != "none":
-        runs.append((f"{level}-negative", nc))
-    return [(name, CalibrationConfig(level=level, seed=seed, negative_control=wrong, experiment=experiment, **d))
+        runs.append((f"{stem}-negative", nc))
+    return [(name, CalibrationConfig(level=level, seed=seed, negative_control=wrong, experiment=experiment,
+                                     human_model=human_model, **d))
             for name, wrong in runs]
 
 

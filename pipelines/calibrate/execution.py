@@ -40,9 +40,13 @@ def run_replication(config: CalibrationConfig, i: int) -> dict:
     # Lazy: the models import PyMC (seconds), which only the workers need.
     from pipelines.calibrate.study import study_replication
     from pipelines.calibrate.unit import unit_replication
+    from pipelines.calibrate.unit_delayed import unit_delayed_replication
 
     t0 = time.perf_counter()
-    replicate = unit_replication if config.level == "unit" else study_replication
+    if config.human_model == "delayed":
+        replicate = unit_delayed_replication
+    else:
+        replicate = unit_replication if config.level == "unit" else study_replication
     res = replicate(config, i, replication_seed(config.seed, i))
     res["index"] = i
     res["seconds"] = time.perf_counter() - t0

@@ -1,0 +1,143 @@
+"""Bayesian model of one unit of the ``delayed`` human: the per-unit posterior that unit-level SBC checks.
+
+The max-ent unit model (:mod:`models.bayes.unit_model`) with the lag and the motor noise
+of :mod:`models.delayed.likelihood`::
+
+    log θ1 ~ N(log 20, 0.75)      θ2 ~ HalfNormal(0.05)      log R ~ N(log 20, 0.5)
+    log τ_nm ~ N(log 0.06, 0.5)   τ_nm in s: 0.02-0.16 s (central 95 %)
+    σ_m ~ HalfNormal(0.3)         motor-noise SD, N·m per sample
+    d ~ uniform on the delay grid (0-300 ms, :func:`models.delayed.identify.delay_grid`)
+    u_H ~ delayed(θ, τ_nm, σ_m, d | x0, angle_ref, assistant, τ_0)
+
+θ is the cost of the commands. The cost priors are the max-ent unit's (R at 100 Hz,
+shifted by log(dt / 0.01) for another rate as :meth:`DelayedUnitPrior.for_design` does);
+τ_nm's covers the neuromuscular time constants of the manual-control literature
+(McRuer & Jex 1967, Kleinman, Baron & Levison 1970: about 0.1 s; a firm grip faster),
+σ_m's the motor noise of KBL's -25 dB (0.25 N·m per 10-ms sample on the study's torques,
+:mod:`models.humans`) with room on both sides.
+
+The delay is not sampled: the model conditions on a plug-in delay, the maximum of the
+profile likelihood (:func:`models.delayed.identify.identify_unit_delayed`), as the
+hierarchical model does (:mod:`models.bayes.delayed_model`). SBC of this model with the
+delay so chosen therefore checks the whole procedure the pipeline runs: a delay the
+profile gets wrong shows as miscalibrated ranks of the other parameters.
+
+The data, the delay and the arm torque at the window's start enter through ``pm.Data``
+containers (:data:`models.bayes.delayed_op.DELAYED_DATA_NAMES`), so one compiled model
+serves every data set of the same shape.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pymc as pm
+import pytensor.tensor as pt
+
+from models.bayes.delayed_op import DELAYED_DATA_NAMES, DelayedLoglikDataOp, pack_tau0
+from models.bayes.op import DATA_NAMES
+from models.cost import from_normalized
+from models.delayed.identify import delay_grid
+from models.design import Design, WheelParameters
+from models.plant import DiscretePlant
+from models.segment import SegmentBatch
+
+#: Names of the parameters SBC ranks.
+UNIT_DELAYED_PARAMETERS = ("theta1", "theta2", "R", "tau_nm", "sigma_m")
+
+
+@dataclass(frozen=True)
+class DelayedUnitPrior:
+    """Prior of one unit of the ``delayed`` human (module docstring), R at 100 Hz."""
+
+    log_theta1: tuple[float, float] = (float(np.log(20.0)), 0.75)
+    theta2_scale: float = 0.05
+    log_R: tuple[float, float] = (float(np.log(20.0)), 0.5)
+    log_tau_nm: tuple[float, float] = (float(np.log(0.06)), 0.5)
+    sigma_m_scale: float = 0.3
+    dt: float = 0.01
+
+    @classmethod
+    def for_design(cls, design: Design, **overrides) -> DelayedUnitPrior:
+        """The prior at ``design``'s sample time: log R's centre + log(dt / 0.01), the delay grid at dt."""
+        base = cls(**overrides)
+        centre, sd = base.log_R
+        return replace(base, log_R=(centre + math.log(design.r_scale), sd), dt=float(design.dt))
+
+    def delays(self) -> np.ndarray:
+        """The delay grid, samples."""
+        return delay_grid(self.dt)
+
+    def draw(self, rng: np.random.Generator) -> dict:
+        """One draw: ``theta1``, ``theta2``, ``R``, ``tau_nm``, ``sigma_m``, ``delay`` (samples) and ``theta``."""
+        t1 = float(np.exp(rng.normal(*self.log_theta1)))
+        t2 = float(abs(rng.normal(0.0, self.theta2_scale)))
+        R = float(np.exp(rng.normal(*self.log_R)))
+        tau = float(np.exp(rng.normal(*self.log_tau_nm)))
+        sig = float(abs(rng.normal(0.0, self.sigma_m_scale)))
+        grid = self.delays()
+        d = int(grid[rng.integers(grid.shape[0])])
+        return {"theta1": t1, "theta2": t2, "R": R, "tau_nm": tau, "sigma_m": sig, "delay": d,
+                "theta": from_normalized(t1, t2, R)}
+
+    def variance(self, name: str, rng: np.random.Generator, n: int = 20000) -> float:
+        """Prior variance of a parameter (by simulation), for posterior contraction."""
+        return float(np.var([self.draw(rng)[name] for _ in range(n)]))
+
+
+def unit_delayed_data(batch: SegmentBatch, delay, tau0=0.0) -> dict:
+    """The model's data containers for ``batch`` with the given delay(s) (samples) and τ_0 (fixed or warm-ups)."""
+    warm, start, tstart = pack_tau0(tau0, batch.n)
+    d = np.ascontiguousarray(np.broadcast_to(np.asarray(delay, dtype=np.int64), (batch.n,)))
+    return {**{name: getattr(batch, name) for name in DATA_NAMES}, "delay": d, "warm": warm, "warm_start": start,
+            "tau_start": tstart}
+
+
+def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: DelayedUnitPrior = DelayedUnitPrior(),
+                             *, delay=0, tau0=0.0, params: WheelParameters = WheelParameters()) -> pm.Model:
+    """PyMC model of one unit's segments (one θ, τ_nm, σ_m) under the ``delayed`` human, data in ``pm.Data``.
+
+    Parameters
+    ----------
+    batch : SegmentBatch
+        The unit's segments (n >= 1, equal K).
+    plant : DiscretePlant
+        The wheel the likelihood assumes.
+    prior : DelayedUnitPrior
+    delay : int or array_like (n,)
+        The delay the model conditions on, samples (a data container: ``with_data`` changes it).
+    tau0 : float, array_like (n,) or sequence of Warmup
+        The arm torque at each window's start, as :func:`models.bayes.delayed_op.pack_tau0` takes it.
+    params : WheelParameters
+        The wheel ``plant`` was discretized from.
+
+    Returns
+    -------
+    pymc.Model
+        Free variables ``log_theta1``, ``theta2``, ``log_R``, ``log_tau_nm``, ``sigma_m``;
+        deterministics ``theta1``, ``R``, ``tau_nm``; data of
+        :data:`models.bayes.delayed_op.DELAYED_DATA_NAMES`; the likelihood as a potential.
+    """
+    op = DelayedLoglikDataOp(plant, params)
+    values = unit_delayed_data(batch, delay, tau0)
+    n = batch.n
+    with pm.Model() as model:
+        data = [pm.Data(name, values[name]) for name in DELAYED_DATA_NAMES]
+        lt1 = pm.Normal("log_theta1", *prior.log_theta1)
+        t2 = pm.HalfNormal("theta2", prior.theta2_scale)
+        lR = pm.Normal("log_R", *prior.log_R)
+        ltau = pm.Normal("log_tau_nm", *prior.log_tau_nm)
+        sig = pm.HalfNormal("sigma_m", prior.sigma_m_scale)
+        pm.Deterministic("theta1", pt.exp(lt1))
+        R = pm.Deterministic("R", pt.exp(lR))
+        tau = pm.Deterministic("tau_nm", pt.exp(ltau))
+        ones = pt.ones(n)
+        theta = pt.stack([pt.exp(lt1 + lR) * ones, t2 * R * ones, R * ones])
+        ll, _ = op(theta, tau * ones, sig * ones, *data)
+        pm.Potential("loglik", ll.sum())
+    return model
+
+
+__all__ = ["UNIT_DELAYED_PARAMETERS", "DelayedUnitPrior", "build_unit_delayed_model", "unit_delayed_data"]

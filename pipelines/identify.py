@@ -14,6 +14,15 @@ With several trials per subject × condition (the ``trial`` column), the trials 
 share one θ: the likelihood maximized is their sum (Eq. 17 with d > 1), and the unit gets
 one estimate (with a ``trials`` column).
 
+The human model (``settings.human_model``, column ``human_model``): ``maxent``, the paper's
+(:func:`models.identify.identify_unit`), or ``delayed`` (:func:`models.delayed.identify_unit_delayed`:
+θ of the command cost, the neuromuscular lag τ_nm, the motor noise σ_m and the perceptual
+delay profiled over :data:`models.delayed.DELAY_GRID_S`; columns ``delay_s``, ``tau_nm``,
+``sigma_m``, ``se_tau_nm``, ``se_sigma_m`` and ``profile_loglik``, the profile
+log-likelihood at each delay of the grid; each window's arm torque at its start from the
+torques before it, :func:`pipelines.prepare.prepare_segment`). The adequacy bootstrap then
+draws from the fitted delayed model. ``identify.json`` records the model and the grid.
+
 Artifacts in ``--out DIR``: ``estimates.parquet`` (one row per subject × condition),
 ``trajectories.parquet`` (window samples: measured, reconstructed and predicted),
 ``validation.parquet`` (cross-prediction RMSE) and ``identify.json`` (settings, timings,
@@ -31,6 +40,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
+from models.delayed import DELAY_GRID_S, delay_grid, identify_unit_delayed, lag_coefficients, window_tau0
 from models.identify import PLAUSIBLE_THETA1, identify_unit
 from models.maxent import forward_optimal_control
 from models.plant import discretize
@@ -39,6 +49,7 @@ from pipelines.adequacy import assess_study, format_adequacy, not_checked
 from pipelines.experiment import sidecar
 from pipelines.io import Study, load_study
 from pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
+from pipelines.progress import progress
 from pipelines.provenance import versions
 from pipelines.storage import check_output_dir, refuse_inputs_inside, staged_dir, write_table_atomic, write_text_atomic
 
@@ -74,18 +85,20 @@ def identify_study(study: Study, settings: IdentifySettings = IdentifySettings()
     Prepares the study (:func:`pipelines.prepare.prepare_study`) and runs
     :func:`identify_prepared` on it.
     """
-    return identify_prepared(prepare_study(study, settings, show_progress=show_progress))
+    return identify_prepared(prepare_study(study, settings, show_progress=show_progress), show_progress=show_progress)
 
 
-def identify_prepared(study: PreparedStudy) -> Identification:
-    """:func:`identify_study` on a study already prepared (with ``study.settings``)."""
+def identify_prepared(study: PreparedStudy, *, show_progress: bool = False) -> Identification:
+    """:func:`identify_study` on a study already prepared (with ``study.settings``); a progress bar over the units
+    of the ``delayed`` human model (about a second each) with ``show_progress``."""
     settings, prepared = study.settings, study.segments
     plant = discretize(settings.design.dt, settings.design.wheel)
     units = study.units
     trials = any(p.data.trial is not None for p in prepared)
+    delayed = settings.human_model == "delayed"
     t0 = time.perf_counter()
-    estimates = {u: identify_unit([prepare_batch(plant, [prepared[i].segment]) for i in idx], plant)
-                 for u, idx in units.items()}
+    estimates = {u: _identify_unit(prepared, units[u], plant, settings)
+                 for u in progress(units, desc="identify", enabled=show_progress and delayed)}
     t_opt = time.perf_counter() - t0
 
     rows = []
@@ -107,6 +120,10 @@ def identify_prepared(study: PreparedStudy) -> Identification:
             "se_log_theta1": e.se_log_theta1,
             "se_theta2": e.se_theta2,
             "se_log_R": e.se_log_R,
+            **({"delay_s": e.delay_s, "tau_nm": e.tau_nm, "sigma_m": e.sigma_m, "se_tau_nm": e.se_tau_nm,
+                "se_sigma_m": e.se_sigma_m, "lag_at_bound": e.lag_at_bound,
+                "profile_loglik": [float(v) for v in e.profile]} if delayed else {}),
+            "human_model": settings.human_model,
             "loglik": e.loglik,
             "converged": e.converged,
             "implausible": e.implausible,
@@ -120,8 +137,9 @@ def identify_prepared(study: PreparedStudy) -> Identification:
     est = pd.DataFrame(rows)
     t0 = time.perf_counter()
     if settings.adequacy_boot > 0:
-        thetas = [estimates[(p.data.subject, p.data.condition)].theta for p in prepared]
-        cols, adequacy = assess_study(prepared, thetas, plant, settings)
+        fitted = [estimates[(p.data.subject, p.data.condition)] for p in prepared]
+        extra = _delayed_parameters(prepared, fitted, plant, settings) if delayed else None
+        cols, adequacy = assess_study(prepared, [e.theta for e in fitted], plant, settings, delayed=extra)
         est = pd.concat([est, cols], axis=1)
     else:
         adequacy = not_checked("switched off (adequacy bootstrap size 0)")
@@ -129,6 +147,26 @@ def identify_prepared(study: PreparedStudy) -> Identification:
     traj, val = _cross_predict(prepared, est, plant, settings.design.levels)
     timing = {"reconstruct_s": study.seconds, "optimize_s": t_opt, "adequacy_s": t_adq, "segments": len(prepared)}
     return Identification(est, traj, val, timing, adequacy)
+
+
+def _identify_unit(prepared, idx, plant, settings):
+    """The estimate of one unit (its segments ``idx``) under the settings' human model."""
+    batches = [prepare_batch(plant, [prepared[i].segment]) for i in idx]
+    if settings.human_model == "delayed":
+        return identify_unit_delayed(batches, plant, params=settings.design.wheel,
+                                     tau0=[[prepared[i].warmup] for i in idx])
+    return identify_unit(batches, plant)
+
+
+def _delayed_parameters(prepared, fitted, plant, settings) -> dict:
+    """Per segment, the fitted delayed human's τ_nm, σ_m, delay and arm torque at the window's start
+    (:func:`pipelines.adequacy.assess_study`'s ``delayed``)."""
+    tau0 = np.empty(len(prepared))
+    for i, (p, e) in enumerate(zip(prepared, fitted)):
+        lag = lag_coefficients(e.tau_nm, plant.dt, settings.design.wheel)
+        tau0[i] = window_tau0([p.warmup], lag.a, lag.alpha)[0][0]
+    return {"tau_nm": np.array([e.tau_nm for e in fitted]), "sigma_m": np.array([e.sigma_m for e in fitted]),
+            "delay": np.array([e.delay for e in fitted], dtype=np.int64), "tau0": tau0}
 
 
 def _cross_predict(prepared, est: pd.DataFrame, plant, levels):
@@ -190,7 +228,8 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         prepared = prepare_study(load_study(study_path, settings.design), settings, show_progress=show_progress)
     elif prepared.settings != settings:
         raise ValueError("the prepared study was cut with other settings than these")
-    est, traj, val, timing, adequacy = identify_prepared(prepared)
+    est, traj, val, timing, adequacy = identify_prepared(prepared, show_progress=show_progress)
+    delayed = settings.human_model == "delayed"
     out = Path(out)
     meta = {
         "study": str(study_path),
@@ -202,9 +241,14 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         "segments": int(len(est)),
         "not_converged": [{"subject": r.subject, "condition": r.condition, "message": r.message}
                           for r in est.itertuples() if not r.converged],
-        "implausible": [{"subject": r.subject, "condition": r.condition, "theta1": r.theta1}
+        "implausible": [{"subject": r.subject, "condition": r.condition, "theta1": r.theta1,
+                         **({"tau_nm": r.tau_nm, "lag_at_bound": r.lag_at_bound} if delayed else {})}
                         for r in est.itertuples() if r.implausible],
         "adequacy": adequacy,
+        "human_model": settings.human_model,
+        # the delays of estimates.parquet's profile_loglik
+        "delay_grid": {"seconds": list(DELAY_GRID_S),
+                       "samples": [int(d) for d in delay_grid(settings.design.dt)]} if delayed else None,
         **sidecar(settings.design, experiment_file),
         "versions": versions(),
     }
@@ -221,10 +265,15 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
 def format_identify(out) -> str:
     """The console summary of an identify folder: convergence, the segments that did not converge, adequacy."""
     meta = json.loads((Path(out) / "identify.json").read_text())
-    lines = [f"identified {meta['segments']} segments; {meta['converged']} converged"]
+    lines = [f"identified {meta['segments']} segments; {meta['converged']} converged"
+             + (f" (human model: {meta['human_model']})" if meta.get("human_model", "maxent") != "maxent" else "")]
     for r in meta.get("not_converged", []):
         lines.append(f"  NOT CONVERGED: {r['subject']} {r['condition']}: {r['message']}")
     for r in meta.get("implausible", []):
+        if r.get("lag_at_bound"):
+            lines.append(f"  AT THE EDGE OF THE SEARCH: {r['subject']} {r['condition']}: tau_nm = {r['tau_nm']:g} s, its "
+                         "bound (a torque smoother than any lag explains: reconstructed from encoder angles?)")
+            continue
         lines.append(f"  AT THE EDGE OF THE SEARCH: {r['subject']} {r['condition']}: theta1 = {r['theta1']:.3g} 1/rad² "
                      f"(outside {PLAUSIBLE_THETA1[0]:g}..{PLAUSIBLE_THETA1[1]:g}: angles in degrees? no information?)")
     lines.append(format_adequacy(meta["adequacy"]))

@@ -1,13 +1,20 @@
-"""``scioc loglik``: the max-ent log-likelihood of every segment of a study file under one θ.
+"""``scioc loglik``: the log-likelihood of every segment of a study file under one θ.
 
 Each trial is evaluated whole, with the plan ending where the trial ends, unless the
 experiment file's ``[analysis]`` sets a window or a preview; then the segments are cut
 as ``scioc identify`` cuts them. The file must hold the human torque ``u_H`` (measured,
 or reconstructed beforehand); a missing ``velocity`` follows from the plant
 (:mod:`pipelines.prepare`).
+
+The human model is the paper's max-ent human (:func:`models.maxent.loglik_segments`) or
+the ``delayed`` human with a perceptual delay, a neuromuscular lag and motor noise
+(:func:`models.delayed.loglik_grad`), whose arm torque at a window's start follows from
+the measured torques before it (at rest at a trial's start).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -15,11 +22,15 @@ import pandas as pd
 import tomllib
 
 from models.cost import validate_theta
+from models.delayed import DELAY_GRID_S, lag_coefficients, window_tau0
+from models.delayed import loglik_grad as delayed_loglik_grad
+from models.delayed.search import TAU_NM_MAX
 from models.design import STUDY, Design
 from models.maxent import loglik_segments
 from models.plant import discretize
+from models.segment import prepare_batch
 from pipelines.io import StudyFileError, load_study
-from pipelines.prepare import IdentifySettings, prepare_study
+from pipelines.prepare import IdentifySettings, check_human_model, prepare_study
 
 
 class NonFiniteLoglik(ArithmeticError):
@@ -41,6 +52,55 @@ def parse_theta(text: str) -> np.ndarray:
     return validate_theta(values, name="--theta")
 
 
+class DelayedHuman(NamedTuple):
+    """The ``delayed`` human's parameters besides θ.
+
+    Attributes
+    ----------
+    delay : int
+        Perceptual delay, samples.
+    tau_nm : float
+        Neuromuscular time constant, s.
+    sigma_m : float
+        Motor-noise SD per sample, N·m.
+    """
+
+    delay: int
+    tau_nm: float
+    sigma_m: float
+
+
+def delayed_human(human_model: str, dt: float, delay_s=None, tau_nm=None, sigma_m=None) -> DelayedHuman | None:
+    """Check the human model and its parameters (ValueError naming the option); None for ``maxent``.
+
+    ``delay_s`` must be a whole number of samples of ``dt`` within the identification's
+    grid (0 to :data:`models.delayed.DELAY_GRID_S`'s last, 0.3 s), ``tau_nm`` within
+    [0, :data:`models.delayed.search.TAU_NM_MAX`] s and ``sigma_m`` finite and >= 0.
+    """
+    check_human_model(human_model)
+    given = [v is not None for v in (delay_s, tau_nm, sigma_m)]
+    if human_model == "maxent":
+        if any(given):
+            raise ValueError("--delay-s, --tau-nm and --sigma-m apply to --human-model delayed")
+        return None
+    if not all(given):
+        raise ValueError("--human-model delayed needs --delay-s, --tau-nm and --sigma-m")
+    delay_s, tau_nm, sigma_m = float(delay_s), float(tau_nm), float(sigma_m)
+    top = DELAY_GRID_S[-1]
+    if not (np.isfinite(delay_s) and 0.0 <= delay_s <= top + 1e-12):
+        raise ValueError(f"--delay-s must be between 0 and {top:g} s (the identification's delay grid); "
+                         f"got {delay_s:g}")
+    d = delay_s / dt
+    if abs(d - round(d)) > 1e-6:
+        raise ValueError(f"--delay-s must be a whole number of samples of {dt:g} s; got {delay_s:g} s "
+                         f"({d:g} samples)")
+    if not (np.isfinite(tau_nm) and 0.0 <= tau_nm <= TAU_NM_MAX):
+        raise ValueError(f"--tau-nm must be between 0 and {TAU_NM_MAX:g} s; got {tau_nm:g}")
+    if not (np.isfinite(sigma_m) and sigma_m >= 0.0):
+        raise ValueError(f"--sigma-m must be a finite number of N·m >= 0; got {sigma_m:g}")
+    return DelayedHuman(int(round(d)), tau_nm, sigma_m)
+
+
 def sets_analysis(experiment_file) -> bool:
     """Whether the experiment file sets a window, ``whole`` or a preview in its ``[analysis]`` table."""
     if experiment_file is None:
@@ -50,7 +110,8 @@ def sets_analysis(experiment_file) -> bool:
 
 
 def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Design = STUDY,
-                 experiment_file=None) -> pd.DataFrame:
+                 experiment_file=None, human_model: str = "maxent", delay_s=None, tau_nm=None,
+                 sigma_m=None) -> pd.DataFrame:
     """Log-likelihood (nats) of each segment of a study file.
 
     Parameters
@@ -66,6 +127,11 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
     experiment_file : str, optional
         The file ``design`` came from; if its ``[analysis]`` sets a window or preview,
         the segments are cut that way, else each trial is evaluated whole without preview.
+    human_model : {"maxent", "delayed"}
+    delay_s, tau_nm, sigma_m : float, optional
+        The ``delayed`` human's delay (s, whole samples), lag (s) and motor noise (N·m per
+        sample), all three required for it and refused for ``maxent``
+        (:func:`delayed_human`). θ is then its command cost.
 
     Returns
     -------
@@ -77,8 +143,11 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
     ------
     NonFiniteLoglik
         If any segment's log-likelihood is not finite, naming the first such segment.
+    ValueError
+        If the human model or its parameters are not valid.
     """
     th = validate_theta(theta)
+    human = delayed_human(human_model, design.dt, delay_s, tau_nm, sigma_m)
     study = load_study(path, design)
     for s in study.segments:
         if s.u_H is None:
@@ -90,14 +159,18 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
         settings = IdentifySettings(window_start=None, window_seconds=None, preview=0.0,
                                     assistant_model=assistant_model, adequacy_boot=0, design=design)
     prepared = prepare_study(study, settings)
-    res = loglik_segments(th, [p.segment for p in prepared.segments], discretize(design.dt, design.wheel))
-    bad = ~np.isfinite(res.loglik)
+    plant = discretize(design.dt, design.wheel)
+    if human is None:
+        ll = loglik_segments(th, [p.segment for p in prepared.segments], plant).loglik
+    else:
+        ll = _delayed_loglik(th, prepared.segments, plant, human, design)
+    bad = ~np.isfinite(ll)
     if bad.any():
         seg = study.segments[int(np.flatnonzero(bad)[0])]
         raise NonFiniteLoglik(
             f"{study.path}: the log-likelihood of {int(bad.sum())} of {bad.size} segments is not finite under "
             f"θ = [{', '.join(f'{v:g}' for v in th)}] (first: segment {seg.label}, "
-            f"{res.loglik[bad][0]:g}); θ is beyond what double precision can evaluate for these data")
+            f"{ll[bad][0]:g}); θ is beyond what double precision can evaluate for these data")
     trial = any(s.trial is not None for s in study.segments)
     return pd.DataFrame(
         {
@@ -105,6 +178,21 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
             "condition": [s.condition for s in study.segments],
             **({"trial": [s.trial for s in study.segments]} if trial else {}),
             "K": [p.segment.K for p in prepared.segments],
-            "loglik": res.loglik,
+            "loglik": ll,
         }
     )
+
+
+def _delayed_loglik(theta, prepared, plant, human: DelayedHuman, design: Design) -> np.ndarray:
+    """The delayed human's log-likelihood of each prepared segment (batched by length)."""
+    lag = lag_coefficients(human.tau_nm, plant.dt, design.wheel)
+    tau0, _ = window_tau0([p.warmup for p in prepared], lag.a, lag.alpha)
+    ll = np.empty(len(prepared))
+    by_len: dict = {}
+    for i, p in enumerate(prepared):
+        by_len.setdefault((p.segment.K, p.segment.u_A.shape[0]), []).append(i)
+    for idx in by_len.values():
+        batch = prepare_batch(plant, [prepared[i].segment for i in idx])
+        ll[idx] = delayed_loglik_grad(theta, batch, plant, tau_nm=human.tau_nm, sigma_m=human.sigma_m,
+                                      delay=human.delay, tau0=tau0[idx], params=design.wheel).loglik
+    return ll

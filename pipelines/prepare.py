@@ -21,6 +21,11 @@ reacts to the human's own torque noise, which the exogenous model lets the human
 anticipate; on the simulated study, from the true torques, it puts log θ1 in SC about
 0.55 too low (measured in the report's ground-truth section).
 
+The ``delayed`` human (``human_model``, :mod:`models.delayed`) has an arm torque that
+lags its commands; at a window's start it follows from the torques before the window, so
+each prepared segment keeps them (:class:`models.delayed.lag.Warmup`; see
+:func:`_warmup` for which segments have them and from where).
+
 :func:`prepare_study` does this once per study; ``scioc run`` passes its result to both
 the identification and the Bayesian fit.
 """
@@ -35,6 +40,7 @@ import numpy as np
 
 from models.adequacy import N_BOOT
 from models.assistant import MPCAssistant, build_assistant, human_feedback
+from models.delayed.lag import Warmup
 from models.design import CONDITIONS, PREVIEW_SECONDS, STUDY, WINDOW_SECONDS, WINDOW_START, Design
 from models.plant import discretize, propagate
 from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, initial_state, reconstruct
@@ -45,6 +51,9 @@ from pipelines.progress import progress
 
 #: How the human on an assisted level may model the assistant (see the module docstring).
 ASSISTANT_MODELS = ("feedback", "exogenous")
+#: The human models (README "The model"): the paper's max-ent agent, and the ``delayed``
+#: human with perceptual delay, neuromuscular lag and motor noise (:mod:`models.delayed`).
+HUMAN_MODELS = ("maxent", "delayed")
 #: Measurement resolution the reconstruction assumes for an angle that is not quantized
 #: (``encoder.counts_per_rev = 0``), rad: a sensor's noise floor, far below any encoder's step.
 UNQUANTIZED_RESOLUTION = 1e-6
@@ -60,6 +69,12 @@ def check_assistant_model(name: str) -> None:
     """Raise ValueError unless ``name`` is one of :data:`ASSISTANT_MODELS`."""
     if name not in ASSISTANT_MODELS:
         raise ValueError(f"assistant model must be one of {ASSISTANT_MODELS}; got {name!r}")
+
+
+def check_human_model(name: str) -> None:
+    """Raise ValueError unless ``name`` is one of :data:`HUMAN_MODELS`."""
+    if name not in HUMAN_MODELS:
+        raise ValueError(f"human model must be one of {HUMAN_MODELS}; got {name!r}")
 
 
 @dataclass(frozen=True)
@@ -89,6 +104,9 @@ class IdentifySettings:
         "not checked").
     adequacy_seed : int
         Root seed of the adequacy bootstrap.
+    human_model : str
+        ``maxent`` (the paper's human; default) or ``delayed`` (perceptual delay,
+        neuromuscular lag and motor noise; :data:`HUMAN_MODELS`).
     design : Design
         The experiment: sample time, wheel, levels and their assistants
         (:data:`models.design.STUDY` without an experiment file). :meth:`for_design`
@@ -104,6 +122,7 @@ class IdentifySettings:
     assistant_model: str = "feedback"
     adequacy_boot: int = N_BOOT
     adequacy_seed: int = 2018
+    human_model: str = "maxent"
     design: Design = STUDY
 
     @classmethod
@@ -133,6 +152,7 @@ class IdentifySettings:
         if self.reconstruct not in ("auto", "always"):
             raise ValueError(f"reconstruct must be 'auto' or 'always'; got {self.reconstruct!r}")
         check_assistant_model(self.assistant_model)
+        check_human_model(self.human_model)
         if int(self.adequacy_boot) != self.adequacy_boot or self.adequacy_boot < 0:
             raise ValueError(f"adequacy bootstrap size must be an integer >= 0; got {self.adequacy_boot!r}")
         if int(self.adequacy_seed) != self.adequacy_seed or self.adequacy_seed < 0:
@@ -214,6 +234,7 @@ class PreparedSegment:
     span: slice  # rows of the segment the reconstruction saw (the window rows without reconstruction)
     span_state0: np.ndarray  # (2,) angle (rad) and velocity (rad/s) used at the span's first row
     smoother: FixedReconstruction | None  # the reconstruction's linear smoother over the span (None: measured)
+    warmup: Warmup | None = None  # the torques before the window, for the lagged human's arm torque (_warmup)
 
 
 def _window_rows(seg: SegmentData, settings: IdentifySettings, path) -> slice:
@@ -276,7 +297,26 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
     except ValueError as exc:
         raise StudyFileError(path, f"segment {seg.label}: {exc}", column="u_A", row=seg.first_row) from None
     check_assistant_law(seg, segment, angle, velocity, path)
-    return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q, span, state0, smoother)
+    before = rec.u_H[: i0 - j0] if need else seg.u_H[:i0]
+    return PreparedSegment(seg, rows, segment, velocity, u_H, angle, need, sigma_eps, q, span, state0, smoother,
+                           _warmup(before, from_start=not need or j0 == 0))
+
+
+def _warmup(before, from_start: bool) -> Warmup | None:
+    """The torques before a window, from which the ``delayed`` human's arm torque at its start follows.
+
+    A window at the start of its recording (whole trials) starts at rest: None (τ_0 = 0).
+    Measured torques run from the recording's start, where the arm is at rest (τ = 0). A
+    reconstructed torque exists only over the reconstruction's margin before the window;
+    the arm torque at the margin's start is then taken as that first torque (a held
+    torque passes the lag unchanged), and its error decays through the arm-torque
+    recursion by |p| per sample (:mod:`models.delayed.lag`: below 3e-3 after the default
+    1-s margin for τ_nm <= 0.1 s, and the residual ``u - τ`` it starts from is itself
+    small where the lag is slow).
+    """
+    if before is None or before.shape[0] == 0:
+        return None
+    return Warmup(np.ascontiguousarray(before, dtype=float), 0.0 if from_start else float(before[0]))
 
 
 @dataclass(frozen=True)

@@ -121,7 +121,12 @@ class DelayedEstimate(NamedTuple):
         Norm of the projected gradient in z per torque sample at the solution.
     message : str
     implausible : bool
-        θ1 outside :data:`models.identify.PLAUSIBLE_THETA1`.
+        θ1 outside :data:`models.identify.PLAUSIBLE_THETA1`, or ``lag_at_bound``: the estimate
+        is at the edge of the search, not a measurement.
+    lag_at_bound : bool
+        τ_nm on its upper bound :data:`models.delayed.search.TAU_NM_MAX`: the likelihood still
+        rose with τ_nm there, as it does for a torque smoother than the human's (one
+        reconstructed from encoder angles: a smoothed torque looks like a slow lag).
     """
 
     theta: np.ndarray
@@ -145,6 +150,7 @@ class DelayedEstimate(NamedTuple):
     grad_norm: float
     message: str
     implausible: bool
+    lag_at_bound: bool
 
 
 def _check_warmups(tau0, batches) -> list:
@@ -262,7 +268,8 @@ def _identify(batches, warmups, grid, plant, params, maxiter) -> DelayedEstimate
         profile=profile, profile_converged=np.array([f.converged for f in fits]),
         converged=fits[best].converged, iterations=sum(f.iterations for f in fits),
         grad_norm=float(np.linalg.norm(projected(g, z, d)) / unit.K), message=fits[best].message,
-        implausible=not (PLAUSIBLE_THETA1[0] <= theta1 <= PLAUSIBLE_THETA1[1]),
+        implausible=bool(high[3]) or not (PLAUSIBLE_THETA1[0] <= theta1 <= PLAUSIBLE_THETA1[1]),
+        lag_at_bound=bool(high[3]),
     )
 
 

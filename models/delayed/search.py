@@ -2,7 +2,8 @@
 
 A unit's parameters at delay d, in the optimizer's coordinates::
 
-    z = (log θ1, θ2 >= 0, w = R_0 / R >= 1/R_SPAN, τ_nm in [0, TAU_NM_MAX], σ_m >= 0)
+    z = (log θ1 in LOG_THETA1_RANGE, θ2 >= 0, w = R_0 / R in [1/R_SPAN, R_SPAN], τ_nm in [0, TAU_NM_MAX],
+         σ_m >= 0)
 
 with R_0 the max-ent estimate's R (:mod:`models.delayed.identify` says why w and not
 log R). σ_m is held at 0 for d = 0. The objective handed to L-BFGS-B is minus the
@@ -20,7 +21,7 @@ from models.cost import from_normalized
 from models.delayed.lag import lag_coefficients, window_tau0
 from models.delayed.likelihood import loglik_grad
 from models.design import WheelParameters
-from models.identify import BOUND_TOL
+from models.identify import BOUND_TOL, PLAUSIBLE_THETA1
 from models.plant import DiscretePlant
 
 #: Largest τ_nm searched, s (McRuer & Jex: about 0.1 s; 10 times that is no longer a neuromuscular lag).
@@ -29,9 +30,14 @@ TAU_NM_MAX = 1.0
 Z_SCALE = np.array([1.0, 1.0, 1.0, 0.1, 0.1])
 #: τ_nm (s) or σ_m (N·m) below this counts as on its bound 0.
 LAG_NOISE_TOL = 1e-6
-#: R is searched up to this multiple of the max-ent estimate's R (w >= 1/R_SPAN): the policy
-#: noise then has 1/1000 of the SD it has in the max-ent fit. A bound like θ2 = 0.
+#: R is searched within this factor of the max-ent estimate's R (1/R_SPAN <= w <= R_SPAN). Up: the
+#: policy noise then has 1/1000 of the SD it has in the max-ent fit, a bound like θ2 = 0. Down:
+#: only against overflow.
 R_SPAN = 1e6
+#: log θ1 is searched within a decade beyond :data:`models.identify.PLAUSIBLE_THETA1` (an estimate
+#: outside that is flagged implausible anyway); without a bound a likelihood that rises without
+#: end, as on a torque smoother than any lag explains, drives θ1 to overflow.
+LOG_THETA1_RANGE = (float(np.log(PLAUSIBLE_THETA1[0] / 10.0)), float(np.log(PLAUSIBLE_THETA1[1] * 10.0)))
 #: A search counts as converged where the largest projected gradient component in the
 #: optimizer's units, per torque sample, is at most this (L-BFGS-B's line search can stop
 #: on rounding just short of its own tolerance).
@@ -81,16 +87,18 @@ def loglik_grad_z(z, d: int, unit: SearchUnit):
 
 def limits(d: int) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper bounds of z (unscaled); σ_m is held at 0 for d = 0 (module docstring)."""
-    lo = np.array([-np.inf, 0.0, 1.0 / R_SPAN, 0.0, 0.0])
-    hi = np.array([np.inf, np.inf, np.inf, TAU_NM_MAX, 0.0 if d == 0 else np.inf])
+    lo = np.array([LOG_THETA1_RANGE[0], 0.0, 1.0 / R_SPAN, 0.0, 0.0])
+    hi = np.array([LOG_THETA1_RANGE[1], np.inf, R_SPAN, TAU_NM_MAX, 0.0 if d == 0 else np.inf])
     return lo, hi
 
 
 def at_bound(z, d: int) -> tuple[np.ndarray, np.ndarray]:
     """Which coordinates sit on their lower and on their upper bound."""
     lo, hi = limits(d)
-    tol = np.array([0.0, BOUND_TOL, 1e-6 / R_SPAN, LAG_NOISE_TOL, LAG_NOISE_TOL])
-    return z <= lo + tol, (z >= hi - tol) & np.isfinite(hi)
+    tol = np.array([1e-9, BOUND_TOL, 1e-6 / R_SPAN, LAG_NOISE_TOL, LAG_NOISE_TOL])
+    finite = np.isfinite(hi)
+    top = np.where(finite, hi, 0.0)
+    return z <= lo + tol, finite & (z >= top - np.maximum(tol, 1e-9 * np.abs(top)))
 
 
 def projected(g, z, d: int) -> np.ndarray:
@@ -167,6 +175,6 @@ def observed_information(z, d: int, unit: SearchUnit, free) -> np.ndarray:
     return 0.5 * (H + H.T)
 
 
-__all__ = ["CONVERGED_GTOL", "LAG_NOISE_TOL", "R_SPAN", "SADDLE_PROBE", "SearchResult", "SearchUnit", "TAU_NM_MAX",
+__all__ = ["CONVERGED_GTOL", "LAG_NOISE_TOL", "LOG_THETA1_RANGE", "R_SPAN", "SADDLE_PROBE", "SearchResult", "SearchUnit", "TAU_NM_MAX",
            "Z_SCALE", "at_bound", "limits", "loglik_grad_z", "maximize", "observed_information", "projected",
            "theta_from_z"]

@@ -20,7 +20,9 @@ def cmd_loglik(args) -> int:
     theta = parse_theta(args.theta)
     design, source = find_experiment(args.study, args.experiment)
     try:
-        table = study_loglik(args.study, theta, args.assistant_model, design=design, experiment_file=source)
+        table = study_loglik(args.study, theta, args.assistant_model, design=design, experiment_file=source,
+                             human_model=args.human_model, delay_s=args.delay_s, tau_nm=args.tau_nm,
+                             sigma_m=args.sigma_m)
     except NonFiniteLoglik as exc:
         print(f"scioc loglik: error: {exc}", file=sys.stderr)
         return 1
@@ -133,6 +135,7 @@ def cmd_identify(args) -> int:
     from pipelines.identify import format_identify, identify_to_dir
 
     settings, source = window_settings(args)
+    settings = dataclasses.replace(settings, human_model=args.human_model)
     paths = identify_to_dir(args.study, args.out, settings, force=args.force, experiment_file=source)
     print(format_identify(args.out))
     for k, v in paths.items():

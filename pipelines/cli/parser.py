@@ -40,6 +40,7 @@ _seconds = _number(float, lambda v: math.isfinite(v) and v > 0, "a finite number
 _nonnegative_seconds = _number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number of seconds >= 0")
 _level = _number(float, lambda v: 0 < v < 1, "a significance level between 0 and 1")
 _finite_float = _number(float, math.isfinite, "a finite number")
+_nonnegative_float = _number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0")
 
 
 def _window_spec(text: str) -> str:
@@ -68,6 +69,19 @@ def _add_assistant_model_option(p):
     p.add_argument("--assistant-model", choices=("feedback", "exogenous"), default="feedback",
                    help="in SC the human plans with the assistant's feedback law (default) or takes the recorded "
                    "u_A as a known input sequence (exogenous: the paper's Eq. 15-16)")
+
+
+# The names of pipelines.prepare.HUMAN_MODELS, spelled out so parsing imports no model code (a test holds them
+# equal), and the last delay of models.delayed.DELAY_GRID_S, s.
+HUMAN_MODEL_NAMES = ("maxent", "delayed")
+MAX_DELAY_S = 0.3
+
+
+def _add_human_model_option(p):
+    """``--human-model``: the model of the human whose data are analysed (shared by the commands that take it)."""
+    p.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent",
+                   help="the human model: maxent (the paper's max-ent LQ human, default) or delayed (with a "
+                        "perceptual delay, a neuromuscular lag and motor noise; README 'The model')")
 
 
 def _add_experiment_option(p):
@@ -124,10 +138,17 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("loglik", help="max-ent log-likelihood of every segment of a study file under one θ")
+    p = sub.add_parser("loglik", help="log-likelihood of every segment of a study file under one θ")
     p.add_argument("study", help="study file (Parquet or CSV) in the data convention")
     p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
     _add_assistant_model_option(p)
+    _add_human_model_option(p)
+    p.add_argument("--delay-s", type=_nonnegative_seconds, default=None, metavar="S",
+                   help=f"delayed human: perceptual delay, s, a whole number of samples up to {MAX_DELAY_S:g}")
+    p.add_argument("--tau-nm", type=_nonnegative_seconds, default=None, metavar="T",
+                   help="delayed human: neuromuscular time constant, s (0 to 1)")
+    p.add_argument("--sigma-m", type=_nonnegative_float, default=None, metavar="M",
+                   help="delayed human: motor-noise SD per sample, N·m")
     _add_experiment_option(p)
     p.add_argument("--format", choices=("table", "json"), default="table", help="output format (default table)")
     p.set_defaults(func=commands.cmd_loglik)
@@ -150,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("study", help="study file in the data convention")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (estimates, trajectories, identify.json)")
     _add_window_options(p)
+    _add_human_model_option(p)
     _add_force_option(p)
     p.set_defaults(func=commands.cmd_identify)
 

@@ -1,0 +1,180 @@
+"""``scioc identify`` and ``scioc loglik`` with ``--human-model delayed``: the warm-up of each window, the estimates'
+columns and sidecar, agreement with the model functions called by hand, and the command line's errors."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from models.delayed import DELAY_GRID_S, Warmup, identify_unit_delayed, lag_coefficients, loglik_grad, window_tau0
+from models.design import STUDY
+from models.plant import discretize
+from models.segment import prepare_batch
+from pipelines.cli import main
+from pipelines.cli.parser import HUMAN_MODEL_NAMES, MAX_DELAY_S
+from pipelines.identify import identify_to_dir
+from pipelines.io import load_study
+from pipelines.prepare import HUMAN_MODELS, IdentifySettings, prepare_study
+from pipelines.simulate import simulate_to_dir
+
+SENSOR = dataclasses.replace(STUDY, torque_sensor=True)
+#: 12 s into 30-s runs: windows that start inside a run, as the paper's 210-225 s of 240 s do.
+WINDOW = dict(window_start=12.0, window_seconds=10.0)
+
+
+@pytest.fixture(scope="module")
+def combined(tmp_path_factory):
+    """Two subjects of the ``combined`` human (delay, lag, motor noise), 30-s runs, with a torque sensor."""
+    root = tmp_path_factory.mktemp("delayed")
+    return simulate_to_dir(root / "data", n_subjects=2, seed=4, seconds=30.0, human="combined", design=SENSOR)
+
+
+def settings(human_model="delayed", **kw):
+    return IdentifySettings.for_design(SENSOR, human_model=human_model, adequacy_boot=kw.pop("adequacy_boot", 0),
+                                       **{**WINDOW, **kw})
+
+
+def test_the_names_the_parser_spells_are_the_pipelines():
+    assert HUMAN_MODEL_NAMES == HUMAN_MODELS
+    assert MAX_DELAY_S == DELAY_GRID_S[-1]
+
+
+def test_a_window_inside_a_run_keeps_the_torques_before_it(combined):
+    study = load_study(combined["study"], SENSOR)
+    measured = prepare_study(study, settings())
+    for p in measured.segments:
+        i0 = p.rows.start
+        assert i0 == 1200 and p.warmup.tau_start == 0.0  # measured from the recording's start, at rest
+        np.testing.assert_array_equal(p.warmup.u, p.data.u_H[:i0])
+    whole = prepare_study(study, settings(window_start=None, window_seconds=None))
+    assert all(p.warmup is None for p in whole.segments)  # a whole trial starts at rest
+    rec = prepare_study(study, settings(reconstruct="always"))
+    for p in rec.segments:  # reconstructed: only over the margin, from its first torque
+        assert p.warmup.u.shape == (100,) and p.warmup.tau_start == p.warmup.u[0] != 0.0
+
+
+def test_identify_delayed_writes_its_columns_and_sidecar(combined, tmp_path):
+    paths = identify_to_dir(combined["study"], tmp_path / "id", settings(), show_progress=False)
+    est = pd.read_parquet(paths["estimates"])
+    meta = json.loads(open(paths["meta"]).read())
+    assert set(est.human_model) == {"delayed"} and meta["human_model"] == meta["settings"]["human_model"] == "delayed"
+    assert meta["delay_grid"] == {"seconds": list(DELAY_GRID_S), "samples": list(range(31))}
+    for col in ("delay_s", "tau_nm", "sigma_m", "se_tau_nm", "se_sigma_m", "lag_at_bound"):
+        assert col in est.columns
+    assert all(len(v) == 31 for v in est.profile_loglik)
+    # the same as the model's function on the file's torques, each window's arm torque from all torques before it
+    study = load_study(combined["study"], SENSOR)
+    plant = discretize(SENSOR.dt, SENSOR.wheel)
+    prepared = prepare_study(study, settings())
+    for p in prepared.segments[:2]:
+        row = est[(est.subject == p.data.subject) & (est.condition == p.data.condition)].iloc[0]
+        seg = study.segments[[s.label for s in study.segments].index(p.data.label)]
+        ref = identify_unit_delayed([prepare_batch(plant, [p.segment])], plant,
+                                    tau0=[[Warmup(seg.u_H[: p.rows.start])]])
+        assert (row.theta1, row.tau_nm, row.sigma_m, row.delay_s, row.loglik) == \
+               (ref.theta1, ref.tau_nm, ref.sigma_m, ref.delay_s, ref.loglik)
+        np.testing.assert_array_equal(row.profile_loglik, ref.profile)
+    # the literature's human: delay 0.12 s, lag 0.06 s, motor noise 0.25 N·m (models.humans), from 10-s windows
+    ok = ~est.implausible
+    assert ok.all() and est.converged.all()
+    assert np.median(est.delay_s) == pytest.approx(0.12, abs=0.02)
+    assert np.median(est.tau_nm) == pytest.approx(0.06, abs=0.015)
+    assert np.median(est.sigma_m) == pytest.approx(0.25, abs=0.05)
+
+
+def test_maxent_identify_says_so_and_has_no_delayed_columns(combined, tmp_path):
+    paths = identify_to_dir(combined["study"], tmp_path / "id", settings("maxent"), show_progress=False)
+    est = pd.read_parquet(paths["estimates"])
+    meta = json.loads(open(paths["meta"]).read())
+    assert set(est.human_model) == {"maxent"} and meta["human_model"] == "maxent" and meta["delay_grid"] is None
+    assert "tau_nm" not in est.columns and "profile_loglik" not in est.columns
+
+
+def test_the_adequacy_bootstrap_draws_from_the_delayed_model(combined, tmp_path):
+    paths = identify_to_dir(combined["study"], tmp_path / "id", settings(adequacy_boot=4), show_progress=False)
+    meta = json.loads(open(paths["meta"]).read())
+    assert meta["adequacy"]["bootstrap"]["human_model"] == "delayed"
+    assert "adequacy_p" in pd.read_parquet(paths["estimates"]).columns
+
+
+def test_cli_identify_with_the_delayed_human(combined, tmp_path, capsys):
+    exp = tmp_path / "experiment.toml"
+    exp.write_text("[simulation]\ntorque_sensor = true\n")
+    code = main(["identify", combined["study"], "--out", str(tmp_path / "id"), "--window", "12,10",
+                 "--human-model", "delayed", "--adequacy-boot", "0", "--experiment", str(exp)])
+    assert code == 0
+    assert "(human model: delayed)" in capsys.readouterr().out
+    assert set(pd.read_parquet(tmp_path / "id" / "estimates.parquet").human_model) == {"delayed"}
+
+
+def _loglik_json(study, capsys, *extra):
+    assert main(["loglik", study, "--theta", "400,0,20", "--format", "json", *extra]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+@pytest.fixture()
+def no_analysis(tmp_path):
+    """An experiment file without [analysis]: scioc loglik then evaluates whole trials."""
+    exp = tmp_path / "whole.toml"
+    exp.write_text("[simulation]\ntorque_sensor = true\n")
+    return ["--experiment", str(exp)]
+
+
+def test_cli_loglik_delayed_is_the_models(combined, capsys, no_analysis):
+    got = _loglik_json(combined["study"], capsys, "--human-model", "delayed", "--delay-s", "0.12", "--tau-nm", "0.06",
+                       "--sigma-m", "0.25", *no_analysis)
+    study = load_study(combined["study"])
+    plant = discretize(0.01)
+    prepared = prepare_study(study, IdentifySettings(window_start=None, window_seconds=None, preview=0.0,
+                                                     adequacy_boot=0))
+    for rec, p in zip(got, prepared.segments):
+        ref = loglik_grad([400.0, 0.0, 20.0], prepare_batch(plant, [p.segment]), plant, tau_nm=0.06, sigma_m=0.25,
+                          delay=12).loglik[0]  # whole trials: at rest at their start
+        assert rec["loglik"] == ref
+    # zero delay, lag and motor noise is the max-ent likelihood
+    zero = _loglik_json(combined["study"], capsys, "--human-model", "delayed", "--delay-s", "0", "--tau-nm", "0",
+                        "--sigma-m", "0", *no_analysis)
+    maxent = _loglik_json(combined["study"], capsys, *no_analysis)
+    for a, b in zip(zero, maxent):
+        assert a["loglik"] == pytest.approx(b["loglik"], rel=1e-12)
+
+
+def test_cli_loglik_delayed_in_a_window_starts_from_the_warm_up(combined, tmp_path, capsys):
+    exp = tmp_path / "experiment.toml"
+    exp.write_text("[analysis]\nwindow_start_s = 12.0\nwindow_s = 10.0\npreview_s = 2.0\n")
+    got = _loglik_json(combined["study"], capsys, "--human-model", "delayed", "--delay-s", "0.12", "--tau-nm", "0.06",
+                       "--sigma-m", "0.25", "--experiment", str(exp))
+    study = load_study(combined["study"])
+    plant = discretize(0.01)
+    prepared = prepare_study(study, IdentifySettings(**WINDOW, adequacy_boot=0))
+    lag = lag_coefficients(0.06)
+    for rec, p, seg in zip(got, prepared.segments, study.segments):
+        tau0 = window_tau0([Warmup(seg.u_H[: p.rows.start])], lag.a, lag.alpha)[0]
+        ref = loglik_grad([400.0, 0.0, 20.0], prepare_batch(plant, [p.segment]), plant, tau_nm=0.06, sigma_m=0.25,
+                          delay=12, tau0=tau0).loglik[0]
+        assert tau0[0] != 0.0 and rec["loglik"] == ref
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--human-model", "delayed", "--delay-s", "0.35", "--tau-nm", "0.06", "--sigma-m", "0.25"], "between 0 and 0.3"),
+    (["--human-model", "delayed", "--delay-s", "0.125", "--tau-nm", "0.06", "--sigma-m", "0.25"], "whole number"),
+    (["--human-model", "delayed", "--delay-s", "0.12", "--tau-nm", "2", "--sigma-m", "0.25"], "--tau-nm"),
+    (["--human-model", "delayed", "--delay-s", "0.12", "--tau-nm", "0.06"], "needs --delay-s, --tau-nm and --sigma-m"),
+    (["--tau-nm", "0.06"], "apply to --human-model delayed"),
+    (["--human-model", "delayed", "--delay-s", "0.12", "--tau-nm", "-0.06", "--sigma-m", "0.25"], "--tau-nm"),
+    (["--human-model", "delayed", "--delay-s", "0.12", "--tau-nm", "0.06", "--sigma-m", "nan"], "--sigma-m"),
+    (["--human-model", "lagged"], "--human-model"),
+])
+def test_cli_loglik_refuses_bad_parameters_as_usage_errors(combined, capsys, no_analysis, extra, message):
+    assert _status(["loglik", combined["study"], "--theta", "400,0,20", *extra, *no_analysis]) == 2
+    assert message in capsys.readouterr().err
+
+
+def _status(argv) -> int:
+    """The exit status of ``scioc argv``, whether argparse exits or the command returns it."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code

@@ -1,0 +1,67 @@
+"""Unit-level SBC of the delayed human: the configuration, one replication, and a small run with its negative control.
+
+The full calibration (500 replications, ``reports/calibration-delayed``) is in the README.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from models.bayes.unit_delayed import UNIT_DELAYED_PARAMETERS, DelayedUnitPrior
+from pipelines.calibrate import CalibrationConfig, calibrate, level_configs
+from pipelines.calibrate.config import replication_seed
+from pipelines.calibrate.unit_delayed import unit_delayed_replication
+
+
+def test_configurations_of_the_delayed_model():
+    (name, cfg), (nname, ncfg) = level_configs("unit", human_model="delayed")
+    assert (name, nname) == ("unit-delayed", "unit-delayed-negative")
+    assert cfg.human_model == "delayed" and cfg.negative_control is None and ncfg.negative_control == "no-delay"
+    # the paper's human model keeps its folders and its fingerprints
+    (m, mc), _ = level_configs("unit")
+    assert m == "unit" and mc.fingerprint() == dataclasses.replace(mc, human_model="maxent").fingerprint()
+    assert cfg.fingerprint() != dataclasses.replace(cfg, human_model="maxent").fingerprint()
+    with pytest.raises(ValueError, match="unit level only"):
+        CalibrationConfig(level="study", human_model="delayed")
+    with pytest.raises(ValueError, match="negative_control of the delayed model"):
+        CalibrationConfig(human_model="delayed", negative_control="ignore-uA")
+    with pytest.raises(ValueError, match="negative_control of the maxent model"):
+        CalibrationConfig(negative_control="no-delay")
+    with pytest.raises(ValueError, match="human_model must be one of"):
+        CalibrationConfig(human_model="crossover")
+
+
+def test_prior_draws_cover_the_literature_ranges():
+    prior = DelayedUnitPrior()
+    rng = np.random.default_rng(0)
+    draws = [prior.draw(rng) for _ in range(4000)]
+    tau = np.array([d["tau_nm"] for d in draws])
+    delay = np.array([d["delay"] for d in draws])
+    assert 0.05 < np.median(tau) < 0.07 and np.mean((tau > 0.02) & (tau < 0.17)) > 0.94
+    assert delay.min() == 0 and delay.max() == 30 and len(np.unique(delay)) == 31
+    assert set(UNIT_DELAYED_PARAMETERS) <= set(draws[0])
+
+
+def test_one_replication_ranks_every_parameter_and_the_loglik():
+    cfg = CalibrationConfig(level="unit", replications=2, K=600, chains=1, tune=150, draws=150, L=19,
+                            human_model="delayed")
+    res = unit_delayed_replication(cfg, 1, replication_seed(cfg.seed, 1))
+    assert res["condition"] == "SC"
+    assert set(res["ranks"]) == {*UNIT_DELAYED_PARAMETERS, "loglik"}
+    assert all(0 <= r <= cfg.L for r in res["ranks"].values())
+    again = unit_delayed_replication(cfg, 1, replication_seed(cfg.seed, 1))
+    assert again["ranks"] == res["ranks"] and again["delay_fit"] == res["delay_fit"]  # same seed, same result
+
+
+@pytest.mark.slow
+def test_small_delayed_sbc_passes_and_its_negative_control_fails(tmp_path):
+    # 60 replications of 6-s windows. False failure of the correct model: FAMILY_ALPHA = 1 % (KS per ranked
+    # quantity, Bonferroni). The no-delay control must fail: ignoring a delay drawn from 0-300 ms biases
+    # tau_nm and sigma_m in most replications (6 replications already failed it while building this).
+    base = dict(level="unit", replications=60, K=600, chains=2, tune=300, draws=300, L=49, batch_size=5, seed=11,
+                human_model="delayed")
+    good = calibrate(CalibrationConfig(**base), tmp_path / "good", show_progress=False)
+    assert good["passed"], good["parameters"]
+    bad = calibrate(CalibrationConfig(**base, negative_control="no-delay"), tmp_path / "bad", show_progress=False)
+    assert not bad["passed"]

@@ -86,6 +86,15 @@ def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2,
     return out[0].copy(), out[1:].copy()
 
 
+def warmups_of(tau0, n: int) -> list | None:
+    """``tau0`` as a list of n Warmup or None when it gives warm-ups (:func:`pack_tau0`), else None (fixed values)."""
+    if isinstance(tau0, (list, tuple)) and any(w is None or isinstance(w, Warmup) for w in tau0):
+        if len(tau0) != n or not all(w is None or isinstance(w, Warmup) for w in tau0):
+            raise ValueError(f"tau0 as warm-ups needs one Warmup or None per segment ({n})")
+        return list(tau0)
+    return None
+
+
 def pack_tau0(tau0, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(warm (n, J), warm_start (n,), tau_start (n,))`` for the Op from a τ_0 specification.
 
@@ -98,15 +107,14 @@ def pack_tau0(tau0, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     n : int
         Segments.
     """
-    if isinstance(tau0, (list, tuple)) and any(w is None or isinstance(w, Warmup) for w in tau0):
-        if len(tau0) != n or not all(w is None or isinstance(w, Warmup) for w in tau0):
-            raise ValueError(f"tau0 as warm-ups needs one Warmup or None per segment ({n})")
-        lens = [0 if w is None else np.asarray(w.u).shape[0] for w in tau0]
+    warmups = warmups_of(tau0, n)
+    if warmups is not None:
+        lens = [0 if w is None else np.asarray(w.u).shape[0] for w in warmups]
         J = max(lens)
         warm = np.zeros((n, J))
         start = np.empty(n, dtype=np.int64)
         tstart = np.zeros(n)
-        for i, (w, m) in enumerate(zip(tau0, lens)):
+        for i, (w, m) in enumerate(zip(warmups, lens)):
             start[i] = J - m
             if w is not None:
                 warm[i, J - m:] = np.asarray(w.u, dtype=float)
@@ -293,4 +301,4 @@ def delayed_loglik(theta, tau_nm, sigma_m, batch: SegmentBatch, plant: DiscreteP
 
 
 __all__ = ["DELAYED_DATA_NAMES", "DelayedLoglikDataOp", "DelayedLoglikOp", "delayed_loglik",
-           "numba_funcify_delayed_loglik", "pack_tau0"]
+           "numba_funcify_delayed_loglik", "pack_tau0", "warmups_of"]

@@ -107,7 +107,8 @@ def _segment_loglik(batch: SegmentBatch, j: int, plant: DiscretePlant, lt1, lR, 
 
 
 def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, plant: DiscretePlant,
-                   rng: np.random.Generator, *, condition_effects: bool = True, M: int = 2000) -> SubjectLoglik:
+                   rng: np.random.Generator, *, condition_effects: bool = True, M: int = 2000,
+                   extra=None) -> SubjectLoglik:
     """``log p(y_i | ψ_s)`` for every subject i and population draw s.
 
     Parameters
@@ -132,6 +133,11 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         The condition model (True) or the pooled one (log θ1 shared by all levels).
     M : int
         Proposal points per subject.
+    extra : SubjectTerms, optional
+        Further per-subject parameters of another human model and its likelihood
+        (:class:`models.bayes.delayed_loo.DelayedSubjectTerms`): their posterior draws
+        join the Student-t block, their conditional prior joins the weights, and the
+        segments' log-likelihood is theirs. None (default): the max-ent model, exactly.
 
     Returns
     -------
@@ -163,6 +169,9 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         else:
             cols = [lt_all[:, i, 0]]
         cols += [lR_all[:, i, c] for c in range(L)]
+        n_cost = len(cols)
+        if extra is not None:
+            cols += extra.columns(i)
         draws = np.column_stack(cols)
         mean = draws.mean(axis=0)
         cov = np.cov(draws, rowvar=False) * INFLATE**2 + 1e-12 * np.eye(draws.shape[1])
@@ -184,12 +193,15 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
             lt = x[:, :L]
         else:
             lt = np.column_stack([x[:, 0]] * L)
-        lR = x[:, -L:]
+        lR = x[:, n_cost - L : n_cost]
         # Likelihood of the subject's segments at the M points.
         ll = np.zeros(M)
         for j in np.flatnonzero(s_idx == i):
             c = int(c_idx[j])
-            ll += _segment_loglik(batch, j, plant, lt[:, c], lR[:, c], t2[:, c])
+            if extra is None:
+                ll += _segment_loglik(batch, j, plant, lt[:, c], lR[:, c], t2[:, c])
+            else:
+                ll += extra.segment_loglik(j, lt[:, c], lR[:, c], t2[:, c], x[:, n_cost:])
         # Conditional prior of the subject's unit parameters under each population draw (S, M).
         lp = _norm(lt[None, :, 0], mu, sig)
         if condition_effects:
@@ -200,6 +212,8 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
             lp = lp + _norm(lR[None, :, c], lR[None, :, 0] + betR[:, c - 1 : c], sigbR[:, c - 1 : c])
         for c in range(L):
             lp = lp + _halfnorm(t2[None, :, c], tau)
+        if extra is not None:
+            lp = lp + extra.log_prior(x[:, n_cost:])
         logw = lp + (ll - logq)[None, :]
         out[:, i] = special.logsumexp(logw, axis=1) - np.log(M)
         w = np.exp(logw - logw.max(axis=1, keepdims=True))
@@ -207,4 +221,14 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
     return SubjectLoglik(out, ess)
 
 
-__all__ = ["SubjectLoglik", "subject_loglik", "NU", "INFLATE"]
+def norm_logpdf(x, m, s):
+    """log N(x; m, s²), broadcasting (the conditional priors of the unit parameters)."""
+    return _norm(x, m, s)
+
+
+def halfnorm_logpdf(x, s):
+    """log HalfNormal(x; s) for x >= 0, broadcasting."""
+    return _halfnorm(x, s)
+
+
+__all__ = ["SubjectLoglik", "subject_loglik", "NU", "INFLATE", "halfnorm_logpdf", "norm_logpdf"]

@@ -1,0 +1,103 @@
+"""Leave-one-subject-out of the ``delayed`` hierarchical model: its terms in the integrated importance sampling.
+
+:func:`models.bayes.subject_loo.subject_loglik` integrates each subject's unit parameters
+out by importance sampling, one proposal per subject, and PSIS then reweights the
+population draws. For :mod:`models.bayes.delayed_model` a subject has, besides the cost
+blocks (log θ1, log R, θ2 per level), its own lag and motor noise: :class:`DelayedSubjectTerms`
+adds them, as ``extra``:
+
+* to the Student-t block of the proposal, as (log τ_nm, log σ_m): log σ_m rather than
+  σ_m, so that a motor noise far from 0 (a delayed human, σ_m ≈ 0.25 ± 0.01) and one
+  the data leave at its prior near 0 (a max-ent human) are both covered by a t fitted to
+  the draws, with the log-Jacobian σ_m in the weights;
+* to the conditional prior: ``log τ_nm ~ N(μ_τ, σ_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
+  population draw (the model's, whatever form the sampler used);
+* and the segments' log-likelihood is the delayed one
+  (:func:`models.delayed.likelihood.loglik_grad`) at the segment's plug-in delay, with
+  τ_0 fixed or following the warm-up at each proposed τ_nm (as the Op computes it).
+
+The elpd of a subject under the two human models is then comparable: both are densities
+of the same observed torques (the delayed one includes the Jacobian of u -> c̃).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from models.bayes.delayed_op import pack_tau0, warmups_of
+from models.bayes.subject_loo import halfnorm_logpdf, norm_logpdf
+from models.cost import from_normalized
+from models.delayed.lag import arm_torque, lag_coefficients
+from models.design import WheelParameters
+from models.delayed.likelihood import loglik_grad
+from models.plant import DiscretePlant
+from models.segment import SegmentBatch
+
+
+class DelayedSubjectTerms:
+    """The lag and motor-noise terms of :func:`models.bayes.subject_loo.subject_loglik` (``extra``).
+
+    Parameters
+    ----------
+    post : dict of ndarray
+        Flattened posterior draws (S first) of the delayed model: ``tau_nm`` and
+        ``sigma_m`` (S, n_subjects); ``mu_log_tau_nm``, ``sigma_log_tau_nm``,
+        ``sigma_m_scale`` (S,).
+    batch : SegmentBatch
+        The segments the model was fitted to.
+    plant : DiscretePlant
+    delay : array_like of int, shape (n_segments,)
+        The plug-in delay of each segment, samples.
+    tau0 : float, array_like (n,) or sequence of Warmup or None
+        As the model was built with (:func:`models.bayes.delayed_op.pack_tau0`).
+    params : WheelParameters
+    chunk : int
+        Points per kernel call.
+    """
+
+    def __init__(self, post: dict, batch: SegmentBatch, plant: DiscretePlant, delay, tau0=0.0,
+                 params: WheelParameters = WheelParameters(), chunk: int = 256):
+        self.log_tau = np.log(np.asarray(post["tau_nm"], dtype=float))
+        self.log_sig = np.log(np.asarray(post["sigma_m"], dtype=float))
+        self.mu_t = np.asarray(post["mu_log_tau_nm"], dtype=float)[:, None]
+        self.sd_t = np.asarray(post["sigma_log_tau_nm"], dtype=float)[:, None]
+        self.s_m = np.asarray(post["sigma_m_scale"], dtype=float)[:, None]
+        self.batch, self.plant, self.params, self.chunk = batch, plant, params, int(chunk)
+        self.delay = np.broadcast_to(np.asarray(delay, dtype=np.int64), (batch.n,))
+        self.warmups = warmups_of(tau0, batch.n)
+        self.tau0_fixed = pack_tau0(tau0, batch.n)[2] if self.warmups is None else None
+
+    def columns(self, i: int) -> list:
+        """Posterior draws of subject i's (log τ_nm, log σ_m), each (S,)."""
+        return [self.log_tau[:, i], self.log_sig[:, i]]
+
+    def log_prior(self, z: np.ndarray) -> np.ndarray:
+        """(S, M): log p(log τ_nm, log σ_m | ψ_s) at the M points z (M, 2), the Jacobian σ_m included."""
+        sig = np.exp(z[:, 1])
+        return (norm_logpdf(z[None, :, 0], self.mu_t, self.sd_t) + halfnorm_logpdf(sig[None, :], self.s_m)
+                + z[None, :, 1])
+
+    def _tau0(self, j: int, tau: np.ndarray) -> np.ndarray:
+        if self.warmups is None:
+            return np.full(tau.shape[0], self.tau0_fixed[j])
+        w = self.warmups[j]
+        if w is None:
+            return np.zeros(tau.shape[0])
+        lag = lag_coefficients(tau, self.plant.dt, self.params)
+        return np.array([arm_torque(w.u, a, al, w.tau_start).tau[-1] for a, al in zip(lag.a, lag.alpha)])
+
+    def segment_loglik(self, j: int, lt1, lR, t2, z) -> np.ndarray:
+        """Exact delayed log-likelihood of segment j at the M points (cost and (log τ_nm, log σ_m) z)."""
+        M = lt1.shape[0]
+        tau, sig = np.exp(z[:, 0]), np.exp(z[:, 1])
+        out = np.empty(M)
+        for a in range(0, M, self.chunk):
+            b = min(M, a + self.chunk)
+            theta = from_normalized(np.exp(lt1[a:b]), t2[a:b], np.exp(lR[a:b]))
+            out[a:b] = loglik_grad(theta, self.batch.repeat(j, b - a), self.plant, tau_nm=tau[a:b],
+                                   sigma_m=sig[a:b], delay=int(self.delay[j]), tau0=self._tau0(j, tau[a:b]),
+                                   params=self.params).loglik
+        return out
+
+
+__all__ = ["DelayedSubjectTerms"]

@@ -1,0 +1,223 @@
+"""Hierarchical Bayesian model of the ``delayed`` human: the max-ent cost blocks plus lag and motor noise.
+
+The cost part is :mod:`models.bayes.hierarchical`'s, block for block (log θ1 and log R per
+subject × level with condition effects, θ2 >= 0 with a learned half-normal scale; the same
+:class:`models.bayes.hierarchical.Priors` and :class:`models.bayes.blocks.Parameterization`);
+θ = [q11, q22, R] is now the cost of the *commands* (:mod:`models.delayed.likelihood`).
+Added, per subject i (kept in every level: the lag and the motor noise are the person's,
+as the simulated ``kbl`` human's are)::
+
+    log τ_nm[i] = μ_τ + σ_τ z_τ[i]        z_τ[i] ~ N(0, 1)           neuromuscular lag, s
+    σ_m[i]     = s_m z_m[i]              z_m[i] ~ HalfNormal(1)     motor-noise SD, N·m per sample
+    u_H[segment] ~ delayed(θ, τ_nm[i], σ_m[i], d[segment] | x0, angle_ref, assistant, τ_0)
+
+    μ_τ ~ N(log 0.06, 0.9)    σ_τ ~ HalfN(0.5)    s_m ~ HalfN(0.3)      (:class:`DelayedPriors`)
+
+The delay d of each segment is *data*: fixed at a plug-in estimate (:func:`build_delayed_model`'s
+``delay``; ``scioc fit`` takes it from the ML profile, see :mod:`pipelines.fit.delayed`).
+
+Why these choices (measured; numbers below)
+-------------------------------------------
+MEASUREMENTS
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pymc as pm
+import pytensor.tensor as pt
+from pytensor.graph.basic import Constant
+
+from models.bayes.blocks import Parameterization, unit_block
+from models.bayes.delayed_op import DelayedLoglikOp, pack_tau0, warmups_of
+from models.bayes.hierarchical import Priors
+from models.delayed import sample_delayed
+from models.delayed.lag import lag_coefficients, window_tau0
+from models.design import CONDITIONS, WheelParameters
+from models.plant import DiscretePlant
+from models.segment import Feedback, as_batch
+from models.units import index_study
+
+#: Population parameters of the lag and motor-noise blocks, as the model names them.
+DELAYED_POPULATION_PARAMETERS = ("mu_log_tau_nm", "sigma_log_tau_nm", "sigma_m_scale")
+
+
+@dataclass(frozen=True)
+class DelayedPriors:
+    """Hyperpriors of the lag and motor-noise blocks (rate-free: τ_nm in s, σ_m in N·m per sample).
+
+    Attributes
+    ----------
+    mu_log_tau_nm : (float, float)
+        Mean and SD of the Normal prior on μ_τ, the population mean of log τ_nm.
+    sigma_log_tau_nm : float
+        Scale of the HalfNormal prior on σ_τ.
+    sigma_m_scale : float
+        Scale of the HalfNormal prior on s_m, the population scale of σ_m.
+    """
+
+    mu_log_tau_nm: tuple[float, float] = (math.log(0.06), 0.9)
+    sigma_log_tau_nm: float = 0.5
+    sigma_m_scale: float = 0.3
+
+
+@dataclass(frozen=True)
+class DelayedForm:
+    """Centred or non-centred form of the lag and motor-noise blocks.
+
+    ``tau_nm``: ``noncentred`` samples z_τ ~ N(0, 1), ``centred`` log τ_nm[i] ~ N(μ_τ, σ_τ).
+    ``sigma_m``: ``noncentred`` samples z_m ~ HalfNormal(1), ``centred`` σ_m[i] ~ HalfNormal(s_m).
+    """
+
+    tau_nm: str = "noncentred"
+    sigma_m: str = "noncentred"
+
+    def __post_init__(self):
+        for name in ("tau_nm", "sigma_m"):
+            if getattr(self, name) not in ("centred", "noncentred"):
+                raise ValueError(f"DelayedForm.{name} must be 'centred' or 'noncentred'; got {getattr(self, name)!r}")
+
+
+def _cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict):
+    """The population parameters and unit blocks of θ, as :func:`models.bayes.hierarchical.build_model` has them."""
+    mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
+    beta = pm.Normal("beta", 0.0, priors.beta_sd, **effect)
+    sigma = pm.HalfNormal("sigma_log_theta1", priors.sigma_log_theta1)
+    sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta, **effect)
+    mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
+    beta_R = pm.Normal("beta_log_R", 0.0, priors.beta_log_R_sd, **effect)
+    sigma_R = pm.HalfNormal("sigma_log_R", priors.sigma_log_R)
+    sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R, **effect)
+    tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
+    log_theta1 = unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc, n_levels)
+    log_R = unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form.R_mc, form.R_sc, n_levels)
+    if form.theta2 == "centred":
+        theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))
+    else:
+        theta2 = pm.Deterministic("theta2", tau * pm.HalfNormal("z_theta2", 1.0, dims=("subject", "condition")),
+                                  dims=("subject", "condition"))
+    pm.Deterministic("theta1", pt.exp(log_theta1), dims=("subject", "condition"))
+    R = pm.Deterministic("R", pt.exp(log_R), dims=("subject", "condition"))
+    return log_theta1, log_R, theta2, R
+
+
+def _motor_blocks(priors: DelayedPriors, form: DelayedForm):
+    """τ_nm and σ_m per subject (module docstring)."""
+    mu_t = pm.Normal("mu_log_tau_nm", *priors.mu_log_tau_nm)
+    sd_t = pm.HalfNormal("sigma_log_tau_nm", priors.sigma_log_tau_nm)
+    s_m = pm.HalfNormal("sigma_m_scale", priors.sigma_m_scale)
+    if form.tau_nm == "centred":
+        log_tau = pm.Normal("log_tau_nm", mu_t, sd_t, dims="subject")
+    else:
+        log_tau = pm.Deterministic("log_tau_nm", mu_t + sd_t * pm.Normal("z_log_tau_nm", 0.0, 1.0, dims="subject"),
+                                   dims="subject")
+    tau_nm = pm.Deterministic("tau_nm", pt.exp(log_tau), dims="subject")
+    if form.sigma_m == "centred":
+        sigma_m = pm.HalfNormal("sigma_m", s_m, dims="subject")
+    else:
+        sigma_m = pm.Deterministic("sigma_m", s_m * pm.HalfNormal("z_sigma_m", 1.0, dims="subject"), dims="subject")
+    return tau_nm, sigma_m
+
+
+def _tau0_at(spec, n: int, dt: float, params: WheelParameters):
+    """A function (segment j, τ_nm) -> τ_0, N·m: the fixed value, or the warm-up's arm torque at that lag."""
+    warmups = warmups_of(spec, n)
+    if warmups is not None:
+        def from_warmup(j, tau_nm):
+            lag = lag_coefficients(tau_nm, dt, params)
+            return float(window_tau0([warmups[j]], lag.a, lag.alpha)[0][0])
+
+        return from_warmup
+    fixed = pack_tau0(spec, n)[2]
+    return lambda j, tau_nm: float(fixed[j])
+
+
+def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plant: DiscretePlant, *, delay,
+                        tau0=0.0, priors: Priors = Priors(), delayed_priors: DelayedPriors = DelayedPriors(),
+                        parameterization: Parameterization = Parameterization(),
+                        delayed_form: DelayedForm = DelayedForm(), segment_ids: Sequence | None = None,
+                        levels: Sequence = CONDITIONS, params: WheelParameters = WheelParameters()) -> pm.Model:
+    """The hierarchical ``delayed`` model of a study (see the module docstring).
+
+    Parameters
+    ----------
+    subjects, conditions, segments, plant, priors, parameterization, segment_ids, levels
+        As :func:`models.bayes.hierarchical.build_model` (condition effects always on).
+    delay : int or array_like of int (n,)
+        Perceptual delay of each segment, samples: data, not a parameter.
+    tau0 : float, array_like (n,), or sequence of Warmup or None (n)
+        The arm torque at each window's start (:func:`models.bayes.delayed_op.pack_tau0`).
+    delayed_priors : DelayedPriors
+    delayed_form : DelayedForm
+    params : WheelParameters
+        The wheel ``plant`` was discretized from.
+
+    Returns
+    -------
+    pymc.Model
+        The variables of :func:`models.bayes.hierarchical.build_model`'s condition model, plus
+        ``mu_log_tau_nm``, ``sigma_log_tau_nm``, ``sigma_m_scale``, the per-subject
+        ``log_tau_nm``, ``tau_nm``, ``sigma_m`` (dims ``subject``) and their free forms
+        (``z_log_tau_nm``, ``z_sigma_m`` when non-centred). Observed ``u_H`` (segment, step),
+        one log-likelihood per segment.
+    """
+    levels = tuple(str(v) for v in levels)
+    index = index_study(subjects, conditions, levels)
+    batch = as_batch(segments, plant)
+    n, K = batch.n, batch.K
+    if n != index.subject_idx.shape[0]:
+        raise ValueError(f"got {n} segments but {index.subject_idx.shape[0]} subject/condition labels")
+    ids = list(range(n)) if segment_ids is None else list(segment_ids)
+    if len(ids) != n:
+        raise ValueError(f"segment_ids must have {n} entries; got {len(ids)}")
+    coords = {"subject": index.subjects, "condition": levels, "segment": ids, "step": np.arange(K)}
+    L = len(levels)
+    effect = {} if L == 2 else {"dims": "contrast"}
+    if L > 2:
+        coords["contrast"] = levels[1:]
+    s_idx, c_idx = index.subject_idx, index.condition_idx
+    op = DelayedLoglikOp(batch, plant, delay=delay, tau0=tau0, params=params)
+    u_obs = op.bound[3]
+    d_seg = op.delay
+
+    def logp(value, q11, q22, R, tau_nm, sigma_m, u_A):
+        if not (isinstance(value, Constant) and np.array_equal(value.data, u_obs)):
+            raise NotImplementedError("the delayed likelihood of this model is bound to the observed torques")
+        ll, _ = op(pt.stack([q11, q22, R]), tau_nm, sigma_m)
+        return ll
+
+    x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
+    tau0_at = _tau0_at(tau0, n, plant.dt, params)
+
+    def random(q11, q22, R, tau_nm, sigma_m, u_A_window, rng=None, size=None):
+        # Exact draws of the delayed human (models.delayed.sample_delayed); the last batch axis is the segment.
+        shape = tuple(size) if size is not None else np.broadcast_shapes(q11.shape, tau_nm.shape)
+        ps = [np.broadcast_to(p, shape) for p in (q11, q22, R, tau_nm, sigma_m)]
+        out = np.empty(shape + (K,))
+        for idx in np.ndindex(*shape):
+            j = idx[-1]
+            fb = Feedback(batch.fb[j], batch.a[j]) if np.any(batch.fb[j] != 0) else None
+            tau = float(ps[3][idx])
+            out[idx] = sample_delayed([ps[0][idx], ps[1][idx], ps[2][idx]], x0[j], batch.r[j], plant, rng,
+                                      u_A=None if fb is not None else batch.a[j], feedback=fb, tau_nm=tau,
+                                      sigma_m=float(ps[4][idx]), delay=int(d_seg[j]),
+                                      tau0=tau0_at(j, tau), n_obs=K, params=params).u_H
+        return out
+
+    with pm.Model(coords=coords) as model:
+        _, log_R, theta2, R = _cost_blocks(priors, parameterization, L, effect)
+        tau_nm, sigma_m = _motor_blocks(delayed_priors, delayed_form)
+        log_theta1 = model["log_theta1"]
+        R_s = R[s_idx, c_idx]
+        q11 = pt.exp(log_theta1[s_idx, c_idx] + log_R[s_idx, c_idx])
+        q22 = theta2[s_idx, c_idx] * R_s
+        pm.CustomDist("u_H", q11, q22, R_s, tau_nm[s_idx], sigma_m[s_idx], batch.a[:, :K], logp=logp, random=random,
+                      signature="(),(),(),(),(),(k)->(k)", observed=u_obs, dims=("segment", "step"))
+    return model
+
+
+__all__ = ["DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors", "build_delayed_model"]

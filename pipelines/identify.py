@@ -169,6 +169,11 @@ def _delayed_parameters(prepared, fitted, plant, settings) -> dict:
             "delay": np.array([e.delay for e in fitted], dtype=np.int64), "tau0": tau0}
 
 
+def _delay_grid(dt: float) -> dict:
+    samples = [int(d) for d in delay_grid(dt)]
+    return {"nominal_s": list(DELAY_GRID_S), "samples": samples, "seconds": [d * dt for d in samples]}
+
+
 def _cross_predict(prepared, est: pd.DataFrame, plant, levels):
     theta = {(r.subject, r.condition): np.array([r.q11, r.q22, r.R]) for r in est.itertuples()}
     frames, val = [], []
@@ -246,9 +251,8 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
                         for r in est.itertuples() if r.implausible],
         "adequacy": adequacy,
         "human_model": settings.human_model,
-        # the delays of estimates.parquet's profile_loglik
-        "delay_grid": {"seconds": list(DELAY_GRID_S),
-                       "samples": [int(d) for d in delay_grid(settings.design.dt)]} if delayed else None,
+        # nominal: models.delayed.DELAY_GRID_S; samples and seconds: the delays of estimates.parquet's profile_loglik
+        "delay_grid": _delay_grid(settings.design.dt) if delayed else None,
         **sidecar(settings.design, experiment_file),
         "versions": versions(),
     }

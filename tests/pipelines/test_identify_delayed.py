@@ -60,7 +60,8 @@ def test_identify_delayed_writes_its_columns_and_sidecar(combined, tmp_path):
     est = pd.read_parquet(paths["estimates"])
     meta = json.loads(open(paths["meta"]).read())
     assert set(est.human_model) == {"delayed"} and meta["human_model"] == meta["settings"]["human_model"] == "delayed"
-    assert meta["delay_grid"] == {"seconds": list(DELAY_GRID_S), "samples": list(range(31))}
+    assert meta["delay_grid"] == {"nominal_s": list(DELAY_GRID_S), "samples": list(range(31)),
+                                  "seconds": [0.01 * d for d in range(31)]}
     for col in ("delay_s", "tau_nm", "sigma_m", "se_tau_nm", "se_sigma_m", "lag_at_bound"):
         assert col in est.columns
     assert all(len(v) == 31 for v in est.profile_loglik)

@@ -29,12 +29,9 @@ manual-control literature:
     Delay 0.12 s, lag 0.06 s and white motor noise entering before the lag, as in the
     optimal control model of Kleinman, Baron & Levison (1970).
 ``kbl``
-    The ``combined`` human with its delay and lag varying between subjects: each subject
-    draws its delay uniformly from 0.10-0.20 s and its lag from 0.05-0.10 s once and keeps
-    them in every level and trial (the human does not change between conditions); white
-    motor noise enters before the lag, so the torque's motor noise is coloured by it. The
-    ranges are those of issue 13's "no spurious effect" criterion and span the literature
-    values below.
+    ``combined`` with each subject's delay (uniform on 0.10-0.20 s) and lag (0.05-0.10 s)
+    drawn once and kept in every level and trial; the lag colours the motor noise. The
+    ranges (issue 13's) span the literature values below.
 ``crossover``
     Not an LQ controller: McRuer's compensatory operator with remnant (below). Its
     cost θ is not used.
@@ -150,8 +147,7 @@ class HumanSpec:
     lag_s : float
         Lag time constant T_I, s (``crossover`` only).
     delay_spread_s, tau_spread : float
-        If > 0, each subject's delay (lag) is ``delay_s`` (``tau_nm``) plus a uniform draw
-        from [0, spread) (:meth:`for_subject`); 0: every subject has the same.
+        Each subject's delay (lag) is ``delay_s`` (``tau_nm``) + U[0, spread) (:meth:`for_subject`).
     """
 
     name: str
@@ -182,18 +178,14 @@ class HumanSpec:
                 if getattr(self, name) != 0:
                     raise ValueError(f"human {self.name!r}: {name} applies to kind 'crossover' only")
         if self.tau_spread > 0 and self.tau_nm == 0:
-            raise ValueError(f"human {self.name!r}: a spread of the lag needs tau_nm > 0 (its smallest value)")
+            raise ValueError(f"human {self.name!r}: a spread of the lag needs tau_nm > 0")
 
     @property
-    def varies(self) -> bool:
-        """Whether subjects differ in delay or lag (:meth:`for_subject` draws them)."""
+    def varies(self) -> bool:  # subjects differ in delay or lag (for_subject draws them)
         return self.delay_spread_s > 0 or self.tau_spread > 0
 
     def for_subject(self, rng: np.random.Generator) -> HumanSpec:
-        """One subject of this human: delay and lag drawn from their spreads (two uniforms from ``rng``).
-
-        A human without spreads is returned as it is and ``rng`` is not used.
-        """
+        """One subject: delay and lag drawn from their spreads (two uniforms; without spreads, self, rng unused)."""
         if not self.varies:
             return self
         u = rng.random(2)
@@ -381,8 +373,7 @@ def simulate_human(
         z0 = x0.copy()
     n = A.shape[0]
     if spec.varies:
-        raise ValueError(f"human {spec.name!r} varies between subjects; simulate one subject of it "
-                         "(spec.for_subject(rng))")
+        raise ValueError(f"human {spec.name!r} varies between subjects; simulate spec.for_subject(rng)")
     d = int(round(spec.delay_s / dt))
     a_m = _decay(dt, spec.motor_tau)
 

@@ -32,7 +32,7 @@ import pandas as pd
 from models.adequacy import STATISTICS, study_verdict
 from models.design import CONDITIONS, STUDY
 from models.identify import PLAUSIBLE_THETA1
-from pipelines.adequacy import format_adequacy, not_checked
+from pipelines.adequacy import CHECK_TEXT, CHECK_TEXT_DELAYED, format_adequacy, not_checked
 from pipelines.experiment import parse_experiment, sidecar
 from pipelines.io import StudyFileError, read_table
 from pipelines.signed_rank import ALPHA, holm, wilcoxon_signed_rank
@@ -221,7 +221,21 @@ def adequacy_of_estimates(estimates: pd.DataFrame, path="<table>") -> dict:
             raise StudyFileError(path, "an adequacy p-value must lie in (0, 1]", column=col,
                                  row=int(np.flatnonzero(bad)[0]))
         values[col] = v
-    return study_verdict({k: values[c] for k, c in cols.items()}, values["adequacy_p"])
+    out = study_verdict({k: values[c] for k, c in cols.items()}, values["adequacy_p"])
+    model = human_model_of(estimates)
+    out["human_model"] = model
+    out["checks"] = CHECK_TEXT_DELAYED if model == "delayed" else CHECK_TEXT
+    return out
+
+
+def human_model_of(estimates: pd.DataFrame) -> str:
+    """The human model the estimates were identified with (its ``human_model`` column; ``maxent`` without one)."""
+    if "human_model" not in estimates.columns:
+        return "maxent"
+    models = sorted(set(estimates["human_model"].astype(str)))
+    if len(models) != 1:
+        raise ValueError(f"the estimates mix human models ({', '.join(models)}); compare one model's estimates")
+    return models[0]
 
 
 def _finite_or_none(value):
@@ -275,7 +289,7 @@ def compare_to_file(estimates_path, out_path, *, alpha: float = ALPHA, include_n
 def format_compare(res: dict) -> str:
     """The tests as text, after the model-adequacy verdict (and a caveat when it fails)."""
     adequacy = res.get("adequacy") or not_checked("not recorded")
-    lines = [format_adequacy(adequacy)]
+    lines = [f"human model: {adequacy.get('human_model', 'maxent')}", format_adequacy(adequacy)]
     if adequacy["verdict"] != "pass":
         lines.append("CAVEAT: the test below compares costs of a human model that "
                      + ("fails its adequacy checks; a 'significant' change may be an artifact of model misfit"

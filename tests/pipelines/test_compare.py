@@ -6,7 +6,7 @@ import pytest
 from scipy.stats import wilcoxon
 
 from pipelines.cli import main
-from pipelines.compare import compare_estimates, compare_to_file
+from pipelines.compare import compare_estimates, compare_to_file, format_compare
 from pipelines.signed_rank import critical_value, null_cdf, wilcoxon_signed_rank
 from pipelines.io import StudyFileError
 
@@ -170,7 +170,15 @@ def test_adequacy_columns_give_the_identify_verdict_and_bad_ones_are_named():
     p = {k: rng.integers(1, 51, len(est)) / 50 for k in STATISTICS}
     est = est.assign(adequacy_p=rng.integers(1, 51, len(est)) / 50, **{f"adequacy_p_{k}": v for k, v in p.items()})
     res = compare_estimates(est)
-    assert res["adequacy"] == study_verdict(p, est["adequacy_p"].to_numpy())
+    expected = study_verdict(p, est["adequacy_p"].to_numpy())
+    assert {k: res["adequacy"][k] for k in expected} == expected
+    assert res["adequacy"]["human_model"] == "maxent" and "residual whiteness" in res["adequacy"]["checks"]["whiteness"]
+    # the human model behind the estimates is named, with the wording of its checks
+    delayed = compare_estimates(est.assign(human_model="delayed"))["adequacy"]
+    assert delayed["human_model"] == "delayed" and "innovation" in delayed["checks"]["whiteness"]
+    assert "human model: delayed" in format_compare(compare_estimates(est.assign(human_model="delayed")))
+    with pytest.raises(ValueError, match="mix human models"):
+        compare_estimates(est.assign(human_model=["maxent", "delayed"] * (len(est) // 2)))
     bad = est.copy()
     bad.loc[2, "adequacy_p_xcorr"] = 1.5
     with pytest.raises(StudyFileError, match=r"est\.parquet, column 'adequacy_p_xcorr', row 2"):

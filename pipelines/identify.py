@@ -251,6 +251,7 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
                         for r in est.itertuples() if r.implausible],
         "adequacy": adequacy,
         "human_model": settings.human_model,
+        "reconstructed_units": int(est["reconstructed"].sum()),
         # nominal: models.delayed.DELAY_GRID_S; samples and seconds: the delays of estimates.parquet's profile_loglik
         "delay_grid": _delay_grid(settings.design.dt) if delayed else None,
         **sidecar(settings.design, experiment_file),
@@ -271,6 +272,11 @@ def format_identify(out) -> str:
     meta = json.loads((Path(out) / "identify.json").read_text())
     lines = [f"identified {meta['segments']} segments; {meta['converged']} converged"
              + (f" (human model: {meta['human_model']})" if meta.get("human_model", "maxent") != "maxent" else "")]
+    if meta.get("human_model") == "delayed" and meta.get("reconstructed_units", 0):
+        lines.append(f"  NOTE: {meta['reconstructed_units']} of {meta['segments']} units have torques reconstructed "
+                     "from encoder angles. The reconstruction smooths the torque, which the delayed model reads as "
+                     "lag: its delay, lag and cost estimates from angles alone are not measurements (README, "
+                     "\"Human models\"); record u_H with a torque sensor.")
     for r in meta.get("not_converged", []):
         lines.append(f"  NOT CONVERGED: {r['subject']} {r['condition']}: {r['message']}")
     for r in meta.get("implausible", []):

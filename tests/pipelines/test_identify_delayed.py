@@ -179,3 +179,18 @@ def _status(argv) -> int:
         return main(argv)
     except SystemExit as exc:
         return exc.code
+
+
+def test_identify_warns_that_reconstructed_torques_do_not_measure_the_delayed_model(tmp_path):
+    import json
+
+    from pipelines.adequacy import not_checked
+    from pipelines.identify import format_identify
+
+    meta = {"segments": 4, "converged": 4, "human_model": "delayed", "reconstructed_units": 4,
+            "adequacy": not_checked("test")}
+    (tmp_path / "identify.json").write_text(json.dumps(meta))
+    assert "4 of 4 units have torques reconstructed" in format_identify(tmp_path)
+    for other in ({"human_model": "delayed", "reconstructed_units": 0}, {"human_model": "maxent"}):
+        (tmp_path / "identify.json").write_text(json.dumps({**meta, **other}))
+        assert "reconstructed from encoder angles" not in format_identify(tmp_path)

@@ -205,7 +205,7 @@ def cmd_calibrate(args) -> int:
     design = load_experiment(args.experiment) if args.experiment else None
     runs = level_configs(args.level, seed=args.seed, replications=args.replications, batch_size=args.batch_size,
                          n_subjects=args.subjects, seconds=args.seconds, negative_control=args.negative_control,
-                         design=design)
+                         design=design, human_model=args.human_model)
     summaries = calibrate_runs(runs, args.out, scheduler=args.scheduler, n_workers=args.workers)
     for summary in summaries:
         print(format_summary(summary))

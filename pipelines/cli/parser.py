@@ -230,9 +230,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler (default: a local cluster)")
     p.add_argument("--workers", type=_positive_int, default=2, help="workers of the local cluster (default 2)")
     p.add_argument("--batch-size", type=_positive_int, help="replications per Dask task (default 10 unit, 3 study)")
-    p.add_argument("--negative-control", choices=("inertia", "ignore-uA", "none"),
+    p.add_argument("--negative-control", choices=("inertia", "ignore-uA", "no-delay", "none"),
                    help="also run this wrong fit at the same size (default: inertia at the unit level, ignore-uA "
-                        "at the study level; 'none' to skip)")
+                        "at the study level, no-delay for --human-model delayed; 'none' to skip)")
     p.add_argument("--subjects", type=_positive_int, help="subjects per simulated study (study level; default 6)")
     p.add_argument("--seconds", type=_seconds,
                    help="window length in s (default 15 unit, 2 study; with --experiment, the unit level takes its "
@@ -240,6 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--experiment", metavar="PATH",
                    help="calibrate this experiment's rate, wheel, levels, assistants and window (default: the "
                         "paper's study)")
+    _add_human_model_option(p)
     p.set_defaults(func=commands.cmd_calibrate)
 
     p = sub.add_parser("assistant", help="the MPC assistant alone on the study reference: tracking and torques")

@@ -156,6 +156,14 @@ def cmd_compare(args) -> int:
     return 1 if res["adequacy"]["verdict"] == "fail" else 0
 
 
+def cmd_recovery(args) -> int:
+    from pipelines.recovery import format_recovery, recovery_of_files
+
+    res = recovery_of_files(args.estimates, args.truth)
+    print(json.dumps(res, indent=2) if args.format == "json" else format_recovery(res))
+    return 0
+
+
 def cmd_report(args) -> int:
     from pipelines.report import build_report
 

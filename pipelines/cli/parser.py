@@ -200,6 +200,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="test units whose identification did not converge too (default: leave them out, listed)")
     p.set_defaults(func=commands.cmd_compare)
 
+    p = sub.add_parser("recovery", help="estimates against a simulated study's truth: θ1, its condition effects and "
+                                        "(delayed) the delay, lag and motor noise")
+    p.add_argument("estimates", help="estimates.parquet written by `scioc identify`")
+    p.add_argument("--truth", required=True, help="truth.parquet written by `scioc simulate`")
+    p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
+    p.set_defaults(func=commands.cmd_recovery)
+
     p = sub.add_parser("report", help="self-contained HTML report from a run folder's artifacts")
     p.add_argument("run_dir", help="folder with data/, identify/, compare.json (as `scioc run` writes)")
     p.add_argument("--subject", help="subject for the Fig. 6 trajectories (default: the third)")

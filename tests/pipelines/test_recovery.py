@@ -1,0 +1,50 @@
+"""scioc recovery: estimates against the simulator's truth."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipelines.cli import main
+from pipelines.recovery import format_recovery, recovery
+
+
+def _tables(shift_est, shift_true, delayed=False):
+    subjects = [f"S{i}" for i in range(6)]
+    rng = np.random.default_rng(0)
+    base = np.exp(rng.normal(3.0, 0.5, 6))
+    truth = pd.DataFrame({"subject": subjects * 2, "condition": ["MC"] * 6 + ["SC"] * 6,
+                          "theta1": np.concatenate([base, base * np.exp(shift_true)])})
+    est = truth.assign(theta1=np.concatenate([base * 1.1, base * 1.1 * np.exp(shift_est)]))
+    if delayed:
+        truth = truth.assign(delay_s=0.12, tau_nm=0.06, motor_sd=0.25)
+        est = est.assign(human_model="delayed", delay_s=[0.12] * 10 + [0.15, 0.09], tau_nm=0.065, sigma_m=0.3)
+    return est, truth
+
+
+def test_recovery_measures_the_bias_of_the_condition_effect():
+    est, truth = _tables(-0.5, -0.2)
+    res = recovery(est, truth, ["MC", "SC"], "MC")
+    assert res["contrasts"]["SC"]["bias"] == pytest.approx(-0.3)
+    assert res["levels"]["MC"]["mean_error_log_theta1"] == pytest.approx(np.log(1.1))
+    assert res["levels"]["MC"]["spearman_theta1"] == pytest.approx(1.0)
+    assert "delayed" not in res and res["human_model"] == "maxent"
+
+
+def test_recovery_of_delay_lag_and_motor_noise():
+    est, truth = _tables(0.0, 0.0, delayed=True)
+    d = recovery(est, truth, ["MC", "SC"], "MC")["delayed"]
+    assert d["delay_exact"] == 10 and d["delay_mean_abs_error_s"] == pytest.approx(0.06 / 12)
+    assert d["tau_nm_mean_error_s"] == pytest.approx(0.005) and d["sigma_m_mean"] == pytest.approx(0.3)
+    assert "delay exact in 10 of 12 units" in format_recovery(recovery(est, truth, ["MC", "SC"], "MC"))
+
+
+def test_cli(tmp_path, capsys):
+    est, truth = _tables(-0.5, -0.2)
+    est.to_parquet(tmp_path / "estimates.parquet")
+    truth.to_parquet(tmp_path / "truth.parquet")
+    assert main(["recovery", str(tmp_path / "estimates.parquet"), "--truth", str(tmp_path / "truth.parquet"),
+                 "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["contrasts"]["SC"]["bias"] == pytest.approx(-0.3)
+    assert main(["recovery", str(tmp_path / "none.parquet"), "--truth", str(tmp_path / "truth.parquet")]) == 3

@@ -42,7 +42,7 @@ _TERMS = 24
 
 
 def wheel_constants(dt: float, params: WheelParameters = WheelParameters()) -> tuple:
-    """``(dt, A_c, b_w, Φ b_w, b_1, poles)`` for :func:`lag_nb`: the continuous wheel, its ZOH step, its poles (complex)."""
+    """``(dt, A_c, b_w, Φ b_w, b_1, poles)`` for :func:`lag_nb`: the continuous wheel, its ZOH step, its poles."""
     A_c, b_w = continuous_matrices(params)
     wheel = discretize(float(dt), params)
     return (float(dt), np.ascontiguousarray(A_c), np.ascontiguousarray(b_w), np.ascontiguousarray(wheel.A @ b_w),

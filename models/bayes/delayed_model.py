@@ -13,12 +13,43 @@ as the simulated ``kbl`` human's are)::
 
     μ_τ ~ N(log 0.06, 0.9)    σ_τ ~ HalfN(0.5)    s_m ~ HalfN(0.3)      (:class:`DelayedPriors`)
 
-The delay d of each segment is *data*: fixed at a plug-in estimate (:func:`build_delayed_model`'s
-``delay``; ``scioc fit`` takes it from the ML profile, see :mod:`pipelines.fit.delayed`).
+The delay d is *data*: fixed per subject at the maximum of its profile likelihood
+(:func:`build_delayed_model` takes a delay per segment; ``scioc fit`` chooses it,
+:func:`pipelines.fit.delayed.unit_delays`). Why, and what else was measured:
 
-Why these choices (measured; numbers below)
--------------------------------------------
-MEASUREMENTS
+The delay: a plug-in, one per subject
+-------------------------------------
+How sharply do the data fix the delay? ``scioc bench --parts fit_delayed``
+(:func:`pipelines.bench.fit_delayed.bench_delay_profile`): 6 subjects × MC, SC drawn from
+the delayed model (:func:`models.bayes.delayed_windows.delayed_windows`; K = 1500 with
+2-s preview, delay 12 samples, τ_nm 0.06 s, σ_m 0.25 N·m, θ of the default population),
+each unit's ML profile over 0-300 ms (:func:`models.delayed.identify.identify_unit_delayed`);
+drop of the profile log-likelihood from its maximum::
+
+                ±1 sample: median (range)     ±2 samples: median (range)    argmax - truth
+    MC          -1.6 (-5.3 to -0.1) nats      -3.9 (-7.9 to -1.3) nats      0, 1, 0, 0, 1, 0
+    SC          -0.3 (-2.1 to -0.0) nats      -0.5 (-2.3 to -0.2) nats      -6, 2, 13, 3, 13, 0
+
+So the profile does *not* drop by tens of nats: in MC the delay is known to about ±1
+sample (neighbours carry e^-1.6 ≈ 0.2 of the maximum's weight), and in SC, where the
+assistant's feedback makes the human's own gains small and so the MA coefficients of the
+motor noise, the profile is nearly flat and its maximum lands anywhere from -60 to +130
+ms. Marginalizing over the delay would therefore change something, and a delay per unit
+would be noise in SC. Hence one delay per subject (the person's, kept across levels like
+τ_nm and σ_m), at the maximum of the sum of its units' profiles: the MC data fix it. What
+a plug-in costs: along a joint (MC + SC, shared τ_nm and σ_m) profile of three such
+subjects, the conditional ML estimates moved, per sample of delay, by <= 0.06 in log θ1
+(MC), <= 0.03 (SC), <= 0.03 in log τ_nm and <= 0.02 N·m in σ_m, against posterior SDs of
+about 0.2, 0.08 and 0.02-0.03 per subject (below): marginalizing over ±1-2 samples would
+widen log θ1 by a few per cent of its variance. log R moved by up to 0.9 (it is barely
+identified apart from σ_m, below). Marginalizing exactly would mean one kernel call per
+grid delay and segment at every evaluation (each about as costly as the plug-in's: the
+plan, 60 % of the cost at d = 12, does not depend on d but the kernel recomputes it), 5×
+the cost for ±2 samples, outside the speed goal (below).
+
+Geometry
+--------
+GEOMETRY
 """
 
 from __future__ import annotations
@@ -44,6 +75,11 @@ from models.units import index_study
 
 #: Population parameters of the lag and motor-noise blocks, as the model names them.
 DELAYED_POPULATION_PARAMETERS = ("mu_log_tau_nm", "sigma_log_tau_nm", "sigma_m_scale")
+#: The cost blocks' forms for the delayed human (module docstring, "Geometry"): log R non-centred,
+#: the rest as the max-ent model's default.
+DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
+#: nutpie's options for this model (module docstring, "Geometry"): a low-rank modified mass matrix.
+DELAYED_NUTS = {"adaptation": "low_rank"}
 
 
 @dataclass(frozen=True)
@@ -73,8 +109,8 @@ class DelayedForm:
     ``sigma_m``: ``noncentred`` samples z_m ~ HalfNormal(1), ``centred`` σ_m[i] ~ HalfNormal(s_m).
     """
 
-    tau_nm: str = "noncentred"
-    sigma_m: str = "noncentred"
+    tau_nm: str = "centred"
+    sigma_m: str = "centred"
 
     def __post_init__(self):
         for name in ("tau_nm", "sigma_m"):
@@ -138,7 +174,7 @@ def _tau0_at(spec, n: int, dt: float, params: WheelParameters):
 
 def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plant: DiscretePlant, *, delay,
                         tau0=0.0, priors: Priors = Priors(), delayed_priors: DelayedPriors = DelayedPriors(),
-                        parameterization: Parameterization = Parameterization(),
+                        parameterization: Parameterization = DELAYED_PARAMETERIZATION,
                         delayed_form: DelayedForm = DelayedForm(), segment_ids: Sequence | None = None,
                         levels: Sequence = CONDITIONS, params: WheelParameters = WheelParameters()) -> pm.Model:
     """The hierarchical ``delayed`` model of a study (see the module docstring).
@@ -220,4 +256,5 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
     return model
 
 
-__all__ = ["DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors", "build_delayed_model"]
+__all__ = ["DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors",
+           "build_delayed_model"]

@@ -6,6 +6,7 @@ module                     what it measures
 :mod:`.likelihood`         dense Eq. 11-16 against the linear-time kernel, the study batch
 :mod:`.identify`           identification of the default study, reconstruction, adequacy
 :mod:`.fit`                the full hierarchical fit (and ``scioc bench-fit``)
+:mod:`.fit_delayed`        the full hierarchical fit of the delayed human; the delay's profile
 :mod:`.sbc`                calibration throughput with one and two Dask workers
 :mod:`.common`             the timer, the machine, the default study prepared once
 :mod:`.suite`              :func:`run_bench`, all parts in order

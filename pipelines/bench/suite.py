@@ -15,7 +15,7 @@ from pipelines.bench.likelihood import bench_likelihood, format_likelihood
 from pipelines.storage import write_text_atomic
 
 #: The parts of ``scioc bench``, in the order they run.
-PARTS = ("likelihood", "delayed", "identify", "fit", "sbc", "example")
+PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "sbc", "example")
 
 
 def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
@@ -26,7 +26,7 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
     json_path : str or Path, optional
     quick : bool
         Smaller sizes (for tests of the command itself; not for quoting). Leaves out the
-        fit and SBC parts, which have no small version worth timing.
+        fits and SBC, which have no small version worth timing.
     parts : sequence of str
         Any of :data:`PARTS`. The fit's dense comparison needs the likelihood part.
     """
@@ -56,6 +56,13 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
         result["fit"] = bench_fit(study, dense_s_per_segment=dense.get(K),
                                   linear_s_per_batch=lik.get("batch_preview", {}).get("linear_s"))
         print(format_fit(result["fit"]), flush=True)
+    if "fit_delayed" in parts and not quick:
+        from pipelines.bench.fit_delayed import (bench_delay_profile, bench_fit_delayed, format_delay_profile,
+                                                 format_fit_delayed)  # lazy: PyMC takes seconds to import
+
+        result["fit_delayed"] = {"profile": bench_delay_profile(), "fit": bench_fit_delayed()}
+        print(format_delay_profile(result["fit_delayed"]["profile"]), flush=True)
+        print(format_fit_delayed(result["fit_delayed"]["fit"]), flush=True)
     if "sbc" in parts and not quick:
         from pipelines.bench.sbc import bench_sbc, format_sbc  # lazy: Dask and PyMC take seconds to import
 

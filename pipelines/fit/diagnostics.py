@@ -28,7 +28,7 @@ def _elements(draws):
     return [(f"{draws.name}[{c}]", {dim: c}) for c in draws[dim].values]
 
 
-def diagnostics(idata, sample_seconds: float) -> dict:
+def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, unit_names=UNITS) -> dict:
     """Sampler and convergence diagnostics of one fit, with the verdict.
 
     Population parameters get R-hat (rank-normalized), bulk and tail ESS and bulk ESS
@@ -38,11 +38,12 @@ def diagnostics(idata, sample_seconds: float) -> dict:
     reported and judged on its own as ``beta[level]``.
     The verdict requires no divergences, R-hat ≤ :data:`RHAT_MAX` and bulk and tail ESS
     ≥ :data:`ESS_MIN` for every population parameter; E-BFMI and tree depth are reported
-    beside it.
+    beside it. ``parameters`` and ``unit_names`` name what is judged and reported (the max-ent
+    model's by default; the ``delayed`` model adds its lag and motor-noise blocks).
     """
     post = idata["posterior"].to_dataset()
     ss = idata["sample_stats"].to_dataset()
-    names = [v for v in POPULATION_PARAMETERS if v in post]
+    names = [v for v in parameters if v in post]
     # Select before calling ArviZ: with var_names, arviz-stats 1.x leaves the Dataset's
     # cached accessor holding only those variables for later calls.
     pop = post[names]
@@ -54,7 +55,7 @@ def diagnostics(idata, sample_seconds: float) -> dict:
             population[label] = {"rhat": float(rhat[v].sel(at)), "ess_bulk": b, "ess_tail": float(tail[v].sel(at)),
                                  "ess_bulk_per_s": b / sample_seconds}
     units = {}
-    for v in UNITS:
+    for v in unit_names:
         ds = post[[v]]
         r, b, t = az.rhat(ds)[v].values, az.ess(ds, method="bulk")[v].values, az.ess(ds, method="tail")[v].values
         units[v] = {"rhat_max": float(np.nanmax(r)), "ess_bulk_min": float(np.nanmin(b)),

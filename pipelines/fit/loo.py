@@ -81,6 +81,43 @@ LOSO_DRAWS = 1000
 LOSO_POINTS = 2000
 
 
+def thinned_posterior(idata) -> tuple[dict, object]:
+    """The posterior thinned evenly to :data:`LOSO_DRAWS` draws over the chains: flat arrays (S first) and the Dataset."""
+    post = idata["posterior"].to_dataset()
+    n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
+    step = max(1, (n_chain * n_draw) // LOSO_DRAWS)
+    keep = post.isel(draw=slice(0, None, step))
+    flat = {v: np.asarray(keep[v].transpose("chain", "draw", ...).values, dtype=float).reshape(
+        (-1,) + keep[v].shape[2:]) for v in keep.data_vars}
+    return flat, keep
+
+
+def subject_elpd(idata, batch, index, plant, rng: np.random.Generator, levels, *, condition_effects: bool = True,
+                 extra=None) -> tuple[dict, np.ndarray]:
+    """Leave-one-subject-out of one model by integrated PSIS: its summary and the ELPD of each subject.
+
+    ``index`` is :func:`models.units.index_study` of the fitted segments; ``extra`` the terms
+    of another human model (:func:`models.bayes.subject_loo.subject_loglik`), built from
+    the thinned posterior's flat draws by a callable ``extra(flat)``.
+    """
+    flat, keep = thinned_posterior(idata)
+    order = [str(x) for x in keep["log_theta1"].coords["subject"].values]
+    if order != [str(x) for x in index.subjects]:
+        raise ValueError("posterior subjects are not in the order of the study index")
+    if [str(x) for x in keep["log_theta1"].coords["condition"].values] != [str(v) for v in levels]:
+        raise ValueError("posterior condition levels are not the study's levels, baseline first")
+    res = subject_loglik(flat, batch, index.subject_idx, index.condition_idx, plant, rng,
+                         condition_effects=condition_effects, M=LOSO_POINTS,
+                         extra=None if extra is None else extra(flat))
+    ll = xr.DataArray(res.loglik.reshape(keep.sizes["chain"], keep.sizes["draw"], -1),
+                      dims=("chain", "draw", "subject"), coords={"subject": order})
+    tree = xr.DataTree.from_dict({"posterior": keep[["mu_log_theta1"]], "log_likelihood": xr.Dataset({"y": ll})})
+    summary, pointwise = psis_summary(tree, "y", "subject")
+    summary.update(is_ess_min=float(res.is_ess.min()), is_ess_median=float(np.median(res.is_ess)),
+                   draws=int(res.loglik.shape[0]))
+    return summary, pointwise
+
+
 def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, plant, rng: np.random.Generator,
                            levels=CONDITIONS) -> dict:
     """Leave-one-subject-out ELPD of both models by integrated PSIS, and their difference.
@@ -96,24 +133,6 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
     index = index_study(subjects, conditions, levels)
     out, pointwise = {}, {}
     for name, d, effects in (("condition", idata, True), ("pooled", idata_pooled, False)):
-        post = d["posterior"].to_dataset()
-        n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
-        step = max(1, (n_chain * n_draw) // LOSO_DRAWS)
-        keep = post.isel(draw=slice(0, None, step))
-        flat = {v: np.asarray(keep[v].transpose("chain", "draw", ...).values, dtype=float).reshape(
-            (-1,) + keep[v].shape[2:]) for v in keep.data_vars}
-        order = [str(x) for x in keep["log_theta1"].coords["subject"].values]
-        if order != [str(x) for x in index.subjects]:
-            raise ValueError("posterior subjects are not in the order of the study index")
-        if [str(x) for x in keep["log_theta1"].coords["condition"].values] != [str(v) for v in levels]:
-            raise ValueError("posterior condition levels are not the study's levels, baseline first")
-        res = subject_loglik(flat, batch, index.subject_idx, index.condition_idx, plant, rng,
-                             condition_effects=effects, M=LOSO_POINTS)
-        ll = xr.DataArray(res.loglik.reshape(keep.sizes["chain"], keep.sizes["draw"], -1),
-                          dims=("chain", "draw", "subject"), coords={"subject": order})
-        tree = xr.DataTree.from_dict({"posterior": keep[["mu_log_theta1"]], "log_likelihood": xr.Dataset({"y": ll})})
-        out[name], pointwise[name] = psis_summary(tree, "y", "subject")
-        out[name].update(is_ess_min=float(res.is_ess.min()), is_ess_median=float(np.median(res.is_ess)),
-                         draws=int(res.loglik.shape[0]))
+        out[name], pointwise[name] = subject_elpd(d, batch, index, plant, rng, levels, condition_effects=effects)
     out["difference"] = elpd_difference(out, pointwise)
     return out

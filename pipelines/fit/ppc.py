@@ -15,6 +15,7 @@ import pandas as pd
 import xarray as xr
 
 from models.cost import from_normalized
+from models.delayed.sample import closed_loop, delayed_setup, sample_delayed
 from models.maxent import forward_optimal_control, sample_maxent
 from models.plant import discretize
 from models.segment import plan_inputs
@@ -46,7 +47,7 @@ class PosteriorPredictive(NamedTuple):
 
 
 def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.random.Generator,
-                         n_draws: int = PPC_DRAWS) -> PosteriorPredictive:
+                         n_draws: int = PPC_DRAWS, delayed: dict | None = None) -> PosteriorPredictive:
     """Posterior predictive angle and torque of one subject, every level (and trial).
 
     ``n_draws`` posterior draws, evenly spaced over chains × draws; for each, one exact
@@ -56,6 +57,12 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
     quantiles per time step. Also the forward optimal control at the posterior median θ.
     The wheel and its sample time are the study's (``prepared.settings.design``); the
     trials of a unit share its posterior θ, each with its own x0, reference and u_A.
+
+    ``delayed`` (None: the max-ent human, as always) draws from the ``delayed`` human
+    instead (:func:`models.delayed.sample_delayed`) at each draw's θ and its subject's
+    τ_nm and σ_m: a dict with ``delay`` (per segment of ``prepared``, samples) and
+    ``tau0`` (a function (segment position, τ_nm) -> τ_0, N·m). Its "optimal" curves are
+    the closed loop without noise at the posterior medians.
 
     Raises
     ------
@@ -69,7 +76,7 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
     flat = np.linspace(0, n_chain * n_draw - 1, min(n_draws, n_chain * n_draw)).round().astype(int)
     ci, di = np.divmod(flat, n_draw)
     frames, labels, angles, torques = [], [], [], []
-    for p, label in zip(prepared.segments, prepared.labels):
+    for pos, (p, label) in enumerate(zip(prepared.segments, prepared.labels)):
         if p.data.subject != subject:
             continue
         cond = p.data.condition
@@ -82,13 +89,17 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
         plan_plant, known = plan_inputs(seg, plant)
         ang = np.empty((flat.size, K + 1))
         tq = np.empty((flat.size, K))
-        for j in range(flat.size):
-            theta = from_normalized(np.exp(lt1[j]), t2[j], np.exp(lR[j]))
-            demo = sample_maxent(theta, seg.x0, seg.angle_ref, known, plan_plant, rng)
-            ang[j] = demo.x[: K + 1, 0]
-            tq[j] = demo.u_H[:K]
-        theta = from_normalized(np.exp(np.median(lt1)), np.median(t2), np.exp(np.median(lR)))
-        opt = forward_optimal_control(theta, seg.x0, seg.angle_ref, known, plan_plant)
+        if delayed is None:
+            for j in range(flat.size):
+                theta = from_normalized(np.exp(lt1[j]), t2[j], np.exp(lR[j]))
+                demo = sample_maxent(theta, seg.x0, seg.angle_ref, known, plan_plant, rng)
+                ang[j] = demo.x[: K + 1, 0]
+                tq[j] = demo.u_H[:K]
+            theta = from_normalized(np.exp(np.median(lt1)), np.median(t2), np.exp(np.median(lR)))
+            opt = forward_optimal_control(theta, seg.x0, seg.angle_ref, known, plan_plant)
+        else:
+            opt = delayed_draws(post, ci, di, subject, (lt1, lR, t2), seg, int(delayed["delay"][pos]),
+                                lambda tau: delayed["tau0"](pos, tau), plant, design.wheel, rng, ang, tq)
         qa = np.quantile(ang, [0.05, 0.5, 0.95], axis=0)
         qu = np.quantile(tq, [0.05, 0.5, 0.95], axis=0)
         pad = lambda x: np.append(x, np.nan)  # noqa: E731  torques act from k to k + 1: none at k = K
@@ -115,6 +126,39 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
         attrs={"note": f"{flat.size} posterior draws evenly spaced over chains × draws (flat index: source_draw), "
                        f"one exact max-ent demonstration each, for the segments of subject {subject}"})
     return PosteriorPredictive(pd.concat(frames, ignore_index=True), draws)
+
+
+def delayed_draws(post, ci, di, subject, cost, seg, delay: int, tau0, plant, params, rng, ang, tq):
+    """Fill ``ang`` (n, K + 1) and ``tq`` (n, K) with draws of the ``delayed`` human for one segment; return the
+    noise-free closed loop at the posterior medians (``x``, ``u_H``) as its "optimal" curves."""
+    lt1, lR, t2 = cost
+    tau = post["tau_nm"].sel(subject=subject).values[ci, di]
+    sig = post["sigma_m"].sel(subject=subject).values[ci, di]
+    K = seg.K
+    for j in range(tau.size):
+        theta = from_normalized(np.exp(lt1[j]), t2[j], np.exp(lR[j]))
+        demo = sample_delayed(theta, seg.x0, seg.angle_ref, plant, rng, u_A=None if seg.feedback else seg.u_A,
+                              feedback=seg.feedback, tau_nm=float(tau[j]), sigma_m=float(sig[j]), delay=delay,
+                              tau0=tau0(float(tau[j])), n_obs=K, params=params)
+        ang[j] = demo.x[: K + 1, 0]
+        tq[j] = demo.u_H[:K]
+    theta = from_normalized(np.exp(np.median(lt1)), np.median(t2), np.exp(np.median(lR)))
+    t_med = float(np.median(tau))
+    setup = delayed_setup(theta, seg.angle_ref, plant, u_A=None if seg.feedback else seg.u_A, feedback=seg.feedback,
+                          tau_nm=t_med, params=params)
+    z0 = np.array([seg.x0[0], seg.x0[1], tau0(t_med)])
+    # The closed loop as models.delayed.sample_delayed runs it, with every noise 0.
+    z, uH, _ = closed_loop(plant.A, plant.b, setup.a, setup.alpha, setup.A, setup.b_c, setup.b_a, setup.gain,
+                           setup.feedback, setup.known, setup.policy.L, setup.policy.f, z0, np.zeros((K, 1)),
+                           np.zeros((K + delay, 1)), delay, setup.true_A, setup.true_b, setup.physical)
+    return NoiseFree(z[:, :2, 0], uH[:, 0])
+
+
+class NoiseFree(NamedTuple):
+    """The ``delayed`` human's closed loop without policy or motor noise (the "optimal" curves of the PPC table)."""
+
+    x: np.ndarray
+    u_H: np.ndarray
 
 
 def constant_data(prepared: PreparedStudy) -> xr.Dataset:

@@ -20,10 +20,12 @@ def child_seeds(seed: int) -> dict:
 
 
 def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
-                 show_progress: bool = False, log_likelihood: bool = True):
+                 show_progress: bool = False, log_likelihood: bool = True, nuts: dict | None = None):
     """Sample ``model`` with nutpie (through ``pm.sample``) and add the pointwise log-likelihood.
 
     ``log_likelihood=False`` skips the pointwise log-likelihood (for timing the fit alone).
+    ``nuts``: nutpie's own options (e.g. ``{"adaptation": "low_rank"}``), passed on only
+    when given, so that a fit without them is exactly as before.
     ``cores`` (chains run in parallel) defaults to ``os.cpu_count()``. It is passed
     explicitly because PyMC's own default halves the CPU count (it assumes hardware
     threads): on a 2-core machine nutpie then ran the chains one at a time, measured
@@ -42,7 +44,7 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     with stdout_to_stderr(), interrupt_guard() as interrupted:
         idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
                           random_seed=seed, nuts_sampler="nutpie", progressbar=show_progress,
-                          quiet=not show_progress, model=model)
+                          quiet=not show_progress, model=model, **({"nuts": dict(nuts)} if nuts else {}))
     if interrupted():
         # nutpie stops on Ctrl-C and returns the draws so far; a partial posterior is not a result.
         raise KeyboardInterrupt

@@ -7,6 +7,7 @@ both), then two models of
 the model with condition effects (β, the mean SC change of log θ1, is the paper's
 question; with more levels one β per level against the baseline) and the pooled model
 without them (log θ1 the same in every level), which only serves the PSIS-LOO comparison.
+With ``human_model="delayed"`` the one model is the delayed human's (:mod:`pipelines.fit.delayed`).
 
 The experiment (:class:`models.design.Design`, ``settings.design``) gives the wheel and
 the sample time of the likelihood, the levels (baseline first) and their assistants, and
@@ -58,16 +59,18 @@ from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.adequacy import format_adequacy, not_checked
 from pipelines.experiment import sidecar as experiment_fields
+from pipelines.fit.artifacts import require_netcdf, strict_json, write_netcdf
 from pipelines.fit.checks import mixedlm_check, posterior_adequacy, truth_check
 from pipelines.fit.contrasts import contrasts
+from pipelines.fit.delayed import delayed_adequacy, delayed_results, sample_delayed_model, unit_delays
 from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, RHAT_MAX, diagnostics
 from pipelines.fit.loo import loo_comparison, subject_loo_comparison
 from pipelines.fit.ppc import PPC_DRAWS, constant_data, posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import child_seeds, sample_model
 from pipelines.io import InputDataError, load_study
-from pipelines.prepare import IdentifySettings, PreparedStudy, check_design, prepare_study
+from pipelines.prepare import IdentifySettings, PreparedStudy, check_design, check_human_model, prepare_study
 from pipelines.provenance import versions
-from pipelines.storage import (atomic_path, check_output_dir, refuse_inputs_inside, staged_dir, write_table_atomic,
+from pipelines.storage import (check_output_dir, refuse_inputs_inside, staged_dir, write_table_atomic,
                                write_text_atomic)
 
 
@@ -90,37 +93,6 @@ def default_inputs(study_path: Path, estimates_path, truth_dir):
         if (folder / "simulation.json").exists() and (folder / "truth.parquet").exists():
             truth_dir = folder
     return estimates_path, truth_dir
-
-
-def strict_json(obj) -> str:
-    """Strict JSON: non-finite numbers (an undefined k, a z of 0/0) become null."""
-
-    def clean(x):
-        if isinstance(x, float) and not np.isfinite(x):
-            return None
-        if isinstance(x, dict):
-            return {k: clean(v) for k, v in x.items()}
-        if isinstance(x, (list, tuple)):
-            return [clean(v) for v in x]
-        return x
-
-    return json.dumps(clean(obj), indent=2, allow_nan=False) + "\n"
-
-
-def require_netcdf() -> None:
-    """Fail before minutes of sampling, not after, if NetCDF cannot be written."""
-    try:
-        import h5netcdf  # noqa: F401
-        import h5py  # noqa: F401
-    except ImportError as exc:
-        raise ImportError(f"writing posterior.nc needs the packages h5netcdf and h5py ({exc}); "
-                          "install them with `pip install h5netcdf h5py`") from exc
-
-
-def write_netcdf(idata, path: Path) -> Path:
-    with atomic_path(path) as tmp:
-        idata.to_netcdf(tmp, engine="h5netcdf")
-    return path
 
 
 #: Fewest draws in all chains: PSIS-LOO fits its Pareto tail to min(0.2 S, 3 √S) draws and needs 5.
@@ -163,7 +135,8 @@ def choose_parameterization(estimates) -> tuple[Parameterization, str]:
 def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 1000,
                settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
-               force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None) -> dict:
+               force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
+               human_model: str | None = None) -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -201,6 +174,13 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     experiment_file : str, optional
         Where ``settings.design`` came from (None: the built-in study), recorded in the
         sidecar beside the resolved experiment and its hash.
+    human_model : {"maxent", "delayed"}, optional
+        The human model (default ``settings.human_model``): ``maxent`` fits the condition
+        and pooled max-ent models as always; ``delayed`` fits
+        :func:`models.bayes.delayed_model.build_delayed_model` alone, with each unit's
+        delay from the estimates' ``delay_s`` or the ML profile (:mod:`pipelines.fit.delayed`;
+        no ``posterior_pooled.nc``). ``posterior.json`` records it, and for ``delayed`` the
+        delay of every unit and how it was chosen.
 
     Returns
     -------
@@ -215,6 +195,10 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         ``subject``; nothing is written then.
     """
     require_netcdf()
+    human_model = settings.human_model if human_model is None else human_model
+    check_human_model(human_model)
+    if human_model != settings.human_model and settings.human_model != "maxent":
+        raise ValueError(f"human_model {human_model!r} contradicts the settings' {settings.human_model!r}")
     for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
         if int(v) != v or v < low:
             raise ValueError(f"--{name} must be an integer >= {low}; got {v!r}")
@@ -258,40 +242,57 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                                                 else unit_se_log_theta1(prepared, plant))
     seeds = child_seeds(seed)
     fits, timing = {}, {"prepare_s": t_prepared - t_start}
-    for name, effects in (("condition", True), ("pooled", False)):
+    extra = {}
+    if human_model == "delayed":
+        delays = unit_delays(prepared, estimates, plant, estimates_path)
+        fit = sample_delayed_model(prepared, batch, plant, priors, form, delays, seed=seeds["condition"], chains=chains,
+                                   draws=draws, tune=tune, cores=cores, show_progress=show_progress)
+        fits, diag, extra = {"condition": fit.idata}, {"condition": fit.diagnostics}, fit.sidecar
+        timing["condition"] = fit.timing
         t0 = time.perf_counter()
-        model = build_model(prepared.subjects, prepared.conditions, batch, plant, segment_ids=prepared.labels,
-                            condition_effects=effects, priors=priors, levels=levels, parameterization=form)
-        t1 = time.perf_counter()
-        idata, sec = sample_model(model, seed=seeds[name], chains=chains, draws=draws, tune=tune, cores=cores,
-                                  show_progress=show_progress)
-        fits[name] = idata
-        timing[name] = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
-    diag = {name: diagnostics(d, timing[name]["sample_s"]) for name, d in fits.items()}
+        res, ppc, ppc_draws = delayed_results(fit, prepared, plant, estimates, truth_dir, subject,
+                                              np.random.default_rng(seeds["ppc"]), n_draws=PPC_DRAWS)
+        timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        res["adequacy"] = delayed_adequacy(fit.idata, prepared, plant, delays)
+        timing["adequacy_s"] = time.perf_counter() - t0
+    else:
+        for name, effects in (("condition", True), ("pooled", False)):
+            t0 = time.perf_counter()
+            model = build_model(prepared.subjects, prepared.conditions, batch, plant, segment_ids=prepared.labels,
+                                condition_effects=effects, priors=priors, levels=levels, parameterization=form)
+            t1 = time.perf_counter()
+            idata, sec = sample_model(model, seed=seeds[name], chains=chains, draws=draws, tune=tune, cores=cores,
+                                      show_progress=show_progress)
+            fits[name] = idata
+            timing[name] = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
+        diag = {name: diagnostics(d, timing[name]["sample_s"]) for name, d in fits.items()}
 
-    t0 = time.perf_counter()
-    res = {"model": "hierarchical max-ent, condition effects on log θ1 and log R (models.bayes.hierarchical)",
-           **contrasts(fits["condition"])}
-    res["loo"] = loo_comparison(fits["condition"], fits["pooled"])
-    res["loo_subject"] = subject_loo_comparison(fits["condition"], fits["pooled"], batch, prepared.subjects,
-                                                prepared.conditions, plant, np.random.default_rng(seeds["loso"]),
-                                                levels=levels)
-    res["mixedlm"] = mixedlm_check(estimates, levels) if estimates is not None else None
-    res["truth"] = truth_check(fits["condition"], truth_dir, estimates, design) if truth_dir is not None else None
-    assisted = ", ".join(v for v in levels if design.assistant(v) is not None) or "no level"
-    ppc, ppc_draws = posterior_predictive(fits["condition"], prepared, subject, np.random.default_rng(seeds["ppc"]))
-    res["ppc"] = {"subject": subject, "draws": int(min(PPC_DRAWS, chains * draws)), "coverage_5_95": ppc_coverage(ppc),
-                  "note": f"exact max-ent draws of the human the likelihood assumes (in {assisted}: "
-                          + settings.assistant_model + " assistant model); "
-                          "u_H is the reconstructed torque where the file has none"}
-    timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    res["adequacy"] = posterior_adequacy(fits["condition"], prepared, plant)
-    timing["adequacy_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        res = {"model": "hierarchical max-ent, condition effects on log θ1 and log R (models.bayes.hierarchical)",
+               **contrasts(fits["condition"])}
+        res["loo"] = loo_comparison(fits["condition"], fits["pooled"])
+        res["loo_subject"] = subject_loo_comparison(fits["condition"], fits["pooled"], batch, prepared.subjects,
+                                                    prepared.conditions, plant, np.random.default_rng(seeds["loso"]),
+                                                    levels=levels)
+        res["mixedlm"] = mixedlm_check(estimates, levels) if estimates is not None else None
+        res["truth"] = truth_check(fits["condition"], truth_dir, estimates, design) if truth_dir is not None else None
+        assisted = ", ".join(v for v in levels if design.assistant(v) is not None) or "no level"
+        ppc, ppc_draws = posterior_predictive(fits["condition"], prepared, subject, np.random.default_rng(seeds["ppc"]))
+        res["ppc"] = {"subject": subject, "draws": int(min(PPC_DRAWS, chains * draws)),
+                      "coverage_5_95": ppc_coverage(ppc),
+                      "note": f"exact max-ent draws of the human the likelihood assumes (in {assisted}: "
+                              + settings.assistant_model + " assistant model); "
+                              "u_H is the reconstructed torque where the file has none"}
+        timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        res["adequacy"] = posterior_adequacy(fits["condition"], prepared, plant)
+        timing["adequacy_s"] = time.perf_counter() - t0
 
     timing["total_s"] = time.perf_counter() - t_start
     sidecar = {
         "study": str(study_path),
+        "human_model": human_model,
         "seed": int(seed),
         "seeds": seeds,
         "sampler": {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')", "chains": int(chains),
@@ -312,6 +313,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                    "truth_dir": None if truth_dir is None else str(truth_dir)},
         "note_timing": "wall-clock times on a shared machine: other jobs may have competed for the CPU",
         **experiment_fields(design, experiment_file),
+        **extra,
         "versions": versions(),
     }
     fits["condition"]["posterior_predictive"] = ppc_draws
@@ -319,12 +321,15 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     # Everything or nothing: the folder holds this fit's files only, or what it held before.
     with staged_dir(out, force=force) as tmp:
         write_netcdf(fits["condition"], tmp / "posterior.nc")
-        write_netcdf(fits["pooled"], tmp / "posterior_pooled.nc")
+        if "pooled" in fits:
+            write_netcdf(fits["pooled"], tmp / "posterior_pooled.nc")
         write_table_atomic(ppc, tmp / "ppc.parquet")
         write_text_atomic(tmp / "posterior.json", strict_json(sidecar))
         write_text_atomic(tmp / "contrasts.json", strict_json(res))
     names = {"posterior": "posterior.nc", "posterior_pooled": "posterior_pooled.nc", "ppc": "ppc.parquet",
              "sidecar": "posterior.json", "contrasts": "contrasts.json"}
+    if "pooled" not in fits:
+        del names["posterior_pooled"]
     return {k: str(out / v) for k, v in names.items()}
 
 
@@ -347,14 +352,17 @@ def format_fit(out) -> str:
     out = Path(out)
     side = json.loads((out / "posterior.json").read_text())
     res = json.loads((out / "contrasts.json").read_text())
-    loo = res["loo"]["difference"]
+    loo = res["loo"].get("difference")
     conv = side["convergence_verdict"]
     adequacy = res.get("adequacy") or not_checked("not in this fit's contrasts.json")
     lines = [format_adequacy(adequacy)]
     if adequacy["verdict"] == "fail":
         lines.append("CAVEAT: the numbers below assume a human model that fails its adequacy checks; "
                      "beta may be an artifact of model misfit")
-    lines.append(f"sampler convergence: condition model {conv['condition']}; pooled model {conv['pooled']}")
+    if side.get("human_model", "maxent") != "maxent":
+        lines.append(f"human model: {side['human_model']} (delays: {side['delay']['source']})")
+    lines.append(f"sampler convergence: condition model {conv['condition']}"
+                 + (f"; pooled model {conv['pooled']}" if "pooled" in conv else ""))
     if "contrasts" in res:
         for level, c in res["contrasts"].items():
             lines += _beta_lines(c["beta"], c["ratio"], f"mean change of log theta1, {level} against {res['baseline']}")
@@ -362,8 +370,9 @@ def format_fit(out) -> str:
         cond = side.get("experiment", {}).get("conditions", {"levels": ["MC", "SC"], "baseline": "MC"})
         other = next(v for v in cond["levels"] if v != cond["baseline"])
         lines += _beta_lines(res["beta"], res["ratio"], f"mean {other} change of log theta1")
-    lines.append(f"LOO: elpd(condition) - elpd(pooled) = {loo['elpd_diff']:.1f} ± {loo['se']:.1f} "
-                 f"({'reliable' if loo['reliable'] else 'Pareto k high: unreliable'})")
+    if loo is not None:
+        lines.append(f"LOO: elpd(condition) - elpd(pooled) = {loo['elpd_diff']:.1f} ± {loo['se']:.1f} "
+                     f"({'reliable' if loo['reliable'] else 'Pareto k high: unreliable'})")
     if res.get("loo_subject"):
         ls = res["loo_subject"]["difference"]
         se = "n/a (one subject)" if ls.get("se") is None else f"{ls['se']:.1f}"

@@ -8,6 +8,7 @@ import nutpie
 import pymc as pm
 import pytest
 
+from models.bayes.blocks import Parameterization
 from models.bayes.delayed_model import DelayedForm, build_delayed_model
 from models.bayes.delayed_op import DelayedLoglikOp
 from models.bayes.delayed_windows import delayed_windows
@@ -76,21 +77,22 @@ def test_nutpie_compiled_logp_equals_pymcs(plant, study):
 def test_cost_blocks_are_the_max_ent_models(plant, study):
     """The same free variables, dims and priors for θ (the max-ent model's condition model), plus the motor blocks."""
     w = study
-    delayed = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
+    delayed = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                  parameterization=Parameterization())
     maxent = build_model(w.subjects, w.conditions, w.segments, plant)
     names = {v.name for v in maxent.free_RVs}
     assert names <= {v.name for v in delayed.free_RVs}
     assert {v.name for v in delayed.free_RVs} - names == {"mu_log_tau_nm", "sigma_log_tau_nm", "sigma_m_scale",
-                                                          "z_log_tau_nm", "z_sigma_m"}
+                                                          "log_tau_nm", "sigma_m"}
     for n in names:
         assert delayed.named_vars_to_dims.get(n) == maxent.named_vars_to_dims.get(n)
     draws_d = pm.draw([delayed[n] for n in sorted(names)], draws=200, random_seed=5)
     draws_m = pm.draw([maxent[n] for n in sorted(names)], draws=200, random_seed=5)
     for a, b in zip(draws_d, draws_m):  # the same prior, drawn in the same order
         np.testing.assert_array_equal(a, b)
-    centred = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
-                                  delayed_form=DelayedForm("centred", "centred"))
-    assert {"log_tau_nm", "sigma_m"} <= {v.name for v in centred.free_RVs}
+    noncentred = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                     delayed_form=DelayedForm("noncentred", "noncentred"))
+    assert {"z_log_tau_nm", "z_sigma_m", "z_log_R_MC", "z_log_R_SC"} <= {v.name for v in noncentred.free_RVs}
     with pytest.raises(ValueError, match="centred"):
         DelayedForm("sometimes")
 

@@ -1,0 +1,264 @@
+"""``scioc fit`` with the ``delayed`` human (:func:`pipelines.fit.stage.fit_to_dir`, ``human_model="delayed"``).
+
+The model is :func:`models.bayes.delayed_model.build_delayed_model`: the max-ent model's
+cost blocks with the commands' cost, plus each subject's neuromuscular lag and motor noise.
+What differs from the max-ent fit:
+
+* **Delays.** Each subject's perceptual delay is fixed (plug-in; the model docstring says
+  why) at the maximum of the sum of its units' profile log-likelihoods over 0-300 ms:
+  from the estimates file's ``profile_loglik`` (``scioc identify --human-model delayed``)
+  when it has one, else computed here by the same profile
+  (:func:`models.delayed.identify.identify_unit_delayed`, its trials together)
+  (:func:`unit_delays`). The sidecar records the delay of every unit and where it came from.
+* **Arm torque at each window's start.** It follows from the torques before the window
+  (:attr:`pipelines.prepare.PreparedSegment.warmup`) at every τ_nm the sampler visits,
+  with its tangents (:mod:`models.bayes.delayed_op`).
+* **One model.** No pooled model is fitted (its only use is the condition-effect LOO of
+  the max-ent fit, and it would double the fit's cost); the PSIS-LOO over segments is
+  reported for this model alone. The comparison with the max-ent human is
+  :func:`pipelines.fit.human_models.compare_human_models`, on two fit folders.
+* Posterior predictive draws and the adequacy check at the posterior draw from the
+  delayed human (:func:`pipelines.fit.ppc.posterior_predictive`, ``delayed=``;
+  :func:`pipelines.adequacy.assess_study`, ``delayed=``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, replace
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from models.bayes.delayed_model import (DELAYED_NUTS, DELAYED_PARAMETERIZATION, DELAYED_POPULATION_PARAMETERS,
+                                        DelayedForm, DelayedPriors, build_delayed_model)
+from models.bayes.hierarchical import POPULATION_PARAMETERS
+from models.cost import from_normalized
+from models.delayed.identify import delay_grid, identify_unit_delayed
+from models.delayed.lag import lag_coefficients, window_tau0
+from models.segment import prepare_batch
+from pipelines.adequacy import assess_study, not_checked
+from pipelines.fit.checks import mixedlm_check, truth_check
+from pipelines.fit.contrasts import contrasts, hdi
+from pipelines.fit.diagnostics import diagnostics
+from pipelines.fit.loo import psis_summary
+from pipelines.fit.ppc import posterior_predictive, ppc_coverage
+from pipelines.fit.sampling import sample_model
+from pipelines.io import InputDataError
+
+#: Unit-level quantities of the delayed model whose diagnostics are reported.
+DELAYED_UNITS = ("log_theta1", "log_R", "theta2", "tau_nm", "sigma_m")
+
+
+class Delays(NamedTuple):
+    """The plug-in delay of every segment and how it was chosen.
+
+    Attributes
+    ----------
+    samples : ndarray of int, shape (n_segments,)
+    by_unit : dict
+        ``"subject/condition" -> {"delay_samples", "delay_s"}``.
+    source : str
+    """
+
+    samples: np.ndarray
+    by_unit: dict
+    source: str
+
+
+def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=None) -> Delays:
+    """Each segment's delay: its subject's maximum of the summed profile log-likelihoods of its units.
+
+    The profiles (log-likelihood maximized over θ, τ_nm and σ_m at each delay of
+    :func:`models.delayed.identify.delay_grid`) come from the estimates' ``profile_loglik``
+    (``scioc identify --human-model delayed``) or are computed here
+    (:func:`models.delayed.identify.identify_unit_delayed`, the unit's trials together).
+    One delay per subject, as the model has one τ_nm and σ_m per subject: in SC the
+    assistant's feedback makes the unit's own profile nearly flat (measured in
+    :mod:`models.bayes.delayed_model`), and the subject's MC data fix it. Estimates with
+    ``delay_s`` but no profile give each unit its own ``delay_s``.
+    """
+    dt = float(plant.dt)
+    units = prepared.units
+    grid = delay_grid(dt)
+    profiles, per_unit = {}, {}
+    if estimates is not None and "profile_loglik" in estimates.columns:
+        for r in estimates.itertuples():
+            prof = np.asarray(r.profile_loglik, dtype=float)
+            if prof.shape != grid.shape or not np.isfinite(prof).any():
+                raise InputDataError(f"{estimates_path}: profile_loglik of subject {r.subject!r}, condition "
+                                     f"{r.condition!r} does not cover the delay grid of {grid.size} delays")
+            profiles[(str(r.subject), str(r.condition))] = prof
+        source = (f"estimates file {estimates_path}: each subject's maximum of the summed profile_loglik of its "
+                  "units (scioc identify --human-model delayed)")
+    elif estimates is not None and "delay_s" in estimates.columns:
+        for r in estimates.itertuples():
+            v = float(r.delay_s)
+            if not (np.isfinite(v) and v >= 0):
+                raise InputDataError(f"{estimates_path}: delay_s of subject {r.subject!r}, condition {r.condition!r} "
+                                     f"is {v!r}; need a delay >= 0 s (scioc identify --human-model delayed)")
+            per_unit[(str(r.subject), str(r.condition))] = int(round(v / dt))
+        source = f"estimates file {estimates_path}: each unit's delay_s (no profile_loglik), rounded to samples"
+    else:
+        for (s, c), idx in units.items():
+            est = identify_unit_delayed([prepare_batch(plant, [prepared.segments[i].segment]) for i in idx], plant,
+                                        params=prepared.settings.design.wheel,
+                                        tau0=[[prepared.segments[i].warmup] for i in idx])
+            profiles[(str(s), str(c))] = np.asarray(est.profile, dtype=float)
+        source = ("computed here: each subject's maximum of the summed profile log-likelihoods of its units over "
+                  "0-300 ms (models.delayed.identify.identify_unit_delayed; no estimates given)")
+    if profiles:
+        for subject in dict.fromkeys(s for s, _ in units):
+            total = sum(np.nan_to_num(profiles[(str(subject), str(c))], nan=-np.inf) for s, c in units
+                        if s == subject)
+            d = int(grid[int(np.argmax(total))])  # the smallest such delay on a tie, as identify
+            per_unit.update({(str(s), str(c)): d for s, c in units if s == subject})
+    samples = np.array([per_unit[(str(p.data.subject), str(p.data.condition))] for p in prepared.segments],
+                       dtype=np.int64)
+    by_unit = {f"{s}/{c}": {"delay_samples": per_unit[(str(s), str(c))], "delay_s": per_unit[(str(s), str(c))] * dt}
+               for s, c in units}
+    return Delays(samples, by_unit, source)
+
+
+def tau0_function(prepared, plant):
+    """(segment position, τ_nm) -> the arm torque at that window's start, N·m (from its warm-up; 0 at rest)."""
+    warmups = [p.warmup for p in prepared.segments]
+    params = prepared.settings.design.wheel
+
+    def at(pos: int, tau_nm: float) -> float:
+        lag = lag_coefficients(float(tau_nm), plant.dt, params)
+        return float(window_tau0([warmups[pos]], lag.a, lag.alpha)[0][0])
+
+    return at
+
+
+class DelayedFit(NamedTuple):
+    """What the delayed path of ``scioc fit`` hands back to :func:`pipelines.fit.stage.fit_to_dir`."""
+
+    idata: object
+    diagnostics: dict
+    timing: dict
+    delays: Delays
+    sidecar: dict
+
+
+def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
+                         tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors = DelayedPriors(),
+                         delayed_form: DelayedForm = DelayedForm()) -> DelayedFit:
+    """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
+
+    ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
+    chose them; the log R blocks take :data:`models.bayes.delayed_model.DELAYED_PARAMETERIZATION`'s,
+    and nutpie :data:`models.bayes.delayed_model.DELAYED_NUTS` (both measured there).
+    """
+    levels = prepared.settings.design.ordered_levels
+    form = replace(form, R_mc=DELAYED_PARAMETERIZATION.R_mc, R_sc=DELAYED_PARAMETERIZATION.R_sc)
+    t0 = time.perf_counter()
+    model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant, delay=delays.samples,
+                                tau0=[p.warmup for p in prepared.segments], priors=priors,
+                                delayed_priors=delayed_priors, parameterization=form, delayed_form=delayed_form,
+                                segment_ids=prepared.labels, levels=levels, params=prepared.settings.design.wheel)
+    t1 = time.perf_counter()
+    idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
+                              show_progress=show_progress, nuts=DELAYED_NUTS)
+    timing = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
+    diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
+    side = {"delay": {"source": delays.source, "by_unit": delays.by_unit,
+                      "note": "fixed per unit (plug-in), not sampled: models/bayes/delayed_model.py says why"},
+            "tau0": "each window's arm torque follows from the torques before it (PreparedSegment.warmup) "
+                    "at every τ_nm",
+            "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
+            "delayed_parameterization": asdict(form), "nutpie_options": dict(DELAYED_NUTS),
+            "delayed_form": {k: getattr(delayed_form, k) for k in delayed_form.__dataclass_fields__}}
+    return DelayedFit(idata, diag, timing, delays, side)
+
+
+def per_segment_motor(idata, prepared, plant, delays: Delays) -> dict:
+    """Per segment: its subject's posterior mean τ_nm and σ_m, its delay and arm torque at the start (adequacy)."""
+    post = idata["posterior"]
+    tau = post["tau_nm"].mean(("chain", "draw"))
+    sig = post["sigma_m"].mean(("chain", "draw"))
+    at = tau0_function(prepared, plant)
+    t = np.array([float(tau.sel(subject=s)) for s in prepared.subjects])
+    return {"tau_nm": t, "sigma_m": np.array([float(sig.sel(subject=s)) for s in prepared.subjects]),
+            "delay": delays.samples, "tau0": np.array([at(i, v) for i, v in enumerate(t)])}
+
+
+def delayed_adequacy(idata, prepared, plant, delays: Delays) -> dict:
+    """Model adequacy at the posterior (plug-in: posterior means, as :func:`pipelines.fit.checks.posterior_adequacy`)
+    with the bootstrap drawn from the delayed human."""
+    if prepared.settings.adequacy_boot == 0:
+        return not_checked("switched off (adequacy bootstrap size 0)")
+    post = idata["posterior"]
+    lt1, lr, t2 = (post[v].mean(("chain", "draw")) for v in ("log_theta1", "log_R", "theta2"))
+    sel = [dict(subject=s, condition=c) for s, c in zip(prepared.subjects, prepared.conditions)]
+    theta = from_normalized([float(np.exp(lt1.sel(**k))) for k in sel], [float(t2.sel(**k)) for k in sel],
+                            [float(np.exp(lr.sel(**k))) for k in sel])
+    _, summary = assess_study(prepared.segments, theta.T, plant, prepared.settings,
+                              delayed=per_segment_motor(idata, prepared, plant, delays))
+    summary["theta"] = ("posterior means of log θ1, log R and θ2 per subject × condition, of τ_nm and σ_m per "
+                        "subject, the plug-in delays (plug-in)")
+    return summary
+
+
+def motor_truth(idata, truth_dir) -> dict | None:
+    """Each subject's τ_nm, σ_m (and the delays) against the simulator's (``truth.parquet``), when it has them."""
+    truth = pd.read_parquet(f"{truth_dir}/truth.parquet")
+    if not {"tau_nm", "motor_sd"} <= set(truth.columns):
+        return None
+    truth = truth.drop_duplicates("subject").set_index(truth.drop_duplicates("subject")["subject"].astype(str))
+    post = idata["posterior"]
+    out = {}
+    for name, col in (("tau_nm", "tau_nm"), ("sigma_m", "motor_sd")):
+        x = post[name]
+        covered, err = [], []
+        for s in x["subject"].values:
+            draws = x.sel(subject=s).values.ravel()
+            lo, hi = hdi(draws)
+            t = float(truth.loc[str(s), col])
+            covered.append(bool(lo <= t <= hi))
+            err.append(float(draws.mean() - t))
+        out[name] = {"n": len(covered), "truth_in_hdi94": int(sum(covered)), "mean_error": float(np.mean(err))}
+    return out
+
+
+
+
+def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subject: str, rng_ppc, *,
+                    n_draws: int) -> tuple[dict, object, object]:
+    """contrasts.json of the delayed fit, and the posterior predictive (bands, draws).
+
+    β and the per-subject contrasts as for the max-ent fit (:func:`pipelines.fit.contrasts.contrasts`),
+    PSIS-LOO over segments of this model alone, the mixed model of the estimates, the truth
+    check (with each subject's τ_nm and σ_m when the simulator recorded them), the
+    posterior predictive bands from the delayed human and the adequacy at the posterior.
+    """
+    design = prepared.settings.design
+    levels = design.ordered_levels
+    idata = fit.idata
+    res = {"model": "hierarchical delayed human: the max-ent model's condition effects on log θ1 and log R (command "
+                    "cost), τ_nm and σ_m per subject, plug-in delays (models.bayes.delayed_model)",
+           "human_model": "delayed", **contrasts(idata)}
+    loo, _ = psis_summary(idata, "u_H", "segment")
+    res["loo"] = {"delayed": loo, "note": "this model alone (no pooled model is fitted for the delayed human)"}
+    res["loo_subject"] = None
+    res["human_models"] = ("not computed in this fit: pipelines.fit.human_models.compare_human_models compares the "
+                           "max-ent and delayed fits of one study by leave-one-subject-out")
+    res["mixedlm"] = mixedlm_check(estimates, levels) if estimates is not None else None
+    res["truth"] = truth_check(idata, truth_dir, estimates, design) if truth_dir is not None else None
+    if res["truth"] is not None:
+        res["truth"]["motor"] = motor_truth(idata, truth_dir)
+    at = tau0_function(prepared, plant)
+    ppc, ppc_draws = posterior_predictive(idata, prepared, subject, rng_ppc, n_draws=n_draws,
+                                          delayed={"delay": fit.delays.samples, "tau0": at})
+    assisted = ", ".join(v for v in levels if design.assistant(v) is not None) or "no level"
+    res["ppc"] = {"subject": subject, "draws": int(ppc_draws.sizes["draw"]), "coverage_5_95": ppc_coverage(ppc),
+                  "note": f"exact draws of the delayed human (in {assisted}: {prepared.settings.assistant_model} "
+                          "assistant model) at each draw's θ, τ_nm, σ_m and the plug-in delay; u_H is the "
+                          "reconstructed torque where the file has none"}
+    return res, ppc, ppc_draws
+
+
+__all__ = ["DELAYED_UNITS", "DelayedFit", "Delays", "delayed_adequacy", "delayed_results", "motor_truth",
+           "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]

@@ -1,0 +1,95 @@
+"""``scioc fit`` with the ``delayed`` human end to end: the sidecar records the human model and every unit's delay,
+delays come from the estimates or from the profile, the max-ent fit of the same study is as before, and the two fits
+compare by leave-one-subject-out."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from models.plant import discretize
+from pipelines.fit import fit_to_dir, format_fit
+from pipelines.fit.delayed import unit_delays
+from pipelines.fit.human_models import compare_human_models, format_human_models
+from pipelines.identify import identify_to_dir
+from pipelines.io import load_study
+from pipelines.prepare import IdentifySettings, prepare_study
+from pipelines.simulate import simulate_to_dir
+
+#: Small fits: the samplers are not meant to converge (numbers are checked for consistency).
+TINY = {"seed": 5, "chains": 2, "draws": 60, "tune": 100}
+#: Few adequacy replicates: the verdict's path is exercised, its power is not the point here.
+SETTINGS = IdentifySettings(human_model="delayed", adequacy_boot=4)
+
+
+@pytest.fixture(scope="module")
+def delayed_study(tmp_path_factory):
+    """3 subjects of the ``kbl`` human (each its own delay and lag), identified with the delayed model."""
+    root = tmp_path_factory.mktemp("delayed") / "study"
+    sim = simulate_to_dir(root / "data", n_subjects=3, seed=13, human="kbl")
+    prepared = prepare_study(load_study(sim["study"]), SETTINGS)
+    identify_to_dir(sim["study"], root / "identify", SETTINGS, show_progress=False, prepared=prepared)
+    return root, sim, prepared
+
+
+@pytest.fixture(scope="module")
+def delayed_fit(delayed_study):
+    root, sim, prepared = delayed_study
+    paths = fit_to_dir(sim["study"], root / "fit_delayed", settings=SETTINGS, prepared=prepared, **TINY)
+    return paths
+
+
+@pytest.mark.slow
+def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_fit):
+    root, _, prepared = delayed_study
+    side = json.loads(open(delayed_fit["sidecar"]).read())
+    assert side["human_model"] == "delayed"
+    assert "posterior_pooled" not in delayed_fit
+    est = pd.read_parquet(root / "identify" / "estimates.parquet")
+    by_unit = side["delay"]["by_unit"]
+    assert len(by_unit) == len(est) == 6
+    for subject, rows in est.groupby("subject"):
+        total = np.sum([np.asarray(p, dtype=float) for p in rows["profile_loglik"]], axis=0)
+        d = int(np.argmax(total))  # the grid is 0, 1, ..., 30 samples at 100 Hz
+        assert {by_unit[f"{subject}/{c}"]["delay_samples"] for c in rows["condition"]} == {d}
+    assert "profile_loglik" in side["delay"]["source"] and "estimates" in side["delay"]["source"]
+    assert {"mu_log_tau_nm", "sigma_log_tau_nm", "sigma_m_scale", "beta"} <= set(
+        side["diagnostics"]["condition"]["population"])
+    res = json.loads(open(delayed_fit["contrasts"]).read())
+    assert res["human_model"] == "delayed" and "beta" in res and "delayed" in res["loo"]
+    assert res["truth"]["motor"]["tau_nm"]["n"] == 3
+    assert res["adequacy"]["verdict"] in ("pass", "fail")
+    text = format_fit(root / "fit_delayed")
+    assert "human model: delayed" in text and "pooled" not in text
+
+
+@pytest.mark.slow
+def test_delays_without_estimates_are_the_profile_maxima(delayed_study):
+    """Without estimates the fit computes each unit's delay by the same profile identify uses."""
+    root, _, prepared = delayed_study
+    est = pd.read_parquet(root / "identify" / "estimates.parquet")
+    plant = discretize(0.01)
+    own = unit_delays(prepared, None, plant)
+    given = unit_delays(prepared, est, plant, "estimates.parquet")
+    np.testing.assert_array_equal(own.samples, given.samples)
+    assert "computed here" in own.source
+
+
+@pytest.mark.slow
+def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit):
+    root, sim, prepared = delayed_study
+    maxent_settings = IdentifySettings(adequacy_boot=0)
+    mx = fit_to_dir(sim["study"], root / "fit_maxent", settings=maxent_settings, estimates_path=None, **TINY)
+    assert json.loads(open(mx["sidecar"]).read())["human_model"] == "maxent"
+    with pytest.raises(ValueError, match="not a delayed fit"):
+        compare_human_models(root / "fit_maxent", root / "fit_maxent", prepared=prepared)
+    res = compare_human_models(root / "fit_maxent", root / "fit_delayed", prepared=prepared, seed=3)
+    by = res["by_subject"]
+    assert set(by) == {"S01", "S02", "S03"}
+    diffs = np.array([v["difference"] for v in by.values()])
+    assert res["difference"]["elpd_diff"] == pytest.approx(diffs.sum())
+    assert res["difference"]["n_preferring_delayed"] == int((diffs > 0).sum())
+    # The kbl human has a lag and motor noise the max-ent human lacks: the delayed model predicts it better.
+    assert res["difference"]["preferred"] == "delayed"
+    assert "elpd(delayed) - elpd(maxent)" in format_human_models(res)

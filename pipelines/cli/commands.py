@@ -194,7 +194,8 @@ def cmd_fit(args) -> int:
     settings, source = window_settings(args)
     paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
                        settings=settings, experiment_file=source, subject=args.subject, estimates_path=args.estimates,
-                       truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force)
+                       truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
+                       human_model=args.human_model)
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")

@@ -189,6 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--truth", metavar="DIR",
                    help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
     _add_window_options(p)
+    _add_human_model_option(p)
     _add_force_option(p)
     p.set_defaults(func=commands.cmd_fit)
 

@@ -41,8 +41,13 @@ def _sidecar(folder: Path) -> dict:
     return json.loads((folder / "posterior.json").read_text())
 
 
+#: Settings that do not change what is fitted (the human model is what is compared; the adequacy
+#: bootstrap's size and seed change only the verdict beside the posterior).
+_NOT_THE_DATA = ("human_model", "adequacy_boot", "adequacy_seed")
+
+
 def _same_settings(a: dict, b: dict) -> bool:
-    keep = lambda d: {k: v for k, v in d.items() if k != "human_model"}  # noqa: E731
+    keep = lambda d: {k: v for k, v in d.items() if k not in _NOT_THE_DATA}  # noqa: E731
     return keep(a) == keep(b)
 
 

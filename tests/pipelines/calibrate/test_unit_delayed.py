@@ -55,13 +55,12 @@ def test_one_replication_ranks_every_parameter_and_the_loglik():
 
 
 @pytest.mark.slow
-def test_small_delayed_sbc_passes_and_its_negative_control_fails(tmp_path):
-    # 40 replications of 4-s windows. False failure of the correct model: FAMILY_ALPHA = 1 % (KS per ranked
-    # quantity, Bonferroni). The no-delay control must fail: ignoring a delay drawn from 0-300 ms biases
-    # tau_nm and sigma_m in most replications (6 replications of 6-s windows already failed it while building this).
+def test_small_delayed_sbc_catches_an_ignored_delay(tmp_path):
+    # 40 replications of 4-s windows with the delay fixed at 0: ignoring a delay drawn from 0-300 ms biases
+    # tau_nm and sigma_m in most replications (100 replications of 6-s windows: KS p about 1e-14). The correct
+    # model is not asserted to pass here: at 500 replications its plug-in delay is measurably overconfident
+    # (README, "Human models"), and a small run that passed would say nothing.
     base = dict(level="unit", replications=40, K=400, chains=2, tune=250, draws=250, L=39, batch_size=5, seed=11,
                 human_model="delayed")
-    good = calibrate(CalibrationConfig(**base), tmp_path / "good", show_progress=False)
-    assert good["passed"], good["parameters"]
     bad = calibrate(CalibrationConfig(**base, negative_control="no-delay"), tmp_path / "bad", show_progress=False)
     assert not bad["passed"]

@@ -24,7 +24,8 @@ branches) from the wheel's constants (:func:`wheel_constants`, once per Op):
 
 Then ``α = v_1 / b_1``, ``dα/dτ_nm = -μ² (dv/dμ)_1 / b_1``, ``a = e^{-μ dt}``,
 ``da/dτ_nm = a dt μ²``; τ_nm = 0 gives a = α = da = 0 and the one-sided
-``dα/dτ_nm = (Φ b_w)_1 / b_1``, as there.
+``dα/dτ_nm = (Φ b_w)_1 / b_1``, as there. Below :data:`TAU_TINY` α is its first-order
+expansion τ_nm (Φ b_w)_1 / b_1 (exact to rounding there; the closed form would overflow).
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ from models.plant import continuous_matrices, discretize
 
 #: Taylor terms of the series branch (at norm <= 1/2: 0.5^24 / 24! is far below rounding).
 _TERMS = 24
+#: τ_nm (s) below which α is its first-order expansion (a sampler can propose τ_nm = 1e-200).
+TAU_TINY = 1e-9
 
 
 def wheel_constants(dt: float, params: WheelParameters = WheelParameters()) -> tuple:
@@ -87,8 +90,10 @@ def _phi_series(X):
 @njit(cache=True)
 def lag_nb(tau_nm, dt, A_c, b_w, Pb, b1, poles):
     """``(a, α, da/dτ_nm, dα/dτ_nm)`` of one τ_nm >= 0 (s); the wheel's constants from :func:`wheel_constants`."""
-    if tau_nm == 0.0:
-        return 0.0, 0.0, 0.0, Pb[1] / b1
+    if tau_nm < TAU_TINY:
+        # a = e^{-dt/τ} is 0 in double precision, and α = τ (Φ b_w)_1 / b_1 + O(τ²): the O(τ²)
+        # is below rounding here, where μ² would overflow in the closed form's derivatives.
+        return 0.0, tau_nm * Pb[1] / b1, 0.0, Pb[1] / b1
     mu = 1.0 / tau_nm
     a = math.exp(-dt * mu)
     dist = np.inf
@@ -111,4 +116,4 @@ def lag_nb(tau_nm, dt, A_c, b_w, Pb, b1, poles):
     return a, alpha, a * dt * mu * mu, -mu * mu * dv1 / b1
 
 
-__all__ = ["lag_nb", "wheel_constants"]
+__all__ = ["TAU_TINY", "lag_nb", "wheel_constants"]

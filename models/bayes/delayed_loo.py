@@ -6,11 +6,11 @@ population draws. For :mod:`models.bayes.delayed_model` a subject has, besides t
 blocks (log θ1, log R, θ2 per level), its own lag and motor noise: :class:`DelayedSubjectTerms`
 adds them, as ``extra``:
 
-* to the Student-t block of the proposal, as (log τ_nm, log σ_m): log σ_m rather than
-  σ_m, so that a motor noise far from 0 (a delayed human, σ_m ≈ 0.25 ± 0.01) and one
-  the data leave at its prior near 0 (a max-ent human) are both covered by a t fitted to
-  the draws, with the log-Jacobian σ_m in the weights;
-* to the conditional prior: ``log τ_nm ~ N(μ_τ, σ_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
+* to the Student-t block of the proposal, as (log τ_nm, log σ_m): logs rather than the
+  values, so that a lag or motor noise far from 0 (a delayed human, σ_m ≈ 0.25 ± 0.02)
+  and one the data leave near 0 (a max-ent human) are both covered by a t fitted to the
+  draws, with the log-Jacobians τ_nm σ_m in the weights;
+* to the conditional prior: ``τ_nm ~ HalfNormal(s_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
   population draw (the model's, whatever form the sampler used);
 * and the segments' log-likelihood is the delayed one
   (:func:`models.delayed.likelihood.loglik_grad`) at the segment's plug-in delay, with
@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from models.bayes.delayed_op import pack_tau0, warmups_of
-from models.bayes.subject_loo import halfnorm_logpdf, norm_logpdf
+from models.bayes.subject_loo import halfnorm_logpdf
 from models.cost import from_normalized
 from models.delayed.lag import arm_torque, lag_coefficients
 from models.design import WheelParameters
@@ -41,8 +41,7 @@ class DelayedSubjectTerms:
     ----------
     post : dict of ndarray
         Flattened posterior draws (S first) of the delayed model: ``tau_nm`` and
-        ``sigma_m`` (S, n_subjects); ``mu_log_tau_nm``, ``sigma_log_tau_nm``,
-        ``sigma_m_scale`` (S,).
+        ``sigma_m`` (S, n_subjects); ``tau_nm_scale``, ``sigma_m_scale`` (S,).
     batch : SegmentBatch
         The segments the model was fitted to.
     plant : DiscretePlant
@@ -59,8 +58,7 @@ class DelayedSubjectTerms:
                  params: WheelParameters = WheelParameters(), chunk: int = 256):
         self.log_tau = np.log(np.asarray(post["tau_nm"], dtype=float))
         self.log_sig = np.log(np.asarray(post["sigma_m"], dtype=float))
-        self.mu_t = np.asarray(post["mu_log_tau_nm"], dtype=float)[:, None]
-        self.sd_t = np.asarray(post["sigma_log_tau_nm"], dtype=float)[:, None]
+        self.s_t = np.asarray(post["tau_nm_scale"], dtype=float)[:, None]
         self.s_m = np.asarray(post["sigma_m_scale"], dtype=float)[:, None]
         self.batch, self.plant, self.params, self.chunk = batch, plant, params, int(chunk)
         self.delay = np.broadcast_to(np.asarray(delay, dtype=np.int64), (batch.n,))
@@ -72,10 +70,10 @@ class DelayedSubjectTerms:
         return [self.log_tau[:, i], self.log_sig[:, i]]
 
     def log_prior(self, z: np.ndarray) -> np.ndarray:
-        """(S, M): log p(log τ_nm, log σ_m | ψ_s) at the M points z (M, 2), the Jacobian σ_m included."""
-        sig = np.exp(z[:, 1])
-        return (norm_logpdf(z[None, :, 0], self.mu_t, self.sd_t) + halfnorm_logpdf(sig[None, :], self.s_m)
-                + z[None, :, 1])
+        """(S, M): log p(log τ_nm, log σ_m | ψ_s) at the M points z (M, 2), the Jacobians τ_nm σ_m included."""
+        tau, sig = np.exp(z[:, 0]), np.exp(z[:, 1])
+        return (halfnorm_logpdf(tau[None, :], self.s_t) + halfnorm_logpdf(sig[None, :], self.s_m)
+                + (z[:, 0] + z[:, 1])[None, :])
 
     def _tau0(self, j: int, tau: np.ndarray) -> np.ndarray:
         if self.warmups is None:

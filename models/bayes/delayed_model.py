@@ -7,11 +7,34 @@ subject × level with condition effects, θ2 >= 0 with a learned half-normal sca
 Added, per subject i (kept in every level: the lag and the motor noise are the person's,
 as the simulated ``kbl`` human's are)::
 
-    log τ_nm[i] = μ_τ + σ_τ z_τ[i]        z_τ[i] ~ N(0, 1)           neuromuscular lag, s
-    σ_m[i]     = s_m z_m[i]              z_m[i] ~ HalfNormal(1)     motor-noise SD, N·m per sample
+    τ_nm[i] ~ HalfNormal(s_τ)      neuromuscular lag, s              s_τ ~ HalfN(0.1)
+    σ_m[i]  ~ HalfNormal(s_m)      motor-noise SD, N·m per sample    s_m ~ HalfN(0.3)
     u_H[segment] ~ delayed(θ, τ_nm[i], σ_m[i], d[segment] | x0, angle_ref, assistant, τ_0)
 
-    μ_τ ~ N(log 0.06, 0.9)    σ_τ ~ HalfN(0.5)    s_m ~ HalfN(0.3)      (:class:`DelayedPriors`)
+(:class:`DelayedPriors`; each block centred or non-centred, :class:`DelayedForm`). Half-normal
+populations, not log-normal ones, because the model must contain the paper's human: on
+data without lag or motor noise the ML τ_nm is 0 (<= 0.7 ms in every unit of the max-ent
+human with a torque sensor, README "Human models") and σ_m near it, which a log-normal
+population can reach only by sending its mean to -∞ (its prior then fights the data; a
+trial fit with log τ_nm ~ N(μ_τ, σ_τ), μ_τ ~ N(log 0.06, 0.9), on 12 such subjects had not
+finished its 600 draws per chain after 30 min where the delayed human's took 20).
+A half-normal puts mass at 0 and, with the data of a delayed human (SE of τ_nm about
+0.006 s at 0.06 s, of σ_m 0.02-0.03 N·m at 0.25), shrinks its values negligibly.
+
+Prior predictive check (:func:`models.bayes.prior_predictive.delayed_prior_predictive_summary`,
+as the max-ent model's: the default study's 84 segments, every one with delay 12 samples and
+its warm-up, 200 joint prior draws, ``default_rng(1)``; earlier populations of τ_nm, same
+scales of every other block)::
+
+                        5 %    25 %   50 %   75 %   95 %
+    MC torque (N·m)    0.213  0.258  0.273  0.285  0.359    observed 0.271-0.318
+    SC torque (N·m)    0.056  0.095  0.117  0.143  0.263    observed 0.118-0.193
+    MC error (rad)     0.007  0.014  0.024  0.040  0.089    observed 0.009-0.035
+    SC error (rad)     0.004  0.011  0.019  0.031  0.051    observed 0.011-0.032
+    σ_m (N·m)          0.005  0.036  0.110  0.255  0.625
+
+The observations sit in the central part of every distribution, as for the max-ent model;
+σ_m covers 0 to 2.5 times KBL's 0.25 N·m.
 
 The delay d is *data*: fixed per subject at the maximum of its profile likelihood
 (:func:`build_delayed_model` takes a delay per segment; ``scioc fit`` chooses it,
@@ -54,7 +77,6 @@ GEOMETRY
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -74,7 +96,7 @@ from models.segment import Feedback, as_batch
 from models.units import index_study
 
 #: Population parameters of the lag and motor-noise blocks, as the model names them.
-DELAYED_POPULATION_PARAMETERS = ("mu_log_tau_nm", "sigma_log_tau_nm", "sigma_m_scale")
+DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale")
 #: The cost blocks' forms for the delayed human (module docstring, "Geometry"): log R non-centred,
 #: the rest as the max-ent model's default.
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
@@ -88,16 +110,13 @@ class DelayedPriors:
 
     Attributes
     ----------
-    mu_log_tau_nm : (float, float)
-        Mean and SD of the Normal prior on μ_τ, the population mean of log τ_nm.
-    sigma_log_tau_nm : float
-        Scale of the HalfNormal prior on σ_τ.
+    tau_nm_scale : float
+        Scale of the HalfNormal prior on s_τ, the population scale of τ_nm, s.
     sigma_m_scale : float
-        Scale of the HalfNormal prior on s_m, the population scale of σ_m.
+        Scale of the HalfNormal prior on s_m, the population scale of σ_m, N·m.
     """
 
-    mu_log_tau_nm: tuple[float, float] = (math.log(0.06), 0.9)
-    sigma_log_tau_nm: float = 0.5
+    tau_nm_scale: float = 0.1
     sigma_m_scale: float = 0.3
 
 
@@ -105,8 +124,8 @@ class DelayedPriors:
 class DelayedForm:
     """Centred or non-centred form of the lag and motor-noise blocks.
 
-    ``tau_nm``: ``noncentred`` samples z_τ ~ N(0, 1), ``centred`` log τ_nm[i] ~ N(μ_τ, σ_τ).
-    ``sigma_m``: ``noncentred`` samples z_m ~ HalfNormal(1), ``centred`` σ_m[i] ~ HalfNormal(s_m).
+    ``centred`` samples the subject's value, τ_nm[i] ~ HalfNormal(s_τ) (σ_m[i] ~
+    HalfNormal(s_m)); ``noncentred`` samples z[i] ~ HalfNormal(1) and sets s_τ z[i] (s_m z[i]).
     """
 
     tau_nm: str = "centred"
@@ -142,21 +161,15 @@ def _cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: 
 
 
 def _motor_blocks(priors: DelayedPriors, form: DelayedForm):
-    """τ_nm and σ_m per subject (module docstring)."""
-    mu_t = pm.Normal("mu_log_tau_nm", *priors.mu_log_tau_nm)
-    sd_t = pm.HalfNormal("sigma_log_tau_nm", priors.sigma_log_tau_nm)
-    s_m = pm.HalfNormal("sigma_m_scale", priors.sigma_m_scale)
-    if form.tau_nm == "centred":
-        log_tau = pm.Normal("log_tau_nm", mu_t, sd_t, dims="subject")
-    else:
-        log_tau = pm.Deterministic("log_tau_nm", mu_t + sd_t * pm.Normal("z_log_tau_nm", 0.0, 1.0, dims="subject"),
-                                   dims="subject")
-    tau_nm = pm.Deterministic("tau_nm", pt.exp(log_tau), dims="subject")
-    if form.sigma_m == "centred":
-        sigma_m = pm.HalfNormal("sigma_m", s_m, dims="subject")
-    else:
-        sigma_m = pm.Deterministic("sigma_m", s_m * pm.HalfNormal("z_sigma_m", 1.0, dims="subject"), dims="subject")
-    return tau_nm, sigma_m
+    """τ_nm and σ_m per subject, each from a half-normal population (module docstring)."""
+    out = []
+    for name, scale_name, f in (("tau_nm", "tau_nm_scale", form.tau_nm), ("sigma_m", "sigma_m_scale", form.sigma_m)):
+        scale = pm.HalfNormal(scale_name, getattr(priors, scale_name))
+        if f == "centred":
+            out.append(pm.HalfNormal(name, scale, dims="subject"))
+        else:
+            out.append(pm.Deterministic(name, scale * pm.HalfNormal(f"z_{name}", 1.0, dims="subject"), dims="subject"))
+    return tuple(out)
 
 
 def _tau0_at(spec, n: int, dt: float, params: WheelParameters):
@@ -196,9 +209,8 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
     -------
     pymc.Model
         The variables of :func:`models.bayes.hierarchical.build_model`'s condition model, plus
-        ``mu_log_tau_nm``, ``sigma_log_tau_nm``, ``sigma_m_scale``, the per-subject
-        ``log_tau_nm``, ``tau_nm``, ``sigma_m`` (dims ``subject``) and their free forms
-        (``z_log_tau_nm``, ``z_sigma_m`` when non-centred). Observed ``u_H`` (segment, step),
+        ``tau_nm_scale``, ``sigma_m_scale``, the per-subject ``tau_nm``, ``sigma_m`` (dims
+        ``subject``; ``z_tau_nm``, ``z_sigma_m`` when non-centred). Observed ``u_H`` (segment, step),
         one log-likelihood per segment.
     """
     levels = tuple(str(v) for v in levels)

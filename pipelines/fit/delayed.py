@@ -60,11 +60,15 @@ class Delays(NamedTuple):
     by_unit : dict
         ``"subject/condition" -> {"delay_samples", "delay_s"}``.
     source : str
+    estimates : DataFrame or None
+        The per-unit ML lag and motor noise with their SEs when computed here (for
+        :func:`choose_delayed_form`).
     """
 
     samples: np.ndarray
     by_unit: dict
     source: str
+    estimates: pd.DataFrame | None = None
 
 
 def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=None) -> Delays:
@@ -101,11 +105,15 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
             per_unit[(str(r.subject), str(r.condition))] = int(round(v / dt))
         source = f"estimates file {estimates_path}: each unit's delay_s (no profile_loglik), rounded to samples"
     else:
+        rows = []
         for (s, c), idx in units.items():
             est = identify_unit_delayed([prepare_batch(plant, [prepared.segments[i].segment]) for i in idx], plant,
                                         params=prepared.settings.design.wheel,
                                         tau0=[[prepared.segments[i].warmup] for i in idx])
             profiles[(str(s), str(c))] = np.asarray(est.profile, dtype=float)
+            rows.append({"subject": s, "condition": c, "tau_nm": est.tau_nm, "se_tau_nm": est.se_tau_nm,
+                         "sigma_m": est.sigma_m, "se_sigma_m": est.se_sigma_m})
+        estimates = pd.DataFrame(rows)
         source = ("computed here: each subject's maximum of the summed profile log-likelihoods of its units over "
                   "0-300 ms (models.delayed.identify.identify_unit_delayed; no estimates given)")
     if profiles:
@@ -118,7 +126,34 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
                        dtype=np.int64)
     by_unit = {f"{s}/{c}": {"delay_samples": per_unit[(str(s), str(c))], "delay_s": per_unit[(str(s), str(c))] * dt}
                for s, c in units}
-    return Delays(samples, by_unit, source)
+    return Delays(samples, by_unit, source, estimates)
+
+
+#: τ_nm's and σ_m's blocks are centred when the median over units of (ML estimate / its SE) is at
+#: least this: the data then pin each subject's value (models/bayes/delayed_model.py, "Geometry").
+CENTRED_Z = 3.0
+
+
+def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, str]:
+    """The forms of the lag and motor-noise blocks for these data, and why (recorded in the sidecar).
+
+    Per block, z = ML estimate / SE per unit (0 where the estimate is at its bound 0 or has
+    no SE); centred if the median z is at least :data:`CENTRED_Z` (a delayed human: the data
+    fix each subject's value, and a non-centred scale would form a ridge with them), else
+    non-centred (a human without lag or motor noise: the values sit at 0, where a centred
+    half-normal forms a funnel with its scale). Without estimates: non-centred.
+    """
+    if estimates is None or not {"tau_nm", "se_tau_nm", "sigma_m", "se_sigma_m"} <= set(estimates.columns):
+        return DelayedForm("noncentred", "noncentred"), "non-centred (no delayed estimates to measure the data by)"
+    forms, why = {}, []
+    for name in ("tau_nm", "sigma_m"):
+        v = pd.to_numeric(estimates[name], errors="coerce").to_numpy(dtype=float)
+        se = pd.to_numeric(estimates[f"se_{name}"], errors="coerce").to_numpy(dtype=float)
+        z = np.where(np.isfinite(v / se) & (se > 0), v / se, 0.0)
+        med = float(np.median(z))
+        forms[name] = "centred" if med >= CENTRED_Z else "noncentred"
+        why.append(f"{name} {forms[name]} (median estimate/SE {med:.3g}, threshold {CENTRED_Z:g})")
+    return DelayedForm(**forms), "; ".join(why)
 
 
 def tau0_function(prepared, plant):
@@ -145,7 +180,7 @@ class DelayedFit(NamedTuple):
 
 def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
                          tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors = DelayedPriors(),
-                         delayed_form: DelayedForm = DelayedForm()) -> DelayedFit:
+                         delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None) -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
@@ -154,6 +189,10 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     """
     levels = prepared.settings.design.ordered_levels
     form = replace(form, R_mc=DELAYED_PARAMETERIZATION.R_mc, R_sc=DELAYED_PARAMETERIZATION.R_sc)
+    if delayed_form is None:
+        delayed_form, form_reason = choose_delayed_form(estimates if estimates is not None else delays.estimates)
+    else:
+        form_reason = "given"
     t0 = time.perf_counter()
     model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant, delay=delays.samples,
                                 tau0=[p.warmup for p in prepared.segments], priors=priors,
@@ -170,7 +209,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                     "at every τ_nm",
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
             "delayed_parameterization": asdict(form), "nutpie_options": dict(DELAYED_NUTS),
-            "delayed_form": {k: getattr(delayed_form, k) for k in delayed_form.__dataclass_fields__}}
+            "delayed_form": {**asdict(delayed_form), "reason": form_reason}}
     return DelayedFit(idata, diag, timing, delays, side)
 
 
@@ -260,5 +299,5 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
     return res, ppc, ppc_draws
 
 
-__all__ = ["DELAYED_UNITS", "DelayedFit", "Delays", "delayed_adequacy", "delayed_results", "motor_truth",
-           "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]
+__all__ = ["CENTRED_Z", "DELAYED_UNITS", "DelayedFit", "Delays", "choose_delayed_form", "delayed_adequacy",
+           "delayed_results", "motor_truth", "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]

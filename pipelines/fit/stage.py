@@ -246,7 +246,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     if human_model == "delayed":
         delays = unit_delays(prepared, estimates, plant, estimates_path)
         fit = sample_delayed_model(prepared, batch, plant, priors, form, delays, seed=seeds["condition"], chains=chains,
-                                   draws=draws, tune=tune, cores=cores, show_progress=show_progress)
+                                   draws=draws, tune=tune, cores=cores, show_progress=show_progress,
+                                   estimates=estimates)
         fits, diag, extra = {"condition": fit.idata}, {"condition": fit.diagnostics}, fit.sidecar
         timing["condition"] = fit.timing
         t0 = time.perf_counter()

@@ -82,8 +82,7 @@ def test_cost_blocks_are_the_max_ent_models(plant, study):
     maxent = build_model(w.subjects, w.conditions, w.segments, plant)
     names = {v.name for v in maxent.free_RVs}
     assert names <= {v.name for v in delayed.free_RVs}
-    assert {v.name for v in delayed.free_RVs} - names == {"mu_log_tau_nm", "sigma_log_tau_nm", "sigma_m_scale",
-                                                          "log_tau_nm", "sigma_m"}
+    assert {v.name for v in delayed.free_RVs} - names == {"tau_nm_scale", "sigma_m_scale", "tau_nm", "sigma_m"}
     for n in names:
         assert delayed.named_vars_to_dims.get(n) == maxent.named_vars_to_dims.get(n)
     draws_d = pm.draw([delayed[n] for n in sorted(names)], draws=200, random_seed=5)
@@ -92,7 +91,7 @@ def test_cost_blocks_are_the_max_ent_models(plant, study):
         np.testing.assert_array_equal(a, b)
     noncentred = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
                                      delayed_form=DelayedForm("noncentred", "noncentred"))
-    assert {"z_log_tau_nm", "z_sigma_m", "z_log_R_MC", "z_log_R_SC"} <= {v.name for v in noncentred.free_RVs}
+    assert {"z_tau_nm", "z_sigma_m", "z_log_R_MC", "z_log_R_SC"} <= {v.name for v in noncentred.free_RVs}
     with pytest.raises(ValueError, match="centred"):
         DelayedForm("sometimes")
 

@@ -165,3 +165,16 @@ def test_lag_coefficients_in_numba_equal_scipys(params):
         np.testing.assert_allclose(got, tuple(ref), rtol=1e-12, atol=1e-300, err_msg=f"tau_nm = {tau}")
     if params == WheelParameters(0.04, 0.0, 0.286):
         assert near  # the series branch was exercised
+
+
+def test_a_vanishing_lag_is_finite_and_continuous():
+    """A sampler may propose τ_nm = 1e-200: the coefficients stay finite and meet the τ_nm = 0 limit."""
+    c = wheel_constants(0.01)
+    zero = np.array(lag_nb(0.0, *c))
+    for tau in (1e-200, 1e-12, 1e-9 * 0.999):
+        got = np.array(lag_nb(tau, *c))
+        assert np.all(np.isfinite(got))
+        np.testing.assert_allclose(got, zero + [0.0, tau * zero[3], 0.0, 0.0], rtol=1e-12, atol=1e-300)
+    # just above the switch the closed form agrees with the expansion to first order
+    above = np.array(lag_nb(1.001e-9, *c))
+    np.testing.assert_allclose(above[[1, 3]], [1.001e-9 * zero[3], zero[3]], rtol=1e-6)

@@ -8,9 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from models.bayes.delayed_model import DelayedForm
 from models.plant import discretize
 from pipelines.fit import fit_to_dir, format_fit
-from pipelines.fit.delayed import unit_delays
+from pipelines.fit.delayed import CENTRED_Z, choose_delayed_form, unit_delays
 from pipelines.fit.human_models import compare_human_models, format_human_models
 from pipelines.identify import identify_to_dir
 from pipelines.io import load_study
@@ -54,7 +55,7 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
         d = int(np.argmax(total))  # the grid is 0, 1, ..., 30 samples at 100 Hz
         assert {by_unit[f"{subject}/{c}"]["delay_samples"] for c in rows["condition"]} == {d}
     assert "profile_loglik" in side["delay"]["source"] and "estimates" in side["delay"]["source"]
-    assert {"mu_log_tau_nm", "sigma_log_tau_nm", "sigma_m_scale", "beta"} <= set(
+    assert {"tau_nm_scale", "sigma_m_scale", "beta"} <= set(
         side["diagnostics"]["condition"]["population"])
     res = json.loads(open(delayed_fit["contrasts"]).read())
     assert res["human_model"] == "delayed" and "beta" in res and "delayed" in res["loo"]
@@ -93,3 +94,15 @@ def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit
     # The kbl human has a lag and motor noise the max-ent human lacks: the delayed model predicts it better.
     assert res["difference"]["preferred"] == "delayed"
     assert "elpd(delayed) - elpd(maxent)" in format_human_models(res)
+
+
+def test_the_lag_and_noise_blocks_are_centred_only_where_the_data_pin_them():
+    assert choose_delayed_form(None)[0] == DelayedForm("noncentred", "noncentred")
+    # A delayed human: both well away from 0 in SE units.
+    pinned = pd.DataFrame({"tau_nm": [0.06, 0.08], "se_tau_nm": [0.005, 0.006], "sigma_m": [0.25, 0.24],
+                           "se_sigma_m": [0.02, 0.02]})
+    form, reason = choose_delayed_form(pinned)
+    assert form == DelayedForm("centred", "centred") and f"threshold {CENTRED_Z:g}" in reason
+    # A max-ent human: the lag at its bound (no SE), the motor noise small against its SE.
+    at_zero = pinned.assign(tau_nm=[0.0, 0.0], se_tau_nm=[np.nan, np.nan], sigma_m=[0.05, 0.03])
+    assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "noncentred")

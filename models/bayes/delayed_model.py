@@ -23,18 +23,18 @@ A half-normal puts mass at 0 and, with the data of a delayed human (SE of τ_nm 
 
 Prior predictive check (:func:`models.bayes.prior_predictive.delayed_prior_predictive_summary`,
 as the max-ent model's: the default study's 84 segments, every one with delay 12 samples and
-its warm-up, 200 joint prior draws, ``default_rng(1)``; earlier populations of τ_nm, same
-scales of every other block)::
+its warm-up, 200 joint prior draws, ``default_rng(1)``)::
 
                         5 %    25 %   50 %   75 %   95 %
-    MC torque (N·m)    0.213  0.258  0.273  0.285  0.359    observed 0.271-0.318
-    SC torque (N·m)    0.056  0.095  0.117  0.143  0.263    observed 0.118-0.193
-    MC error (rad)     0.007  0.014  0.024  0.040  0.089    observed 0.009-0.035
-    SC error (rad)     0.004  0.011  0.019  0.031  0.051    observed 0.011-0.032
-    σ_m (N·m)          0.005  0.036  0.110  0.255  0.625
+    MC torque (N·m)    0.221  0.261  0.277  0.296  0.422    observed 0.271-0.318
+    SC torque (N·m)    0.056  0.099  0.123  0.163  0.339    observed 0.118-0.193
+    MC error (rad)     0.007  0.015  0.025  0.040  0.080    observed 0.009-0.035
+    SC error (rad)     0.005  0.011  0.020  0.033  0.050    observed 0.011-0.032
+    τ_nm (s)           0.002  0.012  0.036  0.084  0.217
+    σ_m (N·m)          0.006  0.035  0.102  0.234  0.617
 
 The observations sit in the central part of every distribution, as for the max-ent model;
-σ_m covers 0 to 2.5 times KBL's 0.25 N·m.
+τ_nm covers no lag to twice McRuer & Jex's 0.1 s, σ_m 0 to 2.5 times KBL's 0.25 N·m.
 
 The delay d is *data*: fixed per subject at the maximum of its profile likelihood
 (:func:`build_delayed_model` takes a delay per segment; ``scioc fit`` chooses it,

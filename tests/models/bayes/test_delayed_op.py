@@ -9,7 +9,8 @@ import pytensor.tensor as pt
 import pytest
 
 from models.bayes.delayed_lag import lag_nb, wheel_constants
-from models.bayes.delayed_op import DELAYED_DATA_NAMES, DelayedLoglikDataOp, DelayedLoglikOp, delayed_loglik, pack_tau0
+from models.bayes.delayed_op import (DELAYED_DATA_NAMES, DelayedLoglikDataOp, DelayedLoglikOp, delayed_loglik, pack_tau0,
+                                    warm_samples)
 from models.bayes.delayed_windows import delayed_windows
 from models.delayed import loglik_grad
 from models.delayed.lag import Warmup, lag_coefficients, window_tau0
@@ -178,3 +179,19 @@ def test_a_vanishing_lag_is_finite_and_continuous():
     # just above the switch the closed form agrees with the expansion to first order
     above = np.array(lag_nb(1.001e-9, *c))
     np.testing.assert_allclose(above[[1, 3]], [1.001e-9 * zero[3], zero[3]], rtol=1e-6)
+
+
+def test_long_warm_ups_run_only_their_last_samples_to_rounding(plant, setup):
+    """A measured torque's warm-up is the whole run (thousands of samples); the Op runs only the part that
+    matters above 1e-20 and equals the kernel with τ_0 from the whole warm-up."""
+    w, batch, _, tau = setup
+    rng = np.random.default_rng(8)
+    warm = [Warmup(np.cumsum(rng.normal(0, 0.05, 6000)) * 0.1, 0.0) for _ in range(batch.n)]
+    assert all(warm_samples(*lag_coefficients(t)[:2]) < 6000 for t in tau)  # the truncation is exercised
+    th, tt, ss = pt.dmatrix(), pt.dvector(), pt.dvector()
+    f, _ = _compile_quietly([th, tt, ss], list(DelayedLoglikOp(batch, plant, delay=w.delay, tau0=warm)(th, tt, ss)),
+                            "NUMBA")
+    ll, g = f(w.theta, tau, w.sigma_m)
+    ref = _reference(w, batch, plant, warm, tau, w.sigma_m)
+    np.testing.assert_allclose(ll, ref.loglik, rtol=RTOL)
+    np.testing.assert_allclose(g, ref.grad, rtol=RTOL, atol=RTOL * np.abs(ref.grad).max())

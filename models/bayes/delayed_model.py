@@ -72,7 +72,41 @@ the cost for ±2 samples, outside the speed goal (below).
 
 Geometry
 --------
-GEOMETRY
+What the data fix, per subject (MC + SC windows of a ``kbl``-like subject, K = 1500, true
+torques; observed information at the ML point in (log θ1, log R per level, log τ_nm,
+σ_m), two subjects): SD of log θ1 0.20-0.22 per unit (the max-ent model's: 0.06), of
+log R 0.40-0.47, of log τ_nm 0.08-0.09, of σ_m 0.02-0.03 N·m; correlations log R_MC-log R_SC
+0.96-0.97, log R-log τ_nm -0.86, log R-σ_m 0.57-0.69. The policy noise (variance 1/(2S),
+S ∝ R) and the motor noise explain the same torque variability except through the
+motor noise's moving average, and a slightly shorter lag lets R run to infinity (profile:
+log R 3.4 at the ML lag, 7.7 or 15 at a lag 20 % shorter, for 2.6 and 3.9 nats). So log R
+per unit is barely identified and strongly tied to the subject's lag and noise, while
+τ_nm and σ_m are well identified.
+
+Measured (12 subjects × MC, SC of :func:`models.bayes.delayed_windows.delayed_windows`, true
+torques and delays, 2 chains × 300 draws after 300 tuning, nutpie, sampler seed 1, on a
+machine shared with other jobs; minimum over the population parameters of the bulk ESS,
+and the parameter)::
+
+    τ_nm, σ_m                        log R MC / SC   mass matrix       steps/draw  div  worst ESS
+    log-normal NC, half-normal NC    C / C           diagonal          86          0    16 (s_m)
+    log-normal C, half-normal C      C / C           low rank          38          1    19 (σ_R)
+    log-normal C, half-normal C      NC / NC         diagonal          41          3    16 (μ_R)
+    log-normal C, half-normal C      NC / NC         low rank          29          4    25 (σ_R)   <- default
+    log-normal C, half-normal C      NC / NC         low rank, cut 3   35          1    28 (σ_R)
+
+(C centred, NC non-centred; "low rank": nutpie's ``adaptation="low_rank"``, eigenvalue
+cutoff 100, or 3; log-normal C with log R C / C and a diagonal mass matrix had not
+finished after 40 min.) The non-centred population scale of strongly identified values
+(first row) forms the ridge; centred τ_nm and σ_m remove it (ESS of their population
+parameters 500-1300). log R is best non-centred here, unlike in the max-ent model, because
+its per-unit SD (0.4) exceeds the population's (about 0.3); the low-rank mass matrix
+takes the within-subject correlations (steps 41 -> 29). σ_R, the between-subject SD of
+log R, stays slow in every form (ESS 15-28 of 600): R is the nuisance the data cannot
+separate from the motor noise, and β, θ1, τ_nm and σ_m mix well (ESS 500-1300). The
+population of τ_nm is now half-normal (above), with the same forms; on data without lag
+or motor noise they are non-centred (:func:`pipelines.fit.delayed.choose_delayed_form`).
+FULLFIT
 """
 
 from __future__ import annotations

@@ -16,11 +16,12 @@ shifted by log(dt / 0.01) for another rate as :meth:`DelayedUnitPrior.for_design
 σ_m's the motor noise of KBL's -25 dB (0.25 N·m per 10-ms sample on the study's torques,
 :mod:`models.humans`) with room on both sides.
 
-The delay is not sampled: the model conditions on a plug-in delay, the maximum of the
-profile likelihood (:func:`models.delayed.identify.identify_unit_delayed`), as the
-hierarchical model does (:mod:`models.bayes.delayed_model`). SBC of this model with the
-delay so chosen therefore checks the whole procedure the pipeline runs: a delay the
-profile gets wrong shows as miscalibrated ranks of the other parameters.
+The delay is sampled (``delay=None``): an integer ``delay_index`` uniform over the grid,
+updated by :class:`models.bayes.delay_step.DelayMetropolis` beside NUTS
+(:func:`sample_unit_delayed`), so the continuous parameters' draws are their posterior with
+the delay marginalized. Given a number instead, the model conditions on that delay: the
+``no-delay`` negative control conditions on 0, and a plug-in delay (the maximum of the
+profile likelihood) was measured to miscalibrate R, τ_nm and σ_m (README "Human models").
 
 The data, the delay and the arm torque at the window's start enter through ``pm.Data``
 containers (:data:`models.bayes.delayed_op.DELAYED_DATA_NAMES`), so one compiled model
@@ -36,6 +37,7 @@ import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 
+from models.bayes.delay_step import DelayMetropolis
 from models.bayes.delayed_op import DELAYED_DATA_NAMES, DelayedLoglikDataOp, pack_tau0
 from models.bayes.op import DATA_NAMES
 from models.cost import from_normalized
@@ -46,6 +48,8 @@ from models.segment import SegmentBatch
 
 #: Names of the parameters SBC ranks.
 UNIT_DELAYED_PARAMETERS = ("theta1", "theta2", "R", "tau_nm", "sigma_m")
+#: Name of the sampled delay's grid index in a model with ``delay=None``.
+DELAY_INDEX = "delay_index"
 
 
 @dataclass(frozen=True)
@@ -88,9 +92,9 @@ class DelayedUnitPrior:
 
 
 def unit_delayed_data(batch: SegmentBatch, delay, tau0=0.0) -> dict:
-    """The model's data containers for ``batch`` with the given delay(s) (samples) and τ_0 (fixed or warm-ups)."""
+    """The model's data containers for ``batch`` with the given delay(s) (samples; None: sampled) and τ_0."""
     warm, start, tstart = pack_tau0(tau0, batch.n)
-    d = np.ascontiguousarray(np.broadcast_to(np.asarray(delay, dtype=np.int64), (batch.n,)))
+    d = np.ascontiguousarray(np.broadcast_to(np.asarray(0 if delay is None else delay, dtype=np.int64), (batch.n,)))
     return {**{name: getattr(batch, name) for name in DATA_NAMES}, "delay": d, "warm": warm, "warm_start": start,
             "tau_start": tstart}
 
@@ -106,8 +110,10 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
     plant : DiscretePlant
         The wheel the likelihood assumes.
     prior : DelayedUnitPrior
-    delay : int or array_like (n,)
-        The delay the model conditions on, samples (a data container: ``with_data`` changes it).
+    delay : int, array_like (n,) or None
+        The delay the model conditions on, samples (a data container: ``with_data`` changes
+        it); None samples it (``delay_index`` uniform over ``prior.delays()``, all segments
+        one delay; sample with :func:`sample_unit_delayed`).
     tau0 : float, array_like (n,) or sequence of Warmup
         The arm torque at each window's start, as :func:`models.bayes.delayed_op.pack_tau0` takes it.
     params : WheelParameters
@@ -116,7 +122,8 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
     Returns
     -------
     pymc.Model
-        Free variables ``log_theta1``, ``theta2``, ``log_R``, ``log_tau_nm``, ``sigma_m``;
+        Free variables ``log_theta1``, ``theta2``, ``log_R``, ``log_tau_nm``, ``sigma_m``
+        (and ``delay_index`` if ``delay`` is None);
         deterministics ``theta1``, ``R``, ``tau_nm``; data of
         :data:`models.bayes.delayed_op.DELAYED_DATA_NAMES`; the likelihood as a potential.
     """
@@ -125,6 +132,10 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
     n = batch.n
     with pm.Model() as model:
         data = [pm.Data(name, values[name]) for name in DELAYED_DATA_NAMES]
+        if delay is None:
+            grid = prior.delays()
+            index = pm.DiscreteUniform(DELAY_INDEX, 0, grid.shape[0] - 1)
+            data[DELAYED_DATA_NAMES.index("delay")] = pt.as_tensor(grid.astype(np.int64))[index] * pt.ones(n, "int64")
         lt1 = pm.Normal("log_theta1", *prior.log_theta1)
         t2 = pm.HalfNormal("theta2", prior.theta2_scale)
         lR = pm.Normal("log_R", *prior.log_R)
@@ -140,4 +151,18 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
     return model
 
 
-__all__ = ["UNIT_DELAYED_PARAMETERS", "DelayedUnitPrior", "build_unit_delayed_model", "unit_delayed_data"]
+def sample_unit_delayed(model: pm.Model, prior: DelayedUnitPrior, *, draws: int, tune: int, chains: int, seed: int):
+    """Sample a ``delay=None`` unit model: PyMC's NUTS for the continuous parameters, DelayMetropolis for the delay.
+
+    One process, chains in turn (SBC runs replications in parallel). Returns PyMC's
+    DataTree (``posterior`` with ``delay_index``; ``sample_stats`` with ``diverging`` and
+    ``delay_accept``).
+    """
+    with model:
+        step = DelayMetropolis([model[DELAY_INDEX]], model["loglik"][None], prior.delays().shape[0])
+        return pm.sample(draws=draws, tune=tune, chains=chains, cores=1, step=[step], random_seed=seed,
+                         progressbar=False, quiet=True, compute_convergence_checks=False)
+
+
+__all__ = ["DELAY_INDEX", "UNIT_DELAYED_PARAMETERS", "DelayedUnitPrior", "build_unit_delayed_model",
+           "sample_unit_delayed", "unit_delayed_data"]

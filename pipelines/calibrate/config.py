@@ -15,6 +15,9 @@ from models.design import STUDY, Design
 GENERATOR = ("3: SC human plans with the assistant's feedback law; assistant re-solves every sample; "
              "ArviZ's bulk/tail-ESS thinning; log-likelihood test quantity; thinned draws stored")
 
+#: Likewise for the ``delayed`` human's replications (:mod:`pipelines.calibrate.unit_delayed`).
+DELAYED_GENERATOR = "2: the likelihood's held-torque convention; the delay sampled (DelayMetropolis)"
+
 
 @dataclass(frozen=True)
 class CalibrationConfig:
@@ -97,6 +100,8 @@ class CalibrationConfig:
         if d["human_model"] == "maxent":
             d.pop("human_model")  # likewise for the paper's human model
         d["generator"] = GENERATOR  # results of an older simulator must not be resumed
+        if d.get("human_model") == "delayed":
+            d["delayed_generator"] = DELAYED_GENERATOR
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 #: The human models a calibration can simulate and fit (:data:`pipelines.prepare.HUMAN_MODELS`).

@@ -83,12 +83,12 @@ def loglik_draws(thetas, batch, plant) -> np.ndarray:
     return out.reshape(thetas.shape[:-2])
 
 
-def sample_and_rank(compiled, config, rng: np.random.Generator, targets, prior_var: dict) -> dict:
+def sample_and_rank(compiled, config, rng: np.random.Generator, targets, prior_var: dict, *, sample=None) -> dict:
     """Sample a compiled model with nutpie and rank every target's truth among its thinned draws.
 
     Parameters
     ----------
-    compiled : nutpie compiled model, with the replication's data set
+    compiled : nutpie compiled model, with the replication's data set (None with ``sample``)
     config : CalibrationConfig
         Chains, tune, draws and L.
     rng : numpy.random.Generator
@@ -98,6 +98,9 @@ def sample_and_rank(compiled, config, rng: np.random.Generator, targets, prior_v
     prior_var : dict
         Prior variance of each target label (for the contraction; targets without one,
         like the log-likelihood, get none).
+    sample : callable, optional
+        ``sample(seed) -> DataTree`` with ``posterior`` and ``sample_stats.diverging``,
+        in place of nutpie (the ``delayed`` unit with its sampled delay).
 
     Returns
     -------
@@ -105,10 +108,14 @@ def sample_and_rank(compiled, config, rng: np.random.Generator, targets, prior_v
         ``truth``, ``ranks``, ``pit_u``, ``ess``, ``contraction`` and ``thinned`` (the
         L kept draws) per target label, and ``divergences``.
     """
-    import nutpie  # lazy: nutpie imports numba-compiled PyMC machinery (seconds)
+    seed = int(rng.integers(2**62))
+    if sample is not None:
+        trace = sample(seed)
+    else:
+        import nutpie  # lazy: nutpie imports numba-compiled PyMC machinery (seconds)
 
-    trace = nutpie.sample(compiled, chains=config.chains, tune=config.tune, draws=config.draws,
-                          seed=int(rng.integers(2**62)), cores=1, progress_bar=False)
+        trace = nutpie.sample(compiled, chains=config.chains, tune=config.tune, draws=config.draws, seed=seed,
+                              cores=1, progress_bar=False)
     out = {"truth": {}, "ranks": {}, "pit_u": {}, "ess": {}, "contraction": {}, "thinned": {}}
     for t in targets(trace["posterior"]):
         draws = np.asarray(t.draws, dtype=float)

@@ -116,6 +116,15 @@ def window_settings(args):
     return settings, source
 
 
+def simulated_human(args) -> str:
+    """``--human``, or the human ``--human-model`` names (:data:`pipelines.cli.parser.HUMAN_OF_MODEL`); maxent by default."""
+    from pipelines.cli.parser import HUMAN_OF_MODEL
+
+    if getattr(args, "human_model", None):
+        return HUMAN_OF_MODEL[args.human_model]
+    return args.human or "maxent"
+
+
 def cmd_simulate(args) -> int:
     from models.simulate import Population
     from pipelines.experiment import load_experiment
@@ -124,7 +133,7 @@ def cmd_simulate(args) -> int:
     design = load_experiment(args.experiment) if args.experiment else None
     paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed,
                             population=None if args.beta is None else Population(beta=args.beta),
-                            seconds=args.seconds, human=args.human,
+                            seconds=args.seconds, human=simulated_human(args),
                             force=args.force, design=design)
     for k, v in paths.items():
         print(f"{k}: {v}")

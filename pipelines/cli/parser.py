@@ -111,10 +111,21 @@ def _add_window_options(p):
 HUMAN_NAMES = ("maxent", "delay", "lag", "coloured", "combined", "kbl", "crossover")
 
 
-def _add_human_options(p):
-    p.add_argument("--human", choices=HUMAN_NAMES, default="maxent",
-                   help="the simulated human: maxent (the paper's agent, default) or a negative control the "
-                        "max-ent likelihood does not describe (see models/humans.py)")
+#: The simulated human each human model describes (``scioc simulate --human-model``): the delayed model's
+#: structure (delay with prediction, a lag the human plans with, white motor noise before it) is ``kbl``'s.
+HUMAN_OF_MODEL = {"maxent": "maxent", "delayed": "kbl"}
+
+
+def _add_human_options(p, *, by_model: bool = False):
+    group = p.add_mutually_exclusive_group() if by_model else p
+    group.add_argument("--human", choices=HUMAN_NAMES, default=None if by_model else "maxent",
+                       help="the simulated human: maxent (the paper's agent, default) or a negative control the "
+                            "max-ent likelihood does not describe (see models/humans.py)")
+    if by_model:
+        group.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default=None,
+                           help="simulate the human a human model describes: maxent (as --human maxent) or delayed "
+                                "(as --human kbl: each subject's delay 0.10-0.20 s and lag 0.05-0.10 s, white motor "
+                                "noise before the lag)")
     p.add_argument("--beta", type=_finite_float, default=None,
                    help="mean shift of log θ1 from the baseline to every other level in the simulated population "
                         "(default: the experiment's [simulation] beta, -0.7 for the paper's; 0: no change)")
@@ -162,7 +173,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seconds", type=_seconds, default=None,
                    help=f"length of each run, s (default: the experiment's [simulation] run_s, {RUN_SECONDS:g} for "
                         "the paper's)")
-    _add_human_options(p)
+    _add_human_options(p, by_model=True)
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (study.parquet, truth, simulation.json)")
     _add_force_option(p)
     p.set_defaults(func=commands.cmd_simulate)

@@ -151,3 +151,18 @@ def test_non_finite_loglik_is_a_failed_check_not_infinity(study_file, theta, cap
     captured = capsys.readouterr()
     assert captured.out == ""
     assert "not finite" in captured.err and "segment (s1, MC)" in captured.err
+
+
+def test_simulate_human_model_names_the_human_it_describes(tmp_path, capsys):
+    out = tmp_path / "d"
+    assert main(["simulate", "--subjects", "2", "--seconds", "3", "--human-model", "delayed", "--beta", "0",
+                     "--out", str(out)]) == 0
+    assert json.loads((out / "simulation.json").read_text())["human"]["name"] == "kbl"
+    assert main(["simulate", "--subjects", "2", "--seconds", "3", "--human-model", "maxent",
+                     "--out", str(tmp_path / "m")]) == 0
+    assert json.loads((tmp_path / "m" / "simulation.json").read_text())["human"]["name"] == "maxent"
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:  # --human and --human-model together: a usage error
+        main(["simulate", "--human", "kbl", "--human-model", "delayed", "--out", str(tmp_path / "x")])
+    assert exc.value.code == 2
+    assert "not allowed with" in capsys.readouterr().err

@@ -3,13 +3,15 @@
 Per replication: population and unit parameters are drawn from the prior of
 :func:`models.bayes.hierarchical.build_model` (by PyMC itself, from the model graph, so
 the draws follow exactly the model that is fitted); a whole study is simulated exactly
-from the max-ent model (``n_subjects`` × MC and SC, windows of K samples of the study
-reference from rest; in SC the human plans with the assistant's law and the assistant
-reacts to the sampled trajectory, :func:`pipelines.calibrate.simulation.simulate_unit`);
-the model compiled once per worker (data in ``pm.Data`` containers) is refitted with
-nutpie; ranks of the population parameters, of the first subject's unit parameters and
-of the study's log-likelihood are recorded. The negative controls are those of the unit
-level (:mod:`pipelines.calibrate.simulation`).
+from the max-ent model (``n_subjects`` × every level of the experiment, windows of K
+samples of the reference from rest; on an assisted level the human plans with the
+assistant's law and the assistant reacts to the sampled trajectory,
+:func:`pipelines.calibrate.simulation.simulate_unit`); the model compiled once per worker
+(data in ``pm.Data`` containers) is refitted with nutpie; ranks of the population
+parameters (with more than two levels, β, σ_β, β_R and σ_βR once per non-baseline level,
+labelled ``beta[weak]``), of the first subject's unit parameters and of the study's
+log-likelihood are recorded. The negative controls are those of the unit level
+(:mod:`pipelines.calibrate.simulation`).
 """
 
 from __future__ import annotations
@@ -34,23 +36,30 @@ def study_labels(n_subjects: int, levels=("MC", "SC")):
     return subjects, list(levels) * n_subjects
 
 
-def _two_levels(design):
-    if len(design.levels) != 2:
-        raise ValueError(f"study-level calibration covers two-level experiments; this one has {len(design.levels)} "
-                         f"levels ({', '.join(design.levels)}): calibrate the unit level")
-    return design.ordered_levels
+def population_targets(name: str, draws: np.ndarray, truth, levels) -> list:
+    """Targets of one population parameter: itself, or with a ``contrast`` axis (more than two levels) one per level.
+
+    ``draws`` (chains, draws) or (chains, draws, L - 1); ``truth`` a scalar or (L - 1,);
+    ``levels`` baseline first.
+    """
+    draws = np.asarray(draws, dtype=float)
+    if draws.ndim == 2:
+        return [Target(name, draws, float(truth))]
+    truth = np.asarray(truth, dtype=float)
+    return [Target(f"{name}[{level}]", draws[..., j], float(truth[j])) for j, level in enumerate(levels[1:])]
 
 
 def template(config, negative_control):
     """The hierarchical model with data containers for the study design of ``config`` (cached per worker)."""
     design = config_design(config)
-    levels = _two_levels(design)
+    levels = design.ordered_levels
 
     def build():
         plant = fit_plant(negative_control, design)
-        batch, _ = fitted_batch([rest_segment(config.K, design)] * (2 * config.n_subjects), negative_control, design)
+        batch, _ = fitted_batch([rest_segment(config.K, design)] * (len(levels) * config.n_subjects), negative_control,
+                                design)
         subjects, conditions = study_labels(config.n_subjects, levels)
-        return build_model(subjects, conditions, batch, plant, data_containers=True)
+        return build_model(subjects, conditions, batch, plant, data_containers=True, levels=levels)
 
     return cached(("study-model", config.K, config.n_subjects, negative_control, design), build)
 
@@ -87,11 +96,15 @@ def prior_variances(config) -> dict:
         model = template(config, None)
         names = list(POPULATION_PARAMETERS) + sorted({v for v, _ in UNITS})
         draws = pm.draw([model[n] for n in names], draws=4000, random_seed=np.random.default_rng(0))
+        levels = config_design(config).ordered_levels
         var = {}
         for n, d in zip(names, draws):
             d = np.asarray(d, dtype=float)
             if d.ndim == 1:
                 var[n] = float(d.var())
+            elif n in POPULATION_PARAMETERS:  # one per non-baseline level
+                for j, level in enumerate(levels[1:]):
+                    var[f"{n}[{level}]"] = float(d[:, j].var())
             else:
                 for v, c in UNITS:
                     if v == n:
@@ -106,9 +119,10 @@ def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     rng = np.random.default_rng(seed)
     design = config_design(config)
     truth = prior_draw(config, rng)
+    levels = design.ordered_levels
     segs, thetas = [], []
     for s in range(config.n_subjects):
-        for c, condition in enumerate(_two_levels(design)):
+        for c, condition in enumerate(levels):
             theta = from_normalized(truth["theta1"][s, c], truth["theta2"][s, c], truth["R"][s, c])
             segs.append(simulate_unit(theta, condition, config.K, config.negative_control, rng, design))
             thetas.append(theta)
@@ -117,9 +131,9 @@ def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
     compiled = compiled_study(config, config.negative_control).with_data(**data)
 
     def targets(post):
-        out = [Target(n, post[n].values, truth[n]) for n in POPULATION_PARAMETERS]
+        out = [t for n in POPULATION_PARAMETERS for t in population_targets(n, post[n].values, truth[n], levels)]
         out += [Target(f"{v}[0,{c}]", post[v].values[:, :, 0, c], truth[v][0, c]) for v, c in UNITS]
-        # θ of every segment per draw, in segment order (subject-major, MC before SC).
+        # θ of every segment per draw, in segment order (subject-major, levels in order, baseline first).
         t1, t2, r = (post[v].values.reshape(post[v].shape[:2] + (-1,)) for v in ("theta1", "theta2", "R"))
         ll = loglik_draws(np.moveaxis(from_normalized(t1, t2, r), 0, -2), batch, plant)
         return out + [Target(LOGLIK, ll, loglik_draws(np.column_stack(thetas), batch, plant))]

@@ -1,4 +1,39 @@
 """The mathematics of scioc: plant, costs, optimal control, max-ent likelihood, simulators.
 
 Pure functions on arrays; no file I/O, no printing, no CLI. Never imports ``pipelines``.
+
+One exception, here, before any kernel is compiled: numba's on-disk cache (``cache=True``)
+is keyed by the modification time of the file that defines each function, not of the
+files it calls. A kernel whose callee in another file changed would load its old machine
+code, silently computing with the old callee. So the cache lives in a folder named by a
+hash of every source file of this package (:func:`numba_cache_dir`): any edit starts a
+fresh cache, and a cache is only ever read by the code that wrote it.
 """
+
+import hashlib
+import os
+from pathlib import Path
+
+import numba
+
+
+def numba_cache_dir(package: Path | None = None, root: Path | None = None) -> Path:
+    """The numba cache folder of this package's sources: ``root / <hash of every .py under package>``.
+
+    ``root`` defaults to ``$NUMBA_CACHE_DIR``, else ``$XDG_CACHE_HOME/scioc/numba`` (``~/.cache``).
+    """
+    package = Path(__file__).resolve().parent if package is None else Path(package)
+    if root is None:
+        env = os.environ.get("NUMBA_CACHE_DIR")
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "scioc" / "numba"
+        root = Path(env) if env else base
+    digest = hashlib.sha256()
+    for path in sorted(package.rglob("*.py")):
+        digest.update(path.relative_to(package).as_posix().encode())
+        digest.update(b"\0")
+        digest.update(path.read_bytes())
+        digest.update(b"\0")
+    return Path(root) / digest.hexdigest()[:16]
+
+
+numba.config.CACHE_DIR = str(numba_cache_dir())

@@ -54,6 +54,8 @@ class DelayMetropolis(BlockedStep):
         Number of grid delays.
     sweeps : int
         Sweeps per iteration (default :data:`SWEEPS`).
+    mode : str, optional
+        PyTensor compilation mode of the log-likelihood function (e.g. ``"NUMBA"``).
     model : pymc.Model, optional
     rng : optional
         As PyMC's step methods take it.
@@ -63,7 +65,7 @@ class DelayMetropolis(BlockedStep):
     stats_dtypes_shapes = {"delay_accept": (np.float64, [])}
     _state_class = StepMethodState
 
-    def __init__(self, vars, group_loglik, n_grid: int, *, sweeps: int = SWEEPS, model=None, rng=None,
+    def __init__(self, vars, group_loglik, n_grid: int, *, sweeps: int = SWEEPS, mode=None, model=None, rng=None,
                  blocked: bool = True):
         model = pm.modelcontext(model)
         vars = get_value_vars_from_user_vars(vars, model)
@@ -76,7 +78,8 @@ class DelayMetropolis(BlockedStep):
             raise ValueError(f"n_grid must be >= 2; got {n_grid}")
         self.sweeps = int(sweeps)
         (out,) = model.replace_rvs_by_values([group_loglik])
-        self.loglik = model.compile_fn(out, inputs=model.value_vars, on_unused_input="ignore", point_fn=True)
+        self.loglik = model.compile_fn(out, inputs=model.value_vars, on_unused_input="ignore", point_fn=True,
+                                       mode=mode)
         self.rng = get_random_generator(rng)
         self.blocked = blocked
 

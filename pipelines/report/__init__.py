@@ -13,6 +13,7 @@ module                     what it holds
 :mod:`.bayes`              the hierarchical fit: diagnostics, LOO, PPC
 :mod:`.contrasts`          per contrast: three methods side by side, forest plot, truth check
 :mod:`.adequacy`           the model-adequacy verdict, caveats and section
+:mod:`.human_models`       the max-ent and delayed human models side by side, which the data support
 :mod:`.calibration`        simulation-based calibration
 =========================  ===========================================================
 """

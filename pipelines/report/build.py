@@ -8,6 +8,8 @@ Reads what the stages wrote under a run folder and never refits:
 * ``identify_true_torque_exogenous/`` — the same with the paper's exogenous-u_A likelihood
 * ``compare.json`` — the Wilcoxon tests
 * ``fit/`` — the Bayesian fit (:mod:`pipelines.report.bayes`)
+* ``identify_delayed/``, ``compare_delayed.json``, ``fit_delayed/``, ``human_models.json`` — the delayed
+  human model beside the max-ent one, when the run has it (:mod:`pipelines.report.human_models`)
 * ``../calibration/`` and ``../power/`` — ``scioc calibrate`` and ``scioc power`` results beside the run
 
 Sections whose artifacts are missing are left out with a note. The page is the template
@@ -26,6 +28,7 @@ from pathlib import Path
 from markupsafe import Markup
 
 from pipelines.report import adequacy as report_adequacy
+from pipelines.report import human_models as report_human_models
 from pipelines.report.bayes import section_bayes
 from pipelines.report.calibration import section_calibration
 from pipelines.report.design import section_design, section_reference
@@ -93,7 +96,7 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     trials = int(est["trials"].max()) if "trials" in est else 1
     chain = acquisition(design, not measured)
 
-    body = [report_adequacy.headline(adequacy, fit_adequacy, chain[0]),
+    body = [report_adequacy.headline(adequacy, fit_adequacy, chain[0]), report_human_models.headline(root, design),
             section_design(sim, meta, exp, trials=trials, torque_measured=measured)]
     if study is not None:
         body.append(section_reference(study, meta, design))
@@ -105,6 +108,7 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     if (root / "fit").exists():
         body += [_h2("Hierarchical Bayesian model"), report_adequacy.caveat(fit_adequacy if fit_adequacy else adequacy),
                  section_bayes(root, design, not measured, trials > 1)]
+    body.append(report_human_models.section(root, design, measured))
     body += [report_adequacy.section(est, adequacy, power, chain[1]), _h2("Model validation (Fig. 6)")]
     if traj is not None:
         body.append(section_fig6(traj, subject, design, not measured))

@@ -28,7 +28,7 @@ def section_histogram(est: pd.DataFrame, design: Design = STUDY) -> Markup:
                   f"Histogram of the identified normalized angle weight θ1 in {where} (Fig. 5).")
 
 
-def _tests(cmp: dict, design: Design) -> dict:
+def tests_by_level(cmp: dict, design: Design) -> dict:
     """``{contrast level: {"theta1": test, "theta2": test}}`` from ``compare.json`` (two levels: at its top)."""
     if "contrasts" in cmp:
         return cmp["contrasts"]
@@ -37,7 +37,7 @@ def _tests(cmp: dict, design: Design) -> dict:
 
 def section_wilcoxon(cmp: dict, design: Design = STUDY) -> Markup:
     """The paper's Wilcoxon test of θ1 and θ2 of each level against the baseline (``compare.json``), with Holm."""
-    tests = _tests(cmp, design)
+    tests = tests_by_level(cmp, design)
     many = "contrasts" in cmp
     rows = []
     for level, t in tests.items():

@@ -1,0 +1,235 @@
+"""The report's "Human models" section: which human model the data support, and what that model says about the costs.
+
+``scioc run`` analyses its study with the paper's max-ent human and, when the experiment
+records the torque, with the ``delayed`` human too (``--human-models``). Per model the
+section shows the adequacy verdict (at identify, and at the fit's posterior θ), the paper's
+Wilcoxon test on θ1 and β with its 94 % HDI per contrast, and the leave-one-subject-out
+(LOSO) ELPD of its fit; then the difference of the two, how many subjects each model
+predicts better, and one conclusion (:func:`conclusion`).
+
+Which model the data support (:func:`supported`) takes both criteria: the model passes its
+adequacy checks, and a reliable LOSO comparison (every Pareto k below the threshold) does
+not prefer the other model by :data:`LOSO_Z` standard errors or more. A cost conclusion is
+only ever that of a supported model, with its adequacy verdict beside it; with none, the
+section says that no conclusion about the costs is supported.
+
+Artifacts read under the run folder (:data:`MODEL_ARTIFACTS`; never refits):
+``identify/identify.json``, ``compare.json``, ``fit/contrasts.json`` for ``maxent``;
+``identify_delayed/identify.json``, ``compare_delayed.json``, ``fit_delayed/contrasts.json``
+for ``delayed``; ``human_models.json`` (:func:`pipelines.fit.human_models.compare_human_models`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import pandas as pd
+from markupsafe import Markup
+
+from models.design import STUDY, Design
+from pipelines.report.contrasts import blocks
+from pipelines.report.identify import tests_by_level
+from pipelines.report.levels import contrast_label, joined
+from pipelines.report.render import number, read_artifact, render, table
+
+#: Per human model: its identify folder, its Wilcoxon tests and its fit folder, under the run folder.
+MODEL_ARTIFACTS = {"maxent": ("identify", "compare.json", "fit"),
+                   "delayed": ("identify_delayed", "compare_delayed.json", "fit_delayed")}
+#: The models as the prose names them.
+NAMES = {"maxent": "max-ent", "delayed": "delayed"}
+#: A LOSO difference of at least this many standard errors is read as a preference (the loo package's
+#: usual reading: a difference within 2 SE is not distinguished from noise).
+LOSO_Z = 2.0
+#: Why ``scioc run`` leaves the delayed model out of a design without a torque sensor (README "Human models").
+ANGLE_ONLY = ("without a torque sensor the torque is reconstructed from the recorded angle, and the delayed model "
+              "reads the reconstruction's smoothing as neuromuscular lag, so its estimates from the angle alone are "
+              "not measurements (README, \"Human models\")")
+
+
+class ModelRun(NamedTuple):
+    """One human model's results in a run folder (None where the artifact is missing)."""
+
+    name: str
+    identify: dict | None  # adequacy verdict at identify (identify.json)
+    posterior: dict | None  # adequacy verdict at the fit's posterior θ (contrasts.json); None: no fit
+    tests: dict | None  # compare.json
+    fit: dict | None  # contrasts.json
+
+
+def read_models(root) -> dict[str, ModelRun]:
+    """The human models a run folder holds (those with an identify folder), in :data:`MODEL_ARTIFACTS`' order."""
+    root = Path(root)
+    out = {}
+    for name, (ident, tests, fit) in MODEL_ARTIFACTS.items():
+        meta = read_artifact(root / ident / "identify.json")
+        if meta is None:
+            continue
+        res = read_artifact(root / fit / "contrasts.json")
+        out[name] = ModelRun(name, meta.get("adequacy"), None if res is None else res.get("adequacy") or {},
+                             read_artifact(root / tests), res)
+    return out
+
+
+def passes(m: ModelRun) -> bool:
+    """Whether a model passes its adequacy checks: a verdict that was checked, and none that fails."""
+    checked = [a["verdict"] for a in (m.identify, m.posterior) if a and a.get("verdict") in ("pass", "fail")]
+    return bool(checked) and all(v == "pass" for v in checked)
+
+
+def verdict_words(a: dict | None, counts: bool = True) -> str:
+    """One verdict: "pass (1 of 84 segments flagged)", "fail (whiteness, xcorr; 84 of 84 segments flagged)".
+
+    ``counts=False`` leaves out the flagged segments: "pass", "fail (whiteness, xcorr)".
+    """
+    v = (a or {}).get("verdict", "not checked")
+    if v not in ("pass", "fail"):
+        return "not checked"
+    flagged = f"{a['segments_flagged']} of {a['segments']} segments flagged" if counts and "segments" in a else ""
+    details = "; ".join(x for x in (", ".join(a.get("failed_checks", [])), flagged) if x)
+    return f"{v} ({details})" if details else v
+
+
+def adequacy_words(m: ModelRun) -> str:
+    """A model's adequacy verdicts, short: "pass at identify, fail (xcorr) at the posterior θ"."""
+    post = "no fit" if m.posterior is None else f"{verdict_words(m.posterior, False)} at the posterior θ"
+    return f"{verdict_words(m.identify, False)} at identify, {post}"
+
+
+def _wilcoxon(r: dict | None) -> str:
+    if not r:
+        return "no test"
+    holm = "p_holm" in r
+    p, reject = (r["p_holm"], r["reject_holm"]) if holm else (r["p_value"], r["reject"])
+    return (f"T = {number(r['T'], 'g')}, {'Holm p' if holm else 'p'} = {number(p, '.2g')}, "
+            f"{'rejects' if reject else 'does not reject'} H0 (no change) at α = {r['alpha']:g}")
+
+
+def _beta(b: dict | None) -> str:
+    if not b:
+        return "no fit"
+    lo, hi = b["beta"]["hdi"]
+    return (f"β = {b['beta']['mean']:+.3f}, 94 % HDI [{lo:+.3f}, {hi:+.3f}] "
+            f"({'excludes' if hi < 0 or lo > 0 else 'contains'} 0)")
+
+
+def cost_words(m: ModelRun, design: Design) -> str:
+    """What a model says about the change of θ1 per contrast: the Wilcoxon test and β, each with its decision."""
+    tests = tests_by_level(m.tests, design) if m.tests else {}
+    found = (blocks(m.fit, design) or {}) if m.fit else {}
+    parts = [f"{contrast_label(design, v)}: Wilcoxon on θ1 {_wilcoxon((tests.get(v) or {}).get('theta1'))}"
+             + (f"; {_beta(found.get(v))}" if m.fit else " (no Bayesian fit)") for v in design.contrasts]
+    return "; ".join(parts)
+
+
+def loso_preference(hm: dict | None) -> str | None:
+    """The model a reliable LOSO comparison prefers by at least :data:`LOSO_Z` SE, else None."""
+    d = (hm or {}).get("difference")
+    if not d or not d.get("reliable") or d.get("z") is None:
+        return None
+    return None if abs(d["z"]) < LOSO_Z else ("delayed" if d["z"] > 0 else "maxent")
+
+
+def _loso_words(hm: dict | None) -> str:
+    d = (hm or {}).get("difference")
+    if not d:
+        return "leave-one-subject-out was not computed (no fits of both models)"
+    what = (f"elpd(delayed) − elpd(max-ent) = {d['elpd_diff']:+.1f} ± {number(d.get('se'), '.1f')}, "
+            f"z = {number(d.get('z'), '.2f')}")
+    if not d.get("reliable"):
+        return f"leave-one-subject-out is unreliable (Pareto k above the threshold; {what})"
+    pref = loso_preference(hm)
+    if pref is None:
+        return f"leave-one-subject-out does not separate the models ({what}; |z| < {LOSO_Z:g})"
+    return f"leave-one-subject-out prefers the {NAMES[pref]} model ({what})"
+
+
+def supported(models: dict[str, ModelRun], hm: dict | None) -> tuple[str, ...]:
+    """The models the data support: passing adequacy, and not beaten by a reliable LOSO preference (see the module)."""
+    ok = tuple(k for k, m in models.items() if passes(m))
+    pref = loso_preference(hm)
+    if pref is None:
+        return ok
+    return (pref,) if pref in ok else ()
+
+
+def conclusion(models: dict[str, ModelRun], hm: dict | None, design: Design = STUDY) -> str:
+    """One sentence: the model the data support and, from it, the cost conclusion with its adequacy verdict beside it."""
+    chosen = supported(models, hm)
+    loso = _loso_words(hm)
+    verdicts = "; ".join(f"{NAMES[k]}: {adequacy_words(m)}" for k, m in models.items())
+    if not chosen:
+        ok = [k for k, m in models.items() if passes(m)]
+        if not ok:
+            return (f"Neither human model passes its adequacy checks ({verdicts}), so these data support no "
+                    "conclusion about the costs.")
+        other = loso_preference(hm)
+        return (f"The data single out no human model: the {NAMES[ok[0]]} model passes its adequacy checks but "
+                f"{loso}, and the {NAMES[other]} model fails them ({verdicts}); so no conclusion about the costs is "
+                "supported.")
+    if len(chosen) == 1:
+        k = chosen[0]
+        others = [f"the {NAMES[o]} model: {adequacy_words(m)}" for o, m in models.items() if o != k]
+        return (f"The data support the {NAMES[k]} human model: it passes its adequacy checks "
+                f"({adequacy_words(models[k])}{'; ' + '; '.join(others) if others else ''}) and {loso}; "
+                f"by it, {cost_words(models[k], design)}.")
+    return (f"Both human models pass their adequacy checks and {loso}: "
+            + "; ".join(f"by the {NAMES[k]} model ({adequacy_words(models[k])}), {cost_words(models[k], design)}"
+                        for k in chosen) + ".")
+
+
+def _table(models: dict[str, ModelRun], hm: dict | None, design: Design) -> Markup:
+    rows = [("adequacy at identify", {k: verdict_words(m.identify) for k, m in models.items()}),
+            ("adequacy at the posterior θ (fit)",
+             {k: "no fit" if m.posterior is None else verdict_words(m.posterior) for k, m in models.items()})]
+    for v in design.contrasts:
+        label = contrast_label(design, v)
+        rows.append((f"Wilcoxon on θ1, {label}",
+                     {k: _wilcoxon((tests_by_level(m.tests, design).get(v) or {}).get("theta1")) if m.tests
+                      else "no test" for k, m in models.items()}))
+        rows.append((f"β, {label}", {k: _beta((blocks(m.fit, design) or {}).get(v)) if m.fit else "no fit"
+                                     for k, m in models.items()}))
+    if hm:
+        n, k_del = hm["difference"]["n"], hm["difference"]["n_preferring_delayed"]
+        rows.append(("LOSO ELPD (sum over subjects ± SE)",
+                     {k: f"{hm[k]['elpd_loo']:.1f} ± {number(hm[k].get('se'), '.1f')}" for k in models}))
+        rows.append(("subjects better predicted (LOSO)",
+                     {"maxent": f"{n - k_del} of {n}", "delayed": f"{k_del} of {n}"}))
+    df = pd.DataFrame([{"": name, **{f"{NAMES[k]} human": cells[k] for k in models}} for name, cells in rows])
+    return table(df, left=tuple(df.columns))
+
+
+def _per_subject(hm: dict) -> dict:
+    """Subjects with elpd(delayed) − elpd(max-ent), grouped by the model that predicts them better."""
+    by = hm.get("by_subject", {})
+    return {k: [f"{s} ({v['difference']:+.1f})" for s, v in by.items() if v["preferred"] == k] for k in NAMES}
+
+
+def section(root, design: Design = STUDY, measured: bool = False) -> Markup:
+    """The "Human models" section of a run folder (``measured``: the torque was recorded, not reconstructed)."""
+    root = Path(root)
+    models = read_models(root)
+    if "delayed" not in models:
+        why = (f"The delayed human model was not run: {ANGLE_ONLY}." if not measured else
+               "The delayed human model was not requested in this run (scioc run --human-models maxent,delayed runs "
+               "it beside the max-ent model).")
+        return render("human_models.html.j2", both=False, why=why)
+    hm = read_artifact(root / "human_models.json")
+    return render("human_models.html.j2", both=True, table=_table(models, hm, design),
+                  d=(hm or {}).get("difference"), per=_per_subject(hm) if hm else None, loso=_loso_words(hm),
+                  ok=bool(supported(models, hm)), conclusion=conclusion(models, hm, design), loso_z=LOSO_Z,
+                  contrasts=joined(contrast_label(design, v) for v in design.contrasts))
+
+
+def headline(root, design: Design = STUDY) -> Markup:
+    """The conclusion box under the adequacy headline, when the run has both models; else nothing."""
+    models = read_models(root)
+    if "delayed" not in models:
+        return Markup("")
+    hm = read_artifact(Path(root) / "human_models.json")
+    return render("human_models_headline.html.j2", ok=bool(supported(models, hm)),
+                  conclusion=conclusion(models, hm, design))
+
+
+__all__ = ["ANGLE_ONLY", "LOSO_Z", "MODEL_ARTIFACTS", "ModelRun", "adequacy_words", "conclusion", "cost_words",
+           "headline", "loso_preference", "passes", "read_models", "section", "supported", "verdict_words"]

@@ -1,0 +1,197 @@
+"""The report's "Human models" section, from small artifacts written here by hand (nothing is fitted).
+
+The conclusion names the model the data support (adequacy passing and a leave-one-subject-out
+comparison that does not prefer the other one) and gives the cost conclusion from that model with
+its adequacy verdict beside it; with no such model it says that no conclusion about the costs is
+supported.
+"""
+
+import json
+import re
+from dataclasses import asdict
+from html import unescape
+
+import pytest
+
+from models.design import STUDY, AssistantSpec, Design
+from pipelines.report.human_models import (ANGLE_ONLY, LOSO_Z, conclusion, loso_preference, read_models, section,
+                                           supported)
+from pipelines.signed_rank import wilcoxon_signed_rank
+
+MC = [20.0, 22.0, 18.0, 25.0, 21.0, 19.0]
+#: SC a factor of 2 below MC in every subject: the exact test's smallest p for 6 pairs, 2/64.
+SC_HALF = [v / 2 for v in MC]
+
+
+def _adequacy(verdict: str) -> dict:
+    flagged = {"pass": 0, "fail": 12}.get(verdict, 0)
+    if verdict == "not checked":
+        return {"verdict": "not checked", "reason": "switched off", "failed_checks": []}
+    return {"verdict": verdict, "failed_checks": ["whiteness", "xcorr"] if verdict == "fail" else [],
+            "segments_flagged": flagged, "segments": 12}
+
+
+def _compare(sc) -> dict:
+    test = asdict(wilcoxon_signed_rank(MC, sc, alpha=0.05))
+    return {"theta1": test, "theta2": test}
+
+
+def _fit(beta_mean: float, hdi, verdict: str) -> dict:
+    beta = {"mean": beta_mean, "sd": 0.05, "median": beta_mean, "hdi": list(hdi), "p_negative": 0.9}
+    return {"beta": beta, "ratio": {"median": 0.5, "mean": 0.5, "hdi": [0.4, 0.6]}, "adequacy": _adequacy(verdict)}
+
+
+def _loso(z: float, reliable: bool = True) -> dict:
+    se = 4.0
+    by = {f"S0{i}": {"difference": d, "preferred": "delayed" if d > 0 else "maxent"}
+          for i, d in enumerate([3.0, 2.5, -0.5, 1.0, 4.0, z * se - 10.0], start=1)}
+    n_del = sum(v["preferred"] == "delayed" for v in by.values())
+    summary = {"elpd_loo": -500.0, "se": 20.0, "pareto_k": {"n_gt_threshold": 0 if reliable else 2}}
+    return {"maxent": summary, "delayed": {**summary, "elpd_loo": -500.0 + z * se}, "by_subject": by,
+            "difference": {"elpd_diff": z * se, "se": se, "z": z, "preferred": "delayed" if z > 0 else "maxent",
+                           "n_preferring_delayed": n_del, "n": 6, "reliable": reliable}}
+
+
+def write_run(root, *, maxent=("fail", "fail"), delayed=("pass", "pass"), loso=None, fits=True):
+    """A run folder with the artifacts of both human models: (identify verdict, posterior verdict) per model."""
+    for name, (ident, tests, fit), (v_id, v_post), sc, beta in (
+            ("maxent", ("identify", "compare.json", "fit"), maxent, SC_HALF, -0.69),
+            ("delayed", ("identify_delayed", "compare_delayed.json", "fit_delayed"), delayed, MC, 0.01)):
+        if v_id is None:
+            continue
+        (root / ident).mkdir(parents=True)
+        (root / ident / "identify.json").write_text(json.dumps({"adequacy": _adequacy(v_id), "human_model": name}))
+        (root / tests).write_text(json.dumps(_compare(sc)))
+        if fits:
+            (root / fit).mkdir()
+            hdi = (beta - 0.1, beta + 0.1)
+            (root / fit / "contrasts.json").write_text(json.dumps(_fit(beta, hdi, v_post)))
+    if loso is not None:
+        (root / "human_models.json").write_text(json.dumps(loso))
+    return root
+
+
+def _text(markup) -> str:
+    return re.sub(r"\s+", " ", unescape(re.sub(r"<[^>]+>", " ", str(markup))))
+
+
+def test_delayed_passing_and_preferred_by_loso_is_the_supported_model(tmp_path):
+    root = write_run(tmp_path, loso=_loso(z=5.0))
+    models = read_models(root)
+    hm = json.loads((root / "human_models.json").read_text())
+    assert supported(models, hm) == ("delayed",)
+    text = conclusion(models, hm)
+    assert text.startswith("The data support the delayed human model")
+    # The cost conclusion is the delayed model's (β near 0, SC = MC: no rejection), with its verdict beside it.
+    cost = text[text.index("by it,"):]
+    assert "β = +0.010" in cost and "contains 0" in cost and "does not reject" in cost
+    assert "β = -0.690" not in text
+    assert "passes its adequacy checks (pass at identify, pass at the posterior θ;" in text
+    assert "the max-ent model: fail (whiteness, xcorr) at identify, fail (whiteness, xcorr) at the posterior θ" in text
+    assert "prefers the delayed model" in text and "z = 5.00" in text
+
+
+@pytest.mark.parametrize("z", [-3.0, 0.5])
+def test_maxent_passing_and_delayed_not_preferred_is_the_supported_model(tmp_path, z):
+    root = write_run(tmp_path, maxent=("pass", "pass"), delayed=("fail", "fail"), loso=_loso(z=z))
+    models = read_models(root)
+    hm = json.loads((root / "human_models.json").read_text())
+    assert supported(models, hm) == ("maxent",)
+    text = conclusion(models, hm)
+    assert text.startswith("The data support the max-ent human model")
+    cost = text[text.index("by it,"):]
+    assert "β = -0.690" in cost and "excludes 0" in cost and "T = 0, p = 0.031, rejects H0 (no change) at α = 0.05" \
+        in cost
+    assert ("prefers the max-ent model" if z < 0 else "does not separate the models") in text
+
+
+@pytest.mark.parametrize("verdicts", [(("fail", "fail"), ("fail", "fail")),
+                                      (("fail", "pass"), ("pass", "fail")),  # each fails once
+                                      (("not checked", None), ("not checked", None))])
+def test_neither_model_passing_supports_no_conclusion_about_costs(tmp_path, verdicts):
+    maxent, delayed = verdicts
+    root = write_run(tmp_path, maxent=maxent, delayed=delayed, loso=_loso(z=5.0))
+    models = read_models(root)
+    hm = json.loads((root / "human_models.json").read_text())
+    assert supported(models, hm) == ()
+    text = conclusion(models, hm)
+    assert "no conclusion about the costs" in text
+    assert "β =" not in text and "Wilcoxon" not in text  # no cost conclusion without a model that passes
+
+
+def test_a_passing_model_that_loso_beats_is_not_supported_either(tmp_path):
+    root = write_run(tmp_path, maxent=("pass", "pass"), delayed=("fail", "fail"), loso=_loso(z=4.0))
+    models = read_models(root)
+    hm = json.loads((root / "human_models.json").read_text())
+    assert supported(models, hm) == ()
+    text = conclusion(models, hm)
+    assert text.startswith("The data single out no human model") and "no conclusion about the costs" in text
+
+
+def test_both_passing_and_loso_undecided_gives_both_conclusions_each_with_its_verdict(tmp_path):
+    root = write_run(tmp_path, maxent=("pass", "pass"), delayed=("pass", "pass"), loso=_loso(z=1.0))
+    models = read_models(root)
+    hm = json.loads((root / "human_models.json").read_text())
+    assert supported(models, hm) == ("maxent", "delayed")
+    text = conclusion(models, hm)
+    assert "by the max-ent model (pass" in text and "by the delayed model (pass" in text
+    assert "β = -0.690" in text and "β = +0.010" in text
+
+
+def test_loso_prefers_only_when_reliable_and_at_least_loso_z_se_apart():
+    assert loso_preference(_loso(z=LOSO_Z)) == "delayed"
+    assert loso_preference(_loso(z=-LOSO_Z)) == "maxent"
+    assert loso_preference(_loso(z=LOSO_Z - 0.01)) is None
+    assert loso_preference(_loso(z=10.0, reliable=False)) is None
+    assert loso_preference(None) is None
+
+
+def test_without_fits_the_choice_rests_on_adequacy_and_says_loso_was_not_computed(tmp_path):
+    root = write_run(tmp_path, maxent=("fail", None), delayed=("pass", None), fits=False)
+    models = read_models(root)
+    assert models["delayed"].posterior is None and supported(models, None) == ("delayed",)
+    text = conclusion(models, None)
+    assert "leave-one-subject-out was not computed" in text and "(no Bayesian fit)" in text and "β" not in text
+    html = _text(section(root))
+    assert "No human_models.json" in html and "scioc human-models" in html
+
+
+def test_the_section_shows_the_table_the_loso_numbers_and_the_per_subject_preference(tmp_path):
+    root = write_run(tmp_path, loso=_loso(z=5.0))
+    html = _text(section(root, STUDY, measured=True))
+    assert "Human models" in html and "max-ent human" in html and "delayed human" in html
+    for row in ("adequacy at identify", "adequacy at the posterior θ (fit)", "Wilcoxon on θ1, SC − MC", "β, SC − MC",
+                "LOSO ELPD (sum over subjects ± SE)", "subjects better predicted (LOSO)"):
+        assert row in html, row
+    assert "elpd(delayed) − elpd(max-ent) = +20.0 ± 4.0 (z = 5.00), summed over 6 subjects" in html
+    assert "the PSIS estimates are reliable" in html
+    assert "delayed better: S01 (+3.0), S02 (+2.5), S04 (+1.0), S05 (+4.0), S06 (+10.0)" in html
+    assert "max-ent better: S03 (-0.5)" in html
+    assert "5 of 6" in html and "1 of 6" in html
+    assert "The data support the delayed human model" in html
+
+
+def test_with_only_maxent_the_section_says_which_and_why(tmp_path):
+    write_run(tmp_path, delayed=(None, None))
+    angles = _text(section(tmp_path, STUDY, measured=False))
+    assert "Only the max-ent human model" in angles and ANGLE_ONLY in angles.replace("“", "\"").replace("”", "\"")
+    measured = _text(section(tmp_path, STUDY, measured=True))
+    assert "not requested" in measured and "--human-models maxent,delayed" in measured
+
+
+def test_several_levels_get_a_row_per_contrast_with_holm(tmp_path):
+    design = Design(levels=("none", "weak", "auto"), baseline="none",
+                    assistants=(("weak", AssistantSpec(kind="linear", gain=(2.0, 0.1), reference_gain=2.0)),
+                                ("auto", AssistantSpec(kind="mpc"))), effects=(-0.35, -0.7))
+    write_run(tmp_path, loso=_loso(z=5.0))
+    test = {**asdict(wilcoxon_signed_rank(MC, MC, alpha=0.05)), "p_holm": 1.0, "reject_holm": False}
+    cmp = {"baseline": "none", "contrasts": {v: {"theta1": test, "theta2": test} for v in ("weak", "auto")}}
+    fit = {"baseline": "none", "levels": ["none", "weak", "auto"], "adequacy": _adequacy("pass"),
+           "contrasts": {v: _fit(0.01, (-0.09, 0.11), "pass") for v in ("weak", "auto")}}
+    (tmp_path / "compare_delayed.json").write_text(json.dumps(cmp))
+    (tmp_path / "fit_delayed" / "contrasts.json").write_text(json.dumps(fit))
+    html = _text(section(tmp_path, design, measured=True))
+    assert "Wilcoxon on θ1, weak − none" in html and "β, auto − none" in html
+    assert "Holm p = 1, does not reject H0 (no change) at α = 0.05" in html
+    assert "weak − none: Wilcoxon on θ1" in html and "auto − none: Wilcoxon on θ1" in html
+    assert not re.search(r"(?<!\w)(MC|SC)(?!\w)", html)

@@ -4,6 +4,13 @@ Stages (each writes its own artifacts, each also a command of its own):
 simulate → identify (from angles, like a lab) → identify from the true torques (what the
 reconstruction costs; and with the paper's exogenous-u_A likelihood, what that costs in
 SC) → compare → fit → report.
+
+With the ``delayed`` human model too (``human_models``; by default when the experiment
+records the torque, :func:`default_human_models`), the run adds its own identify
+(``identify_delayed/``), Wilcoxon tests (``compare_delayed.json``), fit
+(``fit_delayed/``) and the leave-one-subject-out comparison of the two fits
+(``human_models.json``, :func:`pipelines.fit.human_models.compare_human_models`), all
+from the one prepared study.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from pipelines.identify import format_identify, identify_study, identify_to_dir
 from pipelines.io import load_study, validate_table
 from pipelines.prepare import IdentifySettings, prepare_study
 from pipelines.report import build_report
+from pipelines.report.human_models import ANGLE_ONLY
 from pipelines.simulate import DEFAULT_SEED, simulate_to_dir
 from pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
 
@@ -47,57 +55,117 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
     return {"estimates": str(out / "estimates.parquet")}
 
 
+def default_human_models(design: Design) -> tuple[str, ...]:
+    """The human models ``scioc run`` analyses a design with: both when it records the torque, else the max-ent one.
+
+    The ``delayed`` model on torques reconstructed from the angle is not trustworthy
+    (:data:`pipelines.report.human_models.ANGLE_ONLY`).
+    """
+    return ("maxent", "delayed") if design.torque_sensor else ("maxent",)
+
+
+def run_verdicts(root) -> dict:
+    """``{human model: adequacy verdict at identify}`` of every human model a run folder holds."""
+    root = Path(root)
+    found = {"maxent": root / "identify" / "identify.json", "delayed": root / "identify_delayed" / "identify.json"}
+    return {k: json.loads(v.read_text())["adequacy"]["verdict"] for k, v in found.items() if v.exists()}
+
+
+def _stages(fit: bool, delayed: bool) -> list[str]:
+    """The run's stages in order (their numbers in the log)."""
+    stages = ["simulate", "identify", "true torques", "compare"]
+    if delayed:
+        stages += ["identify delayed", "compare delayed"]
+    if fit:
+        stages += ["fit", "fit delayed", "human models"] if delayed else ["fit"]
+    return stages + ["report"]
+
+
 def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None = None,
             seed: int = DEFAULT_SEED, settings: IdentifySettings | None = None, fit: bool = True,
-            human: str = "maxent", population: Population | None = None, design: Design | None = None) -> Path:
+            human: str = "maxent", population: Population | None = None, design: Design | None = None,
+            human_models: tuple[str, ...] | None = None) -> Path:
     """Run every stage on the simulated study; returns the report's path.
 
-    ``fit=False`` skips the hierarchical Bayesian fit (minutes) for quick looks. ``human``
+    ``fit=False`` skips the hierarchical Bayesian fits (minutes) for quick looks. ``human``
     and ``population`` choose the simulated study (:func:`pipelines.simulate.simulate_to_dir`):
     a negative-control human shows what the report says when the model does not fit.
     ``design`` is the experiment simulated and analysed (the paper's study by default;
     ``data/experiment.toml`` holds it); ``settings`` default to its ``[analysis]``. The study is
     reconstructed once (:func:`pipelines.prepare.prepare_study`) and shared by the
-    identification and the fit.
+    identifications and the fits. ``human_models``: ``("maxent",)`` or ``("maxent", "delayed")``
+    (default :func:`default_human_models`); ``settings.human_model`` is ignored, each model
+    takes its own.
     """
     design = STUDY if design is None else design
     settings = IdentifySettings.for_design(design) if settings is None else settings
     if settings.design != design:
         raise ValueError("the settings were made for another experiment than the one simulated")
+    human_models = default_human_models(design) if human_models is None else tuple(human_models)
+    if "maxent" not in human_models or not set(human_models) <= {"maxent", "delayed"}:
+        raise ValueError(f"human models must be maxent, or maxent and delayed; got {human_models!r}")
+    delayed = "delayed" in human_models
+    settings = replace(settings, human_model="maxent")
     n_subjects = design.subjects if n_subjects is None else n_subjects
     root = Path(out) / name
-    steps = 6 if fit else 5
+    stages = _stages(fit, delayed)
+    steps = len(stages)
+    at = lambda stage: f"[{stages.index(stage) + 1}/{steps}]"  # noqa: E731
     levels = "/".join(design.levels)
     trials = f" × {design.trials} trials" if design.trials > 1 else ""
+    if not delayed:
+        log("human models: maxent" + (f"; delayed was not run: {ANGLE_ONLY}" if not design.torque_sensor else
+                                      " (delayed not requested)"))
+    elif not design.torque_sensor:
+        log(f"human models: maxent and delayed; WARNING: {ANGLE_ONLY}")
     t0 = time.perf_counter()
     # Every stage writes into one fresh folder that replaces ``root`` as a whole at the end:
     # an interrupted run leaves the previous results as they were, never a mix of two runs.
     with staged_dir(root, force=True) as tmp:
-        log(f"[1/{steps}] simulating {n_subjects} subjects × {len(design.levels)} conditions ({levels}){trials} × "
+        log(f"{at('simulate')} simulating {n_subjects} subjects × {len(design.levels)} conditions ({levels}){trials} × "
             f"{design.run_seconds:g} s at {design.rate_hz:g} Hz (seed {seed}, human {human}) -> {root / 'data'}")
         sim = simulate_to_dir(tmp / "data", n_subjects=n_subjects, seed=seed, human=human, population=population,
                               design=design)
         source = str(Path(sim["experiment"]).relative_to(tmp).as_posix())
-        log(f"[2/{steps}] identifying every subject × condition from the recorded "
+        log(f"{at('identify')} identifying every subject × condition from the recorded "
             f"{'angle and torque' if design.torque_sensor else 'encoder angle'}")
         prepared = prepare_study(load_study(sim["study"], design), settings, show_progress=True)
         identify_to_dir(sim["study"], tmp / "identify", settings, prepared=prepared, experiment_file=source)
         log(format_identify(tmp / "identify"))
-        log(f"[3/{steps}] identifying again from the true torques (the cost of reconstruction)")
+        log(f"{at('true torques')} identifying again from the true torques (the cost of reconstruction)")
         identify_with_truth(sim["study"], sim["truth_trajectories"], tmp / "identify_true_torque", settings)
         # The paper's likelihood (recorded u_A as a known input) on the same torques: its SC bias.
         identify_with_truth(sim["study"], sim["truth_trajectories"], tmp / "identify_true_torque_exogenous",
                             replace(settings, assistant_model="exogenous"))
-        log(f"[4/{steps}] Wilcoxon matched-pairs tests against {design.baseline}")
+        log(f"{at('compare')} Wilcoxon matched-pairs tests against {design.baseline}")
         compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
+        if delayed:
+            # The same prepared segments: preparing does not depend on the human model.
+            delayed_prepared = replace(prepared, settings=replace(settings, human_model="delayed"))
+            log(f"{at('identify delayed')} identifying again with the delayed human model (delay, lag, motor noise)")
+            identify_to_dir(sim["study"], tmp / "identify_delayed", delayed_prepared.settings,
+                            prepared=delayed_prepared, experiment_file=source)
+            log(format_identify(tmp / "identify_delayed"))
+            log(f"{at('compare delayed')} Wilcoxon matched-pairs tests of the delayed model's estimates")
+            compare_to_file(tmp / "identify_delayed" / "estimates.parquet", tmp / "compare_delayed.json")
         if fit:
             from pipelines.fit import fit_to_dir  # imports PyMC (seconds): not for --skip-fit
 
-            log(f"[5/{steps}] hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
+            log(f"{at('fit')} hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
             fit_to_dir(sim["study"], tmp / "fit", seed=seed, settings=settings, truth_dir=tmp / "data",
                        estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared,
                        experiment_file=source)
-        log(f"[{steps}/{steps}] writing the report")
+        if fit and delayed:
+            from pipelines.fit.human_models import compare_human_models, format_human_models
+
+            log(f"{at('fit delayed')} hierarchical Bayesian fit of the delayed human model (nutpie, 4 chains)")
+            fit_to_dir(sim["study"], tmp / "fit_delayed", seed=seed, settings=delayed_prepared.settings,
+                       truth_dir=tmp / "data", estimates_path=tmp / "identify_delayed" / "estimates.parquet",
+                       show_progress=True, prepared=delayed_prepared, experiment_file=source)
+            log(f"{at('human models')} leave-one-subject-out: max-ent against delayed")
+            log(format_human_models(compare_human_models(tmp / "fit", tmp / "fit_delayed", prepared=prepared,
+                                                         seed=seed, out=tmp)))
+        log(f"{at('report')} writing the report")
         build_report(tmp, title=name)
     report = root / "index.html"
     log(f"done in {time.perf_counter() - t0:.0f} s")
@@ -105,4 +173,4 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     return report
 
 
-__all__ = ["run_all", "identify_with_truth"]
+__all__ = ["default_human_models", "identify_with_truth", "run_all", "run_verdicts"]

@@ -181,7 +181,7 @@ def cmd_report(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from pipelines.run import run_all
+    from pipelines.run import run_all, run_verdicts
 
     from models.simulate import Population
 
@@ -191,16 +191,23 @@ def cmd_run(args) -> int:
     name = args.name or (Path(args.experiment).resolve().parent.name if args.experiment else "default-study")
     report = run_all(args.out, n_subjects=args.subjects, seed=args.seed, fit=not args.skip_fit, human=args.human,
                      population=None if args.beta is None else Population(beta=args.beta), name=name,
-                     design=design)
-    # The workflow ran; a human model that fails its adequacy checks is a failed check (exit 1).
-    verdict = json.loads((report.parent / "identify" / "identify.json").read_text())["adequacy"]["verdict"]
-    return 1 if verdict == "fail" else 0
+                     design=design, human_models=args.human_models)
+    # The workflow ran; when every human model it ran fails its adequacy checks, that is a failed check (exit 1).
+    return 1 if all(v == "fail" for v in run_verdicts(report.parent).values()) else 0
 
 
 def cmd_fit(args) -> int:
+    if args.compare_to is not None and args.human_model != "delayed":
+        raise ValueError("--compare-to compares a delayed fit with a max-ent one: it needs --human-model delayed")
     from pipelines.fit import fit_to_dir, format_fit  # imports PyMC (seconds): only when fitting
 
     settings, source = window_settings(args)
+    if args.compare_to is not None:
+        from pipelines.fit.human_models import check_maxent_fit
+        from pipelines.storage import refuse_inputs_inside
+
+        refuse_inputs_inside(args.out, args.compare_to)
+        check_maxent_fit(args.compare_to, args.study, settings)  # before minutes of sampling, not after
     paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
                        settings=settings, experiment_file=source, subject=args.subject, estimates_path=args.estimates,
                        truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
@@ -208,11 +215,37 @@ def cmd_fit(args) -> int:
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")
+    if args.compare_to is not None:
+        from pipelines.fit.human_models import HUMAN_MODELS_FILE, compare_human_models, format_human_models
+
+        res = compare_human_models(args.compare_to, args.out, settings=settings, seed=args.seed, out=args.out,
+                                   study=args.study)
+        print(format_human_models(res))
+        print(f"human_models: {Path(args.out) / HUMAN_MODELS_FILE}")
     # Exit 1 when the sampler did not converge or the human model fails its adequacy checks.
     side = json.loads(Path(paths["sidecar"]).read_text())
     res = json.loads(Path(paths["contrasts"]).read_text())
     converged = all(v == "pass" for v in side["convergence_verdict"].values())
     return 0 if converged and res["adequacy"]["verdict"] != "fail" else 1
+
+
+def cmd_human_models(args) -> int:
+    from pipelines.fit.artifacts import strict_json
+    from pipelines.fit.human_models import compare_human_models, format_human_models, write_human_models
+    from pipelines.storage import refuse_inputs_inside
+
+    if args.out is not None:  # never onto one of the fits' own files
+        refuse_inputs_inside(args.out, *(Path(f) / name for f in (args.maxent_fit, args.delayed_fit)
+                                         for name in ("posterior.json", "posterior.nc", "contrasts.json")))
+    res = compare_human_models(args.maxent_fit, args.delayed_fit, seed=args.seed, study=args.study)
+    if args.format == "json":
+        print(strict_json(res), end="")
+    else:
+        print(format_human_models(res))
+    if args.out is not None:
+        write_human_models(res, args.out)
+        print(f"wrote {args.out}", file=sys.stderr if args.format == "json" else sys.stdout)
+    return 0
 
 
 def cmd_calibrate(args) -> int:

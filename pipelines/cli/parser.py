@@ -77,6 +77,21 @@ HUMAN_MODEL_NAMES = ("maxent", "delayed")
 MAX_DELAY_S = 0.3
 
 
+def _human_models_list(text: str) -> tuple:
+    """``--human-models maxent,delayed``: known names, none twice, maxent among them; in the order of the names."""
+    names = [v.strip() for v in text.split(",") if v.strip()]
+    unknown = [v for v in names if v not in HUMAN_MODEL_NAMES]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(f"expected a comma-separated list of {', '.join(HUMAN_MODEL_NAMES)}; "
+                                         f"got {text!r}")
+    if len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"a human model is named twice in {text!r}")
+    if "maxent" not in names:
+        raise argparse.ArgumentTypeError(f"the list must include maxent (the run's identify, compare and fit are the "
+                                         f"paper's model; delayed is run beside it); got {text!r}")
+    return tuple(v for v in HUMAN_MODEL_NAMES if v in names)
+
+
 def _add_human_model_option(p):
     """``--human-model``: the model of the human whose data are analysed (shared by the commands that take it)."""
     p.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent",
@@ -201,8 +216,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
     _add_window_options(p)
     _add_human_model_option(p)
+    p.add_argument("--compare-to", metavar="MAXENT_FIT",
+                   help="with --human-model delayed: a finished max-ent fit folder of the same study and settings; "
+                        "after the fit, leave-one-subject-out between the two human models, beside each one's "
+                        "adequacy verdict (OUT/human_models.json)")
     _add_force_option(p)
     p.set_defaults(func=commands.cmd_fit)
+
+    p = sub.add_parser("human-models", help="leave-one-subject-out between a max-ent and a delayed fit of the same "
+                                            "study, beside each one's adequacy verdict (writes nothing without --out)")
+    p.add_argument("maxent_fit", metavar="MAXENT_FIT", help="folder of `scioc fit` (max-ent human)")
+    p.add_argument("delayed_fit", metavar="DELAYED_FIT", help="folder of `scioc fit --human-model delayed`")
+    p.add_argument("--study", metavar="PATH",
+                   help="the study file both fitted (default: the path their posterior.json records)")
+    p.add_argument("--seed", type=_nonnegative_int, default=2018,
+                   help="seed of the importance sampling (default 2018)")
+    p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
+    p.add_argument("--out", metavar="FILE", help="also write the result as JSON to FILE (atomically)")
+    p.set_defaults(func=commands.cmd_human_models)
 
     p = sub.add_parser("compare", help="Wilcoxon matched-pairs signed-rank test of θ1 and θ2, MC vs SC")
     p.add_argument("estimates", help="estimates.parquet written by `scioc identify`")
@@ -232,7 +263,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--subjects", type=_positive_int, default=None,
                    help="simulated subjects (default: the experiment's, 42 for the paper's)")
     p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the whole workflow (default 2018)")
-    p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fit (minutes)")
+    p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fits (minutes)")
+    p.add_argument("--human-models", type=_human_models_list, default=None, metavar="LIST",
+                   help="comma-separated human models to analyse the study with, maxent among them (default: "
+                        "maxent,delayed when the experiment records the human torque, [simulation] torque_sensor; "
+                        "maxent otherwise: README 'Human models')")
     _add_human_options(p)
     p.add_argument("--name", default=None,
                    help="subfolder of --out for this run (default default-study, or the experiment file's folder "

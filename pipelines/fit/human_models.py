@@ -10,9 +10,13 @@ observed torques, so their difference per subject says which model predicts that
 better, and the sum over subjects ± its SE (``sqrt(n) sd``, as
 :func:`pipelines.fit.loo.elpd_difference`) which predicts new subjects better.
 
-It runs after the two fits (they are minutes each); ``scioc fit`` can report it by
-calling it with the two folders. The delayed fit's plug-in delays are read from its
-``posterior.json``, its arm torques follow the prepared segments' warm-ups, as in the fit.
+It runs after the two fits (they are minutes each): ``scioc fit --human-model delayed
+--compare-to MAXENT_FIT`` after the delayed fit, ``scioc human-models`` on two finished
+folders, ``scioc run`` when it fits both. The delayed fit's plug-in delays are read from
+its ``posterior.json``, its arm torques follow the prepared segments' warm-ups, as in the
+fit. Beside the comparison, ``human_models.json`` carries each fit's adequacy verdict at
+its posterior θ (from its ``contrasts.json``): which model predicts better is never shown
+without whether each describes the data.
 """
 
 from __future__ import annotations
@@ -27,18 +31,46 @@ from models.bayes.delayed_loo import DelayedSubjectTerms
 from models.plant import discretize
 from models.segment import prepare_batch
 from models.units import index_study
+from pipelines.experiment import experiment_hash, parse_experiment
 from pipelines.fit.artifacts import strict_json
 from pipelines.fit.loo import subject_elpd
-from pipelines.io import load_study
+from pipelines.io import InputDataError, load_study
 from pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
 from pipelines.storage import write_text_atomic
 
 #: Human models compared, in the order of the difference (second minus first).
 HUMAN_MODELS_COMPARED = ("maxent", "delayed")
+#: The comparison's file, in the delayed fit's folder (``scioc fit --compare-to``) or the run folder.
+HUMAN_MODELS_FILE = "human_models.json"
+#: What a fit folder must hold to be compared.
+_FIT_FILES = ("posterior.json", "posterior.nc", "contrasts.json")
+#: Keys of ``posterior.json`` the comparison reads.
+_SIDECAR_KEYS = ("study", "identify_settings")
 
 
-def _sidecar(folder: Path) -> dict:
-    return json.loads((folder / "posterior.json").read_text())
+def fit_sidecar(folder) -> dict:
+    """The ``posterior.json`` of a finished ``scioc fit`` folder.
+
+    Raises
+    ------
+    ValueError
+        If ``folder`` is not a finished fit folder (a usage error: the wrong folder named).
+    pipelines.io.InputDataError
+        If its ``posterior.json`` is not JSON or lacks a key the comparison reads (naming both).
+    """
+    folder = Path(folder)
+    missing = [f for f in _FIT_FILES if not (folder / f).is_file()]
+    if missing:
+        raise ValueError(f"{folder} is not a finished scioc fit folder (no {', '.join(missing)})")
+    path = folder / "posterior.json"
+    try:
+        side = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputDataError(f"{path}: not readable as JSON ({exc})") from None
+    for key in _SIDECAR_KEYS:
+        if key not in side:
+            raise InputDataError(f"{path}: no key {key!r}; was it written by scioc fit?")
+    return side
 
 
 #: Settings that do not change what is fitted (the human model is what is compared; the adequacy
@@ -51,24 +83,91 @@ def _same_settings(a: dict, b: dict) -> bool:
     return keep(a) == keep(b)
 
 
+def _same_study(a, b) -> bool:
+    """The same study file, however each command spelled its path."""
+    return str(a) == str(b) or Path(a).resolve() == Path(b).resolve()
+
+
+def _differences(a: dict, b: dict) -> list[str]:
+    """What makes two fits (their sidecars' study, settings and experiment) not fits of the same data."""
+    out = []
+    if not _same_study(a["study"], b["study"]):
+        out.append(f"study file {a['study']} against {b['study']}")
+    if not _same_settings(a["identify_settings"], b["identify_settings"]):
+        diff = sorted(k for k in set(a["identify_settings"]) | set(b["identify_settings"])
+                      if k not in _NOT_THE_DATA and a["identify_settings"].get(k) != b["identify_settings"].get(k))
+        out.append("settings " + ", ".join(f"{k} {a['identify_settings'].get(k)!r} against "
+                                           f"{b['identify_settings'].get(k)!r}" for k in diff))
+    if a.get("experiment_sha256") != b.get("experiment_sha256"):
+        out.append("experiment (its SHA-256 differs)")
+    return out
+
+
+def check_maxent_fit(folder, study_path, settings: IdentifySettings) -> dict:
+    """Refuse, before a delayed fit of ``study_path`` starts, a ``folder`` it could not be compared with.
+
+    ``folder`` must be a finished max-ent ``scioc fit`` folder of the same study file with
+    the same window, preview, reconstruction, assistant model and experiment as
+    ``settings`` (the adequacy bootstrap's size and seed may differ). Returns its sidecar.
+
+    Raises
+    ------
+    ValueError
+        Naming the folder and what differs.
+    """
+    side = fit_sidecar(folder)
+    if side.get("human_model", "maxent") != "maxent":
+        raise ValueError(f"{folder} is a {side['human_model']} fit; compare with a max-ent fit "
+                         "(scioc fit without --human-model)")
+    ours = {"study": str(study_path), "identify_settings": settings.as_dict(),
+            "experiment_sha256": experiment_hash(settings.design)}
+    diff = _differences(side, ours)
+    if diff:
+        raise ValueError(f"{folder} is not a fit of the same data: {'; '.join(diff)}")
+    return side
+
+
+def fit_settings(side: dict, folder) -> IdentifySettings:
+    """The :class:`pipelines.prepare.IdentifySettings` a fit used, from its sidecar (settings and experiment)."""
+    path = Path(folder) / "posterior.json"
+    if "experiment" not in side:
+        raise InputDataError(f"{path}: no key 'experiment' (a fit written before experiment files); "
+                             "give the settings")
+    design = parse_experiment(side["experiment"], f"{path} (experiment)")
+    try:
+        return IdentifySettings(**side["identify_settings"], design=design)
+    except (TypeError, ValueError) as exc:
+        raise InputDataError(f"{path}: identify_settings: {exc}") from None
+
+
+def adequacy_brief(adequacy: dict | None, where: str) -> dict:
+    """The adequacy verdict of a fit at its posterior θ, short: verdict, failed checks, flagged segments."""
+    a = adequacy or {"verdict": "not checked", "reason": "no adequacy block"}
+    keep = ("verdict", "failed_checks", "segments_flagged", "segments", "reason")
+    return {**{k: a[k] for k in keep if k in a}, "where": where}
+
+
 def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings | None = None,
-                         prepared: PreparedStudy | None = None, seed: int = 2018, out=None) -> dict:
+                         prepared: PreparedStudy | None = None, seed: int = 2018, out=None, study=None) -> dict:
     """Leave-one-subject-out ELPD per subject under the max-ent and the delayed human, and their difference.
 
     Parameters
     ----------
     maxent_dir, delayed_dir : str or Path
-        ``scioc fit`` folders of the same study with ``human_model`` maxent and delayed.
+        Finished ``scioc fit`` folders of the same study with ``human_model`` maxent and delayed.
     settings : IdentifySettings, optional
-        The settings both fits used (window, preview, reconstruction, experiment); needed
-        unless ``prepared`` is given. Checked against both sidecars.
+        The settings both fits used (window, preview, reconstruction, experiment); checked
+        against both sidecars. Default: those the max-ent fit's ``posterior.json`` records.
     prepared : PreparedStudy, optional
-        The study as the fits prepared it (default: loaded from the sidecar's study path and
-        prepared with ``settings``).
+        The study as the fits prepared it (default: loaded from ``study`` and prepared with
+        ``settings``).
     seed : int
         Seeds the importance sampling (``SeedSequence(seed).spawn(2)``: max-ent, delayed).
     out : str or Path, optional
-        Write the result as ``human_models.json`` there (atomically).
+        Write the result as :data:`HUMAN_MODELS_FILE` in this folder (atomically).
+    study : str or Path, optional
+        The study file (default: the path the sidecars record; a fit records it as it was
+        given, relative to the folder the fit ran in).
 
     Returns
     -------
@@ -77,33 +176,41 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         (delayed - maxent) and ``preferred``; ``difference``: ``elpd_diff`` ± ``se``, ``z``,
         ``preferred``, ``n_preferring_delayed``, ``n``, ``reliable`` (every Pareto k of both
         below the threshold); ``maxent`` and ``delayed``: each model's PSIS summary with the
-        importance-sampling ESS.
+        importance-sampling ESS; ``adequacy``: each fit's verdict at its posterior θ
+        (:func:`adequacy_brief`).
 
     Raises
     ------
     ValueError
         If the folders are not one max-ent and one delayed fit of the same study and settings.
+    pipelines.io.InputDataError
+        If a sidecar is unreadable, or the study file is not where it says and no ``study`` is given.
     """
     folders = {"maxent": Path(maxent_dir), "delayed": Path(delayed_dir)}
-    sides = {k: _sidecar(v) for k, v in folders.items()}
+    sides = {k: fit_sidecar(v) for k, v in folders.items()}
     for k, side in sides.items():
         if side.get("human_model", "maxent") != k:
             raise ValueError(f"{folders[k]} is a {side.get('human_model', 'maxent')} fit, not a {k} fit")
-    if sides["maxent"]["study"] != sides["delayed"]["study"] or not _same_settings(
-            sides["maxent"]["identify_settings"], sides["delayed"]["identify_settings"]) or \
-            sides["maxent"].get("experiment_sha256") != sides["delayed"].get("experiment_sha256"):
-        raise ValueError("the two fits are not of the same study file with the same settings and experiment")
+    diff = _differences(sides["maxent"], sides["delayed"])
+    if diff:
+        raise ValueError(f"the two fits are not of the same data: {'; '.join(diff)}")
     if prepared is None:
-        if settings is None:
-            raise ValueError("give the settings both fits used (or the prepared study)")
+        settings = fit_settings(sides["maxent"], folders["maxent"]) if settings is None else settings
         if not _same_settings(settings.as_dict(), sides["maxent"]["identify_settings"]):
             raise ValueError("these settings are not the ones the fits used")
-        prepared = prepare_study(load_study(sides["maxent"]["study"], settings.design), settings)
+        study = sides["maxent"]["study"] if study is None else study
+        if not Path(study).is_file():
+            raise InputDataError(f"{folders['maxent'] / 'posterior.json'}: its study file {study} is not there "
+                                 "(moved, or the fit ran in another folder); give the study file")
+        prepared = prepare_study(load_study(study, settings.design), settings)
     design = prepared.settings.design
     plant = discretize(design.dt, design.wheel)
     levels = design.ordered_levels
     batch = prepare_batch(plant, [p.segment for p in prepared.segments])
     index = index_study(prepared.subjects, prepared.conditions, levels)
+    if "by_unit" not in sides["delayed"].get("delay", {}):
+        raise InputDataError(f"{folders['delayed'] / 'posterior.json'}: no key 'delay' with 'by_unit' (the delays the "
+                             "delayed fit used)")
     by_unit = sides["delayed"]["delay"]["by_unit"]
     delay = np.array([by_unit[f"{p.data.subject}/{p.data.condition}"]["delay_samples"] for p in prepared.segments])
     warm = [p.warmup for p in prepared.segments]
@@ -129,18 +236,55 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
                        "preferred": "delayed" if total > 0 else "maxent",
                        "n_preferring_delayed": int((diff_i > 0).sum()), "n": int(n), "reliable": bad == 0},
         "seed": int(seed), "fits": {k: str(v) for k, v in folders.items()},
+        "adequacy": {k: adequacy_brief(json.loads((v / "contrasts.json").read_text()).get("adequacy"),
+                                       f"at the posterior θ ({v / 'contrasts.json'})")
+                     for k, v in folders.items()},
     }
     if out is not None:
-        write_text_atomic(Path(out) / "human_models.json", strict_json(result))
+        write_human_models(result, Path(out) / HUMAN_MODELS_FILE)
     return result
 
 
+def write_human_models(result: dict, path) -> Path:
+    """Write a comparison as strict JSON, atomically (nothing half-written)."""
+    return write_text_atomic(path, strict_json(result))
+
+
+def _adequacy_line(name: str, a: dict | None) -> str:
+    if not a:
+        return f"  {name:8s} adequacy at the posterior: not recorded"
+    v = a.get("verdict", "not checked")
+    if v == "not checked":
+        return f"  {name:8s} adequacy at the posterior: NOT CHECKED ({a.get('reason', '')})"
+    flagged = (f"{a['segments_flagged']} of {a['segments']} segments flagged" if "segments" in a else "")
+    failed = f"failed: {', '.join(a['failed_checks'])}; " if a.get("failed_checks") else ""
+    return f"  {name:8s} adequacy at the posterior: {'PASS' if v == 'pass' else 'FAIL'} ({failed}{flagged})"
+
+
 def format_human_models(res: dict) -> str:
-    """Two lines: the total difference and how many subjects prefer each model."""
+    """The comparison in a few lines, each model's adequacy verdict beside it.
+
+    The total difference ± SE and z, how many subjects each model predicts better, whether
+    the PSIS estimates are reliable, and which model the ELPD prefers; a caveat when that
+    model fails its adequacy checks.
+    """
     d = res["difference"]
-    return (f"leave-one-subject-out, human models: elpd(delayed) - elpd(maxent) = {d['elpd_diff']:.1f} ± {d['se']:.1f} "
-            f"({'reliable' if d['reliable'] else 'Pareto k high: unreliable'}); preferred: {d['preferred']}\n"
-            f"subjects better predicted by the delayed human: {d['n_preferring_delayed']} of {d['n']}")
+    n, k = d["n"], d["n_preferring_delayed"]
+    se = "n/a" if d.get("se") is None or not np.isfinite(d["se"]) else f"{d['se']:.1f}"
+    z = "n/a" if d.get("z") is None or not np.isfinite(d["z"]) else f"{d['z']:.2f}"
+    adequacy = res.get("adequacy", {})
+    lines = [f"human models, leave-one-subject-out over {n} subjects:",
+             *(_adequacy_line(m, adequacy.get(m)) for m in HUMAN_MODELS_COMPARED),
+             f"  elpd(delayed) - elpd(maxent) = {d['elpd_diff']:.1f} ± {se} (z = {z}); PSIS "
+             + ("reliable (every Pareto k below the threshold)" if d["reliable"] else
+                "UNRELIABLE (Pareto k above the threshold for some subjects)"),
+             f"  subjects better predicted: delayed {k} of {n}, maxent {n - k} of {n}",
+             f"  preferred by the ELPD: {d['preferred']}"]
+    if (adequacy.get(d["preferred"]) or {}).get("verdict") == "fail":
+        lines.append(f"  CAVEAT: {d['preferred']}, which predicts better, fails its adequacy checks: neither its costs "
+                     "nor this preference say that it describes the data")
+    return "\n".join(lines)
 
 
-__all__ = ["HUMAN_MODELS_COMPARED", "compare_human_models", "format_human_models"]
+__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "adequacy_brief", "check_maxent_fit", "compare_human_models",
+           "fit_settings", "fit_sidecar", "format_human_models", "write_human_models"]

@@ -1,11 +1,15 @@
 """End-to-end: the whole workflow on a small simulated study, through the CLI."""
 
 import json
+from dataclasses import replace
+from html import unescape
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from models.design import STUDY
 from pipelines.cli import main
 from pipelines.identify import identify_study
 from pipelines.io import StudyFileError, load_study
@@ -129,3 +133,69 @@ def test_run_reconstructs_every_segment_once_for_identify_and_fit(tmp_path, monk
     run_all(tmp_path, n_subjects=2, seed=5, fit=True, settings=IdentifySettings(adequacy_boot=0))
     assert len(calls) == 4  # 2 subjects × MC and SC, from the angle; the true-torque runs need none
     assert [p.data.subject for p in seen["prepared"].segments] == ["S01", "S01", "S02", "S02"]
+
+
+def test_an_angle_only_run_has_the_maxent_artifacts_only_and_says_why(small_run):
+    """The built-in design records no torque: the run analyses it with the max-ent model alone, as before."""
+    from pipelines.report.human_models import ANGLE_ONLY
+
+    assert sorted(p.name for p in small_run.iterdir()) == [
+        "compare.json", "data", "identify", "identify_true_torque", "identify_true_torque_exogenous", "index.html"]
+    html = (small_run / "index.html").read_text()
+    assert "<h2 id='human-models'>Human models</h2>" in html and "Only the max-ent human model" in html
+    assert unescape(ANGLE_ONLY.split(" (README")[0]) in unescape(html)
+
+
+#: A study with a torque sensor small enough for the delayed model's identification: 8-s runs, 4-s windows.
+SENSOR = replace(STUDY, torque_sensor=True, run_seconds=8.0, window_start=2.0, window_seconds=4.0, preview=1.0)
+
+
+def test_a_run_with_a_torque_sensor_adds_the_delayed_model(tmp_path, monkeypatch, capsys):
+    """Both models by default; the delayed stages share the prepared study; fits and LOSO stand in here."""
+    import pipelines.fit
+    import pipelines.fit.human_models
+    import pipelines.prepare
+    from pipelines.run import run_all, run_verdicts
+
+    calls, seen = [], {}
+    real = pipelines.prepare.reconstruct
+    monkeypatch.setattr(pipelines.prepare, "reconstruct", lambda *a, **k: calls.append(1) or real(*a, **k))
+
+    def fake_fit(study_path, out, *, prepared=None, settings=None, **kwargs):  # stands in for minutes of sampling
+        seen[Path(out).name] = (prepared, settings.human_model)
+
+    def fake_compare(maxent_dir, delayed_dir, *, prepared=None, seed=None, out=None):
+        seen["human_models"] = (Path(maxent_dir).name, Path(delayed_dir).name, Path(out) == Path(maxent_dir).parent)
+        return {"difference": {"elpd_diff": 1.0, "se": 1.0, "z": 1.0, "reliable": True, "n": 2,
+                               "n_preferring_delayed": 1, "preferred": "delayed"}}
+
+    monkeypatch.setattr(pipelines.fit, "fit_to_dir", fake_fit)
+    monkeypatch.setattr(pipelines.fit.human_models, "compare_human_models", fake_compare)
+    root = run_all(tmp_path, n_subjects=2, seed=5, design=SENSOR,
+                   settings=IdentifySettings.for_design(SENSOR, adequacy_boot=2)).parent
+    log = capsys.readouterr().out
+    assert "human models: maxent" not in log  # no note: both run
+    for stage in ("[1/10] simulating", "[5/10] identifying again with the delayed human model",
+                  "[6/10] Wilcoxon matched-pairs tests of the delayed model's estimates", "[7/10] hierarchical",
+                  "[8/10] hierarchical Bayesian fit of the delayed human model", "[9/10] leave-one-subject-out",
+                  "[10/10] writing the report"):
+        assert stage in log, stage
+    assert len(calls) == 0  # a torque sensor: nothing reconstructed, once or twice
+    assert seen["fit"][1] == "maxent" and seen["fit_delayed"][1] == "delayed"
+    assert seen["fit_delayed"][0].segments is seen["fit"][0].segments  # the one prepared study
+    assert seen["human_models"] == ("fit", "fit_delayed", True)
+    for rel in ("identify_delayed/estimates.parquet", "identify_delayed/identify.json", "compare_delayed.json"):
+        assert (root / rel).exists(), rel
+    assert json.loads((root / "identify_delayed" / "identify.json").read_text())["human_model"] == "delayed"
+    assert set(run_verdicts(root)) == {"maxent", "delayed"}
+    html = unescape((root / "index.html").read_text())
+    assert "delayed human" in html and "Which human model the data support" in html
+
+
+def test_run_with_maxent_only_on_a_torque_sensor_says_delayed_was_not_requested(tmp_path, capsys):
+    from pipelines.run import run_all
+
+    root = run_all(tmp_path, n_subjects=2, seed=5, design=SENSOR, fit=False, human_models=("maxent",),
+                   settings=IdentifySettings.for_design(SENSOR, adequacy_boot=0)).parent
+    assert "[1/5] simulating" in capsys.readouterr().out and not (root / "identify_delayed").exists()
+    assert "The delayed human model was not requested" in unescape((root / "index.html").read_text())

@@ -1,0 +1,142 @@
+"""``scioc fit --compare-to``, ``scioc human-models`` and ``scioc run --human-models``: usage errors, the default,
+and one end-to-end comparison of two tiny real fits."""
+
+import json
+from dataclasses import replace
+
+import pytest
+
+from models.design import STUDY
+from pipelines.cli import EXIT_BAD_DATA, EXIT_USAGE, main
+from pipelines.cli.parser import build_parser
+from pipelines.experiment import experiment_hash
+from pipelines.prepare import IdentifySettings
+from pipelines.run import default_human_models
+from pipelines.simulate import simulate_to_dir
+
+
+def fake_fit(folder, *, human_model="maxent", study="study.parquet", settings=None, **extra):
+    """The files of a finished fit folder, with a sidecar saying what was fitted (nothing is sampled)."""
+    settings = settings or IdentifySettings()
+    folder.mkdir(parents=True)
+    side = {"study": str(study), "human_model": human_model, "identify_settings": settings.as_dict(),
+            "experiment_sha256": experiment_hash(settings.design), **extra}
+    (folder / "posterior.json").write_text(json.dumps(side))
+    (folder / "posterior.nc").write_bytes(b"")
+    (folder / "contrasts.json").write_text(json.dumps({"adequacy": {"verdict": "not checked"}}))
+    return folder
+
+
+def _fit(tmp_path, *options):
+    return main(["fit", str(tmp_path / "study.parquet"), "--out", str(tmp_path / "out"), *options])
+
+
+def test_compare_to_needs_the_delayed_human_model(tmp_path, capsys):
+    fake_fit(tmp_path / "maxent", study=tmp_path / "study.parquet")
+    assert _fit(tmp_path, "--compare-to", str(tmp_path / "maxent")) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.startswith("scioc fit: error:") and "--human-model delayed" in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("case, message", [
+    ("missing", "is not a finished scioc fit folder (no posterior.json, posterior.nc, contrasts.json)"),
+    ("delayed", "is a delayed fit; compare with a max-ent fit"),
+    ("other study", "is not a fit of the same data: study file"),
+    ("other window", "is not a fit of the same data: settings window_seconds 10.0 against 15.0"),
+    ("the output", "holds the input"),
+])
+def test_compare_to_a_folder_it_cannot_be_compared_with_is_a_usage_error_before_fitting(tmp_path, capsys, case,
+                                                                                         message):
+    study = tmp_path / "study.parquet"
+    target = tmp_path / "maxent"
+    if case == "delayed":
+        fake_fit(target, human_model="delayed", study=study)
+    elif case == "other study":
+        fake_fit(target, study=tmp_path / "another.parquet")
+    elif case == "other window":
+        fake_fit(target, study=study, settings=IdentifySettings(window_seconds=10.0))
+    elif case == "the output":
+        target = tmp_path / "out"
+        fake_fit(target, study=study)
+    options = ["--human-model", "delayed", "--compare-to", str(target)] + (["--force"] if case == "the output" else [])
+    assert _fit(tmp_path, *options) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.startswith("scioc fit: error:") and message in err, err
+    assert case == "the output" or not (tmp_path / "out").exists()
+
+
+def test_compare_to_accepts_another_adequacy_bootstrap(tmp_path):
+    """The adequacy bootstrap's size and seed do not make two fits different studies."""
+    from pipelines.fit.human_models import check_maxent_fit
+
+    study = tmp_path / "study.parquet"
+    fake_fit(tmp_path / "maxent", study=study, settings=IdentifySettings(adequacy_boot=0, adequacy_seed=1))
+    check_maxent_fit(tmp_path / "maxent", study, IdentifySettings(human_model="delayed"))
+
+
+def test_human_models_command_names_what_is_wrong(tmp_path, capsys):
+    fake_fit(tmp_path / "a")
+    assert main(["human-models", str(tmp_path / "a"), str(tmp_path / "nothing")]) == EXIT_USAGE
+    assert "nothing is not a finished scioc fit folder" in capsys.readouterr().err
+    assert main(["human-models", str(tmp_path / "a"), str(tmp_path / "a")]) == EXIT_USAGE
+    assert "is a maxent fit, not a delayed fit" in capsys.readouterr().err
+    fake_fit(tmp_path / "b", human_model="delayed")
+    (tmp_path / "b" / "posterior.json").write_text("{not json")
+    assert main(["human-models", str(tmp_path / "a"), str(tmp_path / "b")]) == EXIT_BAD_DATA
+    err = capsys.readouterr().err
+    assert err.startswith("scioc human-models: error:") and "posterior.json: not readable as JSON" in err
+    # --out never replaces one of the fits' files.
+    assert main(["human-models", str(tmp_path / "a"), str(tmp_path / "b"), "--out",
+                 str(tmp_path / "a" / "contrasts.json")]) == EXIT_USAGE
+    assert "holds the input" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text", ["delayed", "maxent,kbl", "maxent,maxent", ""])
+def test_run_human_models_must_be_known_names_with_maxent(text, capsys):
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(["run", "--human-models", text])
+    assert exc.value.code == EXIT_USAGE and "--human-models" in capsys.readouterr().err
+
+
+def test_run_human_models_default_follows_the_torque_sensor():
+    args = build_parser().parse_args(["run"])
+    assert args.human_models is None  # the run decides from its experiment
+    assert default_human_models(STUDY) == ("maxent",)
+    assert default_human_models(replace(STUDY, torque_sensor=True)) == ("maxent", "delayed")
+    assert build_parser().parse_args(["run", "--human-models", "delayed, maxent"]).human_models == ("maxent",
+                                                                                                   "delayed")
+
+
+#: The smallest study the two fits and the comparison run on: 3 subjects, 4-s windows, a torque sensor.
+TINY = replace(STUDY, torque_sensor=True, run_seconds=8.0, window_start=2.0, window_seconds=4.0, preview=1.0,
+               subjects=3)
+#: Tiny samplers: the numbers are checked for consistency, not quality (they do not converge).
+SAMPLER = ["--chains", "2", "--draws", "20", "--tune", "30", "--adequacy-boot", "2", "--seed", "4"]
+
+
+@pytest.mark.slow
+def test_fit_compare_to_and_the_human_models_command_agree(tmp_path, capsys):
+    sim = simulate_to_dir(tmp_path / "data", seed=7, human="kbl", design=TINY)
+    study = str(sim["study"])
+    maxent, delayed = str(tmp_path / "fit_maxent"), str(tmp_path / "fit_delayed")
+    assert main(["fit", study, "--out", maxent, *SAMPLER]) in (0, 1)  # 1: tiny chains do not converge
+    capsys.readouterr()
+    assert main(["fit", study, "--out", delayed, "--human-model", "delayed", "--compare-to", maxent, *SAMPLER]) in (0, 1)
+    out = capsys.readouterr().out
+    written = json.loads((tmp_path / "fit_delayed" / "human_models.json").read_text())
+    assert "human models, leave-one-subject-out over 3 subjects:" in out
+    for line in ("  maxent   adequacy at the posterior:", "  delayed  adequacy at the posterior:",
+                 "elpd(delayed) - elpd(maxent) =", "(z = ", "subjects better predicted: delayed",
+                 f"human_models: {delayed}/human_models.json"):
+        assert line in out, line
+    assert set(written["adequacy"]) == {"maxent", "delayed"}
+    assert written["adequacy"]["delayed"]["verdict"] in ("pass", "fail")
+    assert not [p for p in (tmp_path / "fit_delayed").iterdir() if p.name.startswith(".")]  # nothing half-written
+    # The command reads the two folders and prints the same, writing nothing without --out.
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    assert main(["human-models", maxent, delayed, "--seed", "4", "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out) == written
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
+    assert main(["human-models", maxent, delayed, "--seed", "4", "--out", str(tmp_path / "hm.json")]) == 0
+    assert json.loads((tmp_path / "hm.json").read_text()) == written

@@ -116,10 +116,13 @@ def window_settings(args):
     return settings, source
 
 
-def simulated_human(args) -> str:
-    """``--human``, or the human ``--human-model`` names (:data:`pipelines.cli.parser.HUMAN_OF_MODEL`); maxent by default."""
-    from pipelines.cli.parser import HUMAN_OF_MODEL
+#: The simulated human each human model describes (``scioc simulate --human-model``): the delayed model's
+#: structure (delay with prediction, a lag the human plans with, white motor noise before it) is ``kbl``'s.
+HUMAN_OF_MODEL = {"maxent": "maxent", "delayed": "kbl"}
 
+
+def simulated_human(args) -> str:
+    """``--human``, or the human ``--human-model`` names (:data:`HUMAN_OF_MODEL`); maxent by default."""
     if getattr(args, "human_model", None):
         return HUMAN_OF_MODEL[args.human_model]
     return args.human or "maxent"

@@ -126,11 +126,6 @@ def _add_window_options(p):
 HUMAN_NAMES = ("maxent", "delay", "lag", "coloured", "combined", "kbl", "crossover")
 
 
-#: The simulated human each human model describes (``scioc simulate --human-model``): the delayed model's
-#: structure (delay with prediction, a lag the human plans with, white motor noise before it) is ``kbl``'s.
-HUMAN_OF_MODEL = {"maxent": "maxent", "delayed": "kbl"}
-
-
 def _add_human_options(p, *, by_model: bool = False):
     group = p.add_mutually_exclusive_group() if by_model else p
     group.add_argument("--human", choices=HUMAN_NAMES, default=None if by_model else "maxent",

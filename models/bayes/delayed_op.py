@@ -244,7 +244,8 @@ class DelayedLoglikOp(DelayedLoglikDataOp):
         From :func:`models.segment.prepare_batch` with ``plant``.
     plant : DiscretePlant
     delay : int or array_like of int (n,)
-        Perceptual delay per segment, samples (>= 0).
+        Perceptual delay per segment, samples (>= 0); a fourth input ``delay`` (n,) int64,
+        when given to the call, replaces it (a sampled delay; not differentiable).
     tau0 : float, array_like (n,) or sequence of Warmup or None
         As :func:`pack_tau0` (default: every window starts with the arm at rest).
     params : WheelParameters
@@ -282,7 +283,7 @@ class DelayedLoglikOp(DelayedLoglikDataOp):
     def __str__(self):
         return f"DelayedLoglik{{n={self.n}, K={self.K}, d={int(self.delay.min())}..{int(self.delay.max())}}}"
 
-    def make_node(self, theta, tau_nm, sigma_m):
+    def make_node(self, theta, tau_nm, sigma_m, delay=None):
         theta, tau_nm, sigma_m = (pt.cast(pt.as_tensor_variable(v), "float64") for v in (theta, tau_nm, sigma_m))
         if theta.type.ndim != 2 or tau_nm.type.ndim != 1 or sigma_m.type.ndim != 1:
             raise TypeError(f"theta must be a matrix (3, {self.n}), tau_nm and sigma_m vectors ({self.n},)")
@@ -293,7 +294,19 @@ class DelayedLoglikOp(DelayedLoglikDataOp):
         theta = pt.specify_shape(theta, (3, self.n))
         tau_nm = pt.specify_shape(tau_nm, (self.n,))
         sigma_m = pt.specify_shape(sigma_m, (self.n,))
-        return Apply(self, [theta, tau_nm, sigma_m], [pt.dvector(shape=(self.n,)), pt.dmatrix(shape=(5, self.n))])
+        inputs = [theta, tau_nm, sigma_m]
+        if delay is not None:  # the delays as an input (sampled), in place of the bound ones
+            inputs.append(pt.specify_shape(pt.cast(pt.as_tensor_variable(delay), "int64"), (self.n,)))
+        return Apply(self, inputs, [pt.dvector(shape=(self.n,)), pt.dmatrix(shape=(5, self.n))])
+
+    def perform(self, node, inputs, output_storage):
+        data = list(self.bound)
+        if len(inputs) > N_PARAMETER_INPUTS:
+            data[6] = np.ascontiguousarray(inputs[N_PARAMETER_INPUTS], dtype=np.int64)
+        theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:N_PARAMETER_INPUTS])
+        ll, g = _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data)
+        output_storage[0][0] = ll
+        output_storage[1][0] = g
 
     def infer_shape(self, node, input_shapes):
         return [(self.n,), (5, self.n)]
@@ -315,6 +328,15 @@ def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, **kwargs):
 
         return delayed_loglik_data
     x1, x2, r, u, a, fb, delay, warm, wstart, tstart = op.bound
+    if node is not None and len(node.inputs) > N_PARAMETER_INPUTS:
+
+        @numba_basic.numba_njit
+        def delayed_loglik_sampled(theta, tau_nm, sigma_m, d):
+            c = np.ascontiguousarray
+            return evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, c(theta), c(tau_nm), c(sigma_m), x1, x2, r, u, a, fb,
+                            c(d), warm, wstart, tstart)
+
+        return delayed_loglik_sampled
 
     @numba_basic.numba_njit
     def delayed_loglik(theta, tau_nm, sigma_m):

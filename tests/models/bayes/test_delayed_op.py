@@ -195,3 +195,23 @@ def test_long_warm_ups_run_only_their_last_samples_to_rounding(plant, setup):
     ref = _reference(w, batch, plant, warm, tau, w.sigma_m)
     np.testing.assert_allclose(ll, ref.loglik, rtol=RTOL)
     np.testing.assert_allclose(g, ref.grad, rtol=RTOL, atol=RTOL * np.abs(ref.grad).max())
+
+
+@pytest.mark.parametrize("mode", ["NUMBA", "FAST_COMPILE"])
+def test_a_delay_input_replaces_the_bound_delays(plant, setup, mode):
+    # The sampled-delay form: the same Op with the delays as a fourth (integer, non-differentiable) input.
+    w, batch, warm, tau = setup
+    other = (np.asarray(w.delay) + np.arange(1, batch.n + 1)) % 31
+    op = DelayedLoglikOp(batch, plant, delay=w.delay, tau0=warm)
+    th, tt, ss, dd = pt.dmatrix(), pt.dvector(), pt.dvector(), pt.lvector()
+    ll, g = op(th, tt, ss, dd)
+    f, msgs = _compile_quietly([th, tt, ss, dd], [ll, g, pytensor.grad(ll.sum(), th)], mode)
+    got, grad, dth = f(w.theta, tau, w.sigma_m, other)
+    ref = DelayedLoglikOp(batch, plant, delay=other, tau0=warm)
+    f_ref, _ = _compile_quietly([th, tt, ss], list(ref(th, tt, ss)), mode)
+    want, want_g = f_ref(w.theta, tau, w.sigma_m)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(grad, want_g)
+    np.testing.assert_array_equal(dth, want_g[:3])
+    assert not np.allclose(got, f(w.theta, tau, w.sigma_m, np.asarray(w.delay))[0])  # the delays matter
+    assert not [m for m in msgs if OBJECT_MODE in m], msgs

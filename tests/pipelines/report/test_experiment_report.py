@@ -40,7 +40,10 @@ def _text(path) -> str:
 def _run(tmp_path_factory, name, design, n_subjects):
     out = tmp_path_factory.mktemp(name)
     settings = IdentifySettings.for_design(design, adequacy_boot=5)
-    return run_all(out, name=name, design=design, n_subjects=n_subjects, fit=False, settings=settings).parent
+    # The max-ent model only: the delayed human's identification (run by default with a torque sensor) is tested
+    # in tests/pipelines/test_run.py and would make this fixture 25 times slower.
+    return run_all(out, name=name, design=design, n_subjects=n_subjects, fit=False, settings=settings,
+                   human_models=("maxent",)).parent
 
 
 @pytest.fixture(scope="module")

@@ -198,7 +198,11 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         settings = fit_settings(sides["maxent"], folders["maxent"]) if settings is None else settings
         if not _same_settings(settings.as_dict(), sides["maxent"]["identify_settings"]):
             raise ValueError("these settings are not the ones the fits used")
-        study = sides["maxent"]["study"] if study is None else study
+        if study is None:
+            study = sides["maxent"]["study"]
+            relative = sides["maxent"].get("study_relative")
+            if not Path(study).is_file() and relative is not None:
+                study = folders["maxent"] / relative  # a run's folder, staged elsewhere and moved into place
         if not Path(study).is_file():
             raise InputDataError(f"{folders['maxent'] / 'posterior.json'}: its study file {study} is not there "
                                  "(moved, or the fit ran in another folder); give the study file")

@@ -293,6 +293,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     timing["total_s"] = time.perf_counter() - t_start
     sidecar = {
         "study": str(study_path),
+        # From the fit folder: stays true when a run's folder is staged and then moved into place.
+        "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "human_model": human_model,
         "seed": int(seed),
         "seeds": seeds,

@@ -120,6 +120,7 @@ import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
 from models.bayes.blocks import Parameterization, unit_block
+from models.bayes.delay_step import DelayMetropolis
 from models.bayes.delayed_op import DelayedLoglikOp, pack_tau0, warmups_of
 from models.bayes.hierarchical import Priors
 from models.delayed import sample_delayed
@@ -129,6 +130,8 @@ from models.plant import DiscretePlant
 from models.segment import Feedback, as_batch
 from models.units import index_study
 
+#: Name of the sampled delays' grid indices (dims ``subject``) in a model built with ``delay=None``.
+DELAY_INDEX = "delay_index"
 #: Population parameters of the lag and motor-noise blocks, as the model names them.
 DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale")
 #: The cost blocks' forms for the delayed human (module docstring, "Geometry"): log R non-centred,
@@ -223,15 +226,21 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
                         tau0=0.0, priors: Priors = Priors(), delayed_priors: DelayedPriors = DelayedPriors(),
                         parameterization: Parameterization = DELAYED_PARAMETERIZATION,
                         delayed_form: DelayedForm = DelayedForm(), segment_ids: Sequence | None = None,
-                        levels: Sequence = CONDITIONS, params: WheelParameters = WheelParameters()) -> pm.Model:
+                        levels: Sequence = CONDITIONS, params: WheelParameters = WheelParameters(),
+                        delay_grid=None) -> pm.Model:
     """The hierarchical ``delayed`` model of a study (see the module docstring).
 
     Parameters
     ----------
     subjects, conditions, segments, plant, priors, parameterization, segment_ids, levels
         As :func:`models.bayes.hierarchical.build_model` (condition effects always on).
-    delay : int or array_like of int (n,)
-        Perceptual delay of each segment, samples: data, not a parameter.
+    delay : int, array_like of int (n,), or None
+        Perceptual delay of each segment, samples: data, not a parameter. None samples it:
+        one delay per subject, ``delay_index`` (dims ``subject``) uniform over
+        ``delay_grid``, updated by :class:`models.bayes.delay_step.DelayMetropolis`
+        (:func:`delay_step`); the continuous draws are then delay-marginal.
+    delay_grid : array_like of int, optional
+        The grid of a sampled delay, samples (required with ``delay=None``).
     tau0 : float, array_like (n,), or sequence of Warmup or None (n)
         The arm torque at each window's start (:func:`models.bayes.delayed_op.pack_tau0`).
     delayed_priors : DelayedPriors
@@ -262,23 +271,31 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
     if L > 2:
         coords["contrast"] = levels[1:]
     s_idx, c_idx = index.subject_idx, index.condition_idx
+    sampled = delay is None
+    if sampled:
+        if delay_grid is None:
+            raise ValueError("a sampled delay (delay=None) needs its delay_grid")
+        grid = np.asarray(delay_grid, dtype=np.int64)
+        if grid.ndim != 1 or grid.shape[0] < 2 or np.any(grid < 0) or np.any(np.diff(grid) <= 0):
+            raise ValueError(f"delay_grid must be increasing whole samples >= 0, two or more; got {delay_grid!r}")
+        delay = 0
     op = DelayedLoglikOp(batch, plant, delay=delay, tau0=tau0, params=params)
     u_obs = op.bound[3]
     d_seg = op.delay
 
-    def logp(value, q11, q22, R, tau_nm, sigma_m, u_A):
+    def logp(value, q11, q22, R, tau_nm, sigma_m, d, u_A):
         if not (isinstance(value, Constant) and np.array_equal(value.data, u_obs)):
             raise NotImplementedError("the delayed likelihood of this model is bound to the observed torques")
-        ll, _ = op(pt.stack([q11, q22, R]), tau_nm, sigma_m)
+        ll, _ = op(pt.stack([q11, q22, R]), tau_nm, sigma_m, d if sampled else None)
         return ll
 
     x0 = np.column_stack([batch.x1[:, 0], batch.x2[:, 0]])
     tau0_at = _tau0_at(tau0, n, plant.dt, params)
 
-    def random(q11, q22, R, tau_nm, sigma_m, u_A_window, rng=None, size=None):
+    def random(q11, q22, R, tau_nm, sigma_m, d, u_A_window, rng=None, size=None):
         # Exact draws of the delayed human (models.delayed.sample_delayed); the last batch axis is the segment.
         shape = tuple(size) if size is not None else np.broadcast_shapes(q11.shape, tau_nm.shape)
-        ps = [np.broadcast_to(p, shape) for p in (q11, q22, R, tau_nm, sigma_m)]
+        ps = [np.broadcast_to(p, shape) for p in (q11, q22, R, tau_nm, sigma_m, d)]
         out = np.empty(shape + (K,))
         for idx in np.ndindex(*shape):
             j = idx[-1]
@@ -286,7 +303,7 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
             tau = float(ps[3][idx])
             out[idx] = sample_delayed([ps[0][idx], ps[1][idx], ps[2][idx]], x0[j], batch.r[j], plant, rng,
                                       u_A=None if fb is not None else batch.a[j], feedback=fb, tau_nm=tau,
-                                      sigma_m=float(ps[4][idx]), delay=int(d_seg[j]),
+                                      sigma_m=float(ps[4][idx]), delay=int(ps[5][idx]),
                                       tau0=tau0_at(j, tau), n_obs=K, params=params).u_H
         return out
 
@@ -297,10 +314,30 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
         R_s = R[s_idx, c_idx]
         q11 = pt.exp(log_theta1[s_idx, c_idx] + log_R[s_idx, c_idx])
         q22 = theta2[s_idx, c_idx] * R_s
-        pm.CustomDist("u_H", q11, q22, R_s, tau_nm[s_idx], sigma_m[s_idx], batch.a[:, :K], logp=logp, random=random,
-                      signature="(),(),(),(),(),(k)->(k)", observed=u_obs, dims=("segment", "step"))
+        if sampled:
+            index_var = pm.DiscreteUniform(DELAY_INDEX, 0, grid.shape[0] - 1, dims="subject")
+            d = pt.as_tensor(grid)[index_var][s_idx]
+        else:
+            d = pt.as_tensor(np.asarray(d_seg, dtype=np.int64))
+        pm.CustomDist("u_H", q11, q22, R_s, tau_nm[s_idx], sigma_m[s_idx], d, batch.a[:, :K], logp=logp, random=random,
+                      signature="(),(),(),(),(),(),(k)->(k)", observed=u_obs, dims=("segment", "step"))
+        if sampled:
+            # Each subject's log-likelihood, for the delay's Metropolis step (delay_step).
+            ll_seg, _ = op(pt.stack([q11, q22, R_s]), tau_nm[s_idx], sigma_m[s_idx], d)
+            member = np.zeros((len(index.subjects), n))
+            member[s_idx, np.arange(n)] = 1.0
+            model.delay_group_loglik = pt.dot(pt.as_tensor(member), ll_seg)
+            model.delay_grid = grid
     return model
 
 
-__all__ = ["DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors",
-           "build_delayed_model"]
+def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
+    """The Metropolis step of a sampled-delay model's ``delay_index`` (:func:`build_delayed_model` with delay=None)."""
+    if not hasattr(model, "delay_group_loglik"):
+        raise ValueError("this model's delays are fixed (built with a delay): there is no delay to sample")
+    return DelayMetropolis([model[DELAY_INDEX]], model.delay_group_loglik, model.delay_grid.shape[0], model=model,
+                           **kwargs)
+
+
+__all__ = ["DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm",
+           "DelayedPriors", "build_delayed_model", "delay_step"]

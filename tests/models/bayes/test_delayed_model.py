@@ -118,7 +118,38 @@ def test_short_fit_recovers_lag_and_motor_noise(plant):
     assert covered >= 6, covered
     # Negative control: the same model on data without motor noise gives a σ_m far below 0.25.
     quiet = delayed_windows(4, np.random.default_rng(11), K=1500, preview=200, sigma_m=(0.0, 0.0))
-    m0 = build_delayed_model(quiet.subjects, quiet.conditions, quiet.segments, plant, delay=quiet.delay)
+    m0 = build_delayed_model(quiet.subjects, quiet.conditions, quiet.segments, plant, delay=quiet.delay,
+                             delayed_form=DelayedForm("centred", "noncentred"))  # σ_m near 0: non-centred
     i0 = pm.sample(draws=300, tune=300, chains=2, cores=2, random_seed=12, nuts_sampler="nutpie", model=m0,
                    progressbar=False)
     assert float(np.quantile(i0["posterior"]["sigma_m"].values, 0.97)) < 0.1
+
+
+def test_sampled_delays_give_the_fixed_delay_model_at_each_index(plant, study):
+    # delay=None: a delay index per subject, uniform over the grid. At any index the log density is the fixed-delay
+    # model's at those delays plus the uniform prior, and the step's per-subject log-likelihoods sum to u_H's.
+    from models.bayes.delayed_model import DELAY_INDEX, delay_step
+
+    w = study
+    grid = np.arange(0, 16, 3)
+    model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=None, delay_grid=grid, tau0=w.tau0)
+    point = _point(model, 5)
+    idx = index_study(w.subjects, w.conditions)
+    logp = model.compile_logp(mode="FAST_COMPILE")
+    for chosen in ([0, 5, 2], [4, 4, 1]):
+        pt_ = {**point, DELAY_INDEX: np.array(chosen)}
+        fixed = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=grid[chosen][idx.subject_idx],
+                                    tau0=w.tau0)
+        ref = fixed.compile_logp(mode="FAST_COMPILE")({k: v for k, v in pt_.items() if k != DELAY_INDEX})
+        assert logp(pt_) == pytest.approx(ref - 3 * np.log(grid.shape[0]), rel=RTOL)
+        step = delay_step(model)
+        per_subject = step.loglik(pt_)
+        u_h = model.compile_fn(model.logp(vars=[model["u_H"]], sum=True), inputs=model.value_vars,
+                               on_unused_input="ignore")(pt_)
+        assert per_subject.shape == (3,) and float(per_subject.sum()) == pytest.approx(float(u_h), rel=RTOL)
+    assert logp({**point, DELAY_INDEX: np.array([0, 5, 2])}) != pytest.approx(logp({**point, DELAY_INDEX:
+                                                                                    np.array([1, 5, 2])}), rel=1e-6)
+    with pytest.raises(ValueError, match="delay_grid"):
+        build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=None)
+    with pytest.raises(ValueError, match="fixed"):
+        delay_step(build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay))

@@ -202,6 +202,8 @@ def cmd_run(args) -> int:
 def cmd_fit(args) -> int:
     if args.compare_to is not None and args.human_model != "delayed":
         raise ValueError("--compare-to compares a delayed fit with a max-ent one: it needs --human-model delayed")
+    if args.delay != "profile" and args.human_model != "delayed":
+        raise ValueError("--delay sampled samples the delayed human's delays: it needs --human-model delayed")
     from pipelines.fit import fit_to_dir, format_fit  # imports PyMC (seconds): only when fitting
 
     settings, source = window_settings(args)
@@ -214,7 +216,7 @@ def cmd_fit(args) -> int:
     paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
                        settings=settings, experiment_file=source, subject=args.subject, estimates_path=args.estimates,
                        truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
-                       human_model=args.human_model)
+                       human_model=args.human_model, delay_mode=args.delay)
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")

@@ -211,6 +211,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
     _add_window_options(p)
     _add_human_model_option(p)
+    p.add_argument("--delay", choices=("profile", "sampled"), default="profile",
+                   help="with --human-model delayed: each subject's delay fixed at its profile-likelihood maximum "
+                        "(default profile; nutpie), or sampled beside the other parameters (sampled; PyMC's NUTS and a "
+                        "Metropolis step for the delay: delay-marginal posteriors, slower)")
     p.add_argument("--compare-to", metavar="MAXENT_FIT",
                    help="with --human-model delayed: a finished max-ent fit folder of the same study and settings; "
                         "after the fit, leave-one-subject-out between the two human models, beside each one's "

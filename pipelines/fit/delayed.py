@@ -31,8 +31,9 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_model import (DELAYED_NUTS, DELAYED_PARAMETERIZATION, DELAYED_POPULATION_PARAMETERS,
-                                        DelayedForm, DelayedPriors, build_delayed_model)
+from models.bayes.delayed_model import (DELAY_INDEX, DELAYED_NUTS, DELAYED_PARAMETERIZATION,
+                                        DELAYED_POPULATION_PARAMETERS, DelayedForm, DelayedPriors, build_delayed_model,
+                                        delay_step)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
 from models.cost import from_normalized
 from models.delayed.identify import delay_grid, identify_unit_delayed
@@ -44,7 +45,7 @@ from pipelines.fit.contrasts import contrasts, hdi
 from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
-from pipelines.fit.sampling import sample_model
+from pipelines.fit.sampling import sample_compound, sample_model
 from pipelines.io import InputDataError
 
 #: Unit-level quantities of the delayed model whose diagnostics are reported.
@@ -178,15 +179,46 @@ class DelayedFit(NamedTuple):
     sidecar: dict
 
 
+#: How ``scioc fit --human-model delayed`` treats the delays: ``profile`` fixes each subject's at the
+#: maximum of its profile likelihood (nutpie); ``sampled`` samples them (PyMC's NUTS beside
+#: :class:`models.bayes.delay_step.DelayMetropolis`), so the other parameters' draws are delay-marginal.
+DELAY_MODES = ("profile", "sampled")
+
+
+def sampled_delays(idata, prepared, dt: float, grid: np.ndarray) -> Delays:
+    """The posterior of each subject's sampled delay: its mode per segment (for the checks), and per unit a summary."""
+    index = idata["posterior"][DELAY_INDEX]
+    by_subject = {}
+    for s in index["subject"].values:
+        d = grid[np.asarray(index.sel(subject=s).values, dtype=int).ravel()]
+        values, counts = np.unique(d, return_counts=True)
+        by_subject[str(s)] = {"delay_samples": int(values[np.argmax(counts)]),  # the mode (smallest on a tie)
+                              "mean_s": float(d.mean() * dt), "q03_s": float(np.quantile(d, 0.03) * dt),
+                              "q97_s": float(np.quantile(d, 0.97) * dt)}
+    by_unit = {f"{s}/{c}": {**by_subject[str(s)], "delay_s": by_subject[str(s)]["delay_samples"] * dt}
+               for s, c in prepared.units}
+    samples = np.array([by_subject[str(p.data.subject)]["delay_samples"] for p in prepared.segments], dtype=np.int64)
+    source = ("sampled: one delay per subject, uniform over 0-300 ms, updated by DelayMetropolis beside NUTS; "
+              "delay_samples is each subject's posterior mode (used by the posterior predictive, the adequacy check "
+              "at the posterior and leave-one-subject-out), mean_s and q03_s-q97_s its posterior")
+    return Delays(samples, by_unit, source, None)
+
+
 def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
                          tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors = DelayedPriors(),
-                         delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None) -> DelayedFit:
+                         delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
+                         delay_mode: str = "profile") -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
     chose them; the log R blocks take :data:`models.bayes.delayed_model.DELAYED_PARAMETERIZATION`'s,
     and nutpie :data:`models.bayes.delayed_model.DELAYED_NUTS` (both measured there).
+    ``delay_mode`` (:data:`DELAY_MODES`): ``profile`` conditions on ``delays``; ``sampled``
+    samples one delay per subject (``delays`` then only supplies the lag and noise estimates
+    that choose the blocks' forms), and the returned fit's delays are the posterior modes.
     """
+    if delay_mode not in DELAY_MODES:
+        raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
     levels = prepared.settings.design.ordered_levels
     form = replace(form, R_mc=DELAYED_PARAMETERIZATION.R_mc, R_sc=DELAYED_PARAMETERIZATION.R_sc)
     if delayed_form is None:
@@ -194,21 +226,33 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     else:
         form_reason = "given"
     t0 = time.perf_counter()
-    model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant, delay=delays.samples,
+    sampled = delay_mode == "sampled"
+    grid = delay_grid(float(plant.dt))
+    model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant,
+                                delay=None if sampled else delays.samples, delay_grid=grid if sampled else None,
                                 tau0=[p.warmup for p in prepared.segments], priors=priors,
                                 delayed_priors=delayed_priors, parameterization=form, delayed_form=delayed_form,
                                 segment_ids=prepared.labels, levels=levels, params=prepared.settings.design.wheel)
     t1 = time.perf_counter()
-    idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
-                              show_progress=show_progress, nuts=DELAYED_NUTS)
+    if sampled:
+        idata, sec = sample_compound(model, [delay_step(model, mode="NUMBA")], seed=seed, chains=chains, draws=draws,
+                                     tune=tune, cores=cores, show_progress=show_progress)
+        delays = sampled_delays(idata, prepared, float(plant.dt), grid)
+    else:
+        idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
+                                  show_progress=show_progress, nuts=DELAYED_NUTS)
     timing = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
     diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
-    side = {"delay": {"source": delays.source, "by_unit": delays.by_unit,
-                      "note": "fixed per unit (plug-in), not sampled: models/bayes/delayed_model.py says why"},
+    side = {"delay": {"mode": delay_mode, "source": delays.source, "by_unit": delays.by_unit,
+                      "note": ("sampled per subject (the other parameters' draws are delay-marginal)" if sampled else
+                               "fixed per subject at the profile maximum (plug-in), not sampled: "
+                               "models/bayes/delayed_model.py says what that costs")},
             "tau0": "each window's arm torque follows from the torques before it (PreparedSegment.warmup) "
                     "at every τ_nm",
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
-            "delayed_parameterization": asdict(form), "nutpie_options": dict(DELAYED_NUTS),
+            "delayed_parameterization": asdict(form),
+            **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled"} if sampled
+               else {"nutpie_options": dict(DELAYED_NUTS)}),
             "delayed_form": {**asdict(delayed_form), "reason": form_reason}}
     return DelayedFit(idata, diag, timing, delays, side)
 
@@ -299,5 +343,5 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
     return res, ppc, ppc_draws
 
 
-__all__ = ["CENTRED_Z", "DELAYED_UNITS", "DelayedFit", "Delays", "choose_delayed_form", "delayed_adequacy",
+__all__ = ["DELAY_MODES", "sampled_delays", "CENTRED_Z", "DELAYED_UNITS", "DelayedFit", "Delays", "choose_delayed_form", "delayed_adequacy",
            "delayed_results", "motor_truth", "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]

@@ -65,8 +65,10 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
     sampler = {
         "divergences": int(ss["diverging"].values.sum()),
         "ebfmi": [float(x) for x in bfmi],
-        "max_tree_depth": int(ss["depth"].values.max()),
-        "draws_at_max_tree_depth": int(ss["maxdepth_reached"].values.sum()),
+        # nutpie's names, else PyMC's own NUTS's (a compound step: the delayed human's sampled delays)
+        "max_tree_depth": int(ss["depth" if "depth" in ss else "tree_depth"].values.max()),
+        "draws_at_max_tree_depth": int(ss["maxdepth_reached" if "maxdepth_reached" in ss
+                                          else "reached_max_treedepth"].values.sum()),
         "mean_steps_per_draw": float(n_steps.mean()),
         "max_steps_per_draw": int(n_steps.max()),
         "step_size": [float(x) for x in ss["step_size"].values[:, -1]],

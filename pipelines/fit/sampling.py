@@ -1,4 +1,5 @@
-"""Sampling a PyMC model with nutpie for ``scioc fit``: seeds, stdout kept clean, Ctrl-C honoured."""
+"""Sampling a PyMC model for ``scioc fit`` (nutpie; PyMC's compound step for a sampled delay): seeds, stdout kept
+clean, Ctrl-C honoured."""
 
 from __future__ import annotations
 
@@ -54,6 +55,32 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     t2 = time.perf_counter()
     return idata, {"compile_and_sample": t1 - t0, "sample": float(idata["posterior"].attrs["sampling_time"]),
                    "log_likelihood": t2 - t1}
+
+
+def sample_compound(model, steps, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
+                    show_progress: bool = False, log_likelihood: bool = True):
+    """Sample ``model`` with PyMC's own NUTS beside the given step methods (e.g. a sampled delay), numba-compiled.
+
+    nutpie cannot update a discrete variable, so a model with one is sampled by PyMC's
+    compound step: ``steps`` for their variables, NUTS (diagonal mass matrix) for the rest.
+    Returns ``(idata, seconds)`` as :func:`sample_model` does (``sample``: PyMC's own
+    sampling time).
+    """
+    import pymc as pm  # lazy: PyMC takes seconds to import
+
+    t0 = time.perf_counter()
+    with stdout_to_stderr(), interrupt_guard() as interrupted:
+        idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
+                          random_seed=seed, step=list(steps), progressbar=show_progress, quiet=not show_progress,
+                          model=model, compute_convergence_checks=False, compile_kwargs={"mode": "NUMBA"})
+    if interrupted():
+        raise KeyboardInterrupt
+    t1 = time.perf_counter()
+    if log_likelihood:
+        pm.compute_log_likelihood(idata, model=model, progressbar=False)
+    t2 = time.perf_counter()
+    sampling = idata["sample_stats"].attrs.get("sampling_time", t1 - t0)
+    return idata, {"compile_and_sample": t1 - t0, "sample": float(sampling), "log_likelihood": t2 - t1}
 
 
 @contextlib.contextmanager

@@ -62,7 +62,7 @@ from pipelines.experiment import sidecar as experiment_fields
 from pipelines.fit.artifacts import require_netcdf, strict_json, write_netcdf
 from pipelines.fit.checks import mixedlm_check, posterior_adequacy, truth_check
 from pipelines.fit.contrasts import contrasts
-from pipelines.fit.delayed import delayed_adequacy, delayed_results, sample_delayed_model, unit_delays
+from pipelines.fit.delayed import DELAY_MODES, delayed_adequacy, delayed_results, sample_delayed_model, unit_delays
 from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, RHAT_MAX, diagnostics
 from pipelines.fit.loo import loo_comparison, subject_loo_comparison
 from pipelines.fit.ppc import PPC_DRAWS, constant_data, posterior_predictive, ppc_coverage
@@ -136,7 +136,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
-               human_model: str | None = None) -> dict:
+               human_model: str | None = None, delay_mode: str = "profile") -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -181,6 +181,10 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         delay from the estimates' ``delay_s`` or the ML profile (:mod:`pipelines.fit.delayed`;
         no ``posterior_pooled.nc``). ``posterior.json`` records it, and for ``delayed`` the
         delay of every unit and how it was chosen.
+    delay_mode : {"profile", "sampled"}
+        ``delayed`` only (:data:`pipelines.fit.delayed.DELAY_MODES`): each subject's delay
+        fixed at its profile maximum (nutpie), or sampled beside the other parameters
+        (PyMC's NUTS and :class:`models.bayes.delay_step.DelayMetropolis`).
 
     Returns
     -------
@@ -197,6 +201,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     require_netcdf()
     human_model = settings.human_model if human_model is None else human_model
     check_human_model(human_model)
+    if delay_mode not in DELAY_MODES or (delay_mode != "profile" and human_model != "delayed"):
+        raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}, and other than 'profile' only for the "
+                         f"delayed human model; got {delay_mode!r} with {human_model!r}")
     if human_model != settings.human_model and settings.human_model != "maxent":
         raise ValueError(f"human_model {human_model!r} contradicts the settings' {settings.human_model!r}")
     for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
@@ -247,7 +254,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         delays = unit_delays(prepared, estimates, plant, estimates_path)
         fit = sample_delayed_model(prepared, batch, plant, priors, form, delays, seed=seeds["condition"], chains=chains,
                                    draws=draws, tune=tune, cores=cores, show_progress=show_progress,
-                                   estimates=estimates)
+                                   estimates=estimates, delay_mode=delay_mode)
+        delays = fit.delays  # sampled: each subject's posterior mode
         fits, diag, extra = {"condition": fit.idata}, {"condition": fit.diagnostics}, fit.sidecar
         timing["condition"] = fit.timing
         t0 = time.perf_counter()
@@ -298,7 +306,10 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "human_model": human_model,
         "seed": int(seed),
         "seeds": seeds,
-        "sampler": {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')", "chains": int(chains),
+        "sampler": {**({"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')"} if delay_mode == "profile"
+                       or human_model != "delayed" else
+                       {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])"}),
+                    "chains": int(chains),
                     "draws": int(draws), "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)),
                     "target_accept": 0.8, "adaptation": "diag (nutpie default)"},
         "identify_settings": settings.as_dict(),

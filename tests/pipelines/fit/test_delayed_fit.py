@@ -106,3 +106,30 @@ def test_the_lag_and_noise_blocks_are_centred_only_where_the_data_pin_them():
     # A max-ent human: the lag at its bound (no SE), the motor noise small against its SE.
     at_zero = pinned.assign(tau_nm=[0.0, 0.0], se_tau_nm=[np.nan, np.nan], sigma_m=[0.05, 0.03])
     assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "noncentred")
+
+
+@pytest.mark.slow
+def test_sampled_delays_fit_end_to_end(delayed_study):
+    # --delay sampled: PyMC's NUTS beside DelayMetropolis; the sidecar records each subject's delay posterior, and
+    # every artifact of the profile fit is written. Same seed, same draws.
+    root, sim, prepared = delayed_study
+    small = {**TINY, "chains": 1, "draws": 40, "tune": 60, "cores": 1}
+    paths = fit_to_dir(sim["study"], root / "fit_sampled", settings=SETTINGS, prepared=prepared, delay_mode="sampled",
+                       **small)
+    side = json.loads(open(paths["sidecar"]).read())
+    assert side["delay"]["mode"] == "sampled" and side["sampler"]["name"].startswith("PyMC NUTS")
+    for unit in side["delay"]["by_unit"].values():
+        assert unit["q03_s"] <= unit["delay_s"] <= unit["q97_s"] <= 0.3 and 0 <= unit["mean_s"] <= 0.3
+    res = json.loads(open(paths["contrasts"]).read())
+    assert res["human_model"] == "delayed" and "beta" in res and res["adequacy"]["verdict"] in ("pass", "fail")
+    import arviz as az
+
+    post = az.from_netcdf(paths["posterior"]) if str(paths["posterior"]).endswith(".nc") else None
+    if post is not None:
+        assert "delay_index" in post["posterior"]
+    again = fit_to_dir(sim["study"], root / "fit_sampled_again", settings=SETTINGS, prepared=prepared,
+                       delay_mode="sampled", **small)
+    assert json.loads(open(again["sidecar"]).read())["delay"]["by_unit"] == side["delay"]["by_unit"]
+    with pytest.raises(ValueError, match="delay_mode"):
+        fit_to_dir(sim["study"], root / "fit_bad", settings=IdentifySettings(), prepared=prepared,
+                   human_model="maxent", delay_mode="sampled", **small)

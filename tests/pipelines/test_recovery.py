@@ -48,3 +48,18 @@ def test_cli(tmp_path, capsys):
                  "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out)["contrasts"]["SC"]["bias"] == pytest.approx(-0.3)
     assert main(["recovery", str(tmp_path / "none.parquet"), "--truth", str(tmp_path / "truth.parquet")]) == 3
+
+
+def test_delay_profile_spread_counts_each_subjects_summed_profile():
+    from pipelines.recovery import delay_profile_spread
+
+    flat, peaked = np.zeros(5), np.array([0.0, -2.0, -20.0, -5.0, -11.0])
+    est = pd.DataFrame({"subject": ["A", "A", "B", "B"], "condition": ["MC", "SC"] * 2,
+                        "profile_loglik": [peaked, peaked, flat, np.full(5, np.nan)]})
+    res = delay_profile_spread(est)
+    # A sums to [0, -4, -40, -10, -22]: 1 delay within 3 nats, 2 within 6 and 3 within 10. B has a unit without any
+    # profile value: left out.
+    assert res["grid_delays"] == 5 and res["subjects"] == 1
+    assert [res["within"][k]["median"] for k in ("3", "6", "10")] == [1.0, 2.0, 3.0]
+    both = delay_profile_spread(est.assign(profile_loglik=[peaked, peaked, flat, flat]))
+    assert both["subjects"] == 2 and both["within"]["3"] == {"median": 3.0, "min": 1, "max": 5}

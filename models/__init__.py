@@ -12,6 +12,7 @@ fresh cache, and a cache is only ever read by the code that wrote it.
 
 import hashlib
 import os
+import tempfile
 from pathlib import Path
 
 import numba
@@ -36,4 +37,18 @@ def numba_cache_dir(package: Path | None = None, root: Path | None = None) -> Pa
     return Path(root) / digest.hexdigest()[:16]
 
 
-numba.config.CACHE_DIR = str(numba_cache_dir())
+def _writable_cache_dir() -> Path:
+    """:func:`numba_cache_dir`, or the same folder under the temporary directory where that cannot be written
+    (numba would otherwise refuse to compile any cached kernel)."""
+    path = numba_cache_dir()
+    for candidate in (path, Path(tempfile.gettempdir()) / "scioc-numba" / path.name):
+        try:
+            candidate.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            continue
+        if os.access(candidate, os.W_OK):
+            return candidate
+    return path
+
+
+numba.config.CACHE_DIR = str(_writable_cache_dir())

@@ -25,7 +25,7 @@ def test_numba_uses_the_folder_of_these_sources():
 
     from models.bayes.delayed_op import warm_samples  # a cache=True kernel
 
-    assert numba.config.CACHE_DIR == str(numba_cache_dir())
+    assert Path(numba.config.CACHE_DIR).name == numba_cache_dir().name  # ~/.cache, or the temp dir if unwritable
     assert warm_samples(0.5, 0.1) > 0
     cached = [p.name for p in Path(numba.config.CACHE_DIR).rglob("*.nbi")]
     assert any(name.startswith("delayed_op.warm_samples") for name in cached), cached

@@ -303,6 +303,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study": str(study_path),
         # From the fit folder: stays true when a run's folder is staged and then moved into place.
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
+        # Likewise the simulator's truth the fit was checked against (contrasts.json "truth").
+        "truth_relative": (None if truth_dir is None or res.get("truth") is None
+                           else os.path.relpath(Path(truth_dir).resolve(), out.resolve())),
         "human_model": human_model,
         "seed": int(seed),
         "seeds": seeds,

@@ -3,6 +3,7 @@ another wheel, a torque sensor; and the summaries of more than two levels on the
 
 import json
 import math
+from pathlib import Path
 
 import arviz as az
 import numpy as np
@@ -85,6 +86,8 @@ def test_three_level_fit_with_trials(three_level_fit):
     # The truth: one θ per unit though truth.parquet repeats it per trial; the effects per level.
     assert "trial" in pd.read_parquet(sim["truth"]).columns
     tr = res["truth"]
+    side = json.loads((fit / "posterior.json").read_text())
+    assert (fit / side["truth_relative"]).resolve() == Path(tr["source"]).resolve()  # the truth, found from the fit
     assert {lv: tr["contrasts"][lv]["beta"]["truth"] for lv in ("weak", "strong")} == {"weak": -0.3, "strong": -0.8}
     assert tr["contrasts"]["strong"]["subjects"]["n"] == 4
     assert tr["population"]["mu_log_R"]["truth"] == pytest.approx(math.log(20.0) + math.log(0.5))

@@ -182,9 +182,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         no ``posterior_pooled.nc``). ``posterior.json`` records it, and for ``delayed`` the
         delay of every unit and how it was chosen.
     delay_mode : {"profile", "sampled"}
-        ``delayed`` only (:data:`pipelines.fit.delayed.DELAY_MODES`): each subject's delay
-        fixed at its profile maximum (nutpie), or sampled beside the other parameters
-        (PyMC's NUTS and :class:`models.bayes.delay_step.DelayMetropolis`).
+        ``delayed`` only (:data:`pipelines.fit.delayed.DELAY_MODES`): each subject's delay fixed at its
+        profile maximum (nutpie), or sampled (PyMC's NUTS and :class:`models.bayes.delay_step.DelayMetropolis`).
 
     Returns
     -------
@@ -202,8 +201,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     human_model = settings.human_model if human_model is None else human_model
     check_human_model(human_model)
     if delay_mode not in DELAY_MODES or (delay_mode != "profile" and human_model != "delayed"):
-        raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}, and other than 'profile' only for the "
-                         f"delayed human model; got {delay_mode!r} with {human_model!r}")
+        raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)} ('sampled' for the delayed human only); "
+                         f"got {delay_mode!r} with {human_model!r}")
     if human_model != settings.human_model and settings.human_model != "maxent":
         raise ValueError(f"human_model {human_model!r} contradicts the settings' {settings.human_model!r}")
     for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
@@ -301,11 +300,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     timing["total_s"] = time.perf_counter() - t_start
     sidecar = {
         "study": str(study_path),
-        # From the fit folder: stays true when a run's folder is staged and then moved into place.
+        # The study and the truth from the fit folder: true after a run's staged folder is moved into place.
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
-        # Likewise the simulator's truth the fit was checked against (contrasts.json "truth").
-        "truth_relative": (None if truth_dir is None or res.get("truth") is None
-                           else os.path.relpath(Path(truth_dir).resolve(), out.resolve())),
+        "truth_relative": None if res.get("truth") is None else os.path.relpath(truth_dir, out),
         "human_model": human_model,
         "seed": int(seed),
         "seeds": seeds,

@@ -45,7 +45,7 @@ from pipelines.fit.contrasts import contrasts, hdi
 from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
-from pipelines.fit.sampling import sample_compound, sample_model
+from pipelines.fit.sampling import sample_model
 from pipelines.io import InputDataError
 
 #: Unit-level quantities of the delayed model whose diagnostics are reported.
@@ -235,8 +235,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                 segment_ids=prepared.labels, levels=levels, params=prepared.settings.design.wheel)
     t1 = time.perf_counter()
     if sampled:
-        idata, sec = sample_compound(model, [delay_step(model, mode="NUMBA")], seed=seed, chains=chains, draws=draws,
-                                     tune=tune, cores=cores, show_progress=show_progress)
+        idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
+                                  show_progress=show_progress, steps=[delay_step(model, mode="NUMBA")])
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     else:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,

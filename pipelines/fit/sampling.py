@@ -21,7 +21,7 @@ def child_seeds(seed: int) -> dict:
 
 
 def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
-                 show_progress: bool = False, log_likelihood: bool = True, nuts: dict | None = None):
+                 show_progress: bool = False, log_likelihood: bool = True, nuts: dict | None = None, steps=None):
     """Sample ``model`` with nutpie (through ``pm.sample``) and add the pointwise log-likelihood.
 
     ``log_likelihood=False`` skips the pointwise log-likelihood (for timing the fit alone).
@@ -31,6 +31,10 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     explicitly because PyMC's own default halves the CPU count (it assumes hardware
     threads): on a 2-core machine nutpie then ran the chains one at a time, measured
     2.0× slower sampling on the default study.
+
+    ``steps``: step methods for some of the model's variables (e.g. a sampled delay, which
+    nutpie cannot update): the model is then sampled by PyMC's compound step, ``steps`` for
+    their variables and PyMC's own NUTS (diagonal mass matrix) for the rest, compiled by numba.
 
     Returns
     -------
@@ -43,9 +47,10 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
 
     t0 = time.perf_counter()
     with stdout_to_stderr(), interrupt_guard() as interrupted:
+        sampler = ({"step": list(steps), "compute_convergence_checks": False, "compile_kwargs": {"mode": "NUMBA"}}
+                   if steps else {"nuts_sampler": "nutpie", **({"nuts": dict(nuts)} if nuts else {})})
         idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
-                          random_seed=seed, nuts_sampler="nutpie", progressbar=show_progress,
-                          quiet=not show_progress, model=model, **({"nuts": dict(nuts)} if nuts else {}))
+                          random_seed=seed, progressbar=show_progress, quiet=not show_progress, model=model, **sampler)
     if interrupted():
         # nutpie stops on Ctrl-C and returns the draws so far; a partial posterior is not a result.
         raise KeyboardInterrupt
@@ -53,34 +58,9 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     if log_likelihood:
         pm.compute_log_likelihood(idata, model=model, progressbar=False)
     t2 = time.perf_counter()
-    return idata, {"compile_and_sample": t1 - t0, "sample": float(idata["posterior"].attrs["sampling_time"]),
+    attrs = idata["sample_stats" if steps else "posterior"].attrs  # PyMC's own sampler records it there
+    return idata, {"compile_and_sample": t1 - t0, "sample": float(attrs.get("sampling_time", t1 - t0)),
                    "log_likelihood": t2 - t1}
-
-
-def sample_compound(model, steps, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
-                    show_progress: bool = False, log_likelihood: bool = True):
-    """Sample ``model`` with PyMC's own NUTS beside the given step methods (e.g. a sampled delay), numba-compiled.
-
-    nutpie cannot update a discrete variable, so a model with one is sampled by PyMC's
-    compound step: ``steps`` for their variables, NUTS (diagonal mass matrix) for the rest.
-    Returns ``(idata, seconds)`` as :func:`sample_model` does (``sample``: PyMC's own
-    sampling time).
-    """
-    import pymc as pm  # lazy: PyMC takes seconds to import
-
-    t0 = time.perf_counter()
-    with stdout_to_stderr(), interrupt_guard() as interrupted:
-        idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
-                          random_seed=seed, step=list(steps), progressbar=show_progress, quiet=not show_progress,
-                          model=model, compute_convergence_checks=False, compile_kwargs={"mode": "NUMBA"})
-    if interrupted():
-        raise KeyboardInterrupt
-    t1 = time.perf_counter()
-    if log_likelihood:
-        pm.compute_log_likelihood(idata, model=model, progressbar=False)
-    t2 = time.perf_counter()
-    sampling = idata["sample_stats"].attrs.get("sampling_time", t1 - t0)
-    return idata, {"compile_and_sample": t1 - t0, "sample": float(sampling), "log_likelihood": t2 - t1}
 
 
 @contextlib.contextmanager

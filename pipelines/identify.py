@@ -40,7 +40,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.delayed import DELAY_GRID_S, delay_grid, identify_unit_delayed, lag_coefficients, window_tau0
+from models.delayed import (DELAY_GRID_S, delay_grid, forward_delayed, identify_unit_delayed, lag_coefficients,
+                            window_tau0)
 from models.identify import PLAUSIBLE_THETA1, identify_unit
 from models.maxent import forward_optimal_control
 from models.plant import discretize
@@ -144,7 +145,8 @@ def identify_prepared(study: PreparedStudy, *, show_progress: bool = False) -> I
     else:
         adequacy = not_checked("switched off (adequacy bootstrap size 0)")
     t_adq = time.perf_counter() - t0
-    traj, val = _cross_predict(prepared, est, plant, settings.design.levels)
+    traj, val = _cross_predict(prepared, est, plant, settings.design.levels,
+                               settings.design.wheel if delayed else None)
     timing = {"reconstruct_s": study.seconds, "optimize_s": t_opt, "adequacy_s": t_adq, "segments": len(prepared)}
     return Identification(est, traj, val, timing, adequacy)
 
@@ -174,11 +176,32 @@ def _delay_grid(dt: float) -> dict:
     return {"nominal_s": list(DELAY_GRID_S), "samples": samples, "seconds": [d * dt for d in samples]}
 
 
-def _cross_predict(prepared, est: pd.DataFrame, plant, levels):
-    theta = {(r.subject, r.condition): np.array([r.q11, r.q22, r.R]) for r in est.itertuples()}
+def _forward(p, th, plant, wheel):
+    """The mean behaviour of the human model with cost ``th`` on prepared segment ``p``: the max-ent human's
+    (``wheel`` None) or, with ``th`` = (θ, τ_nm), the delayed human's, its arm torque starting where the recorded
+    torques before the window leave it."""
+    s = p.segment
+    if wheel is None:  # θ's plan against this segment's assistant (in closed loop under Feedback)
+        plan_plant, known = plan_inputs(s, plant)
+        return forward_optimal_control(th, s.x0, s.angle_ref, known, plan_plant)
+    theta, tau_nm = th
+    lag = lag_coefficients(tau_nm, plant.dt, wheel)
+    tau0 = window_tau0([p.warmup], lag.a, lag.alpha)[0][0]
+    assistant = {"feedback": s.feedback} if s.feedback is not None else {"u_A": s.u_A}
+    return forward_delayed(theta, s.x0, s.angle_ref, plant, tau_nm=tau_nm, tau0=tau0, params=wheel, **assistant)
+
+
+def _cross_predict(prepared, est: pd.DataFrame, plant, levels, wheel=None):
+    """Each segment's measured trajectories beside each level's θ's mean behaviour, and their RMSEs.
+
+    ``wheel``: the estimates are the ``delayed`` human's (with a ``tau_nm`` column), whose mean behaviour
+    (:func:`models.delayed.forward_delayed`) plans on the lagged wheel; None for the max-ent human's.
+    """
+    theta = {(r.subject, r.condition): np.array([r.q11, r.q22, r.R]) if wheel is None
+             else (np.array([r.q11, r.q22, r.R]), float(r.tau_nm)) for r in est.itertuples()}
     frames, val = [], []
     for p in prepared:
-        s, K = p.segment, p.segment.K
+        K = p.segment.K
         d = p.data
         frame = {
             "subject": np.full(K + 1, d.subject, dtype=object),
@@ -200,9 +223,7 @@ def _cross_predict(prepared, est: pd.DataFrame, plant, levels):
                     frame[f"pred_{key}_{q}"] = np.full(K + 1, np.nan)
                 rmse[f"rmse_angle_theta_{key}"] = rmse[f"rmse_uH_theta_{key}"] = np.nan
                 continue
-            # θ's plan against this segment's assistant (in closed loop under Feedback).
-            plan_plant, known = plan_inputs(s, plant)
-            demo = forward_optimal_control(th, s.x0, s.angle_ref, known, plan_plant)
+            demo = _forward(p, th, plant, wheel)
             frame[f"pred_{key}_angle"] = demo.x[: K + 1, 0]
             frame[f"pred_{key}_velocity"] = demo.x[: K + 1, 1]
             frame[f"pred_{key}_u_H"] = np.append(demo.u_H[:K], np.nan)

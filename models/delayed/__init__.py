@@ -9,7 +9,7 @@ module                     what it holds
 :mod:`.riccati`            the plan: 3-state LQ recursion with tangents, its adjoint (numba)
 :mod:`.innovations`        log N(r; 0, Σ) for banded Σ: Schur algorithm, rows, reverse mode (numba)
 :mod:`.kernel`             one segment and the batch: assembly and chain rule (numba)
-:mod:`.sample`             the generative closed loop and :func:`sample_delayed`
+:mod:`.sample`             the generative closed loop, :func:`sample_delayed` and :func:`forward_delayed`
 :mod:`.dense`              the dense joint Gaussian, the reference of the tests
 :mod:`.identify`           maximum likelihood: θ, τ_nm, σ_m, and the delay by profile
 =========================  ===========================================================
@@ -22,7 +22,7 @@ from models.delayed.identify import DELAY_GRID_S, DelayedEstimate, delay_grid, i
 from models.delayed.lag import (ArmTorque, LagCoefficients, LaggedPlanningPlant, Warmup, arm_torque, lag_coefficients,
                                 lagged_planning_plant, window_tau0)
 from models.delayed.likelihood import PARAMETERS, DelayedLoglikGrad, innovations, loglik_grad
-from models.delayed.sample import DelayedDraw, closed_loop, sample_delayed
+from models.delayed.sample import DelayedDraw, closed_loop, forward_delayed, sample_delayed
 
 __all__ = [
     "DELAY_GRID_S",
@@ -40,6 +40,7 @@ __all__ = [
     "LagCoefficients",
     "LaggedPlanningPlant",
     "closed_loop",
+    "forward_delayed",
     "innovations",
     "lag_coefficients",
     "lagged_planning_plant",

@@ -32,6 +32,7 @@ from models.cost import validate_theta
 from models.delayed.lag import check_wheel, lag_coefficients, lagged_planning_plant
 from models.design import WheelParameters
 from models.lq import Policy, lq_tracking_policy
+from models.maxent import Demonstration
 from models.plant import DiscretePlant, discretize_lagged
 from models.segment import Feedback, Segment
 
@@ -286,4 +287,29 @@ def sample_delayed(theta, x0, angle_ref, plant: DiscretePlant, rng: np.random.Ge
     return DelayedDraw(z[:, :2], uH, uA, z[:, 2], segs)
 
 
-__all__ = ["DelayedDraw", "DelayedSetup", "closed_loop", "delayed_setup", "sample_delayed"]
+def forward_delayed(theta, x0, angle_ref, plant: DiscretePlant, *, u_A=None, feedback: Feedback | None = None,
+                    tau_nm: float = 0.0, tau0: float = 0.0, n_obs: int | None = None,
+                    params: WheelParameters = WheelParameters(), physical: bool = True) -> Demonstration:
+    """The ``delayed`` human's mean behaviour for θ: its closed loop with every noise at zero.
+
+    The counterpart of :func:`models.maxent.forward_optimal_control` (the dashed trajectories
+    of Fig. 6) for this model: the loop is affine in its noises, so the noise-free run is
+    the mean of :func:`sample_delayed`'s draws. Without motor noise the human's prediction
+    is exact, so the delay does not enter; the lag does (the arm torque starts at ``tau0``).
+    Arguments as :func:`sample_delayed`'s; ``u_H`` is the observed (ZOH-equivalent) torque.
+    """
+    setup = delayed_setup(theta, angle_ref, plant, u_A=u_A, feedback=feedback, tau_nm=tau_nm, params=params,
+                          physical=physical)
+    n_plan = setup.known.shape[0]
+    K = n_plan if n_obs is None else int(n_obs)
+    if not 1 <= K <= n_plan:
+        raise ValueError(f"need 1 <= n_obs <= {n_plan}; got {n_obs!r}")
+    zeros = np.zeros((K, 1))
+    z0 = np.array([*np.asarray(x0, dtype=float).reshape(2), float(tau0)])
+    z, uH, _ = closed_loop(plant.A, plant.b, setup.a, setup.alpha, setup.A, setup.b_c, setup.b_a, setup.gain,
+                           setup.feedback, setup.known, setup.policy.L, setup.policy.f, z0, zeros, zeros, 0,
+                           setup.true_A, setup.true_b, setup.physical)
+    return Demonstration(z[:, :2, 0], uH[:, 0])
+
+
+__all__ = ["DelayedDraw", "DelayedSetup", "closed_loop", "delayed_setup", "forward_delayed", "sample_delayed"]

@@ -8,7 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.delayed import DELAY_GRID_S, Warmup, identify_unit_delayed, lag_coefficients, loglik_grad, window_tau0
+from models.delayed import (DELAY_GRID_S, Warmup, forward_delayed, identify_unit_delayed, lag_coefficients, loglik_grad,
+                            window_tau0)
+from models.maxent import forward_optimal_control
 from models.design import STUDY
 from models.plant import discretize
 from models.segment import prepare_batch
@@ -83,6 +85,27 @@ def test_identify_delayed_writes_its_columns_and_sidecar(combined, tmp_path):
     assert np.median(est.delay_s) == pytest.approx(0.12, abs=0.02)
     assert np.median(est.tau_nm) == pytest.approx(0.06, abs=0.015)
     assert np.median(est.sigma_m) == pytest.approx(0.25, abs=0.05)
+
+
+def test_the_delayed_trajectories_are_its_own_mean_behaviour(combined, tmp_path):
+    # Fig. 6 and the cross-prediction of a delayed identification plan on the lagged wheel with each level's
+    # (θ, τ_nm), not with the max-ent human's plan for the command cost.
+    paths = identify_to_dir(combined["study"], tmp_path / "id", settings(), show_progress=False)
+    est = pd.read_parquet(paths["estimates"])
+    traj = pd.read_parquet(paths["trajectories"])
+    plant = discretize(SENSOR.dt, SENSOR.wheel)
+    p = prepare_study(load_study(combined["study"], SENSOR), settings()).segments[0]
+    s, K = p.segment, p.segment.K
+    rows = traj[(traj.subject == p.data.subject) & (traj.condition == p.data.condition)]
+    for level in STUDY.levels:
+        e = est[(est.subject == p.data.subject) & (est.condition == level)].iloc[0]
+        lag = lag_coefficients(e.tau_nm, plant.dt, SENSOR.wheel)
+        ref = forward_delayed([e.q11, e.q22, e.R], s.x0, s.angle_ref, plant, u_A=s.u_A, tau_nm=e.tau_nm,
+                              tau0=window_tau0([p.warmup], lag.a, lag.alpha)[0][0], params=SENSOR.wheel)
+        np.testing.assert_array_equal(rows[f"pred_{level.lower()}_u_H"].to_numpy()[:K], ref.u_H[:K])
+        np.testing.assert_array_equal(rows[f"pred_{level.lower()}_angle"].to_numpy(), ref.x[: K + 1, 0])
+        maxent = forward_optimal_control([e.q11, e.q22, e.R], s.x0, s.angle_ref, s.u_A, plant)
+        assert np.abs(maxent.u_H[:K] - ref.u_H[:K]).max() > 1e-3  # measured: 6e-3 N·m at the start, where τ_0 acts
 
 
 def test_maxent_identify_says_so_and_has_no_delayed_columns(combined, tmp_path):

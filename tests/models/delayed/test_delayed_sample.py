@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from models.delayed import innovations, lag_coefficients, sample_delayed
-from models.maxent import sample_maxent
+from models.delayed import closed_loop, forward_delayed, innovations, lag_coefficients, sample_delayed
+from models.delayed.sample import delayed_setup
+from models.maxent import forward_optimal_control, sample_maxent
 from models.plant import propagate
 from models.segment import Feedback, prepare_batch, plan_inputs
 
@@ -143,3 +144,37 @@ def test_physical_draws_move_on_the_lagged_wheel(plant):
     b = sample_delayed(THETA, [0.05, 0.0], ref, plant, np.random.default_rng(35), feedback=fb, n_obs=K,
                        physical=False, **no_lag)
     assert np.array_equal(a.u_H, b.u_H) and np.array_equal(a.x, b.x)
+
+
+@pytest.mark.parametrize("mode", ["MC", "SC feedback", "SC exogenous"])
+def test_the_mean_behaviour_is_the_mean_of_the_draws(plant, mode):
+    # The loop is affine in its noises: a draw and its mirror (every noise negated) average to the noise-free run.
+    t = np.arange(K + M + 1) * plant.dt
+    ref = 0.3 * np.sin(2 * np.pi * 0.4 * t)
+    kw = {"feedback": Feedback(np.array([2.0, 0.2]), 0.1 * np.sin(t[:-1]))} if mode == "SC feedback" else \
+        {"u_A": 0.2 * np.cos(2 * np.pi * 0.3 * t[:-1])} if mode == "SC exogenous" else {}
+    mean = forward_delayed(THETA, [0.05, 0.0], ref, plant, tau_nm=PAR["tau_nm"], tau0=PAR["tau0"], n_obs=K, **kw)
+    setup = delayed_setup(THETA, ref, plant, tau_nm=PAR["tau_nm"], physical=True, **kw)
+    rng = np.random.default_rng(36)
+    eps = rng.standard_normal((K, 1)) / np.sqrt(2.0 * setup.policy.S[:K, None])
+    m = rng.standard_normal((K + PAR["delay"], 1)) * PAR["sigma_m"]
+    z0 = np.array([0.05, 0.0, PAR["tau0"]])
+    runs = [closed_loop(plant.A, plant.b, setup.a, setup.alpha, setup.A, setup.b_c, setup.b_a, setup.gain,
+                        setup.feedback, setup.known, setup.policy.L, setup.policy.f, z0, s * eps, s * m, PAR["delay"],
+                        setup.true_A, setup.true_b, setup.physical) for s in (1.0, -1.0)]
+    assert np.abs(runs[0][1] - mean.u_H[:, None]).max() > 1e-2  # the noises matter
+    np.testing.assert_allclose((runs[0][0][:, :2, 0] + runs[1][0][:, :2, 0]) / 2, mean.x, rtol=0, atol=1e-12)
+    np.testing.assert_allclose((runs[0][1][:, 0] + runs[1][1][:, 0]) / 2, mean.u_H, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("shared", [False, True])
+def test_without_lag_the_mean_behaviour_is_the_maxent_humans(plant, shared):
+    t = np.arange(151) * plant.dt
+    ref = 0.3 * np.sin(2 * np.pi * 0.4 * t)
+    u_A = 0.2 * np.cos(2 * np.pi * 0.3 * t[:-1]) if shared else np.zeros(150)
+    ours = forward_delayed(THETA, [0.05, 0.0], ref, plant, u_A=u_A)
+    theirs = forward_optimal_control(THETA, [0.05, 0.0], ref, u_A, plant)
+    np.testing.assert_allclose(ours.u_H, theirs.u_H, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(ours.x, theirs.x, rtol=0, atol=1e-11)
+    lagged = forward_delayed(THETA, [0.05, 0.0], ref, plant, u_A=u_A, tau_nm=0.08)
+    assert np.abs(lagged.u_H - theirs.u_H).max() > 1e-2  # the lag is not ignored

@@ -6,7 +6,8 @@ reconstruction costs; and with the paper's exogenous-u_A likelihood, what that c
 SC) → compare → fit → report.
 
 With the ``delayed`` human model too (``human_models``; by default when the experiment
-records the torque, :func:`default_human_models`), the run adds its own identify
+records the torque and the max-ent model fails its adequacy checks, :func:`default_human_models`),
+the run adds its own identify
 (``identify_delayed/``), Wilcoxon tests (``compare_delayed.json``), fit
 (``fit_delayed/``) and the leave-one-subject-out comparison of the two fits
 (``human_models.json``, :func:`pipelines.fit.human_models.compare_human_models`), all
@@ -29,7 +30,7 @@ from pipelines.identify import format_identify, identify_study, identify_to_dir
 from pipelines.io import load_study, validate_table
 from pipelines.prepare import IdentifySettings, prepare_study
 from pipelines.report import build_report
-from pipelines.report.human_models import ANGLE_ONLY
+from pipelines.report.human_models import ANGLE_ONLY, RUN_FILE
 from pipelines.simulate import DEFAULT_SEED, simulate_to_dir
 from pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
 
@@ -55,13 +56,25 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
     return {"estimates": str(out / "estimates.parquet")}
 
 
-def default_human_models(design: Design) -> tuple[str, ...]:
-    """The human models ``scioc run`` analyses a design with: both when it records the torque, else the max-ent one.
+def default_human_models(design: Design, maxent_adequacy: dict | None) -> tuple[tuple[str, ...], str]:
+    """The human models ``scioc run`` analyses a design with by default, and why.
 
-    The ``delayed`` model on torques reconstructed from the angle is not trustworthy
-    (:data:`pipelines.report.human_models.ANGLE_ONLY`).
+    Chosen by the data: the max-ent model always; the ``delayed`` model too when the
+    experiment records the torque and the max-ent model does not pass its adequacy checks
+    at identify (``maxent_adequacy``, the verdict of ``identify/identify.json``; a fail, or
+    not checked). A max-ent model that fits needs no second model, and the delayed fit
+    costs an hour or more at the paper's size (README "Human models"). Without a torque
+    sensor the delayed model is not run: its estimates from a reconstructed torque are not
+    trustworthy (:data:`pipelines.report.human_models.ANGLE_ONLY`).
     """
-    return ("maxent", "delayed") if design.torque_sensor else ("maxent",)
+    if not design.torque_sensor:
+        return ("maxent",), f"the delayed human model was not run: {ANGLE_ONLY}"
+    verdict = (maxent_adequacy or {}).get("verdict", "not checked")
+    if verdict == "pass":
+        return ("maxent",), ("the max-ent human model passes its adequacy checks, so the delayed human model was not "
+                             "run (scioc run --human-models maxent,delayed runs it beside the max-ent model)")
+    return ("maxent", "delayed"), (f"the max-ent human model's adequacy verdict is '{verdict}', so the delayed human "
+                                   "model was run beside it")
 
 
 def run_verdicts(root) -> dict:
@@ -94,17 +107,19 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     ``data/experiment.toml`` holds it); ``settings`` default to its ``[analysis]``. The study is
     reconstructed once (:func:`pipelines.prepare.prepare_study`) and shared by the
     identifications and the fits. ``human_models``: ``("maxent",)`` or ``("maxent", "delayed")``
-    (default :func:`default_human_models`); ``settings.human_model`` is ignored, each model
-    takes its own.
+    (default: chosen by :func:`default_human_models` after the max-ent identification; the
+    choice and its reason go to ``run.json``, :data:`pipelines.report.human_models.RUN_FILE`);
+    ``settings.human_model`` is ignored, each model takes its own.
     """
     design = STUDY if design is None else design
     settings = IdentifySettings.for_design(design) if settings is None else settings
     if settings.design != design:
         raise ValueError("the settings were made for another experiment than the one simulated")
-    human_models = default_human_models(design) if human_models is None else tuple(human_models)
-    if "maxent" not in human_models or not set(human_models) <= {"maxent", "delayed"}:
-        raise ValueError(f"human models must be maxent, or maxent and delayed; got {human_models!r}")
-    delayed = "delayed" in human_models
+    requested = None if human_models is None else tuple(human_models)
+    if requested is not None and ("maxent" not in requested or not set(requested) <= {"maxent", "delayed"}):
+        raise ValueError(f"human models must be maxent, or maxent and delayed; got {requested!r}")
+    # By default the data choose (after the max-ent identification); the stages are counted as if both ran.
+    delayed = "delayed" in requested if requested is not None else design.torque_sensor
     settings = replace(settings, human_model="maxent")
     n_subjects = design.subjects if n_subjects is None else n_subjects
     root = Path(out) / name
@@ -113,10 +128,11 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     at = lambda stage: f"[{stages.index(stage) + 1}/{steps}]"  # noqa: E731
     levels = "/".join(design.levels)
     trials = f" × {design.trials} trials" if design.trials > 1 else ""
-    if not delayed:
-        log("human models: maxent" + (f"; delayed was not run: {ANGLE_ONLY}" if not design.torque_sensor else
-                                      " (delayed not requested)"))
-    elif not design.torque_sensor:
+    if requested is None and not design.torque_sensor:
+        log(f"human models: maxent; delayed was not run: {ANGLE_ONLY}")
+    elif requested == ("maxent",):
+        log("human models: maxent (delayed not requested)")
+    elif requested is not None and not design.torque_sensor:
         log(f"human models: maxent and delayed; WARNING: {ANGLE_ONLY}")
     t0 = time.perf_counter()
     # Every stage writes into one fresh folder that replaces ``root`` as a whole at the end:
@@ -139,6 +155,19 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
                             replace(settings, assistant_model="exogenous"))
         log(f"{at('compare')} Wilcoxon matched-pairs tests against {design.baseline}")
         compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
+        if requested is None:
+            adequacy = json.loads((tmp / "identify" / "identify.json").read_text())["adequacy"]
+            human_models, why = default_human_models(design, adequacy)
+            if "delayed" not in human_models and delayed:  # fewer stages than counted
+                delayed, stages[:] = False, _stages(fit, False)
+                steps = len(stages)
+            if design.torque_sensor:
+                log(f"human models: {', '.join(human_models)}: {why}")
+        else:
+            human_models, why = requested, "requested (--human-models)"
+        write_text_atomic(tmp / RUN_FILE, json.dumps({"human_models": list(human_models), "why": why,
+                                                      "requested": None if requested is None else list(requested)},
+                                                     indent=1) + "\n")
         if delayed:
             # The same prepared segments: preparing does not depend on the human model.
             delayed_prepared = replace(prepared, settings=replace(settings, human_model="delayed"))

@@ -265,8 +265,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fits (minutes)")
     p.add_argument("--human-models", type=_human_models_list, default=None, metavar="LIST",
                    help="comma-separated human models to analyse the study with, maxent among them (default: "
-                        "maxent,delayed when the experiment records the human torque, [simulation] torque_sensor; "
-                        "maxent otherwise: README 'Human models')")
+                        "chosen by the data: maxent, and delayed too when the experiment records the human torque, "
+                        "[simulation] torque_sensor, and maxent fails its adequacy checks; README 'Human models')")
     _add_human_options(p)
     p.add_argument("--name", default=None,
                    help="subfolder of --out for this run (default default-study, or the experiment file's folder "

@@ -41,6 +41,9 @@ NAMES = {"maxent": "max-ent", "delayed": "delayed"}
 #: A LOSO difference of at least this many standard errors is read as a preference (the loo package's
 #: usual reading: a difference within 2 SE is not distinguished from noise).
 LOSO_Z = 2.0
+#: The file in a run folder where ``scioc run`` records which human models it analysed and why
+#: (:func:`pipelines.run.default_human_models`).
+RUN_FILE = "run.json"
 #: Why ``scioc run`` leaves the delayed model out of a design without a torque sensor (README "Human models").
 ANGLE_ONLY = ("without a torque sensor the torque is reconstructed from the recorded angle, and the delayed model "
               "reads the reconstruction's smoothing as neuromuscular lag, so its estimates from the angle alone are "
@@ -210,9 +213,13 @@ def section(root, design: Design = STUDY, measured: bool = False) -> Markup:
     root = Path(root)
     models = read_models(root)
     if "delayed" not in models:
-        why = (f"The delayed human model was not run: {ANGLE_ONLY}." if not measured else
-               "The delayed human model was not requested in this run (scioc run --human-models maxent,delayed runs "
-               "it beside the max-ent model).")
+        run = read_artifact(root / RUN_FILE)  # scioc run's choice of human models and its reason
+        if run and run.get("requested") is None:
+            why = run["why"][0].upper() + run["why"][1:] + "."
+        else:
+            why = (f"The delayed human model was not run: {ANGLE_ONLY}." if not measured else
+                   "The delayed human model was not requested in this run (scioc run --human-models maxent,delayed "
+                   "runs it beside the max-ent model).")
         return render("human_models.html.j2", both=False, why=why)
     hm = read_artifact(root / "human_models.json")
     return render("human_models.html.j2", both=True, table=_table(models, hm, design),
@@ -231,5 +238,5 @@ def headline(root, design: Design = STUDY) -> Markup:
                   conclusion=conclusion(models, hm, design))
 
 
-__all__ = ["ANGLE_ONLY", "LOSO_Z", "MODEL_ARTIFACTS", "ModelRun", "adequacy_words", "conclusion", "cost_words",
-           "headline", "loso_preference", "passes", "read_models", "section", "supported", "verdict_words"]
+__all__ = ["ANGLE_ONLY", "LOSO_Z", "MODEL_ARTIFACTS", "RUN_FILE", "ModelRun", "adequacy_words", "conclusion",
+           "cost_words", "headline", "loso_preference", "passes", "read_models", "section", "supported", "verdict_words"]

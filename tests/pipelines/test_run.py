@@ -140,7 +140,9 @@ def test_an_angle_only_run_has_the_maxent_artifacts_only_and_says_why(small_run)
     from pipelines.report.human_models import ANGLE_ONLY
 
     assert sorted(p.name for p in small_run.iterdir()) == [
-        "compare.json", "data", "identify", "identify_true_torque", "identify_true_torque_exogenous", "index.html"]
+        "compare.json", "data", "identify", "identify_true_torque", "identify_true_torque_exogenous", "index.html",
+        "run.json"]
+    assert json.loads((small_run / "run.json").read_text())["human_models"] == ["maxent"]
     html = (small_run / "index.html").read_text()
     assert "<h2 id='human-models'>Human models</h2>" in html and "Only the max-ent human model" in html
     assert unescape(ANGLE_ONLY.split(" (README")[0]) in unescape(html)
@@ -151,7 +153,8 @@ SENSOR = replace(STUDY, torque_sensor=True, run_seconds=8.0, window_start=2.0, w
 
 
 def test_a_run_with_a_torque_sensor_adds_the_delayed_model(tmp_path, monkeypatch, capsys):
-    """Both models by default; the delayed stages share the prepared study; fits and LOSO stand in here."""
+    """Both models when the max-ent model's adequacy fails (the kbl human: delay, lag, motor noise); the delayed
+    stages share the prepared study; fits and LOSO stand in here."""
     import pipelines.fit
     import pipelines.fit.human_models
     import pipelines.prepare
@@ -171,10 +174,13 @@ def test_a_run_with_a_torque_sensor_adds_the_delayed_model(tmp_path, monkeypatch
 
     monkeypatch.setattr(pipelines.fit, "fit_to_dir", fake_fit)
     monkeypatch.setattr(pipelines.fit.human_models, "compare_human_models", fake_compare)
-    root = run_all(tmp_path, n_subjects=2, seed=5, design=SENSOR,
-                   settings=IdentifySettings.for_design(SENSOR, adequacy_boot=2)).parent
+    root = run_all(tmp_path, n_subjects=2, seed=5, design=SENSOR, human="kbl",  # 39: 4 segments can fail at 1 %
+                   settings=IdentifySettings.for_design(SENSOR, adequacy_boot=39)).parent
     log = capsys.readouterr().out
-    assert "human models: maxent" not in log  # no note: both run
+    assert "human models: maxent, delayed: the max-ent human model's adequacy verdict is 'fail'" in log
+    assert json.loads((root / "run.json").read_text()) == {
+        "human_models": ["maxent", "delayed"], "requested": None,
+        "why": "the max-ent human model's adequacy verdict is 'fail', so the delayed human model was run beside it"}
     for stage in ("[1/10] simulating", "[5/10] identifying again with the delayed human model",
                   "[6/10] Wilcoxon matched-pairs tests of the delayed model's estimates", "[7/10] hierarchical",
                   "[8/10] hierarchical Bayesian fit of the delayed human model", "[9/10] leave-one-subject-out",
@@ -199,3 +205,19 @@ def test_run_with_maxent_only_on_a_torque_sensor_says_delayed_was_not_requested(
                    settings=IdentifySettings.for_design(SENSOR, adequacy_boot=0)).parent
     assert "[1/5] simulating" in capsys.readouterr().out and not (root / "identify_delayed").exists()
     assert "The delayed human model was not requested" in unescape((root / "index.html").read_text())
+
+
+def test_by_default_a_maxent_model_that_fits_is_not_joined_by_the_delayed_one(tmp_path, capsys):
+    """The max-ent human with a torque sensor: its model passes adequacy, so the run stops at it and says why."""
+    from pipelines.run import run_all
+
+    root = run_all(tmp_path, n_subjects=2, seed=5, design=SENSOR, fit=False,
+                   settings=IdentifySettings.for_design(SENSOR, adequacy_boot=39)).parent
+    log = capsys.readouterr().out
+    assert "human models: maxent: the max-ent human model passes its adequacy checks" in log
+    assert "[1/7] simulating" in log and "[5/5] writing the report" in log  # counted as if both ran, then fewer
+    assert not (root / "identify_delayed").exists()
+    run = json.loads((root / "run.json").read_text())
+    assert run["human_models"] == ["maxent"] and run["requested"] is None
+    html = unescape((root / "index.html").read_text())
+    assert "The max-ent human model passes its adequacy checks, so the delayed human model was not run" in html

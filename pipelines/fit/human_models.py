@@ -177,7 +177,7 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         ``preferred``, ``n_preferring_delayed``, ``n``, ``reliable`` (every Pareto k of both
         below the threshold); ``maxent`` and ``delayed``: each model's PSIS summary with the
         importance-sampling ESS; ``adequacy``: each fit's verdict at its posterior θ
-        (:func:`adequacy_brief`).
+        (:func:`adequacy_brief`); ``convergence``: each fit's sampler-convergence verdict.
 
     Raises
     ------
@@ -243,6 +243,8 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         "adequacy": {k: adequacy_brief(json.loads((v / "contrasts.json").read_text()).get("adequacy"),
                                        f"at the posterior θ ({v / 'contrasts.json'})")
                      for k, v in folders.items()},
+        # Whether each fit's sampler converged (the model with condition effects): its draws feed the ELPD.
+        "convergence": {k: (side.get("convergence_verdict") or {}).get("condition") for k, side in sides.items()},
     }
     if out is not None:
         write_human_models(result, Path(out) / HUMAN_MODELS_FILE)
@@ -284,6 +286,9 @@ def format_human_models(res: dict) -> str:
                 "UNRELIABLE (Pareto k above the threshold for some subjects)"),
              f"  subjects better predicted: delayed {k} of {n}, maxent {n - k} of {n}",
              f"  preferred by the ELPD: {d['preferred']}"]
+    for m, v in (res.get("convergence") or {}).items():
+        if v is not None and v != "pass":
+            lines.append(f"  CAVEAT: the {m} fit's sampler did not converge ({v}): its ELPD rests on unconverged draws")
     if (adequacy.get(d["preferred"]) or {}).get("verdict") == "fail":
         lines.append(f"  CAVEAT: {d['preferred']}, which predicts better, fails its adequacy checks: neither its costs "
                      "nor this preference say that it describes the data")

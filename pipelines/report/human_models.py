@@ -58,6 +58,7 @@ class ModelRun(NamedTuple):
     posterior: dict | None  # adequacy verdict at the fit's posterior θ (contrasts.json); None: no fit
     tests: dict | None  # compare.json
     fit: dict | None  # contrasts.json
+    convergence: str | None = None  # the sampler-convergence verdict of the fit with condition effects (posterior.json)
 
 
 def read_models(root) -> dict[str, ModelRun]:
@@ -69,8 +70,10 @@ def read_models(root) -> dict[str, ModelRun]:
         if meta is None:
             continue
         res = read_artifact(root / fit / "contrasts.json")
+        side = read_artifact(root / fit / "posterior.json")
         out[name] = ModelRun(name, meta.get("adequacy"), None if res is None else res.get("adequacy") or {},
-                             read_artifact(root / tests), res)
+                             read_artifact(root / tests), res,
+                             None if side is None else (side.get("convergence_verdict") or {}).get("condition"))
     return out
 
 
@@ -108,12 +111,15 @@ def _wilcoxon(r: dict | None) -> str:
             f"{'rejects' if reject else 'does not reject'} H0 (no change) at α = {r['alpha']:g}")
 
 
-def _beta(b: dict | None) -> str:
+def _beta(b: dict | None, convergence: str | None = None) -> str:
+    """β with its HDI; flagged when the fit's sampler did not converge (its draws are then not a result)."""
     if not b:
         return "no fit"
     lo, hi = b["beta"]["hdi"]
+    flag = ("" if not convergence or convergence == "pass" else
+            f"; but the sampler did not converge ({convergence}), so this β is not a result to rely on")
     return (f"β = {b['beta']['mean']:+.3f}, 94 % HDI [{lo:+.3f}, {hi:+.3f}] "
-            f"({'excludes' if hi < 0 or lo > 0 else 'contains'} 0)")
+            f"({'excludes' if hi < 0 or lo > 0 else 'contains'} 0){flag}")
 
 
 def cost_words(m: ModelRun, design: Design) -> str:
@@ -121,7 +127,7 @@ def cost_words(m: ModelRun, design: Design) -> str:
     tests = tests_by_level(m.tests, design) if m.tests else {}
     found = (blocks(m.fit, design) or {}) if m.fit else {}
     parts = [f"{contrast_label(design, v)}: Wilcoxon on θ1 {_wilcoxon((tests.get(v) or {}).get('theta1'))}"
-             + (f"; {_beta(found.get(v))}" if m.fit else " (no Bayesian fit)") for v in design.contrasts]
+             + (f"; {_beta(found.get(v), m.convergence)}" if m.fit else " (no Bayesian fit)") for v in design.contrasts]
     return "; ".join(parts)
 
 
@@ -184,14 +190,15 @@ def conclusion(models: dict[str, ModelRun], hm: dict | None, design: Design = ST
 def _table(models: dict[str, ModelRun], hm: dict | None, design: Design) -> Markup:
     rows = [("adequacy at identify", {k: verdict_words(m.identify) for k, m in models.items()}),
             ("adequacy at the posterior θ (fit)",
-             {k: "no fit" if m.posterior is None else verdict_words(m.posterior) for k, m in models.items()})]
+             {k: "no fit" if m.posterior is None else verdict_words(m.posterior) for k, m in models.items()}),
+            ("sampler convergence (fit)", {k: m.convergence or "no fit" for k, m in models.items()})]
     for v in design.contrasts:
         label = contrast_label(design, v)
         rows.append((f"Wilcoxon on θ1, {label}",
                      {k: _wilcoxon((tests_by_level(m.tests, design).get(v) or {}).get("theta1")) if m.tests
                       else "no test" for k, m in models.items()}))
-        rows.append((f"β, {label}", {k: _beta((blocks(m.fit, design) or {}).get(v)) if m.fit else "no fit"
-                                     for k, m in models.items()}))
+        rows.append((f"β, {label}", {k: _beta((blocks(m.fit, design) or {}).get(v), m.convergence) if m.fit
+                                     else "no fit" for k, m in models.items()}))
     if hm:
         n, k_del = hm["difference"]["n"], hm["difference"]["n_preferring_delayed"]
         rows.append(("LOSO ELPD (sum over subjects ± SE)",

@@ -93,7 +93,21 @@ def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit
     assert res["difference"]["n_preferring_delayed"] == int((diffs > 0).sum())
     # The kbl human has a lag and motor noise the max-ent human lacks: the delayed model predicts it better.
     assert res["difference"]["preferred"] == "delayed"
-    assert "elpd(delayed) - elpd(maxent)" in format_human_models(res)
+    text = format_human_models(res)
+    assert "elpd(delayed) - elpd(maxent)" in text
+    for k, folder in (("maxent", "fit_maxent"), ("delayed", "fit_delayed")):
+        verdict = json.loads((root / folder / "posterior.json").read_text())["convergence_verdict"]["condition"]
+        assert res["convergence"][k] == verdict
+        assert (f"CAVEAT: the {k} fit's sampler did not converge ({verdict})" in text) == (verdict != "pass")
+
+
+def test_the_comparison_says_when_a_fit_did_not_converge():
+    res = {"difference": {"n": 3, "n_preferring_delayed": 2, "se": 1.0, "z": 3.0, "elpd_diff": 3.0, "reliable": True,
+                          "preferred": "delayed"},
+           "adequacy": {}, "convergence": {"maxent": "pass", "delayed": "fail: rhat_le_1.01"}}
+    text = format_human_models(res)
+    assert "CAVEAT: the delayed fit's sampler did not converge (fail: rhat_le_1.01)" in text
+    assert "the maxent fit's sampler" not in text
 
 
 def test_the_lag_and_noise_blocks_are_centred_only_where_the_data_pin_them():

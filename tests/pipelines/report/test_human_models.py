@@ -52,8 +52,9 @@ def _loso(z: float, reliable: bool = True) -> dict:
                            "n_preferring_delayed": n_del, "n": 6, "reliable": reliable}}
 
 
-def write_run(root, *, maxent=("fail", "fail"), delayed=("pass", "pass"), loso=None, fits=True):
-    """A run folder with the artifacts of both human models: (identify verdict, posterior verdict) per model."""
+def write_run(root, *, maxent=("fail", "fail"), delayed=("pass", "pass"), loso=None, fits=True, convergence=None):
+    """A run folder with the artifacts of both human models: (identify verdict, posterior verdict) per model;
+    ``convergence``: {model: the sampler-convergence verdict of its fit} (posterior.json)."""
     for name, (ident, tests, fit), (v_id, v_post), sc, beta in (
             ("maxent", ("identify", "compare.json", "fit"), maxent, SC_HALF, -0.69),
             ("delayed", ("identify_delayed", "compare_delayed.json", "fit_delayed"), delayed, MC, 0.01)):
@@ -66,6 +67,9 @@ def write_run(root, *, maxent=("fail", "fail"), delayed=("pass", "pass"), loso=N
             (root / fit).mkdir()
             hdi = (beta - 0.1, beta + 0.1)
             (root / fit / "contrasts.json").write_text(json.dumps(_fit(beta, hdi, v_post)))
+            if convergence and name in convergence:
+                (root / fit / "posterior.json").write_text(json.dumps(
+                    {"convergence_verdict": {"condition": convergence[name]}}))
     if loso is not None:
         (root / "human_models.json").write_text(json.dumps(loso))
     return root
@@ -195,3 +199,18 @@ def test_several_levels_get_a_row_per_contrast_with_holm(tmp_path):
     assert "Holm p = 1, does not reject H0 (no change) at α = 0.05" in html
     assert "weak − none: Wilcoxon on θ1" in html and "auto − none: Wilcoxon on θ1" in html
     assert not re.search(r"(?<!\w)(MC|SC)(?!\w)", html)
+
+
+def test_a_beta_from_a_sampler_that_did_not_converge_says_so_wherever_it_appears(tmp_path):
+    # Sampler convergence is not model adequacy: a supported model's β from an unconverged fit is flagged.
+    failed = "fail: no_divergences, rhat_le_1.01"
+    root = write_run(tmp_path, loso=_loso(z=5.0), convergence={"maxent": "pass", "delayed": failed})
+    models = read_models(root)
+    assert models["delayed"].convergence == failed and models["maxent"].convergence == "pass"
+    text = conclusion(models, json.loads((root / "human_models.json").read_text()))
+    assert text.startswith("The data support the delayed human model")
+    assert f"β = +0.010, 94 % HDI [-0.090, +0.110] (contains 0); but the sampler did not converge ({failed}), " \
+           "so this β is not a result to rely on" in text
+    html = _text(section(root, STUDY, measured=True))
+    assert "sampler convergence (fit)" in html and failed in html
+    assert html.count("not a result to rely on") == 2  # the table's β and the conclusion's; max-ent's β unflagged

@@ -163,10 +163,8 @@ def _identify_unit(prepared, idx, plant, settings):
 def _delayed_parameters(prepared, fitted, plant, settings) -> dict:
     """Per segment, the fitted delayed human's τ_nm, σ_m, delay and arm torque at the window's start
     (:func:`pipelines.adequacy.assess_study`'s ``delayed``)."""
-    tau0 = np.empty(len(prepared))
-    for i, (p, e) in enumerate(zip(prepared, fitted)):
-        lag = lag_coefficients(e.tau_nm, plant.dt, settings.design.wheel)
-        tau0[i] = window_tau0([p.warmup], lag.a, lag.alpha)[0][0]
+    tau0 = np.array([_arm_torque_at_start(p, e.tau_nm, plant.dt, settings.design.wheel)
+                     for p, e in zip(prepared, fitted)])
     return {"tau_nm": np.array([e.tau_nm for e in fitted]), "sigma_m": np.array([e.sigma_m for e in fitted]),
             "delay": np.array([e.delay for e in fitted], dtype=np.int64), "tau0": tau0}
 
@@ -174,6 +172,13 @@ def _delayed_parameters(prepared, fitted, plant, settings) -> dict:
 def _delay_grid(dt: float) -> dict:
     samples = [int(d) for d in delay_grid(dt)]
     return {"nominal_s": list(DELAY_GRID_S), "samples": samples, "seconds": [d * dt for d in samples]}
+
+
+def _arm_torque_at_start(p, tau_nm: float, dt: float, wheel) -> float:
+    """The delayed human's arm torque at the start of prepared segment ``p``'s window, for lag ``tau_nm``: where the
+    recorded torques before the window leave it (:func:`models.delayed.window_tau0`)."""
+    lag = lag_coefficients(tau_nm, dt, wheel)
+    return float(window_tau0([p.warmup], lag.a, lag.alpha)[0][0])
 
 
 def _forward(p, th, plant, wheel):
@@ -185,10 +190,9 @@ def _forward(p, th, plant, wheel):
         plan_plant, known = plan_inputs(s, plant)
         return forward_optimal_control(th, s.x0, s.angle_ref, known, plan_plant)
     theta, tau_nm = th
-    lag = lag_coefficients(tau_nm, plant.dt, wheel)
-    tau0 = window_tau0([p.warmup], lag.a, lag.alpha)[0][0]
     assistant = {"feedback": s.feedback} if s.feedback is not None else {"u_A": s.u_A}
-    return forward_delayed(theta, s.x0, s.angle_ref, plant, tau_nm=tau_nm, tau0=tau0, params=wheel, **assistant)
+    return forward_delayed(theta, s.x0, s.angle_ref, plant, tau_nm=tau_nm, params=wheel,
+                           tau0=_arm_torque_at_start(p, tau_nm, plant.dt, wheel), **assistant)
 
 
 def _cross_predict(prepared, est: pd.DataFrame, plant, levels, wheel=None):

@@ -56,20 +56,20 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
     return {"estimates": str(out / "estimates.parquet")}
 
 
-def default_human_models(design: Design, maxent_adequacy: dict | None) -> tuple[tuple[str, ...], str]:
+def default_human_models(design: Design, maxent_verdict: str | None) -> tuple[tuple[str, ...], str]:
     """The human models ``scioc run`` analyses a design with by default, and why.
 
     Chosen by the data: the max-ent model always; the ``delayed`` model too when the
     experiment records the torque and the max-ent model does not pass its adequacy checks
-    at identify (``maxent_adequacy``, the verdict of ``identify/identify.json``; a fail, or
-    not checked). A max-ent model that fits needs no second model, and the delayed fit
-    costs an hour or more at the paper's size (README "Human models"). Without a torque
+    at identify (``maxent_verdict``, :func:`run_verdicts`' ``maxent``; a fail, or not
+    checked). A max-ent model that fits needs no second model, and the delayed fit costs an
+    hour or more at the paper's size (README "Human models"). Without a torque
     sensor the delayed model is not run: its estimates from a reconstructed torque are not
     trustworthy (:data:`pipelines.report.human_models.ANGLE_ONLY`).
     """
     if not design.torque_sensor:
         return ("maxent",), f"the delayed human model was not run: {ANGLE_ONLY}"
-    verdict = (maxent_adequacy or {}).get("verdict", "not checked")
+    verdict = maxent_verdict or "not checked"
     if verdict == "pass":
         return ("maxent",), ("the max-ent human model passes its adequacy checks, so the delayed human model was not "
                              "run (scioc run --human-models maxent,delayed runs it beside the max-ent model)")
@@ -124,8 +124,7 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     n_subjects = design.subjects if n_subjects is None else n_subjects
     root = Path(out) / name
     stages = _stages(fit, delayed)
-    steps = len(stages)
-    at = lambda stage: f"[{stages.index(stage) + 1}/{steps}]"  # noqa: E731
+    at = lambda stage: f"[{stages.index(stage) + 1}/{len(stages)}]"  # noqa: E731
     levels = "/".join(design.levels)
     trials = f" × {design.trials} trials" if design.trials > 1 else ""
     if requested is None and not design.torque_sensor:
@@ -156,11 +155,9 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
         log(f"{at('compare')} Wilcoxon matched-pairs tests against {design.baseline}")
         compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
         if requested is None:
-            adequacy = json.loads((tmp / "identify" / "identify.json").read_text())["adequacy"]
-            human_models, why = default_human_models(design, adequacy)
+            human_models, why = default_human_models(design, run_verdicts(tmp).get("maxent"))
             if "delayed" not in human_models and delayed:  # fewer stages than counted
                 delayed, stages[:] = False, _stages(fit, False)
-                steps = len(stages)
             if design.torque_sensor:
                 log(f"human models: {', '.join(human_models)}: {why}")
         else:

@@ -104,8 +104,8 @@ def test_run_human_models_default_follows_the_torque_sensor_and_the_maxent_adequ
     assert args.human_models is None  # the run decides from its experiment and the max-ent adequacy verdict
     sensor = replace(STUDY, torque_sensor=True)
     for verdict in ("pass", "fail", "not checked"):
-        assert default_human_models(STUDY, {"verdict": verdict})[0] == ("maxent",)  # angle only: never delayed
-        assert default_human_models(sensor, {"verdict": verdict})[0] == (
+        assert default_human_models(STUDY, verdict)[0] == ("maxent",)  # angle only: never delayed
+        assert default_human_models(sensor, verdict)[0] == (
             ("maxent",) if verdict == "pass" else ("maxent", "delayed"))
     assert default_human_models(sensor, None)[0] == ("maxent", "delayed")  # no verdict: not shown to fit
     assert build_parser().parse_args(["run", "--human-models", "delayed, maxent"]).human_models == ("maxent",

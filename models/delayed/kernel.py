@@ -55,6 +55,13 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
     (f, df, S_t, L_t, dS_t, dL_t, cst, tau, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
      Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar, tailP, W, adj) = sc
     K = u.shape[0]
+    if not al < 1.0:
+        # α = 1 (τ_nm so long that e^{-dt/τ_nm} rounds to 1; a sampler's wild proposal): the map from
+        # torques to commands is singular and the density 0. -inf, so a sampler rejects the point.
+        out[0] = -np.inf
+        for m in range(1, 8):
+            out[m] = 0.0
+        return
     # ---- planning plant and its derivatives in (q11, q22, a, α)
     Ab = np.zeros((3, 3))
     for i in range(2):

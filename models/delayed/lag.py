@@ -216,7 +216,7 @@ def check_wheel(plant: DiscretePlant, params: WheelParameters) -> None:
         raise ValueError("plant is not the discretization of params; pass the WheelParameters it came from")
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def arm_torque_recursion(u, a, al, tau, dtau, dct):
     """The arm torque over ``u`` (K,) from ``tau[0]`` and its tangents ``dtau[0]`` in (a, α).
 

@@ -192,3 +192,35 @@ def test_invalid_arguments_are_refused(plant):
         loglik_grad(theta, batch, plant, tau_nm=0.06, params=WheelParameters(inertia=0.05))
     with pytest.raises(TypeError, match="SegmentBatch"):
         loglik_grad(theta, [random_segment(rng, 30, False)], plant)
+
+
+def test_a_lag_whose_alpha_rounds_to_one_gives_minus_infinity_not_an_exception(plant):
+    # NUTS once proposed log τ_nm = 34 (τ_nm = 6e14 s) in the unit SBC; in the numba-compiled model
+    # α rounded to 1 and the division 1 / (1 - α) raised ZeroDivisionError, which stopped the
+    # whole calibration run. A density of 0 (-inf) lets the sampler reject the point instead.
+    from models.delayed.kernel import batch_kernel_serial
+    from models.delayed.lag import arm_torque_recursion
+
+    rng = np.random.default_rng(29)
+    batch = prepare_batch(plant, [window(rng, plant, 60, 10, mode, drawn=False) for mode in MODES])
+    n = batch.n
+    theta = np.ascontiguousarray(np.column_stack([random_theta(rng, False) for _ in range(n)]))
+    lag = np.zeros((4, n))
+    lag[0], lag[1] = 1.0, 1.0  # a = α = 1
+    out = np.empty((6, n))
+    batch_kernel_serial(plant.A, plant.b, batch.fb, theta, lag, np.full(n, 0.2), np.array([0, 5, 12]),
+                        np.zeros(n), np.zeros((n, 2)), batch.x1, batch.x2, batch.r, batch.u, batch.a, True, 1, out,
+                        np.empty((n, 0)))
+    assert np.all(out[0] == -np.inf)
+    assert np.all(out[1:] == 0.0)
+    # the warm-up's arm-torque recursion, which runs before the kernel, does not raise either
+    u = rng.normal(0.0, 0.3, 20)
+    tau, dtau, dct = np.zeros(21), np.zeros((21, 2)), np.zeros((20, 2))
+    arm_torque_recursion(u, 1.0, 1.0, tau, dtau, dct)
+    assert not np.all(np.isfinite(tau[1:]))
+    # a lag just short of α = 1 still gives a finite (very small) density
+    lag[1] = 1.0 - 1e-15
+    batch_kernel_serial(plant.A, plant.b, batch.fb, theta, lag, np.full(n, 0.2), np.array([0, 5, 12]),
+                        np.zeros(n), np.zeros((n, 2)), batch.x1, batch.x2, batch.r, batch.u, batch.a, True, 1, out,
+                        np.empty((n, 0)))
+    assert np.all(np.isfinite(out[0]))

@@ -20,8 +20,11 @@ The human model (``settings.human_model``, column ``human_model``): ``maxent``, 
 delay profiled over :data:`models.delayed.DELAY_GRID_S`; columns ``delay_s``, ``tau_nm``,
 ``sigma_m``, ``se_tau_nm``, ``se_sigma_m`` and ``profile_loglik``, the profile
 log-likelihood at each delay of the grid; each window's arm torque at its start from the
-torques before it, :func:`pipelines.prepare.prepare_segment`). The adequacy bootstrap then
-draws from the fitted delayed model. ``identify.json`` records the model and the grid.
+torques before it, :func:`pipelines.prepare.prepare_segment`). A unit whose torques are
+reconstructed from the encoder (no torque sensor) is identified from its recorded angles
+instead (:mod:`models.delayed.angles`: the encoder inside the model; the reconstruction's
+smoothing would otherwise read as lag), column ``likelihood`` says which. The adequacy
+bootstrap then draws from the fitted delayed model. ``identify.json`` records the model and the grid.
 
 Artifacts in ``--out DIR``: ``estimates.parquet`` (one row per subject × condition),
 ``trajectories.parquet`` (window samples: measured, reconstructed and predicted),
@@ -40,8 +43,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.delayed import (DELAY_GRID_S, delay_grid, forward_delayed, identify_unit_delayed, lag_coefficients,
-                            window_tau0)
+from models.delayed import (DELAY_GRID_S, AngleWindow, delay_grid, forward_delayed, identify_unit_delayed,
+                            lag_coefficients, window_tau0)
 from models.identify import PLAUSIBLE_THETA1, identify_unit
 from models.maxent import forward_optimal_control
 from models.plant import discretize
@@ -123,7 +126,8 @@ def identify_prepared(study: PreparedStudy, *, show_progress: bool = False) -> I
             "se_log_R": e.se_log_R,
             **({"delay_s": e.delay_s, "tau_nm": e.tau_nm, "sigma_m": e.sigma_m, "se_tau_nm": e.se_tau_nm,
                 "se_sigma_m": e.se_sigma_m, "lag_at_bound": e.lag_at_bound,
-                "profile_loglik": [float(v) for v in e.profile]} if delayed else {}),
+                "profile_loglik": [float(v) for v in e.profile],
+                "likelihood": "angles" if _from_angles(prepared, idx) else "torques"} if delayed else {}),
             "human_model": settings.human_model,
             "loglik": e.loglik,
             "converged": e.converged,
@@ -151,12 +155,31 @@ def identify_prepared(study: PreparedStudy, *, show_progress: bool = False) -> I
     return Identification(est, traj, val, timing, adequacy)
 
 
+def _from_angles(prepared, idx) -> bool:
+    """The ``delayed`` human model identifies this unit from its recorded angles: its torques are reconstructed."""
+    return any(prepared[i].reconstructed for i in idx)
+
+
+def angle_windows(prepared, idx) -> list[AngleWindow]:
+    """The unit's windows as the encoder recorded them, for the angle likelihood (:mod:`models.delayed.angles`)."""
+    out = []
+    for i in idx:
+        p = prepared[i]
+        s = p.segment
+        out.append(AngleWindow(np.ascontiguousarray(p.data.angle[p.rows], dtype=float), s.angle_ref,
+                               None if s.feedback is not None else s.u_A, s.feedback, float(p.velocity[0]), p.warmup))
+    return out
+
+
 def _identify_unit(prepared, idx, plant, settings):
-    """The estimate of one unit (its segments ``idx``) under the settings' human model."""
+    """The estimate of one unit (its segments ``idx``) under the settings' human model; the ``delayed`` one from
+    the recorded angles where the torques are reconstructed (:func:`_from_angles`)."""
     batches = [prepare_batch(plant, [prepared[i].segment]) for i in idx]
     if settings.human_model == "delayed":
+        angles = angle_windows(prepared, idx) if _from_angles(prepared, idx) else None
         return identify_unit_delayed(batches, plant, params=settings.design.wheel,
-                                     tau0=[[prepared[i].warmup] for i in idx])
+                                     tau0=[[prepared[i].warmup] for i in idx], angles=angles,
+                                     sigma_y=settings.design.encoder_step / np.sqrt(12.0))
     return identify_unit(batches, plant)
 
 
@@ -298,10 +321,10 @@ def format_identify(out) -> str:
     lines = [f"identified {meta['segments']} segments; {meta['converged']} converged"
              + (f" (human model: {meta['human_model']})" if meta.get("human_model", "maxent") != "maxent" else "")]
     if meta.get("human_model") == "delayed" and meta.get("reconstructed_units", 0):
-        lines.append(f"  NOTE: {meta['reconstructed_units']} of {meta['segments']} units have torques reconstructed "
-                     "from encoder angles. The reconstruction smooths the torque, which the delayed model reads as "
-                     "lag: its delay, lag and cost estimates from angles alone are not measurements (README, "
-                     "\"Human models\"); record u_H with a torque sensor.")
+        lines.append(f"  NOTE: {meta['reconstructed_units']} of {meta['segments']} units have no recorded torque: "
+                     "the delayed model identified them from their encoder angles (README, \"Human models\"), "
+                     "less precisely than from a torque sensor; the hierarchical fit (scioc fit) of such data is not "
+                     "built.")
     for r in meta.get("not_converged", []):
         lines.append(f"  NOT CONVERGED: {r['subject']} {r['condition']}: {r['message']}")
     for r in meta.get("implausible", []):

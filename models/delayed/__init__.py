@@ -11,12 +11,15 @@ module                     what it holds
 :mod:`.kernel`             one segment and the batch: assembly and chain rule (numba)
 :mod:`.sample`             the generative closed loop, :func:`sample_delayed` and :func:`forward_delayed`
 :mod:`.dense`              the dense joint Gaussian, the reference of the tests
+:mod:`.angles`             the likelihood of the encoder's angles (Kalman filter), for recordings
+                           without a torque sensor, and its dense reference
 :mod:`.identify`           maximum likelihood: θ, τ_nm, σ_m, and the delay by profile
 =========================  ===========================================================
 
 With delay, lag and motor noise at zero the model is the paper's (:mod:`models.maxent`).
 """
 
+from models.delayed.angles import AngleWindow, angle_loglik, window_loglik
 from models.delayed.dense import DelayedDense, loglik_dense
 from models.delayed.identify import DELAY_GRID_S, DelayedEstimate, delay_grid, identify_unit_delayed
 from models.delayed.lag import (ArmTorque, LagCoefficients, LaggedPlanningPlant, Warmup, arm_torque, lag_coefficients,
@@ -25,6 +28,9 @@ from models.delayed.likelihood import PARAMETERS, DelayedLoglikGrad, innovations
 from models.delayed.sample import DelayedDraw, closed_loop, forward_delayed, sample_delayed
 
 __all__ = [
+    "AngleWindow",
+    "angle_loglik",
+    "window_loglik",
     "DELAY_GRID_S",
     "PARAMETERS",
     "ArmTorque",

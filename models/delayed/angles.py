@@ -44,10 +44,14 @@ torque likelihood's convention).
 Computation
 -----------
 The filter's covariance is (3 + d)², but the transition is sparse: the z-block depends on
-the history only through the scalar Σ_j h_{k,j} m_{k-j}, and the history shifts (kept in a
-ring buffer, so the shift costs nothing). One prediction costs O(d²) (the product of the
-history block with h) and the scalar update O((3 + d)²): O(K d²) per window, against O(K³)
-for the dense joint Gaussian (:func:`angle_loglik_dense`, the reference of the tests).
+the history only through the scalar Σ_j h_{k,j} m_{k-j}, and the history only shifts. One
+prediction costs O(d²) (the product of the history block with h, and the shift) and the
+scalar update O((3 + d)²). The covariance does not depend on the data, and where the plan
+is stationary (all of a window but its last steps when the plan looks past it) it
+converges: once it moves by at most :data:`FREEZE_RTOL` in a step, it and the filter's
+gain are held and only the mean moves, O(d) per step, until the plan moves again (tested:
+equal to the unheld filter to rounding). Against O(K³) for the dense joint Gaussian
+(:func:`models.delayed.dense.angle_loglik_dense`, the reference of the tests).
 """
 
 from __future__ import annotations
@@ -56,9 +60,8 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from scipy.linalg import cho_factor, cho_solve
-
-from models.delayed.sample import closed_loop, delayed_setup
+from models.delayed.lag import Warmup, lag_coefficients, window_tau0
+from models.delayed.sample import delayed_setup
 from models.design import WheelParameters
 from models.maxent import HALF_LOG_2PI
 from models.plant import DiscretePlant
@@ -80,13 +83,24 @@ class AngleLoglik(NamedTuple):
     innovations: np.ndarray
 
 
+#: The filter is held (:func:`angle_filter`) once its covariance after an update moves by at most this,
+#: relative to its largest entry, in one step, while the plan's gain and S_k move by at most this too.
+FREEZE_RTOL = 1e-13
+
+
 @njit(cache=True, error_model="numpy")
-def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn):
-    """The Kalman filter of the module docstring; returns log p(y_1..y_K | y_0), fills ``inn`` (K,)."""
+def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn, freeze):
+    """The Kalman filter of the module docstring; returns log p(y_1..y_K | y_0), fills ``inn`` (K,).
+
+    State (z_k, m_{k-1}, ..., m_{k-d}), the history in lag order (it shifts every step). With
+    ``freeze``, once the covariance is stationary (:data:`FREEZE_RTOL`) and while the plan is,
+    only the mean moves, with the held gain: O(d) per step instead of O(d²).
+    """
     K = y.shape[0] - 1
     n = 3 + d
     mu = np.zeros(n)
     P = np.zeros((n, n))
+    Q = np.zeros((n, n))  # the covariance being built, then the previous step's (swapped)
     for i in range(3):
         mu[i] = mu0[i]
         for j in range(3):
@@ -100,109 +114,143 @@ def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn):
                 G[0, i] = bc[i]
             else:
                 G[j, i] = Ab[i, 0] * G[j - 1, 0] + Ab[i, 1] * G[j - 1, 1] + Ab[i, 2] * G[j - 1, 2]
-    h = np.zeros(max(d, 1))  # h[s]: the coefficient of the noise held in history slot s
+    h = np.zeros(max(d, 1))  # h[j - 1] = L_k G_j, the coefficient of m_{k-j}
     wm = np.zeros(max(d, 1))
     wz = np.zeros(3)
     M = np.zeros((3, 3))
     MP = np.zeros((3, n))
-    Pzz = np.zeros((3, 3))
-    pcol = np.zeros(n)
+    Mw = np.zeros(3)
+    gain = np.zeros(n)
     ll = 0.0
     # y_0: conditioned on, not scored
     s = P[0, 0] + s2y
     if s > 0.0:
         nu = y[0] - mu[0]
         for i in range(n):
-            pcol[i] = P[i, 0]
+            gain[i] = P[i, 0] / s
         for i in range(n):
-            mu[i] += pcol[i] * nu / s
+            mu[i] += gain[i] * nu
             for j in range(n):
-                P[i, j] -= pcol[i] * pcol[j] / s
+                P[i, j] -= gain[i] * gain[j] * s
+    held = False
+    s_held = 0.0
+    L_held = np.zeros(3)
+    S_held = 0.0
     for k in range(K):
-        # ---- predict z_{k+1}; the history slot of m_{k-j} is (k - j) mod d
-        for j in range(1, d + 1):
-            h[(k - j) % d] = L[k, 0] * G[j - 1, 0] + L[k, 1] * G[j - 1, 1] + L[k, 2] * G[j - 1, 2]
-        for i in range(3):
+        if held:  # the plan as when the filter was held
+            same = abs(S[k] - S_held) <= FREEZE_RTOL * S_held
             for j in range(3):
-                M[i, j] = Ab[i, j] - bc[i] * L[k, j]
+                same = same and abs(L[k, j] - L_held[j]) <= FREEZE_RTOL * abs(L_held[j])
+            if not same:
+                held = False  # P is the stationary covariance after the last update: go on from it
+        if not held:
+            for j in range(d):
+                h[j] = L[k, 0] * G[j, 0] + L[k, 1] * G[j, 1] + L[k, 2] * G[j, 2]
+            for i in range(3):
+                for j in range(3):
+                    M[i, j] = Ab[i, j] - bc[i] * L[k, j]
+        # ---- the mean
         g = 0.0
-        for s_ in range(d):
-            g += h[s_] * mu[3 + s_]
-        hph = 0.0
-        for s_ in range(d):
-            acc = 0.0
-            for t in range(d):
-                acc += P[3 + s_, 3 + t] * h[t]
-            wm[s_] = acc
-            hph += h[s_] * acc
-        for i in range(3):
-            acc = 0.0
-            for t in range(d):
-                acc += P[i, 3 + t] * h[t]
-            wz[i] = acc
-        # M P[:3, :] (rows of the z-block against everything)
-        for i in range(3):
-            for j in range(n):
-                MP[i, j] = M[i, 0] * P[0, j] + M[i, 1] * P[1, j] + M[i, 2] * P[2, j]
-        var_u = hph + 0.5 / S[k] + s2m
-        for i in range(3):
-            for j in range(3):
-                Pzz[i, j] = (MP[i, 0] * M[j, 0] + MP[i, 1] * M[j, 1] + MP[i, 2] * M[j, 2]
-                             + (M[i, 0] * wz[0] + M[i, 1] * wz[1] + M[i, 2] * wz[2]) * bc[j]
-                             + bc[i] * (M[j, 0] * wz[0] + M[j, 1] * wz[1] + M[j, 2] * wz[2])
-                             + bc[i] * bc[j] * var_u)
+        for j in range(d):
+            g += h[j] * mu[3 + j]
         z0_ = mu[0]
         z1_ = mu[1]
         z2_ = mu[2]
         for i in range(3):
             mu[i] = M[i, 0] * z0_ + M[i, 1] * z1_ + M[i, 2] * z2_ + bc[i] * (g + f[k]) + ba[i] * known[k]
-        new = k % d if d > 0 else -1  # m_k takes the slot of m_{k-d}
-        for s_ in range(d):
-            if s_ == new:
-                continue
-            for i in range(3):
-                v = MP[i, 3 + s_] + bc[i] * wm[s_]
-                P[i, 3 + s_] = v
-                P[3 + s_, i] = v
+        for j in range(d - 1, 0, -1):
+            mu[3 + j] = mu[2 + j]
+        if d > 0:
+            mu[3] = 0.0
+        if held:
+            nu = y[k + 1] - mu[0]
+            ll -= 0.5 * nu * nu / s_held + 0.5 * np.log(s_held) + HALF_LOG_2PI
+            inn[k] = nu / np.sqrt(s_held)
+            for i in range(n):
+                mu[i] += gain[i] * nu
+            continue
+        # ---- the covariance: predict into Q
+        hph = 0.0
+        for a in range(d):
+            acc = 0.0
+            for t in range(d):
+                acc += P[3 + a, 3 + t] * h[t]
+            wm[a] = acc
+            hph += h[a] * acc
+        for i in range(3):
+            acc = 0.0
+            for t in range(d):
+                acc += P[i, 3 + t] * h[t]
+            wz[i] = acc
+        for i in range(3):
+            for j in range(n):
+                MP[i, j] = M[i, 0] * P[0, j] + M[i, 1] * P[1, j] + M[i, 2] * P[2, j]
+            Mw[i] = M[i, 0] * wz[0] + M[i, 1] * wz[1] + M[i, 2] * wz[2]
+        var_u = hph + 0.5 / S[k] + s2m
         for i in range(3):
             for j in range(3):
-                P[i, j] = Pzz[i, j]
+                Q[i, j] = (MP[i, 0] * M[j, 0] + MP[i, 1] * M[j, 1] + MP[i, 2] * M[j, 2] + Mw[i] * bc[j]
+                           + bc[i] * Mw[j] + bc[i] * bc[j] * var_u)
         if d > 0:
-            mu[3 + new] = 0.0
-            for j in range(n):
-                P[3 + new, j] = 0.0
-                P[j, 3 + new] = 0.0
-            P[3 + new, 3 + new] = s2m
             for i in range(3):
-                P[i, 3 + new] = bc[i] * s2m
-                P[3 + new, i] = bc[i] * s2m
+                Q[i, 3] = bc[i] * s2m  # Cov(z_{k+1}, m_k)
+                Q[3, i] = Q[i, 3]
+            Q[3, 3] = s2m
+            for j in range(1, d):
+                Q[3, 3 + j] = 0.0
+                Q[3 + j, 3] = 0.0
+                for i in range(3):  # Cov(z_{k+1}, m_{k-j}), m_{k-j} in the old lag j - 1
+                    v = MP[i, 2 + j] + bc[i] * wm[j - 1]
+                    Q[i, 3 + j] = v
+                    Q[3 + j, i] = v
+                for t in range(1, d):
+                    Q[3 + j, 3 + t] = P[2 + j, 2 + t]
         # ---- observe y_{k+1}
-        s = P[0, 0] + s2y
+        s = Q[0, 0] + s2y
         nu = y[k + 1] - mu[0]
         if not s > 0.0:
             if nu != 0.0:
                 return -np.inf
             inn[k] = 0.0
+            P, Q = Q, P
             continue
         ll -= 0.5 * nu * nu / s + 0.5 * np.log(s) + HALF_LOG_2PI
         inn[k] = nu / np.sqrt(s)
         for i in range(n):
-            pcol[i] = P[i, 0]
+            gain[i] = Q[i, 0] / s
         for i in range(n):
-            mu[i] += pcol[i] * nu / s
+            mu[i] += gain[i] * nu
+        big = 0.0
+        moved = 0.0
+        for i in range(n):
             for j in range(i, n):
-                v = P[i, j] - pcol[i] * pcol[j] / s
-                P[i, j] = v
-                P[j, i] = v
+                v = Q[i, j] - gain[i] * gain[j] * s
+                Q[i, j] = v
+                Q[j, i] = v
+                big = max(big, abs(v))
+                moved = max(moved, abs(v - P[i, j]))
+        P, Q = Q, P
+        if freeze and k > 0 and moved <= FREEZE_RTOL * big:
+            stationary = abs(S[k] - S[k - 1]) <= FREEZE_RTOL * S[k]
+            for j in range(3):
+                stationary = stationary and abs(L[k, j] - L[k - 1, j]) <= FREEZE_RTOL * abs(L[k, j])
+            if stationary:
+                held = True
+                s_held = s
+                S_held = S[k]
+                for j in range(3):
+                    L_held[j] = L[k, j]
     return ll
 
 
-def _setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params):
+def angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params):
+    """The plan and the loop of one window (:func:`models.delayed.sample.delayed_setup`, physically lagged)."""
     return delayed_setup(theta, angle_ref, plant, u_A=u_A, feedback=feedback, tau_nm=tau_nm, params=params,
                          physical=True)
 
 
-def _check(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov):
+def check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov):
+    """The arguments of :func:`angle_loglik` checked: (y, d, z0 mean, z0 covariance); ValueError otherwise."""
     y = np.ascontiguousarray(angles, dtype=float)
     n_plan = setup.known.shape[0]
     if y.ndim != 1 or not 2 <= y.shape[0] <= n_plan + 1:
@@ -226,7 +274,7 @@ def _check(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov):
 
 def angle_loglik(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None, feedback: Feedback | None = None,
                  tau_nm: float = 0.0, sigma_m: float = 0.0, delay: int = 0, sigma_y: float, z0_mean, z0_cov,
-                 params: WheelParameters = WheelParameters()) -> AngleLoglik:
+                 params: WheelParameters = WheelParameters(), freeze: bool = True) -> AngleLoglik:
     """log p(y_1..y_K | y_0) of one window's recorded angles under the ``delayed`` human (module docstring).
 
     Parameters
@@ -249,74 +297,67 @@ def angle_loglik(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None, fe
     z0_mean, z0_cov : array_like, shapes (3,), (3, 3)
         Prior of (angle, velocity, arm torque) at the window's start.
     params : WheelParameters
+    freeze : bool
+        Hold the filter's covariance once it is stationary (:func:`angle_filter`; the result
+        equals the unheld filter's to rounding, tested).
 
     Returns
     -------
     AngleLoglik
     """
-    setup = _setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params)
-    y, d, mu0, P0 = _check(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov)
+    setup = angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params)
+    y, d, mu0, P0 = check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov)
     K = y.shape[0] - 1
     inn = np.zeros(K)
     pol = setup.policy
     ll = angle_filter(setup.A, setup.b_c, setup.b_a, pol.L, pol.f, pol.S, setup.known, d, float(sigma_m) ** 2,
-                      float(sigma_y) ** 2, y, mu0, P0, inn)
+                      float(sigma_y) ** 2, y, mu0, P0, inn, bool(freeze))
     return AngleLoglik(float(ll), inn)
 
 
-class AngleDense(NamedTuple):
-    """The joint Gaussian of one window's recorded angles y_0..y_K and log p(y_1..y_K | y_0).
+#: Prior SDs of the velocity (rad/s) and the arm torque (N·m) at a recorded window's start
+#: (:func:`window_loglik`): the reconstruction's velocity and the arm torque its torques imply are
+#: the means, and these SDs are wide against what the first samples' angles then tell (a torque
+#: moves the angle by about 1e-4 rad within 0.05 s, some counts of the encoder).
+START_SD = (0.05, 0.1)
+
+
+class AngleWindow(NamedTuple):
+    """One recorded window for :func:`window_loglik`.
 
     Attributes
     ----------
-    loglik : float
-    mean : ndarray, shape (K + 1,)
-    cov : ndarray, shape (K + 1, K + 1)
+    angles : ndarray, shape (K + 1,)
+        The encoder's angles y_0..y_K, rad.
+    angle_ref : ndarray, shape (K + M + 1,)
+    u_A : ndarray or None, shape (K + M,)
+        The assistant's recorded torque, when it is a given input (None with ``feedback``).
+    feedback : Feedback or None
+    velocity0 : float
+        The velocity at the window's start the angle implies (the reconstruction's), rad/s.
+    warmup : Warmup or None
+        The (reconstructed) torques before the window: the arm torque at the start follows
+        from them at each τ_nm (None: at rest).
     """
 
-    loglik: float
-    mean: np.ndarray
-    cov: np.ndarray
+    angles: np.ndarray
+    angle_ref: np.ndarray
+    u_A: np.ndarray | None
+    feedback: Feedback | None
+    velocity0: float
+    warmup: Warmup | None
 
 
-def angle_loglik_dense(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None,
-                       feedback: Feedback | None = None, tau_nm: float = 0.0, sigma_m: float = 0.0, delay: int = 0,
-                       sigma_y: float, z0_mean, z0_cov, params: WheelParameters = WheelParameters()) -> AngleDense:
-    """The dense reference of :func:`angle_loglik`: the angles' joint Gaussian from the generative loop.
-
-    The loop (:func:`models.delayed.sample.closed_loop`, physically lagged) is affine in
-    z_0 and the noises: its mean is the loop at z0_mean with every noise zero, and its
-    covariance comes from the loop with every offset zero driven by the columns of
-    z0_cov's square root, by each ε_k and each m_k (k = -d..K-1) as unit impulses; the
-    encoder's noise adds σ_y² on the diagonal. Then log N(y) - log N(y_0). O(K²) memory
-    and O(K³) time: for tests only.
-    """
-    setup = _setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params)
-    y, d, mu0, P0 = _check(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov)
-    K = y.shape[0] - 1
-    pol = setup.policy
-
-    def run(z0, known, f, eps, m):
-        return closed_loop(plant.A, plant.b, setup.a, setup.alpha, setup.A, setup.b_c, setup.b_a, setup.gain,
-                           setup.feedback, known, pol.L, f, z0, eps, m, d, setup.true_A, setup.true_b,
-                           setup.physical)[0][:, 0, :]
-
-    mean = run(mu0, setup.known, pol.f, np.zeros((K, 1)), np.zeros((K + d, 1)))[:, 0]
-    zero = np.zeros_like(setup.known)
-    w, V = np.linalg.eigh(P0)
-    root = V * np.sqrt(np.clip(w, 0.0, None))
-    cols = [run(root[:, i], zero, zero, np.zeros((K, 1)), np.zeros((K + d, 1))) for i in range(3)]
-    eps = np.diag(np.sqrt(0.5 / pol.S[:K]))
-    m = float(sigma_m) * np.eye(K + d)
-    cols.append(run(np.zeros(3), zero, zero, eps, np.zeros((K + d, K))))
-    cols.append(run(np.zeros(3), zero, zero, np.zeros((K, K + d)), m))
-    Gm = np.hstack(cols)
-    cov = Gm @ Gm.T + float(sigma_y) ** 2 * np.eye(K + 1)
-    c = cho_factor(cov, lower=True)
-    e = y - mean
-    ll_all = -0.5 * e @ cho_solve(c, e) - np.sum(np.log(np.diag(c[0]))) - (K + 1) * HALF_LOG_2PI
-    ll0 = -0.5 * e[0] ** 2 / cov[0, 0] - 0.5 * np.log(cov[0, 0]) - HALF_LOG_2PI
-    return AngleDense(float(ll_all - ll0), mean, cov)
+def window_loglik(theta, tau_nm: float, sigma_m: float, delay: int, w: AngleWindow, plant: DiscretePlant, *,
+                  sigma_y: float, params: WheelParameters = WheelParameters()) -> AngleLoglik:
+    """:func:`angle_loglik` of a recorded window, its start's prior from the data (:data:`START_SD`)."""
+    lag = lag_coefficients(float(tau_nm), plant.dt, params)
+    tau0 = float(window_tau0([w.warmup], lag.a, lag.alpha)[0][0])
+    mean = np.array([w.angles[0], w.velocity0, tau0])
+    cov = np.diag([float(sigma_y) ** 2, START_SD[0] ** 2, START_SD[1] ** 2])
+    return angle_loglik(theta, w.angles, w.angle_ref, plant, u_A=w.u_A, feedback=w.feedback, tau_nm=tau_nm,
+                        sigma_m=sigma_m, delay=delay, sigma_y=sigma_y, z0_mean=mean, z0_cov=cov, params=params)
 
 
-__all__ = ["AngleDense", "AngleLoglik", "angle_filter", "angle_loglik", "angle_loglik_dense"]
+__all__ = ["FREEZE_RTOL", "START_SD", "AngleLoglik", "AngleWindow", "angle_filter", "angle_loglik", "angle_setup",
+           "check_angles", "window_loglik"]

@@ -16,6 +16,9 @@ the fast kernel's observed states come from the recorded u_A, so the two agree w
 recorded u_A follows the law (as in a draw of :func:`models.delayed.sample.sample_delayed`).
 
 O(K²) memory and O(K³) time (and O(K² d) for the loop); for tests and the benchmark only.
+
+:func:`angle_loglik_dense` is the same for the encoder's angles, the reference of
+:mod:`models.delayed.angles`.
 """
 
 from __future__ import annotations
@@ -25,11 +28,12 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
+from models.delayed.angles import angle_setup, check_angles
 from models.delayed.sample import closed_loop, delayed_setup
 from models.design import WheelParameters
 from models.maxent import HALF_LOG_2PI
 from models.plant import DiscretePlant
-from models.segment import Segment, check_segment
+from models.segment import Feedback, Segment, check_segment
 
 
 class DelayedDense(NamedTuple):
@@ -100,4 +104,59 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, tau_nm: float
     return DelayedDense(float(ll), mean, cov)
 
 
-__all__ = ["DelayedDense", "loglik_dense"]
+class AngleDense(NamedTuple):
+    """The joint Gaussian of one window's recorded angles y_0..y_K and log p(y_1..y_K | y_0).
+
+    Attributes
+    ----------
+    loglik : float
+    mean : ndarray, shape (K + 1,)
+    cov : ndarray, shape (K + 1, K + 1)
+    """
+
+    loglik: float
+    mean: np.ndarray
+    cov: np.ndarray
+
+
+def angle_loglik_dense(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None,
+                       feedback: Feedback | None = None, tau_nm: float = 0.0, sigma_m: float = 0.0, delay: int = 0,
+                       sigma_y: float, z0_mean, z0_cov, params: WheelParameters = WheelParameters()) -> AngleDense:
+    """The dense reference of :func:`angle_loglik`: the angles' joint Gaussian from the generative loop.
+
+    The loop (:func:`models.delayed.sample.closed_loop`, physically lagged) is affine in
+    z_0 and the noises: its mean is the loop at z0_mean with every noise zero, and its
+    covariance comes from the loop with every offset zero driven by the columns of
+    z0_cov's square root, by each ε_k and each m_k (k = -d..K-1) as unit impulses; the
+    encoder's noise adds σ_y² on the diagonal. Then log N(y) - log N(y_0). O(K²) memory
+    and O(K³) time: for tests only.
+    """
+    setup = angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params)
+    y, d, mu0, P0 = check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov)
+    K = y.shape[0] - 1
+    pol = setup.policy
+
+    def run(z0, known, f, eps, m):
+        return closed_loop(plant.A, plant.b, setup.a, setup.alpha, setup.A, setup.b_c, setup.b_a, setup.gain,
+                           setup.feedback, known, pol.L, f, z0, eps, m, d, setup.true_A, setup.true_b,
+                           setup.physical)[0][:, 0, :]
+
+    mean = run(mu0, setup.known, pol.f, np.zeros((K, 1)), np.zeros((K + d, 1)))[:, 0]
+    zero = np.zeros_like(setup.known)
+    w, V = np.linalg.eigh(P0)
+    root = V * np.sqrt(np.clip(w, 0.0, None))
+    cols = [run(root[:, i], zero, zero, np.zeros((K, 1)), np.zeros((K + d, 1))) for i in range(3)]
+    eps = np.diag(np.sqrt(0.5 / pol.S[:K]))
+    m = float(sigma_m) * np.eye(K + d)
+    cols.append(run(np.zeros(3), zero, zero, eps, np.zeros((K + d, K))))
+    cols.append(run(np.zeros(3), zero, zero, np.zeros((K, K + d)), m))
+    Gm = np.hstack(cols)
+    cov = Gm @ Gm.T + float(sigma_y) ** 2 * np.eye(K + 1)
+    c = cho_factor(cov, lower=True)
+    e = y - mean
+    ll_all = -0.5 * e @ cho_solve(c, e) - np.sum(np.log(np.diag(c[0]))) - (K + 1) * HALF_LOG_2PI
+    ll0 = -0.5 * e[0] ** 2 / cov[0, 0] - 0.5 * np.log(cov[0, 0]) - HALF_LOG_2PI
+    return AngleDense(float(ll_all - ll0), mean, cov)
+
+
+__all__ = ["AngleDense", "DelayedDense", "angle_loglik_dense", "loglik_dense"]

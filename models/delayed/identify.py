@@ -170,7 +170,8 @@ def _check_delays(delays, dt: float) -> np.ndarray:
 
 
 def identify_unit_delayed(batches, plant: DiscretePlant, *, params: WheelParameters = WheelParameters(),
-                          delays=None, tau0=None, maxiter: int = 300) -> DelayedEstimate:
+                          delays=None, tau0=None, maxiter: int = 300, angles=None,
+                          sigma_y: float = 0.0) -> DelayedEstimate:
     """Maximize the ``delayed`` likelihood of one unit's segments over θ, τ_nm, σ_m and the delay (profile).
 
     Parameters
@@ -190,6 +191,13 @@ def identify_unit_delayed(batches, plant: DiscretePlant, *, params: WheelParamet
         row. Default: every window starts at rest.
     maxiter : int
         L-BFGS-B iterations per delay.
+    angles : sequence of AngleWindow, optional
+        The unit's windows as recorded by the encoder (:class:`models.delayed.angles.AngleWindow`):
+        the likelihood is then that of the angles (:func:`models.delayed.angles.window_loglik`,
+        gradient by central differences), and ``batches`` (the reconstructed torques) only
+        give the max-ent start and R_0. For recordings without a torque sensor.
+    sigma_y : float
+        The angle's noise SD with ``angles``, rad (an encoder step q: q / sqrt(12)).
 
     Returns
     -------
@@ -219,17 +227,21 @@ def identify_unit_delayed(batches, plant: DiscretePlant, *, params: WheelParamet
     # more than the work on a busy machine (measured: 6 times the time of one thread).
     threads = get_num_threads()
     set_num_threads(1)
+    angles = tuple(angles) if angles is not None else ()
+    if angles and not (np.isfinite(sigma_y) and sigma_y >= 0):
+        raise ValueError(f"sigma_y must be a finite number >= 0; got {sigma_y!r}")
     try:
         with threadpool_limits(limits=1, user_api="blas"):
-            return _identify(batches, warmups, grid, plant, params, maxiter)
+            return _identify(batches, warmups, grid, plant, params, maxiter, angles, float(sigma_y))
     finally:
         set_num_threads(threads)
 
 
-def _identify(batches, warmups, grid, plant, params, maxiter) -> DelayedEstimate:
+def _identify(batches, warmups, grid, plant, params, maxiter, angles=(), sigma_y=0.0) -> DelayedEstimate:
     start = identify_unit(batches, plant)
     zs = np.array([np.log(start.theta1), start.theta2, 1.0, START_TAU_NM, START_SIGMA_M])
-    unit = SearchUnit(batches, warmups, plant, params, sum(b.K * b.n for b in batches), float(start.theta[2]))
+    K = sum(w.angles.shape[0] - 1 for w in angles) if angles else sum(b.K * b.n for b in batches)
+    unit = SearchUnit(batches, warmups, plant, params, K, float(start.theta[2]), angles, sigma_y)
     fits = []
     z = zs
     for d in grid:

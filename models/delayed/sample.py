@@ -23,6 +23,7 @@ zero (initial state, feedforward, known input, reference) it is their linear map
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -133,6 +134,11 @@ def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps,
     return z, uH, uA
 
 
+#: The physically lagged wheel by (τ_nm, dt, params), kept: a matrix exponential costs about as much as a
+#: window's angle likelihood (:mod:`models.delayed.angles`), and a search moves τ_nm in one of five coordinates.
+_lagged_wheel = lru_cache(maxsize=64)(discretize_lagged)
+
+
 class DelayedSetup(NamedTuple):
     """Everything :func:`closed_loop` needs besides the noises (built by :func:`delayed_setup`)."""
 
@@ -184,8 +190,8 @@ def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback:
     if physical:
         # A physical arm: the wheel moves on the physically lagged plant, and the human plans and
         # predicts with that plant (as models.humans' humans do).
-        lp = discretize_lagged(float(tau_nm), plant.dt, params)
-        true_A, true_b = np.ascontiguousarray(lp.A), np.ascontiguousarray(lp.b_c)
+        lp = _lagged_wheel(float(tau_nm), float(plant.dt), params)
+        true_A, true_b = lp.A.copy(), lp.b_c.copy()
         pp = pp._replace(A=true_A - np.outer(pp.b_a, np.append(gain, 0.0)), b_c=true_b)
     else:
         true_A, true_b = np.zeros((3, 3)), np.zeros(3)

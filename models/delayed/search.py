@@ -8,6 +8,11 @@ A unit's parameters at delay d, in the optimizer's coordinates::
 with R_0 the max-ent estimate's R (:mod:`models.delayed.identify` says why w and not
 log R). σ_m is held at 0 for d = 0. The objective handed to L-BFGS-B is minus the
 log-likelihood per torque sample, with τ_nm and σ_m in the units of :data:`Z_SCALE`.
+
+A unit is its torques (:func:`models.delayed.likelihood.loglik_grad`, exact gradient) or,
+for angle-only recordings, its encoder angles (:func:`models.delayed.angles.window_loglik`;
+``SearchUnit.angles``), whose gradient in z is taken by central differences
+(:func:`_angle_loglik_grad_z`).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from models.cost import from_normalized
+from models.delayed.angles import window_loglik
 from models.delayed.lag import lag_coefficients, window_tau0
 from models.delayed.likelihood import loglik_grad
 from models.design import WheelParameters
@@ -50,7 +56,10 @@ class SearchUnit(NamedTuple):
     """One unit's data and the search's fixed settings.
 
     ``warmups`` per batch, one :class:`models.delayed.lag.Warmup` or None per row; ``K`` the
-    torque samples of all rows; ``R0`` the max-ent estimate's R (the scale of w).
+    torque samples of all rows (the scored angle samples with ``angles``); ``R0`` the max-ent
+    estimate's R (the scale of w). ``angles``: the unit's windows as
+    :class:`models.delayed.angles.AngleWindow`; the likelihood is then that of the angles
+    (encoder noise SD ``sigma_y``, rad) and ``batches`` only gave R0.
     """
 
     batches: list
@@ -59,6 +68,8 @@ class SearchUnit(NamedTuple):
     params: WheelParameters
     K: int
     R0: float
+    angles: tuple = ()
+    sigma_y: float = 0.0
 
 
 def theta_from_z(z, R0: float) -> np.ndarray:
@@ -66,8 +77,45 @@ def theta_from_z(z, R0: float) -> np.ndarray:
     return from_normalized(np.exp(z[0]), max(z[1], 0.0), R0 / z[2])
 
 
+def _angle_loglik_z(z, d: int, unit: SearchUnit) -> float:
+    th = theta_from_z(z, unit.R0)
+    tau, sig = max(z[3], 0.0), max(z[4], 0.0)
+    return sum(window_loglik(th, tau, sig, d, w, unit.plant, sigma_y=unit.sigma_y, params=unit.params).loglik
+               for w in unit.angles)
+
+
+#: Relative step of the angle likelihood's central differences in z (floors as :func:`observed_information`'s);
+#: the truncation error is O(h²) and the rounding O(eps / h) relative: both about 1e-10.
+ANGLE_FD_STEP = 1e-5
+
+
+def _angle_loglik_grad_z(z, d: int, unit: SearchUnit):
+    """The angle likelihood in z and its gradient by central differences (one-sided, second order, at a lower
+    bound; a coordinate held at 0, σ_m at d = 0, gets 0)."""
+    lo, hi = limits(d)
+    ll = _angle_loglik_z(z, d, unit)
+    g = np.zeros(5)
+    floor = np.array([1.0, 1e-3, 1.0, 1e-2 * Z_SCALE[3], 1e-2 * Z_SCALE[4]])
+    for j in range(5):
+        if hi[j] == lo[j]:
+            continue
+        h = ANGLE_FD_STEP * max(abs(z[j]), floor[j])
+        zp, zm = z.copy(), z.copy()
+        if z[j] - h < lo[j]:
+            zp[j] += h
+            zm[j] += 2 * h  # (-3 f0 + 4 f1 - f2) / 2h
+            g[j] = (-3 * ll + 4 * _angle_loglik_z(zp, d, unit) - _angle_loglik_z(zm, d, unit)) / (2 * h)
+        else:
+            zp[j] += h
+            zm[j] -= h
+            g[j] = (_angle_loglik_z(zp, d, unit) - _angle_loglik_z(zm, d, unit)) / (2 * h)
+    return ll, g
+
+
 def loglik_grad_z(z, d: int, unit: SearchUnit):
     """Log-likelihood of the unit at delay d and z (unscaled) and its gradient in z."""
+    if unit.angles:
+        return _angle_loglik_grad_z(np.asarray(z, dtype=float), d, unit)
     th = theta_from_z(z, unit.R0)
     tau, sig = max(z[3], 0.0), max(z[4], 0.0)
     lag = lag_coefficients(tau, unit.plant.dt, unit.params)
@@ -175,6 +223,6 @@ def observed_information(z, d: int, unit: SearchUnit, free) -> np.ndarray:
     return 0.5 * (H + H.T)
 
 
-__all__ = ["CONVERGED_GTOL", "LAG_NOISE_TOL", "LOG_THETA1_RANGE", "R_SPAN", "SADDLE_PROBE", "SearchResult", "SearchUnit", "TAU_NM_MAX",
+__all__ = ["ANGLE_FD_STEP", "CONVERGED_GTOL", "LAG_NOISE_TOL", "LOG_THETA1_RANGE", "R_SPAN", "SADDLE_PROBE", "SearchResult", "SearchUnit", "TAU_NM_MAX",
            "Z_SCALE", "at_bound", "limits", "loglik_grad_z", "maximize", "observed_information", "projected",
            "theta_from_z"]

@@ -72,6 +72,23 @@ class Delays(NamedTuple):
     estimates: pd.DataFrame | None = None
 
 
+def check_recorded_torques(prepared) -> None:
+    """Refuse a study whose torques are reconstructed: the hierarchical delayed model is that of recorded torques.
+
+    Its likelihood is the torques' (:mod:`models.bayes.delayed_model`); a reconstructed torque is
+    smoothed, which the model reads as neuromuscular lag (README "Human models"). Such units are
+    identified from their angles by ``scioc identify --human-model delayed``
+    (:mod:`models.delayed.angles`), which has no hierarchical counterpart yet.
+    """
+    rec = [p for p in prepared.segments if p.reconstructed]
+    if rec:
+        raise InputDataError(
+            f"{prepared.path}: {len(rec)} of {len(prepared.segments)} segments have no recorded torque (u_H; e.g. "
+            f"{rec[0].data.label}) or are reconstructed by --reconstruct always; the hierarchical delayed model needs "
+            "the recorded torque. Identify them from their encoder angles with scioc identify --human-model delayed "
+            "(README \"Human models\")")
+
+
 def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=None) -> Delays:
     """Each segment's delay: its subject's maximum of the summed profile log-likelihoods of its units.
 
@@ -83,7 +100,11 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
     assistant's feedback makes the unit's own profile nearly flat (measured in
     :mod:`models.bayes.delayed_model`), and the subject's MC data fix it. Estimates with
     ``delay_s`` but no profile give each unit its own ``delay_s``.
+
+    The first step of the delayed fit, so it refuses reconstructed torques first
+    (:func:`check_recorded_torques`, InputDataError).
     """
+    check_recorded_torques(prepared)
     dt = float(plant.dt)
     units = prepared.units
     grid = delay_grid(dt)
@@ -343,5 +364,5 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
     return res, ppc, ppc_draws
 
 
-__all__ = ["DELAY_MODES", "sampled_delays", "CENTRED_Z", "DELAYED_UNITS", "DelayedFit", "Delays", "choose_delayed_form", "delayed_adequacy",
+__all__ = ["DELAY_MODES", "check_recorded_torques", "sampled_delays", "CENTRED_Z", "DELAYED_UNITS", "DelayedFit", "Delays", "choose_delayed_form", "delayed_adequacy",
            "delayed_results", "motor_truth", "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]

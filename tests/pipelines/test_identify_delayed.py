@@ -204,7 +204,7 @@ def _status(argv) -> int:
         return exc.code
 
 
-def test_identify_warns_that_reconstructed_torques_do_not_measure_the_delayed_model(tmp_path):
+def test_identify_says_which_units_it_identified_from_their_angles(tmp_path):
     import json
 
     from pipelines.adequacy import not_checked
@@ -213,7 +213,35 @@ def test_identify_warns_that_reconstructed_torques_do_not_measure_the_delayed_mo
     meta = {"segments": 4, "converged": 4, "human_model": "delayed", "reconstructed_units": 4,
             "adequacy": not_checked("test")}
     (tmp_path / "identify.json").write_text(json.dumps(meta))
-    assert "4 of 4 units have torques reconstructed" in format_identify(tmp_path)
+    assert "4 of 4 units have no recorded torque: the delayed model identified them from their encoder angles" in \
+        format_identify(tmp_path)
     for other in ({"human_model": "delayed", "reconstructed_units": 0}, {"human_model": "maxent"}):
         (tmp_path / "identify.json").write_text(json.dumps({**meta, **other}))
-        assert "reconstructed from encoder angles" not in format_identify(tmp_path)
+        assert "encoder angles" not in format_identify(tmp_path)
+
+
+def test_without_a_torque_sensor_the_delayed_model_is_identified_from_the_angles(combined, tmp_path):
+    # The same recordings with the torque reconstructed from the encoder: the delayed model is fitted to the
+    # angles themselves (models.delayed.angles), as identify_unit_delayed does with the unit's AngleWindows.
+    # Before, the torque likelihood of the reconstructed torque put τ_nm at its 1-s bound (README "Human models").
+    from pipelines.identify import angle_windows
+
+    s_rec = settings(reconstruct="always")
+    paths = identify_to_dir(combined["study"], tmp_path / "id", s_rec, show_progress=False)
+    est = pd.read_parquet(paths["estimates"])
+    assert set(est.likelihood) == {"angles"}
+    plant = discretize(SENSOR.dt, SENSOR.wheel)
+    prepared = prepare_study(load_study(combined["study"], SENSOR), s_rec)
+    p = prepared.segments[0]
+    row = est[(est.subject == p.data.subject) & (est.condition == p.data.condition)].iloc[0]
+    ref = identify_unit_delayed([prepare_batch(plant, [p.segment])], plant, params=SENSOR.wheel,
+                                tau0=[[p.warmup]], angles=angle_windows(prepared.segments, [0]),
+                                sigma_y=SENSOR.encoder_step / np.sqrt(12.0))
+    assert (row.theta1, row.tau_nm, row.sigma_m, row.delay_s) == (ref.theta1, ref.tau_nm, ref.sigma_m, ref.delay_s)
+    # the literature's human (delay 0.12 s, lag 0.06 s, motor noise 0.25 N·m) from 10-s windows of angles
+    assert est.converged.all() and not est.lag_at_bound.any()
+    assert np.median(est.tau_nm) == pytest.approx(0.06, abs=0.03)
+    assert np.median(est.sigma_m) == pytest.approx(0.25, abs=0.08)
+    # the torques' path on the same files is unchanged
+    assert set(pd.read_parquet(identify_to_dir(combined["study"], tmp_path / "t", settings(),
+                                               show_progress=False)["estimates"]).likelihood) == {"torques"}

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from models.delayed import sample_delayed
-from models.delayed.angles import angle_loglik, angle_loglik_dense
+from models.delayed.angles import angle_loglik
+from models.delayed.dense import angle_loglik_dense
 from models.segment import Feedback
 
 MODES = ("MC", "SC feedback", "SC exogenous")
@@ -108,3 +109,18 @@ def test_invalid_arguments_are_refused(plant):
             angle_loglik(theta, y, ref, plant, **{**ok, **kw_bad})
     with pytest.raises(ValueError, match="angles"):
         angle_loglik(theta, np.append(y, [0.0, 0.0]), ref, plant, **ok)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_holding_the_stationary_filter_changes_nothing_but_rounding(plant, mode):
+    rng = np.random.default_rng(36)
+    theta = np.array([300.0, 0.1, 20.0])
+    for d in (0, 12, 30):
+        y, ref, kw, z0 = window(rng, plant, 1500, 200, mode, theta=theta, tau_nm=0.06, sigma_m=0.25, delay=d,
+                                tau0=0.1)
+        par = dict(tau_nm=0.06, sigma_m=0.25, delay=d, sigma_y=Q / np.sqrt(12), z0_mean=z0,
+                   z0_cov=np.diag([1e-9, 1e-3, 1e-2]))
+        held = angle_loglik(theta, y, ref, plant, **kw, **par)
+        full = angle_loglik(theta, y, ref, plant, **kw, **par, freeze=False)
+        assert held.loglik == pytest.approx(full.loglik, rel=1e-11)
+        np.testing.assert_allclose(held.innovations, full.innovations, rtol=0, atol=1e-8)

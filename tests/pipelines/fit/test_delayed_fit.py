@@ -3,12 +3,14 @@ delays come from the estimates or from the profile, the max-ent fit of the same 
 compare by leave-one-subject-out."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from models.bayes.delayed_model import DelayedForm
+from models.design import STUDY
 from models.plant import discretize
 from pipelines.fit import fit_to_dir, format_fit
 from pipelines.fit.delayed import CENTRED_Z, choose_delayed_form, unit_delays
@@ -20,16 +22,18 @@ from pipelines.simulate import simulate_to_dir
 
 #: Small fits: the samplers are not meant to converge (numbers are checked for consistency).
 TINY = {"seed": 5, "chains": 2, "draws": 60, "tune": 100}
+#: The paper's design with a torque sensor: the hierarchical delayed model is that of recorded torques.
+SENSOR = replace(STUDY, torque_sensor=True)
 #: Few adequacy replicates: the verdict's path is exercised, its power is not the point here.
-SETTINGS = IdentifySettings(human_model="delayed", adequacy_boot=4)
+SETTINGS = IdentifySettings.for_design(SENSOR, human_model="delayed", adequacy_boot=4)
 
 
 @pytest.fixture(scope="module")
 def delayed_study(tmp_path_factory):
     """3 subjects of the ``kbl`` human (each its own delay and lag), identified with the delayed model."""
     root = tmp_path_factory.mktemp("delayed") / "study"
-    sim = simulate_to_dir(root / "data", n_subjects=3, seed=13, human="kbl")
-    prepared = prepare_study(load_study(sim["study"]), SETTINGS)
+    sim = simulate_to_dir(root / "data", n_subjects=3, seed=13, human="kbl", design=SENSOR)
+    prepared = prepare_study(load_study(sim["study"], SENSOR), SETTINGS)
     identify_to_dir(sim["study"], root / "identify", SETTINGS, show_progress=False, prepared=prepared)
     return root, sim, prepared
 
@@ -80,7 +84,7 @@ def test_delays_without_estimates_are_the_profile_maxima(delayed_study):
 @pytest.mark.slow
 def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit):
     root, sim, prepared = delayed_study
-    maxent_settings = IdentifySettings(adequacy_boot=0)
+    maxent_settings = IdentifySettings.for_design(SENSOR, adequacy_boot=0)
     mx = fit_to_dir(sim["study"], root / "fit_maxent", settings=maxent_settings, estimates_path=None, **TINY)
     assert json.loads(open(mx["sidecar"]).read())["human_model"] == "maxent"
     with pytest.raises(ValueError, match="not a delayed fit"):
@@ -99,6 +103,19 @@ def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit
         verdict = json.loads((root / folder / "posterior.json").read_text())["convergence_verdict"]["condition"]
         assert res["convergence"][k] == verdict
         assert (f"CAVEAT: the {k} fit's sampler did not converge ({verdict})" in text) == (verdict != "pass")
+
+
+def test_the_delayed_fit_refuses_reconstructed_torques(tmp_path):
+    # Its likelihood is the recorded torques'; a reconstructed torque reads as lag (identify uses the angles).
+    from pipelines.io import InputDataError
+
+    small = replace(SENSOR, run_seconds=8.0, window_start=2.0, window_seconds=4.0, preview=1.0)
+    sim = simulate_to_dir(tmp_path / "data", n_subjects=2, seed=3, human="kbl", design=small)
+    rec = IdentifySettings.for_design(small, human_model="delayed", adequacy_boot=0, reconstruct="always")
+    with pytest.raises(InputDataError, match="4 of 4 segments have no recorded torque .* scioc identify --human-model "
+                                             "delayed"):
+        fit_to_dir(sim["study"], tmp_path / "fit", settings=rec, **TINY)
+    assert not (tmp_path / "fit").exists()
 
 
 def test_the_comparison_says_when_a_fit_did_not_converge():
@@ -145,5 +162,5 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
                        delay_mode="sampled", **small)
     assert json.loads(open(again["sidecar"]).read())["delay"]["by_unit"] == side["delay"]["by_unit"]
     with pytest.raises(ValueError, match="delay_mode"):
-        fit_to_dir(sim["study"], root / "fit_bad", settings=IdentifySettings(), prepared=prepared,
+        fit_to_dir(sim["study"], root / "fit_bad", settings=IdentifySettings.for_design(SENSOR), prepared=prepared,
                    human_model="maxent", delay_mode="sampled", **small)

@@ -5,13 +5,14 @@ simulate → identify (from angles, like a lab) → identify from the true torqu
 reconstruction costs; and with the paper's exogenous-u_A likelihood, what that costs in
 SC) → compare → fit → report.
 
-With the ``delayed`` human model too (``human_models``; by default when the experiment
-records the torque and the max-ent model fails its adequacy checks, :func:`default_human_models`),
-the run adds its own identify
-(``identify_delayed/``), Wilcoxon tests (``compare_delayed.json``), fit
-(``fit_delayed/``) and the leave-one-subject-out comparison of the two fits
-(``human_models.json``, :func:`pipelines.fit.human_models.compare_human_models`), all
-from the one prepared study.
+With the ``delayed`` human model too (``human_models``; by default when the max-ent model
+fails its adequacy checks, :func:`default_human_models`), the run adds its own identify
+(``identify_delayed/``) and Wilcoxon tests (``compare_delayed.json``) and, when the
+experiment records the torque, its fit (``fit_delayed/``) and the leave-one-subject-out
+comparison of the two fits (``human_models.json``,
+:func:`pipelines.fit.human_models.compare_human_models`), all from the one prepared study.
+Without a torque sensor the delayed model is identified from the encoder's angles and has
+no hierarchical fit (:data:`pipelines.report.human_models.ANGLE_ONLY`).
 """
 
 from __future__ import annotations
@@ -59,22 +60,20 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
 def default_human_models(design: Design, maxent_verdict: str | None) -> tuple[tuple[str, ...], str]:
     """The human models ``scioc run`` analyses a design with by default, and why.
 
-    Chosen by the data: the max-ent model always; the ``delayed`` model too when the
-    experiment records the torque and the max-ent model does not pass its adequacy checks
-    at identify (``maxent_verdict``, :func:`run_verdicts`' ``maxent``; a fail, or not
-    checked). A max-ent model that fits needs no second model, and the delayed fit costs an
-    hour or more at the paper's size (README "Human models"). Without a torque
-    sensor the delayed model is not run: its estimates from a reconstructed torque are not
-    trustworthy (:data:`pipelines.report.human_models.ANGLE_ONLY`).
+    Chosen by the data: the max-ent model always; the ``delayed`` model too when the max-ent
+    model does not pass its adequacy checks at identify (``maxent_verdict``,
+    :func:`run_verdicts`' ``maxent``; a fail, or not checked). A max-ent model that fits
+    needs no second model, and the delayed model costs an hour or more at the paper's size
+    (README "Human models"). Without a torque sensor the delayed model is identified from
+    the angles, without a hierarchical fit (:data:`pipelines.report.human_models.ANGLE_ONLY`).
     """
-    if not design.torque_sensor:
-        return ("maxent",), f"the delayed human model was not run: {ANGLE_ONLY}"
     verdict = maxent_verdict or "not checked"
     if verdict == "pass":
         return ("maxent",), ("the max-ent human model passes its adequacy checks, so the delayed human model was not "
                              "run (scioc run --human-models maxent,delayed runs it beside the max-ent model)")
+    angles = "" if design.torque_sensor else f" ({ANGLE_ONLY})"
     return ("maxent", "delayed"), (f"the max-ent human model's adequacy verdict is '{verdict}', so the delayed human "
-                                   "model was run beside it")
+                                   f"model was run beside it{angles}")
 
 
 def run_verdicts(root) -> dict:
@@ -84,13 +83,13 @@ def run_verdicts(root) -> dict:
     return {k: json.loads(v.read_text())["adequacy"]["verdict"] for k, v in found.items() if v.exists()}
 
 
-def _stages(fit: bool, delayed: bool) -> list[str]:
-    """The run's stages in order (their numbers in the log)."""
+def _stages(fit: bool, delayed: bool, sensor: bool = True) -> list[str]:
+    """The run's stages in order (their numbers in the log); the delayed fit needs the recorded torque (``sensor``)."""
     stages = ["simulate", "identify", "true torques", "compare"]
     if delayed:
         stages += ["identify delayed", "compare delayed"]
     if fit:
-        stages += ["fit", "fit delayed", "human models"] if delayed else ["fit"]
+        stages += ["fit", "fit delayed", "human models"] if delayed and sensor else ["fit"]
     return stages + ["report"]
 
 
@@ -119,20 +118,19 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     if requested is not None and ("maxent" not in requested or not set(requested) <= {"maxent", "delayed"}):
         raise ValueError(f"human models must be maxent, or maxent and delayed; got {requested!r}")
     # By default the data choose (after the max-ent identification); the stages are counted as if both ran.
-    delayed = "delayed" in requested if requested is not None else design.torque_sensor
+    delayed = "delayed" in requested if requested is not None else True
+    sensor = design.torque_sensor
     settings = replace(settings, human_model="maxent")
     n_subjects = design.subjects if n_subjects is None else n_subjects
     root = Path(out) / name
-    stages = _stages(fit, delayed)
+    stages = _stages(fit, delayed, sensor)
     at = lambda stage: f"[{stages.index(stage) + 1}/{len(stages)}]"  # noqa: E731
     levels = "/".join(design.levels)
     trials = f" × {design.trials} trials" if design.trials > 1 else ""
-    if requested is None and not design.torque_sensor:
-        log(f"human models: maxent; delayed was not run: {ANGLE_ONLY}")
-    elif requested == ("maxent",):
+    if requested == ("maxent",):
         log("human models: maxent (delayed not requested)")
-    elif requested is not None and not design.torque_sensor:
-        log(f"human models: maxent and delayed; WARNING: {ANGLE_ONLY}")
+    elif requested is not None and not sensor:
+        log(f"human models: maxent and delayed; {ANGLE_ONLY}")
     t0 = time.perf_counter()
     # Every stage writes into one fresh folder that replaces ``root`` as a whole at the end:
     # an interrupted run leaves the previous results as they were, never a mix of two runs.
@@ -158,8 +156,7 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
             human_models, why = default_human_models(design, run_verdicts(tmp).get("maxent"))
             if "delayed" not in human_models and delayed:  # fewer stages than counted
                 delayed, stages[:] = False, _stages(fit, False)
-            if design.torque_sensor:
-                log(f"human models: {', '.join(human_models)}: {why}")
+            log(f"human models: {', '.join(human_models)}: {why}")
         else:
             human_models, why = requested, "requested (--human-models)"
         write_text_atomic(tmp / RUN_FILE, json.dumps({"human_models": list(human_models), "why": why,
@@ -181,7 +178,7 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
             fit_to_dir(sim["study"], tmp / "fit", seed=seed, settings=settings, truth_dir=tmp / "data",
                        estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared,
                        experiment_file=source)
-        if fit and delayed:
+        if fit and delayed and sensor:
             from pipelines.fit.human_models import compare_human_models, format_human_models
 
             log(f"{at('fit delayed')} hierarchical Bayesian fit of the delayed human model (nutpie, 4 chains)")

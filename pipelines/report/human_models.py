@@ -46,9 +46,9 @@ LOSO_Z = 2.0
 #: (:func:`pipelines.run.default_human_models`).
 RUN_FILE = "run.json"
 #: Why ``scioc run`` leaves the delayed model out of a design without a torque sensor (README "Human models").
-ANGLE_ONLY = ("without a torque sensor the torque is reconstructed from the recorded angle, and the delayed model "
-              "reads the reconstruction's smoothing as neuromuscular lag, so its estimates from the angle alone are "
-              "not measurements (README, \"Human models\")")
+ANGLE_ONLY = ("without a torque sensor the delayed model is identified from the encoder's angles; its hierarchical "
+              "fit, and so the leave-one-subject-out comparison of the two models, needs the recorded torque and is "
+              "not built for angles (README, \"Human models\")")
 
 
 class ModelRun(NamedTuple):
@@ -225,12 +225,13 @@ def section(root, design: Design = STUDY, measured: bool = False) -> Markup:
         if run and run.get("requested") is None:
             why = run["why"][0].upper() + run["why"][1:] + "."
         else:
-            why = (f"The delayed human model was not run: {ANGLE_ONLY}." if not measured else
-                   "The delayed human model was not requested in this run (scioc run --human-models maxent,delayed "
+            why = ("The delayed human model was not requested in this run (scioc run --human-models maxent,delayed "
                    "runs it beside the max-ent model).")
         return render("human_models.html.j2", both=False, why=why)
     hm = read_artifact(root / "human_models.json")
-    return render("human_models.html.j2", both=True, table=_table(models, hm, design),
+    note = (f"The delayed human model has no Bayesian fit here: {ANGLE_ONLY}."
+            if models["delayed"].fit is None and not measured else None)
+    return render("human_models.html.j2", both=True, table=_table(models, hm, design), note=note,
                   d=(hm or {}).get("difference"), per=_per_subject(hm) if hm else None, loso=_loso_words(hm),
                   ok=bool(supported(models, hm)), conclusion=conclusion(models, hm, design), loso_z=LOSO_Z,
                   contrasts=joined(contrast_label(design, v) for v in design.contrasts))

@@ -135,17 +135,15 @@ def test_run_reconstructs_every_segment_once_for_identify_and_fit(tmp_path, monk
     assert [p.data.subject for p in seen["prepared"].segments] == ["S01", "S01", "S02", "S02"]
 
 
-def test_an_angle_only_run_has_the_maxent_artifacts_only_and_says_why(small_run):
-    """The built-in design records no torque: the run analyses it with the max-ent model alone, as before."""
-    from pipelines.report.human_models import ANGLE_ONLY
-
+def test_a_run_of_the_models_own_human_has_the_maxent_artifacts_only_and_says_why(small_run):
+    """The built-in study's max-ent human passes the max-ent model's adequacy checks: the run stops at that model."""
     assert sorted(p.name for p in small_run.iterdir()) == [
         "compare.json", "data", "identify", "identify_true_torque", "identify_true_torque_exogenous", "index.html",
         "run.json"]
     assert json.loads((small_run / "run.json").read_text())["human_models"] == ["maxent"]
     html = (small_run / "index.html").read_text()
     assert "<h2 id='human-models'>Human models</h2>" in html and "Only the max-ent human model" in html
-    assert unescape(ANGLE_ONLY.split(" (README")[0]) in unescape(html)
+    assert "The max-ent human model passes its adequacy checks, so the delayed human model was not run" in html
 
 
 #: A study with a torque sensor small enough for the delayed model's identification: 8-s runs, 4-s windows.
@@ -196,6 +194,34 @@ def test_a_run_with_a_torque_sensor_adds_the_delayed_model(tmp_path, monkeypatch
     assert set(run_verdicts(root)) == {"maxent", "delayed"}
     html = unescape((root / "index.html").read_text())
     assert "delayed human" in html and "Which human model the data support" in html
+
+
+#: The same without a torque sensor (the paper's rig).
+ANGLES = replace(SENSOR, torque_sensor=False)
+
+
+def test_a_run_without_a_torque_sensor_identifies_the_delayed_model_from_the_angles(tmp_path, monkeypatch, capsys):
+    """The kbl human on the paper's rig: the max-ent model fails its adequacy checks, so the delayed model is identified
+    (from the encoder's angles) and tested; its hierarchical fit, which needs the recorded torque, is not run."""
+    import pipelines.fit
+    from pipelines.report.human_models import ANGLE_ONLY
+    from pipelines.run import run_all
+
+    seen = []
+    monkeypatch.setattr(pipelines.fit, "fit_to_dir", lambda study, out, **kw: seen.append(Path(out).name))
+    root = run_all(tmp_path, n_subjects=2, seed=5, design=ANGLES, human="kbl",
+                   settings=IdentifySettings.for_design(ANGLES, adequacy_boot=39)).parent
+    log = capsys.readouterr().out
+    assert "human models: maxent, delayed: the max-ent human model's adequacy verdict is 'fail'" in log
+    for stage in ("[5/8] identifying again with the delayed human model", "[6/8] Wilcoxon matched-pairs tests of the "
+                  "delayed model's estimates", "[7/8] hierarchical", "[8/8] writing the report"):
+        assert stage in log, stage
+    assert seen == ["fit"]  # the max-ent fit only
+    est = pd.read_parquet(root / "identify_delayed" / "estimates.parquet")
+    assert set(est.likelihood) == {"angles"} and (root / "compare_delayed.json").exists()
+    assert not (root / "fit_delayed").exists() and not (root / "human_models.json").exists()
+    html = unescape((root / "index.html").read_text()).replace("“", "\"").replace("”", "\"")
+    assert "The delayed human model has no Bayesian fit here: " + ANGLE_ONLY in html
 
 
 def test_run_with_maxent_only_on_a_torque_sensor_says_delayed_was_not_requested(tmp_path, capsys):

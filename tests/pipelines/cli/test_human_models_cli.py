@@ -103,11 +103,12 @@ def test_run_human_models_default_follows_the_torque_sensor_and_the_maxent_adequ
     args = build_parser().parse_args(["run"])
     assert args.human_models is None  # the run decides from its experiment and the max-ent adequacy verdict
     sensor = replace(STUDY, torque_sensor=True)
-    for verdict in ("pass", "fail", "not checked"):
-        assert default_human_models(STUDY, verdict)[0] == ("maxent",)  # angle only: never delayed
-        assert default_human_models(sensor, verdict)[0] == (
-            ("maxent",) if verdict == "pass" else ("maxent", "delayed"))
-    assert default_human_models(sensor, None)[0] == ("maxent", "delayed")  # no verdict: not shown to fit
+    for design in (STUDY, sensor):  # angle only: the delayed model from the angles, without a fit (its reason says)
+        for verdict in ("pass", "fail", "not checked"):
+            models, why = default_human_models(design, verdict)
+            assert models == (("maxent",) if verdict == "pass" else ("maxent", "delayed"))
+            assert ("encoder's angles" in why) == (models == ("maxent", "delayed") and design is STUDY)
+        assert default_human_models(design, None)[0] == ("maxent", "delayed")  # no verdict: not shown to fit
     assert build_parser().parse_args(["run", "--human-models", "delayed, maxent"]).human_models == ("maxent",
                                                                                                    "delayed")
 

@@ -177,10 +177,26 @@ def test_the_section_shows_the_table_the_loso_numbers_and_the_per_subject_prefer
 
 def test_with_only_maxent_the_section_says_which_and_why(tmp_path):
     write_run(tmp_path, delayed=(None, None))
-    angles = _text(section(tmp_path, STUDY, measured=False))
-    assert "Only the max-ent human model" in angles and ANGLE_ONLY in angles.replace("“", "\"").replace("”", "\"")
-    measured = _text(section(tmp_path, STUDY, measured=True))
-    assert "not requested" in measured and "--human-models maxent,delayed" in measured
+    for measured in (False, True):
+        html = _text(section(tmp_path, STUDY, measured=measured))
+        assert "Only the max-ent human model" in html
+        assert "not requested" in html and "--human-models maxent,delayed" in html
+
+
+def test_from_angles_the_delayed_model_has_identify_and_tests_but_no_fit_and_the_section_says_why(tmp_path):
+    import shutil
+
+    write_run(tmp_path, delayed=("pass", None))
+    shutil.rmtree(tmp_path / "fit_delayed")
+    html = _text(section(tmp_path, STUDY, measured=False))
+    assert "The delayed human model has no Bayesian fit here: " + ANGLE_ONLY in html.replace("“", "\"").replace(
+        "”", "\"")
+    assert "no fit" in html and "(no Bayesian fit)" in html
+    # the conclusion still comes from a model that passes, with its verdict beside it
+    assert "The data support the delayed human model: it passes its adequacy checks (pass at identify, no fit;" in html
+    assert "leave-one-subject-out was not computed" in html
+    # with the torque recorded, a missing delayed fit is not explained by the angles
+    assert "no Bayesian fit here" not in _text(section(tmp_path, STUDY, measured=True))
 
 
 def test_several_levels_get_a_row_per_contrast_with_holm(tmp_path):

@@ -6,13 +6,22 @@ Delay, lag and motor noise are those of the simulated ``combined`` human
 (:mod:`models.humans`: τ_nm = 0.06 s, σ_m = 0.25 N·m); the delay is varied. The cost of
 the kernel depends on them (the lengths of the transients), not on the data. All
 timings are measured in the same run; the max-ent kernel is timed on the same batch.
+
+:func:`bench_angles` times the likelihood of the same windows' encoder angles
+(:mod:`models.delayed.angles`, no gradient: identify takes it by central differences), one
+core, beside its dense reference on a shorter window.
 """
 
 from __future__ import annotations
 
-import numba
+import time
 
+import numba
+import numpy as np
+
+from models.delayed import AngleWindow, window_loglik
 from models.delayed import loglik_grad as delayed_loglik_grad
+from models.delayed.dense import angle_loglik_dense
 from models.humans import MOTOR_SD, TAU_NM
 from models.maxent import loglik_grad as maxent_loglik_grad
 from models.plant import DT_HUMAN, discretize
@@ -83,4 +92,58 @@ def format_delayed(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["DELAYS", "bench_delayed", "format_delayed"]
+def bench_angles(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m: float = MOTOR_SD,
+                 preview: float = 2.0, dense_K: int = 500) -> dict:
+    """Time the angle likelihood of every window of the study batch (one core) per delay, and its dense reference.
+
+    Returns ``n``, ``K``, ``rows`` (per delay: ``min_s`` and ``median_s`` for all windows) and
+    ``dense`` (per delay, the dense joint Gaussian of the first window cut to ``dense_K`` samples
+    against the filter on the same cut, s).
+    """
+    from models.design import STUDY
+
+    plant = discretize(DT_HUMAN)
+    segs = study[preview]
+    theta = study["theta"]
+    sy = STUDY.encoder_step / np.sqrt(12.0)
+    wins = [AngleWindow(np.ascontiguousarray(p.data.angle[p.rows]), p.segment.angle_ref,
+                        None if p.segment.feedback is not None else p.segment.u_A, p.segment.feedback,
+                        float(p.velocity[0]), p.warmup) for p in segs]
+    before = numba.get_num_threads()
+    rows, dense = [], []
+    try:
+        numba.set_num_threads(1)
+        for d in delays:
+            res = timeit(lambda: [window_loglik(theta[:, i], tau_nm, sigma_m, d, w, plant, sigma_y=sy)
+                                  for i, w in enumerate(wins)])
+            rows.append({"delay": int(d), "min_s": res["min_s"], "median_s": res["median_s"]})
+            w = wins[0]
+            cut = w._replace(angles=w.angles[: dense_K + 1])
+            kw = dict(u_A=cut.u_A, feedback=cut.feedback, tau_nm=tau_nm, sigma_m=sigma_m, delay=d, sigma_y=sy,
+                      z0_mean=[cut.angles[0], cut.velocity0, 0.0], z0_cov=np.diag([sy ** 2, 0.05 ** 2, 0.1 ** 2]))
+            t0 = time.perf_counter()
+            angle_loglik_dense(theta[:, 0], cut.angles, cut.angle_ref, plant, **kw)
+            t_dense = time.perf_counter() - t0
+            fast = timeit(lambda: window_loglik(theta[:, 0], tau_nm, sigma_m, d, cut, plant, sigma_y=sy))
+            dense.append({"delay": int(d), "K": dense_K, "dense_s": t_dense, "filter_s": fast["min_s"]})
+    finally:
+        numba.set_num_threads(before)
+    return {"n": len(wins), "K": int(segs[0].segment.K), "tau_nm": float(tau_nm), "sigma_m": float(sigma_m),
+            "rows": rows, "dense": dense}
+
+
+def format_angles(res: dict) -> str:
+    """The angle benchmark as a plain-text table."""
+    lines = [f"Delayed human from the encoder's angles: log-likelihood (no gradient), {res['n']} windows × "
+             f"K = {res['K']}, one core, τ_nm = {res['tau_nm']} s, σ_m = {res['sigma_m']} N·m",
+             f"{'delay (samples)':>16} {'min (ms)':>9} {'median (ms)':>12} {'per window (ms)':>16}"]
+    for r in res["rows"]:
+        lines.append(f"{r['delay']:>16} {r['min_s'] * 1e3:>9.1f} {r['median_s'] * 1e3:>12.1f} "
+                     f"{r['min_s'] * 1e3 / res['n']:>16.2f}")
+    for r in res["dense"]:
+        lines.append(f"  dense joint Gaussian, one window cut to K = {r['K']}, delay {r['delay']}: {r['dense_s']:.3f} s "
+                     f"against {r['filter_s'] * 1e3:.2f} ms for the filter ({r['dense_s'] / r['filter_s']:.0f}×)")
+    return "\n".join(lines)
+
+
+__all__ = ["DELAYS", "bench_angles", "bench_delayed", "format_angles", "format_delayed"]

@@ -40,10 +40,12 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
         result["likelihood"] = bench_likelihood(study, **kw)
         print(format_likelihood(result["likelihood"]), flush=True)
     if "delayed" in parts:
-        from pipelines.bench.delayed import bench_delayed, format_delayed
+        from pipelines.bench.delayed import bench_angles, bench_delayed, format_angles, format_delayed
 
         result["delayed"] = bench_delayed(study)
         print(format_delayed(result["delayed"]), flush=True)
+        result["delayed_angles"] = bench_angles(study)
+        print(format_angles(result["delayed_angles"]), flush=True)
     if "identify" in parts:
         result["identify"] = bench_identify(study)
         print(format_identify(result["identify"]), flush=True)

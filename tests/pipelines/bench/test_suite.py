@@ -19,6 +19,11 @@ def test_bench_quick_writes_json(tmp_path, capsys):
     assert res["likelihood"]["batch_preview"]["preview_steps"] == 200
     assert np.isfinite(res["likelihood"]["batch"]["linear_s"])
     assert res["identify"]["preview_2s"]["converged"] == 4
+    # The delayed likelihood of the torques, and of the encoder's angles beside its dense reference.
+    assert {r["delay"] for r in res["delayed"]["rows"]} == {0, 10, 30}
+    ang = res["delayed_angles"]
+    assert ang["n"] == 4 and ang["K"] == 1500 and [r["delay"] for r in ang["rows"]] == [0, 10, 30]
+    assert all(r["dense_s"] > r["filter_s"] > 0 for r in ang["dense"])
     # The second example's identification (its fit is left out of --quick).
     ex = res["example"]
     assert ex["units"] == 48 and ex["segments"] == 144 and ex["samples_per_segment"] == 2400

@@ -60,6 +60,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+
 from models.delayed.lag import Warmup, lag_coefficients, window_tau0
 from models.delayed.sample import delayed_setup
 from models.design import WheelParameters

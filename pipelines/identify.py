@@ -322,9 +322,9 @@ def format_identify(out) -> str:
              + (f" (human model: {meta['human_model']})" if meta.get("human_model", "maxent") != "maxent" else "")]
     if meta.get("human_model") == "delayed" and meta.get("reconstructed_units", 0):
         lines.append(f"  NOTE: {meta['reconstructed_units']} of {meta['segments']} units have no recorded torque: "
-                     "the delayed model identified them from their encoder angles (README, \"Human models\"), "
-                     "less precisely than from a torque sensor; the hierarchical fit (scioc fit) of such data is not "
-                     "built.")
+                     "the delayed model identified them from their encoder angles (README, \"Human models\"; the delay "
+                     "and the lag less precisely than from a torque sensor); the hierarchical fit (scioc fit) of such "
+                     "data is not built.")
     for r in meta.get("not_converged", []):
         lines.append(f"  NOT CONVERGED: {r['subject']} {r['condition']}: {r['message']}")
     for r in meta.get("implausible", []):

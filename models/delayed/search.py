@@ -84,7 +84,9 @@ def _angle_loglik_z(z, d: int, unit: SearchUnit) -> float:
                for w in unit.angles)
 
 
-#: Relative step of the angle likelihood's central differences in z (floors as :func:`observed_information`'s);
+#: Smallest |z| the finite-difference steps in z scale with (:func:`observed_information`, :func:`_angle_loglik_grad_z`).
+STEP_FLOOR = np.array([1.0, 1e-3, 1.0, 1e-2 * Z_SCALE[3], 1e-2 * Z_SCALE[4]])
+#: Relative step of the angle likelihood's central differences in z (above :data:`STEP_FLOOR`);
 #: the truncation error is O(h²) and the rounding O(eps / h) relative: both about 1e-10.
 ANGLE_FD_STEP = 1e-5
 
@@ -95,11 +97,10 @@ def _angle_loglik_grad_z(z, d: int, unit: SearchUnit):
     lo, hi = limits(d)
     ll = _angle_loglik_z(z, d, unit)
     g = np.zeros(5)
-    floor = np.array([1.0, 1e-3, 1.0, 1e-2 * Z_SCALE[3], 1e-2 * Z_SCALE[4]])
     for j in range(5):
         if hi[j] == lo[j]:
             continue
-        h = ANGLE_FD_STEP * max(abs(z[j]), floor[j])
+        h = ANGLE_FD_STEP * max(abs(z[j]), STEP_FLOOR[j])
         zp, zm = z.copy(), z.copy()
         if z[j] - h < lo[j]:
             zp[j] += h
@@ -211,9 +212,8 @@ def observed_information(z, d: int, unit: SearchUnit, free) -> np.ndarray:
     h = 1e-4
     idx = np.flatnonzero(free)
     H = np.empty((idx.size, idx.size))
-    floor = np.array([1.0, 1e-3, 1.0, 1e-2 * Z_SCALE[3], 1e-2 * Z_SCALE[4]])
     for a, j in enumerate(idx):
-        step = h * (1.0 if j == 0 else max(abs(z[j]), floor[j]))
+        step = h * (1.0 if j == 0 else max(abs(z[j]), STEP_FLOOR[j]))
         if j > 0:
             step = min(step, 0.5 * z[j])  # stay inside θ2, w, τ_nm, σ_m > 0 (τ_nm's derivative is two-sided there)
         zp, zm = z.copy(), z.copy()
@@ -223,6 +223,6 @@ def observed_information(z, d: int, unit: SearchUnit, free) -> np.ndarray:
     return 0.5 * (H + H.T)
 
 
-__all__ = ["ANGLE_FD_STEP", "CONVERGED_GTOL", "LAG_NOISE_TOL", "LOG_THETA1_RANGE", "R_SPAN", "SADDLE_PROBE", "SearchResult", "SearchUnit", "TAU_NM_MAX",
+__all__ = ["ANGLE_FD_STEP", "STEP_FLOOR", "CONVERGED_GTOL", "LAG_NOISE_TOL", "LOG_THETA1_RANGE", "R_SPAN", "SADDLE_PROBE", "SearchResult", "SearchUnit", "TAU_NM_MAX",
            "Z_SCALE", "at_bound", "limits", "loglik_grad_z", "maximize", "observed_information", "projected",
            "theta_from_z"]

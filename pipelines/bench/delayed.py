@@ -19,14 +19,17 @@ import time
 import numba
 import numpy as np
 
-from models.delayed import AngleWindow, window_loglik
 from models.delayed import loglik_grad as delayed_loglik_grad
+from models.delayed import window_loglik
+from models.delayed.angles import START_SD
 from models.delayed.dense import angle_loglik_dense
+from models.design import STUDY
 from models.humans import MOTOR_SD, TAU_NM
 from models.maxent import loglik_grad as maxent_loglik_grad
 from models.plant import DT_HUMAN, discretize
 from models.segment import prepare_batch
 from pipelines.bench.common import timeit
+from pipelines.identify import angle_windows
 
 #: Delays timed, in samples of 0.01 s (0 to 300 ms).
 DELAYS = (0, 10, 30)
@@ -100,15 +103,11 @@ def bench_angles(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m:
     ``dense`` (per delay, the dense joint Gaussian of the first window cut to ``dense_K`` samples
     against the filter on the same cut, s).
     """
-    from models.design import STUDY
-
     plant = discretize(DT_HUMAN)
     segs = study[preview]
     theta = study["theta"]
     sy = STUDY.encoder_step / np.sqrt(12.0)
-    wins = [AngleWindow(np.ascontiguousarray(p.data.angle[p.rows]), p.segment.angle_ref,
-                        None if p.segment.feedback is not None else p.segment.u_A, p.segment.feedback,
-                        float(p.velocity[0]), p.warmup) for p in segs]
+    wins = angle_windows(segs, range(len(segs)))
     before = numba.get_num_threads()
     rows, dense = [], []
     try:
@@ -120,7 +119,7 @@ def bench_angles(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m:
             w = wins[0]
             cut = w._replace(angles=w.angles[: dense_K + 1])
             kw = dict(u_A=cut.u_A, feedback=cut.feedback, tau_nm=tau_nm, sigma_m=sigma_m, delay=d, sigma_y=sy,
-                      z0_mean=[cut.angles[0], cut.velocity0, 0.0], z0_cov=np.diag([sy ** 2, 0.05 ** 2, 0.1 ** 2]))
+                      z0_mean=[cut.angles[0], cut.velocity0, 0.0], z0_cov=np.diag([sy ** 2, START_SD[0] ** 2, START_SD[1] ** 2]))
             t0 = time.perf_counter()
             angle_loglik_dense(theta[:, 0], cut.angles, cut.angle_ref, plant, **kw)
             t_dense = time.perf_counter() - t0

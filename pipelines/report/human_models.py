@@ -1,11 +1,11 @@
 """The report's "Human models" section: which human model the data support, and what that model says about the costs.
 
-``scioc run`` analyses its study with the paper's max-ent human and, when the experiment
-records the torque and the max-ent model fails its adequacy checks, with the ``delayed`` human
-too (``--human-models`` chooses explicitly; the choice and its reason are in :data:`RUN_FILE`). Per model the
-section shows the adequacy verdict (at identify, and at the fit's posterior θ), the paper's
-Wilcoxon test on θ1 and β with its 94 % HDI per contrast, and the leave-one-subject-out
-(LOSO) ELPD of its fit; then the difference of the two, how many subjects each model
+``scioc run`` analyses its study with the paper's max-ent human and, when the max-ent model
+fails its adequacy checks, with the ``delayed`` human too (``--human-models`` chooses
+explicitly; the choice and its reason are in :data:`RUN_FILE`; without a torque sensor the
+delayed model has no fit, :data:`ANGLE_ONLY`). Per model the section shows the adequacy
+verdict (at identify, and at the fit's posterior θ), the paper's Wilcoxon test on θ1 and β
+with its 94 % HDI per contrast, and the leave-one-subject-out (LOSO) ELPD of its fit; then the difference of the two, how many subjects each model
 predicts better, and one conclusion (:func:`conclusion`).
 
 Which model the data support (:func:`supported`) takes both criteria: the model passes its

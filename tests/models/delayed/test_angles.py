@@ -7,7 +7,7 @@ import pytest
 from models.delayed import sample_delayed
 from models.delayed.angles import angle_loglik
 from models.delayed.dense import angle_loglik_dense
-from models.segment import Feedback
+from tests.conftest import random_window_inputs
 
 MODES = ("MC", "SC feedback", "SC exogenous")
 Q = 2 * np.pi / 40000  # the study's encoder step
@@ -15,12 +15,7 @@ Q = 2 * np.pi / 40000  # the study's encoder step
 
 def window(rng, plant, K, M, mode, *, theta, tau_nm, sigma_m, delay, tau0, quantize=True):
     """Angles y_0..y_K drawn from the delayed human, quantized, with the window's reference and assistant."""
-    t = np.arange(K + M + 1) * plant.dt
-    ref = rng.uniform(0.1, 0.4) * np.sin(2 * np.pi * rng.uniform(0.1, 0.6) * t + rng.uniform(0, 2 * np.pi))
-    x0 = rng.normal(0.0, 0.1, 2)
-    fb = Feedback(np.array([rng.uniform(0.5, 5.0), rng.uniform(0.0, 0.5)]), rng.normal(0.0, 0.3, K + M))
-    u_A = rng.normal(0.0, 0.3, K + M)
-    kw = {"feedback": fb} if mode == "SC feedback" else {"u_A": u_A} if mode == "SC exogenous" else {}
+    ref, x0, _, _, kw = random_window_inputs(rng, plant, K, M, mode)
     draw = sample_delayed(theta, x0, ref, plant, rng, tau_nm=tau_nm, sigma_m=sigma_m, delay=delay, tau0=tau0,
                           n_obs=K, physical=True, **kw)
     y = Q * np.round(draw.x[:, 0] / Q) if quantize else draw.x[:, 0]

@@ -6,8 +6,8 @@ import pytest
 
 from models.delayed import loglik_dense, loglik_grad, sample_delayed
 from models.maxent import loglik_grad as maxent_loglik_grad
-from models.segment import Feedback, Segment, prepare_batch
-from tests.conftest import random_segment, random_theta
+from models.segment import Segment, prepare_batch
+from tests.conftest import random_segment, random_theta, random_window_inputs
 
 MODES = ("MC", "SC feedback", "SC exogenous")
 
@@ -19,12 +19,7 @@ def window(rng, plant, K, M, mode, *, drawn, theta=None, tau_nm=0.0, sigma_m=0.0
     assistant's law, the recorded u_A follows it on the states the torques drive (the
     likelihood's states come from the recorded u_A, the dense reference's from the law).
     """
-    t = np.arange(K + M + 1) * plant.dt
-    ref = rng.uniform(0.1, 0.4) * np.sin(2 * np.pi * rng.uniform(0.1, 0.6) * t + rng.uniform(0, 2 * np.pi))
-    x0 = rng.normal(0.0, 0.1, 2)
-    fb = Feedback(np.array([rng.uniform(0.5, 5.0), rng.uniform(0.0, 0.5)]), rng.normal(0.0, 0.3, K + M))
-    u_A = rng.normal(0.0, 0.3, K + M)
-    kw = {"feedback": fb} if mode == "SC feedback" else {"u_A": u_A} if mode == "SC exogenous" else {}
+    ref, x0, fb, u_A, kw = random_window_inputs(rng, plant, K, M, mode)
     if drawn:
         return sample_delayed(theta, x0, ref, plant, rng, tau_nm=tau_nm, sigma_m=sigma_m, delay=delay, tau0=tau0,
                               n_obs=K, physical=False, **kw).segments[0]  # the likelihood's convention

@@ -18,7 +18,7 @@ shifted by log(dt / 0.01) for another rate as :meth:`DelayedUnitPrior.for_design
 
 The delay is sampled (``delay=None``): an integer ``delay_index`` uniform over the grid,
 updated by :class:`models.bayes.delay_step.DelayMetropolis` beside NUTS
-(:func:`sample_unit_delayed`), so the continuous parameters' draws are their posterior with
+(:class:`UnitDelayedSampler`), so the continuous parameters' draws are their posterior with
 the delay marginalized. Given a number instead, the model conditions on that delay: the
 ``no-delay`` negative control conditions on 0, and a plug-in delay (the maximum of the
 profile likelihood) was measured to miscalibrate R, τ_nm and σ_m (README "Human models").
@@ -113,7 +113,7 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
     delay : int, array_like (n,) or None
         The delay the model conditions on, samples (a data container: ``with_data`` changes
         it); None samples it (``delay_index`` uniform over ``prior.delays()``, all segments
-        one delay; sample with :func:`sample_unit_delayed`).
+        one delay; sample with :class:`UnitDelayedSampler`).
     tau0 : float, array_like (n,) or sequence of Warmup
         The arm torque at each window's start, as :func:`models.bayes.delayed_op.pack_tau0` takes it.
     params : WheelParameters
@@ -151,21 +151,51 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
     return model
 
 
-def sample_unit_delayed(model: pm.Model, prior: DelayedUnitPrior, *, draws: int, tune: int, chains: int, seed: int):
-    """Sample a ``delay=None`` unit model: PyMC's NUTS for the continuous parameters, DelayMetropolis for the delay.
+class UnitDelayedSampler:
+    """A sampled-delay unit model compiled once, for every data set of one shape (unit-level SBC).
 
-    One process, chains in turn (SBC runs replications in parallel). The log density and
-    the step's log-likelihood are compiled by numba (measured: half the time of PyTensor's
-    default C backend, whose Python-level ``perform`` of the likelihood Op dominates on
-    6-s windows). Returns PyMC's DataTree (``posterior`` with ``delay_index``;
-    ``sample_stats`` with ``diverging`` and ``delay_accept``).
+    Builds :func:`build_unit_delayed_model` with ``delay=None`` on ``batch`` (its data are
+    placeholders) and compiles its two steps once: PyMC's NUTS for the continuous
+    parameters and :class:`models.bayes.delay_step.DelayMetropolis` for the delay, both
+    compiled by numba (measured: half the time of PyTensor's default C backend, whose
+    Python-level ``perform`` of the likelihood Op dominates on 6-s windows). Compiling them
+    took about 18 s of every 50-s replication on 6-s windows when each replication built
+    its own. :meth:`sample` swaps a data set into the model's ``pm.Data`` containers and
+    restores the steps' initial sampling state (PyMC also resets the tuning of every chain),
+    so a fit does not depend on the fits before it: same data and seed, same draws, bit for
+    bit (tested in ``tests/pipelines/calibrate/test_unit_delayed.py``).
     """
-    with model:
-        step = DelayMetropolis([model[DELAY_INDEX]], model["loglik"][None], prior.delays().shape[0], mode="NUMBA")
-        return pm.sample(draws=draws, tune=tune, chains=chains, cores=1, step=[step], random_seed=seed,
-                         progressbar=False, quiet=True, compute_convergence_checks=False,
-                         compile_kwargs={"mode": "NUMBA"})
+
+    def __init__(self, batch: SegmentBatch, plant: DiscretePlant, prior: DelayedUnitPrior = DelayedUnitPrior(), *,
+                 params: WheelParameters = WheelParameters()):
+        self.prior = prior
+        self.shapes = tuple(arr.shape for arr in batch)
+        self.model = build_unit_delayed_model(batch, plant, prior, delay=None, params=params)
+        with self.model:
+            continuous = [v for v in self.model.free_RVs if v.name != DELAY_INDEX]
+            nuts = pm.NUTS(continuous, compile_kwargs={"mode": "NUMBA"})
+            delay = DelayMetropolis([self.model[DELAY_INDEX]], self.model["loglik"][None], prior.delays().shape[0],
+                                    mode="NUMBA")
+        self.steps = [nuts, delay]
+        self._initial = [step.sampling_state for step in self.steps]
+
+    def sample(self, batch: SegmentBatch, *, tau0=0.0, draws: int, tune: int, chains: int, seed: int):
+        """Sample the posterior given ``batch`` (the shape the sampler was built for), chains in turn, one process.
+
+        Returns PyMC's DataTree (``posterior`` with ``delay_index``; ``sample_stats`` with
+        ``diverging`` and ``delay_accept``).
+        """
+        shapes = tuple(arr.shape for arr in batch)
+        if shapes != self.shapes:
+            raise ValueError(f"the sampler was built for segment arrays of shapes {self.shapes}; got {shapes}")
+        for step, state in zip(self.steps, self._initial):
+            step.sampling_state = state
+        with self.model:
+            pm.set_data(unit_delayed_data(batch, None, tau0))
+            return pm.sample(draws=draws, tune=tune, chains=chains, cores=1, step=self.steps, random_seed=seed,
+                             progressbar=False, quiet=True, compute_convergence_checks=False,
+                             compile_kwargs={"mode": "NUMBA"})
 
 
-__all__ = ["DELAY_INDEX", "UNIT_DELAYED_PARAMETERS", "DelayedUnitPrior", "build_unit_delayed_model",
-           "sample_unit_delayed", "unit_delayed_data"]
+__all__ = ["DELAY_INDEX", "UNIT_DELAYED_PARAMETERS", "DelayedUnitPrior", "UnitDelayedSampler",
+           "build_unit_delayed_model", "unit_delayed_data"]

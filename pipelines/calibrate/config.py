@@ -16,7 +16,8 @@ GENERATOR = ("3: SC human plans with the assistant's feedback law; assistant re-
              "ArviZ's bulk/tail-ESS thinning; log-likelihood test quantity; thinned draws stored")
 
 #: Likewise for the ``delayed`` human's replications (:mod:`pipelines.calibrate.unit_delayed`).
-DELAYED_GENERATOR = "2: the likelihood's held-torque convention; the delay sampled (DelayMetropolis); numba-compiled"
+DELAYED_GENERATOR = ("3: the likelihood's held-torque convention; the delay sampled (NUTS then DelayMetropolis); "
+                     "numba-compiled once per worker")
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ convention; what a physically lagged arm costs is measured apart, README "Human
 models"); replication i is in level i mod L of the experiment's levels, and on an
 assisted level the human plans with the assistant's law, which acts on the true state.
 The fit samples the posterior of θ1, θ2, R, τ_nm, σ_m and the delay together
-(:func:`models.bayes.unit_delayed.sample_unit_delayed`: NUTS and
+(:class:`models.bayes.unit_delayed.UnitDelayedSampler`: NUTS and
 :class:`models.bayes.delay_step.DelayMetropolis`), so the delay's uncertainty is in the
 other parameters' posterior. Ranked: those five and the log-likelihood of the data (at
 each draw's delay; at the truth's).
@@ -28,8 +28,8 @@ import warnings
 
 import numpy as np
 
-from models.bayes.unit_delayed import (DELAY_INDEX, UNIT_DELAYED_PARAMETERS, DelayedUnitPrior, build_unit_delayed_model,
-                                       sample_unit_delayed, unit_delayed_data)
+from models.bayes.unit_delayed import (DELAY_INDEX, UNIT_DELAYED_PARAMETERS, DelayedUnitPrior, UnitDelayedSampler,
+                                       build_unit_delayed_model, unit_delayed_data)
 from models.delayed import loglik_grad, sample_delayed
 from models.design import STUDY, Design
 from models.plant import discretize
@@ -74,6 +74,18 @@ def compiled_unit_delayed(K: int, negative_control, design: Design = STUDY):
     return cached(("unit-delayed", K, negative_control, design), build)
 
 
+def unit_delayed_sampler(K: int, negative_control, design: Design = STUDY) -> UnitDelayedSampler:
+    """The sampled-delay unit model and its steps, compiled once per worker for windows of K samples of ``design``."""
+
+    def build():
+        wheel = fit_wheel(negative_control, design)
+        plant = discretize(design.dt, wheel)
+        batch = prepare_batch(plant, [rest_segment(K, design)])
+        return UnitDelayedSampler(batch, plant, DelayedUnitPrior.for_design(design), params=wheel)
+
+    return cached(("unit-delayed-sampled", K, negative_control, design), build)
+
+
 def prior_variances(prior: DelayedUnitPrior) -> dict:
     """Prior variance of every ranked parameter (by simulation, seed 0; cached per worker)."""
     rng = np.random.default_rng(0)
@@ -100,11 +112,10 @@ def unit_delayed_replication(config, i: int, seed: np.random.SeedSequence) -> di
         sample = None
     else:
         compiled = None
-        model = build_unit_delayed_model(batch, plant, prior, delay=None, params=wheel)
+        sampler = unit_delayed_sampler(config.K, config.negative_control, design)
 
         def sample(seed):
-            return sample_unit_delayed(model, prior, draws=config.draws, tune=config.tune, chains=config.chains,
-                                       seed=seed)
+            return sampler.sample(batch, draws=config.draws, tune=config.tune, chains=config.chains, seed=seed)
 
     def loglik(theta, tau, sig, delay):
         """Summed log-likelihood of the data at each of N parameter sets (theta (3, N), delay (N,) samples)."""

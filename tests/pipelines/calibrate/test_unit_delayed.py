@@ -1,6 +1,6 @@
 """Unit-level SBC of the delayed human: the configuration, one replication, and a small run with its negative control.
 
-The full calibration (500 replications, ``reports/calibration-delayed``) is in the README.
+The full calibration (500 replications, ``reports/calibration-delayed-sampled``) is in the README.
 """
 
 import dataclasses
@@ -50,8 +50,12 @@ def test_one_replication_ranks_every_parameter_and_the_loglik():
     assert res["condition"] == "SC"
     assert set(res["ranks"]) == {*UNIT_DELAYED_PARAMETERS, "loglik"}
     assert all(0 <= r <= cfg.L for r in res["ranks"].values())
+    # The worker compiles the model once and reuses it: another replication in between (rep 0, on MC) must not
+    # change what the same seed gives (the steps' tuning state is restored before every fit).
+    unit_delayed_replication(cfg, 0, replication_seed(cfg.seed, 0))
     again = unit_delayed_replication(cfg, 1, replication_seed(cfg.seed, 1))
     assert again["ranks"] == res["ranks"] and again["delay_mean"] == res["delay_mean"]  # same seed, same result
+    assert all(np.array_equal(again["thinned"][k], res["thinned"][k]) for k in res["thinned"])
     assert 0.0 <= res["delay_below"] + res["delay_equal"] <= 1.0
 
 

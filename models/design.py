@@ -254,6 +254,11 @@ class Design:
         """One encoder increment, rad (0.0 for an angle that is not quantized)."""
         return 2.0 * math.pi / self.encoder_counts if self.encoder_counts else 0.0
 
+    @property
+    def encoder_sd(self) -> float:
+        """SD of the recorded angle's quantization error, rad: uniform over one encoder step q, so q / √12."""
+        return self.encoder_step / math.sqrt(12.0)
+
     def assistant(self, level: str) -> AssistantSpec | None:
         """The law of ``level``'s assistant, or None for an unassisted level."""
         return dict(self.assistants).get(level)

@@ -179,7 +179,7 @@ def _identify_unit(prepared, idx, plant, settings):
         angles = angle_windows(prepared, idx) if _from_angles(prepared, idx) else None
         return identify_unit_delayed(batches, plant, params=settings.design.wheel,
                                      tau0=[[prepared[i].warmup] for i in idx], angles=angles,
-                                     sigma_y=settings.design.encoder_step / np.sqrt(12.0))
+                                     sigma_y=settings.design.encoder_sd)
     return identify_unit(batches, plant)
 
 

@@ -10,6 +10,13 @@ The human model is the paper's max-ent human (:func:`models.maxent.loglik_segmen
 the ``delayed`` human with a perceptual delay, a neuromuscular lag and motor noise
 (:func:`models.delayed.loglik_grad`), whose arm torque at a window's start follows from
 the measured torques before it (at rest at a trial's start).
+
+``likelihood="angles"`` evaluates instead the ``delayed`` human's likelihood of the
+encoder's recorded angles, log p(y_1..y_K | y_0) (:func:`models.delayed.window_loglik`),
+the one ``scioc identify`` uses for units without a recorded torque: the file then needs
+no ``u_H`` (the torques before each window, which set the arm torque at its start, are
+reconstructed where none were recorded). The angle's noise is the encoder's quantization
+(:attr:`models.design.Design.encoder_sd`).
 """
 
 from __future__ import annotations
@@ -22,13 +29,14 @@ import pandas as pd
 import tomllib
 
 from models.cost import validate_theta
-from models.delayed import DELAY_GRID_S, lag_coefficients, window_tau0
+from models.delayed import DELAY_GRID_S, lag_coefficients, window_loglik, window_tau0
 from models.delayed import loglik_grad as delayed_loglik_grad
 from models.delayed.search import TAU_NM_MAX
 from models.design import STUDY, Design
 from models.maxent import loglik_segments
 from models.plant import discretize
 from models.segment import prepare_batch
+from pipelines.identify import angle_windows
 from pipelines.io import StudyFileError, load_study
 from pipelines.prepare import IdentifySettings, check_human_model, prepare_study
 
@@ -109,9 +117,13 @@ def sets_analysis(experiment_file) -> bool:
         return bool(tomllib.load(fh).get("analysis"))
 
 
+#: What ``scioc loglik`` can evaluate the likelihood of.
+LIKELIHOODS = ("torques", "angles")
+
+
 def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Design = STUDY,
                  experiment_file=None, human_model: str = "maxent", delay_s=None, tau_nm=None,
-                 sigma_m=None) -> pd.DataFrame:
+                 sigma_m=None, likelihood: str = "torques") -> pd.DataFrame:
     """Log-likelihood (nats) of each segment of a study file.
 
     Parameters
@@ -132,12 +144,15 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
         The ``delayed`` human's delay (s, whole samples), lag (s) and motor noise (N·m per
         sample), all three required for it and refused for ``maxent``
         (:func:`delayed_human`). θ is then its command cost.
+    likelihood : {"torques", "angles"}
+        The likelihood of the human torques (needs ``u_H``), or the ``delayed`` human's of
+        the encoder's angles (module docstring).
 
     Returns
     -------
     DataFrame
         Columns ``subject``, ``condition`` (and ``trial`` if the file has it), ``K``
-        (torque samples) and ``loglik``, in file order.
+        (samples: torques, or angles after the window's first) and ``loglik``, in file order.
 
     Raises
     ------
@@ -147,12 +162,19 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
         If the human model or its parameters are not valid.
     """
     th = validate_theta(theta)
+    if likelihood not in LIKELIHOODS:
+        raise ValueError(f"likelihood must be one of {', '.join(LIKELIHOODS)}; got {likelihood!r}")
     human = delayed_human(human_model, design.dt, delay_s, tau_nm, sigma_m)
+    if likelihood == "angles" and human is None:
+        raise ValueError("--likelihood angles is the delayed human's likelihood of the encoder's angles; "
+                         "use it with --human-model delayed")
     study = load_study(path, design)
     for s in study.segments:
-        if s.u_H is None:
+        if s.u_H is None and likelihood == "torques":
+            hint = ("use --likelihood angles (the delayed human's likelihood of the recorded angles), "
+                    if human is not None else "")
             raise StudyFileError(study.path, f"column is missing; segment {s.label} needs it for the likelihood "
-                                 "(reconstruct it from the angle first, or use scioc identify)", column="u_H")
+                                 f"({hint}reconstruct it from the angle first, or use scioc identify)", column="u_H")
     if sets_analysis(experiment_file):
         settings = IdentifySettings.for_design(design, assistant_model=assistant_model, adequacy_boot=0)
     else:
@@ -162,6 +184,10 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
     plant = discretize(design.dt, design.wheel)
     if human is None:
         ll = loglik_segments(th, [p.segment for p in prepared.segments], plant).loglik
+    elif likelihood == "angles":
+        ll = np.array([window_loglik(th, human.tau_nm, human.sigma_m, human.delay, w, plant, sigma_y=design.encoder_sd,
+                                     params=design.wheel).loglik
+                       for w in angle_windows(prepared.segments, range(len(prepared.segments)))])
     else:
         ll = _delayed_loglik(th, prepared.segments, plant, human, design)
     bad = ~np.isfinite(ll)

@@ -106,7 +106,7 @@ def bench_angles(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m:
     plant = discretize(DT_HUMAN)
     segs = study[preview]
     theta = study["theta"]
-    sy = STUDY.encoder_step / np.sqrt(12.0)
+    sy = STUDY.encoder_sd
     wins = angle_windows(segs, range(len(segs)))
     before = numba.get_num_threads()
     rows, dense = [], []

@@ -22,7 +22,7 @@ def cmd_loglik(args) -> int:
     try:
         table = study_loglik(args.study, theta, args.assistant_model, design=design, experiment_file=source,
                              human_model=args.human_model, delay_s=args.delay_s, tau_nm=args.tau_nm,
-                             sigma_m=args.sigma_m)
+                             sigma_m=args.sigma_m, likelihood=args.likelihood)
     except NonFiniteLoglik as exc:
         print(f"scioc loglik: error: {exc}", file=sys.stderr)
         return 1

@@ -170,6 +170,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="delayed human: neuromuscular time constant, s (0 to 1)")
     p.add_argument("--sigma-m", type=_nonnegative_float, default=None, metavar="M",
                    help="delayed human: motor-noise SD per sample, N·m")
+    p.add_argument("--likelihood", choices=("torques", "angles"), default="torques",
+                   help="the likelihood of the human torques u_H (default), or the delayed human's of the encoder's "
+                   "angles (no u_H needed; what identify uses where no torque was recorded)")
     _add_experiment_option(p)
     p.add_argument("--format", choices=("table", "json"), default="table", help="output format (default table)")
     p.set_defaults(func=commands.cmd_loglik)

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from models.delayed import (DELAY_GRID_S, Warmup, forward_delayed, identify_unit_delayed, lag_coefficients, loglik_grad,
-                            window_tau0)
+                            window_loglik, window_tau0)
 from models.maxent import forward_optimal_control
 from models.design import STUDY
 from models.plant import discretize
@@ -236,7 +236,7 @@ def test_without_a_torque_sensor_the_delayed_model_is_identified_from_the_angles
     row = est[(est.subject == p.data.subject) & (est.condition == p.data.condition)].iloc[0]
     ref = identify_unit_delayed([prepare_batch(plant, [p.segment])], plant, params=SENSOR.wheel,
                                 tau0=[[p.warmup]], angles=angle_windows(prepared.segments, [0]),
-                                sigma_y=SENSOR.encoder_step / np.sqrt(12.0))
+                                sigma_y=SENSOR.encoder_sd)
     assert (row.theta1, row.tau_nm, row.sigma_m, row.delay_s) == (ref.theta1, ref.tau_nm, ref.sigma_m, ref.delay_s)
     # the literature's human (delay 0.12 s, lag 0.06 s, motor noise 0.25 N·m) from 10-s windows of angles
     assert est.converged.all() and not est.lag_at_bound.any()
@@ -245,3 +245,32 @@ def test_without_a_torque_sensor_the_delayed_model_is_identified_from_the_angles
     # the torques' path on the same files is unchanged
     assert set(pd.read_parquet(identify_to_dir(combined["study"], tmp_path / "t", settings(),
                                                show_progress=False)["estimates"]).likelihood) == {"torques"}
+
+
+def test_cli_loglik_of_the_angles_is_the_models(combined, tmp_path, capsys):
+    # --likelihood angles: the delayed human's likelihood of the encoder's angles, window by window, as identify
+    # evaluates it (models.delayed.window_loglik on the prepared windows); on a file without u_H too (the torques
+    # before each window then reconstructed), where the torque likelihood is refused and says what to use instead.
+    from pipelines.identify import angle_windows
+
+    exp = tmp_path / "experiment.toml"
+    exp.write_text("[analysis]\nwindow_start_s = 12.0\nwindow_s = 10.0\npreview_s = 2.0\n")
+    angle_only = tmp_path / "angles.parquet"
+    pd.read_parquet(combined["study"]).drop(columns=["u_H"]).to_parquet(angle_only)
+    plant = discretize(0.01)
+    human = ["--human-model", "delayed", "--delay-s", "0.12", "--tau-nm", "0.06", "--sigma-m", "0.25"]
+    for path in (combined["study"], str(angle_only)):
+        got = _loglik_json(path, capsys, *human, "--likelihood", "angles", "--experiment", str(exp))
+        prepared = prepare_study(load_study(path), IdentifySettings(**WINDOW, adequacy_boot=0))
+        wins = angle_windows(prepared.segments, range(len(prepared.segments)))
+        assert len(got) == len(wins) == 4
+        for rec, w in zip(got, wins):
+            ref = window_loglik([400.0, 0.0, 20.0], 0.06, 0.25, 12, w, plant, sigma_y=STUDY.encoder_sd)
+            assert np.isfinite(ref.loglik) and rec["loglik"] == ref.loglik
+    torques = _loglik_json(combined["study"], capsys, *human, "--experiment", str(exp))
+    assert all(a["loglik"] != t["loglik"] for a, t in zip(got, torques))  # another likelihood, not a relabelling
+    assert _status(["loglik", str(angle_only), "--theta", "400,0,20", *human, "--experiment", str(exp)]) == 3
+    assert "use --likelihood angles" in capsys.readouterr().err
+    assert _status(["loglik", str(angle_only), "--theta", "400,0,20", "--likelihood", "angles",
+                    "--experiment", str(exp)]) == 2
+    assert "use it with --human-model delayed" in capsys.readouterr().err

@@ -107,6 +107,20 @@ separate from the motor noise, and β, θ1, τ_nm and σ_m mix well (ESS 500-130
 population of τ_nm is now half-normal (above), with the same forms; on data without lag
 or motor noise they are non-centred (:func:`pipelines.fit.delayed.choose_delayed_form`).
 
+σ_R's prior (measured 2026-12-02 with the half-normal τ_nm population, as
+``pipelines.bench.fit_delayed.bench_fit_delayed(n_subjects=12, chains=2, draws=300,
+tune=300, seed=1, ...)``, a calibration run on the machine's two cores beside it)::
+
+    σ_R prior          log R MC / SC   steps/draw  div  σ_R R-hat, ESS   ESS of unit log R, σ_m (min)
+    HalfNormal(0.5)    NC / NC         31.8        0    1.107, 12        37, 78       <- default
+    Gamma(2, rate 4)   NC / NC         27.9        0    1.021, 42        76, 213
+    Gamma(2, rate 4)   C / C           27.5        12   1.054, 41        28, 39
+
+A Gamma prior of shape 2 (``DelayedPriors(sigma_log_R_gamma=(2, 4))``: density 0 at
+σ_R = 0, mean 0.5 like the half-normal's scale) removes the region near 0 where a chain
+sat, and helps every slow quantity, but one seed of 600 draws does not make σ_R mix
+(ESS 42, and σ_βR's R-hat rose to 1.033): not the default until measured at full size.
+
 At full size (42 subjects of the ``kbl`` human, 4 chains × 1000 draws; README "Human
 models", "The hierarchical fit") the same holds and is worse: σ_R reached R-hat 1.09-1.12
 with a bulk ESS of 24-54 (one chain sat near σ_R = 0.03 for about 400 draws) while β
@@ -156,10 +170,22 @@ class DelayedPriors:
         Scale of the HalfNormal prior on s_τ, the population scale of τ_nm, s.
     sigma_m_scale : float
         Scale of the HalfNormal prior on s_m, the population scale of σ_m, N·m.
+    sigma_log_R_gamma : (float, float) or None
+        Shape and rate of a Gamma prior on σ_R, the between-subject SD of log R, in place
+        of the cost blocks' HalfNormal(``Priors.sigma_log_R``); None (default) keeps the
+        half-normal. A Gamma of shape 2 has density 0 at σ_R = 0 (a boundary-avoiding
+        prior, Chung et al. 2013) and removes the neck near 0 where the sampler stalled
+        (module docstring, "Geometry": measured better on 12 subjects, not yet at full size).
     """
 
     tau_nm_scale: float = 0.1
     sigma_m_scale: float = 0.3
+    sigma_log_R_gamma: tuple[float, float] | None = None
+
+    def __post_init__(self):
+        g = self.sigma_log_R_gamma
+        if g is not None and not (len(g) == 2 and all(np.isfinite(v) and v > 0 for v in g)):
+            raise ValueError(f"sigma_log_R_gamma must be (shape, rate), both > 0; got {g!r}")
 
 
 @dataclass(frozen=True)
@@ -179,15 +205,17 @@ class DelayedForm:
                 raise ValueError(f"DelayedForm.{name} must be 'centred' or 'noncentred'; got {getattr(self, name)!r}")
 
 
-def _cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict):
-    """The population parameters and unit blocks of θ, as :func:`models.bayes.hierarchical.build_model` has them."""
+def _cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict, sigma_R_gamma=None):
+    """The population parameters and unit blocks of θ, as :func:`models.bayes.hierarchical.build_model` has them
+    (σ_R Gamma(shape, rate) instead of half-normal with ``sigma_R_gamma``, :class:`DelayedPriors`)."""
     mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
     beta = pm.Normal("beta", 0.0, priors.beta_sd, **effect)
     sigma = pm.HalfNormal("sigma_log_theta1", priors.sigma_log_theta1)
     sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta, **effect)
     mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
     beta_R = pm.Normal("beta_log_R", 0.0, priors.beta_log_R_sd, **effect)
-    sigma_R = pm.HalfNormal("sigma_log_R", priors.sigma_log_R)
+    sigma_R = (pm.HalfNormal("sigma_log_R", priors.sigma_log_R) if sigma_R_gamma is None
+               else pm.Gamma("sigma_log_R", alpha=sigma_R_gamma[0], beta=sigma_R_gamma[1]))
     sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R, **effect)
     tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
     log_theta1 = unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc, n_levels)
@@ -313,7 +341,7 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
         return out
 
     with pm.Model(coords=coords) as model:
-        _, log_R, theta2, R = _cost_blocks(priors, parameterization, L, effect)
+        _, log_R, theta2, R = _cost_blocks(priors, parameterization, L, effect, delayed_priors.sigma_log_R_gamma)
         tau_nm, sigma_m = _motor_blocks(delayed_priors, delayed_form)
         log_theta1 = model["log_theta1"]
         R_s = R[s_idx, c_idx]

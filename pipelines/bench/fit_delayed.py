@@ -85,8 +85,8 @@ def bench_delay_profile(n_subjects: int = 6, *, seed: int = 2018, delay: int = 1
 
 
 def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4, draws: int = 1000,
-                      tune: int = 1000, delayed_form=None, parameterization=None, nuts: dict | None = None,
-                      idata_path=None) -> dict:
+                      tune: int = 1000, delayed_form=None, parameterization=None, delayed_priors=None,
+                      nuts: dict | None = None, idata_path=None) -> dict:
     """Fit a default-size study of the ``delayed`` human once and time it (module docstring).
 
     Returns
@@ -100,7 +100,8 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
     """
     plant = discretize(DT_HUMAN)
     w = delayed_windows(n_subjects, np.random.default_rng(np.random.SeedSequence(seed)))
-    kw = {k: v for k, v in (("delayed_form", delayed_form), ("parameterization", parameterization)) if v is not None}
+    kw = {k: v for k, v in (("delayed_form", delayed_form), ("parameterization", parameterization),
+                            ("delayed_priors", delayed_priors)) if v is not None}
     t0 = time.perf_counter()
     model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, tau0=w.tau0, **kw)
     t1 = time.perf_counter()

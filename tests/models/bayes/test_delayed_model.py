@@ -96,6 +96,27 @@ def test_cost_blocks_are_the_max_ent_models(plant, study):
         DelayedForm("sometimes")
 
 
+def test_sigma_R_can_have_a_boundary_avoiding_gamma_prior(plant, study):
+    # DelayedPriors(sigma_log_R_gamma=(shape, rate)): σ_R's prior is that Gamma (density 0 at 0), the rest unchanged.
+    from scipy import stats
+
+    from models.bayes.delayed_model import DelayedPriors
+
+    w = study
+    gamma = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                delayed_priors=DelayedPriors(sigma_log_R_gamma=(2.0, 4.0)))
+    half = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
+    assert {v.name for v in gamma.free_RVs} == {v.name for v in half.free_RVs}
+    for x in (0.05, 0.3, 1.2):
+        got = float(pm.logp(gamma["sigma_log_R"], x).eval())
+        assert got == pytest.approx(stats.gamma(2.0, scale=1 / 4.0).logpdf(x), rel=1e-6)  # PyTensor's gammaln
+        assert got != pytest.approx(float(pm.logp(half["sigma_log_R"], x).eval()))
+    assert float(pm.logp(gamma["sigma_log_R"], 0.0).eval()) == -np.inf
+    for bad in ((2.0,), (0.0, 4.0), (2.0, np.nan)):
+        with pytest.raises(ValueError, match="sigma_log_R_gamma"):
+            DelayedPriors(sigma_log_R_gamma=bad)
+
+
 @pytest.mark.slow
 def test_short_fit_recovers_lag_and_motor_noise(plant):
     """4 subjects of the delayed human (each its own lag; motor noise 0.25 N·m), 2 chains × 300 draws: every

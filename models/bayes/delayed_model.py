@@ -115,11 +115,15 @@ tune=300, seed=1, ...)``, a calibration run on the machine's two cores beside it
     HalfNormal(0.5)    NC / NC         31.8        0    1.107, 12        37, 78       <- default
     Gamma(2, rate 4)   NC / NC         27.9        0    1.021, 42        76, 213
     Gamma(2, rate 4)   C / C           27.5        12   1.054, 41        28, 39
+    Gamma(2, rate 4)   NC / NC         27.1        1    1.159, 11        23, 108
+      and σ_βR ~ Gamma(2, rate 10)
 
 A Gamma prior of shape 2 (``DelayedPriors(sigma_log_R_gamma=(2, 4))``: density 0 at
 σ_R = 0, mean 0.5 like the half-normal's scale) removes the region near 0 where a chain
-sat, and helps every slow quantity, but one seed of 600 draws does not make σ_R mix
-(ESS 42, and σ_βR's R-hat rose to 1.033): not the default until measured at full size.
+sat. Its one run helped every slow quantity, but the last row (the same prior on σ_R, and
+a Gamma on σ_βR as well; an experiment, not an option) fell back to ESS 11: with one seed
+of 600 draws per row the prior's effect is not established, and σ_R does not mix in any
+form tried. Not the default.
 
 At full size (42 subjects of the ``kbl`` human, 4 chains × 1000 draws; README "Human
 models", "The hierarchical fit") the same holds and is worse: σ_R reached R-hat 1.09-1.12

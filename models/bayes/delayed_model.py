@@ -178,8 +178,8 @@ class DelayedPriors:
         Shape and rate of a Gamma prior on σ_R, the between-subject SD of log R, in place
         of the cost blocks' HalfNormal(``Priors.sigma_log_R``); None (default) keeps the
         half-normal. A Gamma of shape 2 has density 0 at σ_R = 0 (a boundary-avoiding
-        prior, Chung et al. 2013) and removes the neck near 0 where the sampler stalled
-        (module docstring, "Geometry": measured better on 12 subjects, not yet at full size).
+        prior, Chung et al. 2013), meant to remove the neck near 0 where the sampler stalled;
+        its help is not established (module docstring, "Geometry").
     """
 
     tau_nm_scale: float = 0.1

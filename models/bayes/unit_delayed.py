@@ -168,7 +168,6 @@ class UnitDelayedSampler:
 
     def __init__(self, batch: SegmentBatch, plant: DiscretePlant, prior: DelayedUnitPrior = DelayedUnitPrior(), *,
                  params: WheelParameters = WheelParameters()):
-        self.prior = prior
         self.shapes = tuple(arr.shape for arr in batch)
         self.model = build_unit_delayed_model(batch, plant, prior, delay=None, params=params)
         with self.model:

@@ -75,6 +75,8 @@ def _add_assistant_model_option(p):
 # equal), and the last delay of models.delayed.DELAY_GRID_S, s.
 HUMAN_MODEL_NAMES = ("maxent", "delayed")
 MAX_DELAY_S = 0.3
+#: What ``scioc loglik`` evaluates the likelihood of (:data:`pipelines.loglik.LIKELIHOODS`, tested equal).
+LIKELIHOOD_NAMES = ("torques", "angles")
 
 
 def _human_models_list(text: str) -> tuple:
@@ -170,7 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="delayed human: neuromuscular time constant, s (0 to 1)")
     p.add_argument("--sigma-m", type=_nonnegative_float, default=None, metavar="M",
                    help="delayed human: motor-noise SD per sample, N·m")
-    p.add_argument("--likelihood", choices=("torques", "angles"), default="torques",
+    p.add_argument("--likelihood", choices=LIKELIHOOD_NAMES, default="torques",
                    help="the likelihood of the human torques u_H (default), or the delayed human's of the encoder's "
                    "angles (no u_H needed; what identify uses where no torque was recorded)")
     _add_experiment_option(p)

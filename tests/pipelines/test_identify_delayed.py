@@ -15,8 +15,9 @@ from models.design import STUDY
 from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.cli import main
-from pipelines.cli.parser import HUMAN_MODEL_NAMES, MAX_DELAY_S
+from pipelines.cli.parser import HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S
 from pipelines.identify import identify_to_dir
+from pipelines.loglik import LIKELIHOODS
 from pipelines.io import load_study
 from pipelines.prepare import HUMAN_MODELS, IdentifySettings, prepare_study
 from pipelines.simulate import simulate_to_dir
@@ -40,6 +41,7 @@ def settings(human_model="delayed", **kw):
 
 def test_the_names_the_parser_spells_are_the_pipelines():
     assert HUMAN_MODEL_NAMES == HUMAN_MODELS
+    assert LIKELIHOOD_NAMES == LIKELIHOODS
     assert MAX_DELAY_S == DELAY_GRID_S[-1]
 
 

@@ -25,7 +25,7 @@ from typing import Literal
 import pymc as pm
 import pytensor.tensor as pt
 
-Form = Literal["centred", "noncentred", "mean"]
+Form = Literal["centred", "noncentred", "mean", "given"]
 
 #: Dims of a block's unit values.
 UNIT_DIMS = ("subject", "condition")
@@ -91,7 +91,9 @@ def unit_block(name: str, mu, beta, sigma, sigma_beta, form_mc: Form, form_sc: F
     beta, sigma_beta : tensors
         Mean and SD of the changes: scalars for two levels, dims ``contrast`` for more.
     form_mc, form_sc : str
-        The forms of the intercept and of the changes (:class:`Parameterization`).
+        The forms of the intercept and of the changes (:class:`Parameterization`);
+        ``form_mc="given"``: ``mu`` (dims ``subject``) is the baseline value itself, declared
+        by the caller in another form (``sigma`` unused), and only the changes are declared here.
     n_levels : int
         L >= 2, the baseline included.
     """
@@ -113,7 +115,9 @@ def _two_levels(name, mu, beta, sigma, sigma_beta, form_mc, form_sc):
         m = pm.Normal(f"{name}_mean", mu + 0.5 * change, sigma, dims="subject")
         mc, sc = m - 0.5 * change, m + 0.5 * change
     else:
-        if form_mc == "centred":
+        if form_mc == "given":
+            mc = mu
+        elif form_mc == "centred":
             mc = pm.Normal(f"{name}_MC", mu, sigma, dims="subject")
         else:
             mc = mu + sigma * pm.Normal(f"z_{name}_MC", 0.0, 1.0, dims="subject")
@@ -138,7 +142,9 @@ def _many_levels(name, mu, beta, sigma, sigma_beta, form_mc, form_sc, n_levels):
         base = m - shift
         others = base[:, None] + change
     else:
-        if form_mc == "centred":
+        if form_mc == "given":
+            base = mu
+        elif form_mc == "centred":
             base = pm.Normal(f"{name}_baseline", mu, sigma, dims="subject")
         else:
             base = mu + sigma * pm.Normal(f"z_{name}_baseline", 0.0, 1.0, dims="subject")

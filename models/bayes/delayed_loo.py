@@ -11,7 +11,9 @@ adds them, as ``extra``:
   and one the data leave near 0 (a max-ent human) are both covered by a t fitted to the
   draws, with the log-Jacobians τ_nm σ_m in the weights;
 * to the conditional prior: ``τ_nm ~ HalfNormal(s_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
-  population draw (the model's, whatever form the sampler used);
+  population draw (the model's, whatever form the sampler used), and, for a model whose
+  baseline R has the ``policy_scale`` population (:class:`models.bayes.delayed_model.DelayedPriors`),
+  ``R^(-1/2) ~ HalfNormal(s_ρ)`` in place of N(μ_R, σ_R) on log R;
 * and the segments' log-likelihood is the delayed one
   (:func:`models.delayed.likelihood.loglik_grad`) at the segment's plug-in delay, with
   τ_0 fixed or following the warm-up at each proposed τ_nm (as the Op computes it).
@@ -60,6 +62,9 @@ class DelayedSubjectTerms:
         self.log_sig = np.log(np.asarray(post["sigma_m"], dtype=float))
         self.s_t = np.asarray(post["tau_nm_scale"], dtype=float)[:, None]
         self.s_m = np.asarray(post["sigma_m_scale"], dtype=float)[:, None]
+        if "rho_scale" in post:  # R_population="policy_scale": ρ = R^(-1/2) ~ HalfNormal(s_ρ)
+            self.s_rho = np.asarray(post["rho_scale"], dtype=float)[:, None]
+            self.baseline_log_R_logpdf = self._policy_scale_logpdf
         self.batch, self.plant, self.params, self.chunk = batch, plant, params, int(chunk)
         self.delay = np.broadcast_to(np.asarray(delay, dtype=np.int64), (batch.n,))
         self.warmups = warmups_of(tau0, batch.n)
@@ -74,6 +79,11 @@ class DelayedSubjectTerms:
         tau, sig = np.exp(z[:, 0]), np.exp(z[:, 1])
         return (halfnorm_logpdf(tau[None, :], self.s_t) + halfnorm_logpdf(sig[None, :], self.s_m)
                 + (z[:, 0] + z[:, 1])[None, :])
+
+    def _policy_scale_logpdf(self, log_R: np.ndarray) -> np.ndarray:
+        """(S, M): log p(log R[i, baseline] | s_ρ) of ρ = exp(-log R / 2) ~ HalfNormal(s_ρ), Jacobian ρ/2 included."""
+        rho = np.exp(-0.5 * np.asarray(log_R, dtype=float))
+        return halfnorm_logpdf(rho[None, :], self.s_rho) + (np.log(0.5 * rho))[None, :]
 
     def _tau0(self, j: int, tau: np.ndarray) -> np.ndarray:
         if self.warmups is None:

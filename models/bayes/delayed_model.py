@@ -107,43 +107,29 @@ separate from the motor noise, and β, θ1, τ_nm and σ_m mix well (ESS 500-130
 population of τ_nm is now half-normal (above), with the same forms; on data without lag
 or motor noise they are non-centred (:func:`pipelines.fit.delayed.choose_delayed_form`).
 
-σ_R's prior (measured 2026-12-02 with the half-normal τ_nm population, as
-``pipelines.bench.fit_delayed.bench_fit_delayed(n_subjects=12, chains=2, draws=300,
-tune=300, seed=1, ...)``, a calibration run on the machine's two cores beside it)::
-
-    σ_R prior          log R MC / SC   steps/draw  div  σ_R R-hat, ESS   ESS of unit log R, σ_m (min)
-    HalfNormal(0.5)    NC / NC         31.8        0    1.107, 12        37, 78       <- default
-    Gamma(2, rate 4)   NC / NC         27.9        0    1.021, 42        76, 213
-    Gamma(2, rate 4)   C / C           27.5        12   1.054, 41        28, 39
-    Gamma(2, rate 4)   NC / NC         27.1        1    1.159, 11        23, 108
-      and σ_βR ~ Gamma(2, rate 10)
-
-A Gamma prior of shape 2 (``DelayedPriors(sigma_log_R_gamma=(2, 4))``: density 0 at
-σ_R = 0, mean 0.5 like the half-normal's scale) removes the region near 0 where a chain
-sat. Its one run helped every slow quantity, but the last row (the same prior on σ_R, and
-a Gamma on σ_βR as well; an experiment, not an option) fell back to ESS 11: with one seed
-of 600 draws per row the prior's effect is not established, and σ_R does not mix in any
-form tried. Not the default.
-
 At full size (42 subjects of the ``kbl`` human, 4 chains × 1000 draws; README "Human
 models", "The hierarchical fit") the same holds and is worse: σ_R reached R-hat 1.09-1.12
 with a bulk ESS of 24-54 (one chain sat near σ_R = 0.03 for about 400 draws) while β
 mixed well (R-hat <= 1.006, bulk ESS >= 3906), and the sampler needed 32.5 leapfrog steps
 per draw (102-152 minutes with other jobs on the machine, against the 15-minute goal).
+
+Other populations of R (a Gamma prior on σ_R; the policy-noise scale ρ in place of log R) are
+measured in :mod:`models.bayes.delayed_blocks`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
-from models.bayes.blocks import Parameterization, unit_block
+from models.bayes.blocks import Parameterization
 from models.bayes.delay_step import DelayMetropolis
+from models.bayes.delayed_blocks import (DELAYED_POPULATION_PARAMETERS, R_POPULATIONS, DelayedForm, DelayedPriors,
+                                         cost_blocks, motor_blocks)
 from models.bayes.delayed_op import DelayedLoglikOp, pack_tau0, warmups_of
 from models.bayes.hierarchical import Priors
 from models.delayed import sample_delayed
@@ -155,8 +141,6 @@ from models.units import index_study
 
 #: Name of the sampled delays' grid indices (dims ``subject``) in a model built with ``delay=None``.
 DELAY_INDEX = "delay_index"
-#: Population parameters of the lag and motor-noise blocks, as the model names them.
-DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale")
 #: The cost blocks' forms for the delayed human (module docstring, "Geometry"): log R non-centred,
 #: the rest as the max-ent model's default.
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
@@ -164,86 +148,6 @@ DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred"
 DELAYED_NUTS = {"adaptation": "low_rank"}
 
 
-@dataclass(frozen=True)
-class DelayedPriors:
-    """Hyperpriors of the lag and motor-noise blocks (rate-free: τ_nm in s, σ_m in N·m per sample).
-
-    Attributes
-    ----------
-    tau_nm_scale : float
-        Scale of the HalfNormal prior on s_τ, the population scale of τ_nm, s.
-    sigma_m_scale : float
-        Scale of the HalfNormal prior on s_m, the population scale of σ_m, N·m.
-    sigma_log_R_gamma : (float, float) or None
-        Shape and rate of a Gamma prior on σ_R, the between-subject SD of log R, in place
-        of the cost blocks' HalfNormal(``Priors.sigma_log_R``); None (default) keeps the
-        half-normal. A Gamma of shape 2 has density 0 at σ_R = 0 (a boundary-avoiding
-        prior, Chung et al. 2013), meant to remove the neck near 0 where the sampler stalled;
-        its help is not established (module docstring, "Geometry").
-    """
-
-    tau_nm_scale: float = 0.1
-    sigma_m_scale: float = 0.3
-    sigma_log_R_gamma: tuple[float, float] | None = None
-
-    def __post_init__(self):
-        g = self.sigma_log_R_gamma
-        if g is not None and not (len(g) == 2 and all(np.isfinite(v) and v > 0 for v in g)):
-            raise ValueError(f"sigma_log_R_gamma must be (shape, rate), both > 0; got {g!r}")
-
-
-@dataclass(frozen=True)
-class DelayedForm:
-    """Centred or non-centred form of the lag and motor-noise blocks.
-
-    ``centred`` samples the subject's value, τ_nm[i] ~ HalfNormal(s_τ) (σ_m[i] ~
-    HalfNormal(s_m)); ``noncentred`` samples z[i] ~ HalfNormal(1) and sets s_τ z[i] (s_m z[i]).
-    """
-
-    tau_nm: str = "centred"
-    sigma_m: str = "centred"
-
-    def __post_init__(self):
-        for name in ("tau_nm", "sigma_m"):
-            if getattr(self, name) not in ("centred", "noncentred"):
-                raise ValueError(f"DelayedForm.{name} must be 'centred' or 'noncentred'; got {getattr(self, name)!r}")
-
-
-def _cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict, sigma_R_gamma=None):
-    """The population parameters and unit blocks of θ, as :func:`models.bayes.hierarchical.build_model` has them
-    (σ_R Gamma(shape, rate) instead of half-normal with ``sigma_R_gamma``, :class:`DelayedPriors`)."""
-    mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
-    beta = pm.Normal("beta", 0.0, priors.beta_sd, **effect)
-    sigma = pm.HalfNormal("sigma_log_theta1", priors.sigma_log_theta1)
-    sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta, **effect)
-    mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
-    beta_R = pm.Normal("beta_log_R", 0.0, priors.beta_log_R_sd, **effect)
-    sigma_R = (pm.HalfNormal("sigma_log_R", priors.sigma_log_R) if sigma_R_gamma is None
-               else pm.Gamma("sigma_log_R", alpha=sigma_R_gamma[0], beta=sigma_R_gamma[1]))
-    sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R, **effect)
-    tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
-    log_theta1 = unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc, n_levels)
-    log_R = unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form.R_mc, form.R_sc, n_levels)
-    if form.theta2 == "centred":
-        theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))
-    else:
-        theta2 = pm.Deterministic("theta2", tau * pm.HalfNormal("z_theta2", 1.0, dims=("subject", "condition")),
-                                  dims=("subject", "condition"))
-    pm.Deterministic("theta1", pt.exp(log_theta1), dims=("subject", "condition"))
-    R = pm.Deterministic("R", pt.exp(log_R), dims=("subject", "condition"))
-    return log_theta1, log_R, theta2, R
-
-
-def _motor_blocks(priors: DelayedPriors, form: DelayedForm):
-    """τ_nm and σ_m per subject, each from a half-normal population (module docstring)."""
-    out = []
-    for name, scale_name, f in (("tau_nm", "tau_nm_scale", form.tau_nm), ("sigma_m", "sigma_m_scale", form.sigma_m)):
-        scale = pm.HalfNormal(scale_name, getattr(priors, scale_name))
-        if f == "centred":
-            out.append(pm.HalfNormal(name, scale, dims="subject"))
-        else:
-            out.append(pm.Deterministic(name, scale * pm.HalfNormal(f"z_{name}", 1.0, dims="subject"), dims="subject"))
-    return tuple(out)
 
 
 def _tau0_at(spec, n: int, dt: float, params: WheelParameters):
@@ -345,8 +249,8 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
         return out
 
     with pm.Model(coords=coords) as model:
-        _, log_R, theta2, R = _cost_blocks(priors, parameterization, L, effect, delayed_priors.sigma_log_R_gamma)
-        tau_nm, sigma_m = _motor_blocks(delayed_priors, delayed_form)
+        _, log_R, theta2, R = cost_blocks(priors, parameterization, L, effect, delayed_priors, delayed_form)
+        tau_nm, sigma_m = motor_blocks(delayed_priors, delayed_form)
         log_theta1 = model["log_theta1"]
         R_s = R[s_idx, c_idx]
         q11 = pt.exp(log_theta1[s_idx, c_idx] + log_R[s_idx, c_idx])
@@ -377,4 +281,4 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
 
 
 __all__ = ["DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm",
-           "DelayedPriors", "build_delayed_model", "delay_step"]
+           "DelayedPriors", "R_POPULATIONS", "build_delayed_model", "delay_step"]

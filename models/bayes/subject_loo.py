@@ -137,7 +137,10 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         Further per-subject parameters of another human model and its likelihood
         (:class:`models.bayes.delayed_loo.DelayedSubjectTerms`): their posterior draws
         join the Student-t block, their conditional prior joins the weights, and the
-        segments' log-likelihood is theirs. None (default): the max-ent model, exactly.
+        segments' log-likelihood is theirs; an ``extra`` with a ``baseline_log_R_logpdf``
+        method (M,) -> (S, M) replaces the N(μ_R, σ_R) of the subjects' baseline log R
+        (``mu_log_R``, ``sigma_log_R`` are then not needed). None (default): the max-ent
+        model, exactly.
 
     Returns
     -------
@@ -152,8 +155,11 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         return np.asarray(post[name], dtype=float).reshape(S, L - 1)
 
     mu, sig = post["mu_log_theta1"][:, None], post["sigma_log_theta1"][:, None]
-    muR, betR = post["mu_log_R"][:, None], per_level("beta_log_R")
-    sigR, sigbR = post["sigma_log_R"][:, None], per_level("sigma_beta_log_R")
+    betR, sigbR = per_level("beta_log_R"), per_level("sigma_beta_log_R")
+    # The subjects' baseline log R: N(μ_R, σ_R), or another human model's population (extra).
+    base_R = getattr(extra, "baseline_log_R_logpdf", None)
+    if base_R is None:
+        muR, sigR = post["mu_log_R"][:, None], post["sigma_log_R"][:, None]
     tau = post["tau_theta2"][:, None]
     if condition_effects:
         beta, sigb = per_level("beta"), per_level("sigma_beta")
@@ -207,7 +213,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         if condition_effects:
             for c in range(1, L):
                 lp = lp + _norm(lt[None, :, c], lt[None, :, 0] + beta[:, c - 1 : c], sigb[:, c - 1 : c])
-        lp = lp + _norm(lR[None, :, 0], muR, sigR)
+        lp = lp + (_norm(lR[None, :, 0], muR, sigR) if base_R is None else base_R(lR[:, 0]))
         for c in range(1, L):
             lp = lp + _norm(lR[None, :, c], lR[None, :, 0] + betR[:, c - 1 : c], sigbR[:, c - 1 : c])
         for c in range(L):

@@ -22,10 +22,12 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import asdict
 
 import numpy as np
 
-from models.bayes.delayed_model import DELAYED_NUTS, DELAYED_POPULATION_PARAMETERS, build_delayed_model
+from models.bayes.delayed_model import (DELAYED_NUTS, DELAYED_PARAMETERIZATION, DELAYED_POPULATION_PARAMETERS,
+                                        DelayedForm, DelayedPriors, build_delayed_model)
 from models.bayes.delayed_windows import delayed_windows
 from models.bayes.hierarchical import POPULATION_PARAMETERS
 from models.delayed.identify import identify_unit_delayed
@@ -102,11 +104,12 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
     w = delayed_windows(n_subjects, np.random.default_rng(np.random.SeedSequence(seed)))
     kw = {k: v for k, v in (("delayed_form", delayed_form), ("parameterization", parameterization),
                             ("delayed_priors", delayed_priors)) if v is not None}
+    nuts = DELAYED_NUTS if nuts is None else nuts
     t0 = time.perf_counter()
     model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, tau0=w.tau0, **kw)
     t1 = time.perf_counter()
     idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, log_likelihood=False,
-                              nuts=DELAYED_NUTS if nuts is None else nuts)
+                              nuts=nuts)
     diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
     post = idata["posterior"]
     recovery = {}
@@ -124,7 +127,11 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
         idata.to_netcdf(idata_path, engine="h5netcdf")
     return {"settings": {"segments": len(w.segments), "K": w.segments[0].K, "preview_steps": w.segments[0].preview,
                          "chains": chains, "draws": draws, "tune": tune, "seed": seed, "cpus": os.cpu_count(),
-                         "delays": [int(w.delay.min()), int(w.delay.max())]},
+                         "delays": [int(w.delay.min()), int(w.delay.max())],
+                         "delayed_priors": asdict(delayed_priors or DelayedPriors()),
+                         "delayed_form": asdict(delayed_form or DelayedForm()),
+                         "parameterization": asdict(parameterization or DELAYED_PARAMETERIZATION),
+                         "nuts": dict(nuts) or {"adaptation": "diag (nutpie's default)"}},
             "seconds": {"build": t1 - t0, "compile_and_sample": sec["compile_and_sample"], "sample": sec["sample"],
                         "fit": fit_s},
             "diagnostics": diag, "recovery": recovery,
@@ -153,6 +160,9 @@ def format_fit_delayed(res: dict) -> str:
         f"Hierarchical fit of the delayed human ({st['segments']} segments × K = {st['K']}, plan +{st['preview_steps']} "
         f"steps, delays {st['delays'][0]}-{st['delays'][1]} samples; {st['chains']} chains × {st['draws']} draws after "
         f"{st['tune']} tuning; nutpie, all cores)",
+        f"  baseline R population: {st['delayed_priors']['R_population']}"
+        + (f" (ρ {st['delayed_form']['rho']})" if st['delayed_priors']['R_population'] == "policy_scale" else "")
+        + f"; mass matrix: {st['nuts'].get('adaptation')}",
         f"  wall: build {s['build']:.1f} s + compile and sample {s['compile_and_sample']:.1f} s = {s['fit']:.1f} s "
         f"(goal ≤ {res['goal_s']:.0f} s: {'met' if res['within_goal'] else 'NOT met'}); sampling alone {s['sample']:.1f} s",
         f"  sampler: {d['sampler']['divergences']} divergences, mean {d['sampler']['mean_steps_per_draw']:.1f} leapfrog "

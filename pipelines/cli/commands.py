@@ -61,12 +61,23 @@ def cmd_bench(args) -> int:
 
 
 def cmd_bench_fit(args) -> int:
-    from models.bayes.hierarchical import Parameterization  # imports PyMC (seconds): only for this command
-    from pipelines.bench.fit import bench_parameterization, format_fit
+    if args.human_model == "delayed":
+        # imports PyMC (seconds): only for this command
+        from models.bayes.delayed_model import DelayedForm, DelayedPriors
+        from pipelines.bench.fit_delayed import bench_fit_delayed, format_fit_delayed
 
-    form = Parameterization(**{f.name: getattr(args, f.name) for f in dataclasses.fields(Parameterization)})
-    res = bench_parameterization(form, study_seed=args.study_seed, window_seconds=args.window_seconds, seed=args.seed)
-    print(format_fit(res))
+        res = bench_fit_delayed(n_subjects=args.subjects, seed=args.seed, chains=args.chains, draws=args.draws,
+                                tune=args.tune, delayed_priors=DelayedPriors(R_population=args.R_population),
+                                delayed_form=DelayedForm(rho=args.rho_form), nuts={"adaptation": args.adaptation})
+        print(format_fit_delayed(res))
+    else:
+        from models.bayes.hierarchical import Parameterization
+        from pipelines.bench.fit import bench_parameterization, format_fit
+
+        form = Parameterization(**{f.name: getattr(args, f.name) for f in dataclasses.fields(Parameterization)})
+        res = bench_parameterization(form, study_seed=args.study_seed, window_seconds=args.window_seconds,
+                                     seed=args.seed)
+        print(format_fit(res))
     if args.json:
         from pipelines.storage import write_text_atomic
 

@@ -77,6 +77,8 @@ HUMAN_MODEL_NAMES = ("maxent", "delayed")
 MAX_DELAY_S = 0.3
 #: What ``scioc loglik`` evaluates the likelihood of (:data:`pipelines.loglik.LIKELIHOODS`, tested equal).
 LIKELIHOOD_NAMES = ("torques", "angles")
+#: The delayed model's baseline-R populations (:data:`models.bayes.delayed_model.R_POPULATIONS`, tested equal).
+R_POPULATION_NAMES = ("lognormal", "policy_scale")
 
 
 def _human_models_list(text: str) -> tuple:
@@ -339,6 +341,22 @@ def build_parser() -> argparse.ArgumentParser:
     for name, default in PARAMETERIZATION_BLOCKS.items():
         p.add_argument(f"--{name.replace('_', '-')}", choices=["centred", "noncentred", "mean"], default=default,
                        help=f"form of the {name} block (default {default})")
+    g = p.add_argument_group("--human-model delayed (how the tables in models/bayes/delayed_model.py were measured)")
+    g.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent",
+                   help="maxent (default): the forms above on the default study; delayed: one fit of a study drawn "
+                   "from the delayed human (pipelines/bench/fit_delayed.py; --seed seeds its study and its sampler, "
+                   "the options above are the maxent fit's)")
+    g.add_argument("--subjects", type=_positive_int, default=42, help="subjects of the delayed study (default 42)")
+    g.add_argument("--chains", type=_positive_int, default=4, help="chains (default 4)")
+    g.add_argument("--draws", type=_positive_int, default=1000, help="draws per chain (default 1000)")
+    g.add_argument("--tune", type=_positive_int, default=1000, help="tuning draws per chain (default 1000)")
+    g.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal",
+                   help="population of the subjects' baseline R (default lognormal; policy_scale: R^(-1/2) "
+                   "half-normal)")
+    g.add_argument("--rho-form", choices=["centred", "noncentred", "folded"], default="folded",
+                   help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
+    g.add_argument("--adaptation", choices=["low_rank", "diag"], default="low_rank",
+                   help="nutpie's mass matrix (default low_rank, the delayed fit's)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
     p.set_defaults(func=commands.cmd_bench_fit)
     return parser

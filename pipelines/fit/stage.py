@@ -298,14 +298,13 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         timing["adequacy_s"] = time.perf_counter() - t0
 
     timing["total_s"] = time.perf_counter() - t_start
+    if res.get("truth") is not None:  # the truth and the study from the fit folder: true after a run moves it
+        res["truth"]["source"] = os.path.relpath(truth_dir, out)
     sidecar = {
         "study": str(study_path),
-        # The study and the truth from the fit folder: true after a run's staged folder is moved into place.
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
-        "truth_relative": None if res.get("truth") is None else os.path.relpath(truth_dir, out),
-        "human_model": human_model,
-        "seed": int(seed),
-        "seeds": seeds,
+        "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
+        "human_model": human_model, "seed": int(seed), "seeds": seeds,
         "sampler": {**({"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')"} if delay_mode == "profile"
                        or human_model != "delayed" else
                        {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])"}),

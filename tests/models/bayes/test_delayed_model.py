@@ -117,6 +117,67 @@ def test_sigma_R_can_have_a_boundary_avoiding_gamma_prior(plant, study):
             DelayedPriors(sigma_log_R_gamma=bad)
 
 
+def test_policy_scale_population_of_R(plant, study):
+    """DelayedPriors(R_population="policy_scale"): the baseline log R is -2 log ρ, ρ ~ HalfNormal(s_ρ) per
+    subject; the level changes are the lognormal model's; the LOSO density of log R is that law's."""
+    from scipy import integrate, stats
+
+    from models.bayes.delayed_loo import DelayedSubjectTerms
+    from models.bayes.delayed_model import DelayedPriors
+    from models.bayes.hierarchical import Priors
+
+    w = study
+    dp = DelayedPriors(R_population="policy_scale")
+    model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, delayed_priors=dp,
+                                delayed_form=DelayedForm(rho="centred"))
+    lognormal = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
+    names = {v.name for v in model.free_RVs}
+    assert names - {v.name for v in lognormal.free_RVs} == {"rho_scale", "rho"}
+    assert {v.name for v in lognormal.free_RVs} - names == {"mu_log_R", "sigma_log_R", "z_log_R_MC"}
+    assert model.named_vars_to_dims["rho"] == ("subject",)
+    assert dp.rho_prior_scale(Priors()) == pytest.approx(2.0 * np.exp(-1.5))
+    # The deterministic log R: baseline -2 log ρ, the other level baseline + β_R + σ_βR z.
+    point = _point(model, 9)
+    outs = model.replace_rvs_by_values([model[v] for v in ("log_R", "rho", "beta_log_R", "sigma_beta_log_R")])
+    lR, rho, bR, sbR = model.compile_fn(outs, inputs=model.value_vars, on_unused_input="ignore")(point)
+    np.testing.assert_allclose(lR[:, 0], -2.0 * np.log(rho), rtol=1e-12)
+    np.testing.assert_allclose(lR[:, 1], lR[:, 0] + bR + sbR * point["z_log_R_SC"], rtol=1e-12)
+    assert float(pm.logp(model["rho"], np.array([0.1, 0.2, 0.3])).sum().eval({model["rho_scale"]: 0.4})) == \
+        pytest.approx(stats.halfnorm(scale=0.4).logpdf([0.1, 0.2, 0.3]).sum(), rel=1e-10)
+    # The LOSO density of the baseline log R: the law of -2 log ρ (integrates to 1, matches draws).
+    post = {"tau_nm": np.full((2, 3), 0.05), "sigma_m": np.full((2, 3), 0.2), "tau_nm_scale": np.full(2, 0.1),
+            "sigma_m_scale": np.full(2, 0.3), "rho_scale": np.array([0.2, 0.5])}
+    terms = DelayedSubjectTerms(post, prepare_batch(plant, w.segments), plant, w.delay)
+    for s, scale in enumerate(post["rho_scale"]):
+        mass = integrate.quad(lambda x: np.exp(terms.baseline_log_R_logpdf(np.array([x]))[s, 0]), -20, 60,
+                              points=[-2 * np.log(scale)], limit=200)[0]
+        assert mass == pytest.approx(1.0, rel=1e-7)
+        x = -2.0 * np.log(stats.halfnorm(scale=scale).rvs(200_000, random_state=np.random.default_rng(s)))
+        lo, hi = np.quantile(x, [0.25, 0.75])
+        cdf = integrate.quad(lambda v: np.exp(terms.baseline_log_R_logpdf(np.array([v]))[s, 0]), lo, hi)[0]
+        assert cdf == pytest.approx(0.5, abs=0.005)
+    # The lognormal model's terms have no such density: subject_loglik uses N(μ_R, σ_R).
+    assert not hasattr(DelayedSubjectTerms({k: v for k, v in post.items() if k != "rho_scale"},
+                                           prepare_batch(plant, w.segments), plant, w.delay),
+                       "baseline_log_R_logpdf")
+    # The folded form: ρ = s_ρ |z| with z ~ N(0, 1), starting at z = 1 (z = 0 would be R = ∞).
+    folded = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, delayed_priors=dp)
+    assert DelayedForm().rho == "folded" and {v.name for v in folded.free_RVs} - names == {"z_rho"}
+    start = folded.initial_point()
+    np.testing.assert_array_equal(start["z_rho"], np.ones(3))
+    assert np.isfinite(folded.compile_logp()(start))
+    start["z_rho"] = np.array([-0.5, 0.7, 2.0])
+    outs = folded.replace_rvs_by_values([folded["rho"], folded["rho_scale"]])
+    rho, scale = folded.compile_fn(outs, inputs=folded.value_vars, on_unused_input="ignore")(start)
+    np.testing.assert_allclose(rho, scale * np.array([0.5, 0.7, 2.0]), rtol=1e-12)
+    with pytest.raises(ValueError, match="folded"):
+        DelayedForm(tau_nm="folded")
+    with pytest.raises(ValueError, match="R_population"):
+        DelayedPriors(R_population="flat")
+    with pytest.raises(ValueError, match="policy_scale"):
+        DelayedPriors(R_population="policy_scale", sigma_log_R_gamma=(2.0, 4.0))
+
+
 @pytest.mark.slow
 def test_short_fit_recovers_lag_and_motor_noise(plant):
     """4 subjects of the delayed human (each its own lag; motor noise 0.25 N·m), 2 chains × 300 draws: every

@@ -28,3 +28,18 @@ def test_bench_quick_writes_json(tmp_path, capsys):
     ex = res["example"]
     assert ex["units"] == 48 and ex["segments"] == 144 and ex["samples_per_segment"] == 2400
     assert ex["identify_s"] > 0 and "fit_s" not in ex
+
+
+def test_bench_fit_of_the_delayed_human_records_its_settings(tmp_path, capsys):
+    """``scioc bench-fit --human-model delayed``: the variant asked for is the one fitted, and the JSON says which."""
+    path = tmp_path / "fit.json"
+    argv = ["bench-fit", "--human-model", "delayed", "--subjects", "2", "--chains", "1", "--draws", "20", "--tune",
+            "20", "--R-population", "policy_scale", "--rho-form", "folded", "--adaptation", "diag", "--json", str(path)]
+    assert main(argv) == 0
+    res = json.loads(path.read_text())
+    st = res["settings"]
+    assert st["segments"] == 4 and (st["chains"], st["draws"], st["tune"]) == (1, 20, 20)
+    assert st["delayed_priors"]["R_population"] == "policy_scale" and st["delayed_form"]["rho"] == "folded"
+    assert st["nuts"] == {"adaptation": "diag"}
+    assert "rho_scale" in res["diagnostics"]["population"] and "mu_log_R" not in res["diagnostics"]["population"]
+    assert "baseline R population: policy_scale (ρ folded); mass matrix: diag" in capsys.readouterr().out

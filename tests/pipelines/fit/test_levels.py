@@ -87,7 +87,9 @@ def test_three_level_fit_with_trials(three_level_fit):
     assert "trial" in pd.read_parquet(sim["truth"]).columns
     tr = res["truth"]
     side = json.loads((fit / "posterior.json").read_text())
-    assert (fit / side["truth_relative"]).resolve() == Path(tr["source"]).resolve()  # the truth, found from the fit
+    # The truth, found from the fit folder (relative paths: a run stages its folders, then moves them).
+    assert tr["source"] == side["truth_relative"]
+    assert (fit / tr["source"]).resolve() == Path(sim["truth"]).parent.resolve()
     assert {lv: tr["contrasts"][lv]["beta"]["truth"] for lv in ("weak", "strong")} == {"weak": -0.3, "strong": -0.8}
     assert tr["contrasts"]["strong"]["subjects"]["n"] == 4
     assert tr["population"]["mu_log_R"]["truth"] == pytest.approx(math.log(20.0) + math.log(0.5))

@@ -1,0 +1,206 @@
+"""Population blocks of the ``delayed`` model: its hyperpriors, the forms of its blocks, and the blocks.
+
+:mod:`models.bayes.delayed_model` builds the model from these: the max-ent cost blocks
+(:func:`cost_blocks`, :mod:`models.bayes.blocks`), with the subjects' baseline R either
+log-normal, as the max-ent model's, or through its policy-noise scale ρ = R^(-1/2)
+(:class:`DelayedPriors`), and the per-subject lag and motor noise (:func:`motor_blocks`).
+Why these forms: :mod:`models.bayes.delayed_model`, "Geometry"; the measurements of the
+population of R follow.
+
+σ_R's prior (measured 2026-12-02 with the half-normal τ_nm population, as
+``pipelines.bench.fit_delayed.bench_fit_delayed(n_subjects=12, chains=2, draws=300,
+tune=300, seed=1, ...)``, a calibration run on the machine's two cores beside it)::
+
+    σ_R prior          log R MC / SC   steps/draw  div  σ_R R-hat, ESS   ESS of unit log R, σ_m (min)
+    HalfNormal(0.5)    NC / NC         31.8        0    1.107, 12        37, 78       <- default
+    Gamma(2, rate 4)   NC / NC         27.9        0    1.021, 42        76, 213
+    Gamma(2, rate 4)   C / C           27.5        12   1.054, 41        28, 39
+    Gamma(2, rate 4)   NC / NC         27.1        1    1.159, 11        23, 108
+      and σ_βR ~ Gamma(2, rate 10)
+
+A Gamma prior of shape 2 (``DelayedPriors(sigma_log_R_gamma=(2, 4))``: density 0 at
+σ_R = 0, mean 0.5 like the half-normal's scale) removes the region near 0 where a chain
+sat. Its one run helped every slow quantity, but the last row (the same prior on σ_R, and
+a Gamma on σ_βR as well; an experiment, not an option) fell back to ESS 11: with one seed
+of 600 draws per row the prior's effect is not established, and σ_R does not mix in any
+form tried. Not the default.
+
+The policy-noise scale instead of log R (measured 2026-12-02 beside a calibration run, as
+``scioc bench-fit --human-model delayed --subjects 12 --chains 2 --draws 300 --tune 300
+--seed 1 --R-population policy_scale --rho-form F --adaptation A``; the first row is the
+σ_R table's default). ``DelayedPriors(R_population="policy_scale")`` replaces each subject's
+baseline log R ~ N(μ_R, σ_R) by ρ = R^(-1/2) ~ HalfNormal(s_ρ): the direction the data
+leave open (R -> ∞ at a slightly shorter lag) becomes ρ -> 0, a finite interval, and
+a human without policy noise is in the population::
+
+    baseline R           form, mass matrix   steps/draw  div  worst population (R-hat, ESS)   unit log R (R-hat, ESS)
+    log R ~ N(μ_R, σ_R)  NC, low rank        31.8        0    σ_R 1.107, 12                   -, 37
+    ρ ~ HalfN(s_ρ)       centred, low rank   41.4        0    σ_β 1.036, 85                   1.451, 4
+    ρ ~ HalfN(s_ρ)       folded, low rank    86.3        0    s_ρ 1.032, 100                  1.022, 99
+    ρ ~ HalfN(s_ρ)       folded, diagonal    81.6        0    s_ρ 1.017, 101                  1.016, 133
+
+(``folded``: z ~ N(0, 1), ρ = s_ρ |z|, :class:`DelayedForm`; these two rows ran before z's
+initial point was set to 1, from nutpie's jittered start.) Centred, PyMC's log transform
+stretches ρ -> 0 into an infinite tail of log ρ and the units stall (one subject's ρ at
+ESS 4). Folded, every block mixes (R-hat <= 1.032, every unit ESS >= 99; β's truth, τ_nm's
+for 11 of 12 and σ_m's for 12 of 12 inside their 94 % HDIs): per gradient about three times
+the ESS of the lognormal population's worst parameter, but at 2.6 times the leapfrog steps
+per draw, which puts a full-size fit at about an hour on this machine. Not the default yet:
+it has not been run at full size, and the step count is the next thing to understand.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pymc as pm
+import pytensor.tensor as pt
+
+from models.bayes.blocks import Parameterization, unit_block
+from models.bayes.hierarchical import Priors
+
+#: Population parameters of the lag and motor-noise blocks (and of ρ, with ``R_population="policy_scale"``).
+DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
+#: The populations of the subjects' baseline R (:class:`DelayedPriors`).
+R_POPULATIONS = ("lognormal", "policy_scale")
+
+
+@dataclass(frozen=True)
+class DelayedPriors:
+    """Hyperpriors of the lag and motor-noise blocks (rate-free: τ_nm in s, σ_m in N·m per sample).
+
+    Attributes
+    ----------
+    tau_nm_scale : float
+        Scale of the HalfNormal prior on s_τ, the population scale of τ_nm, s.
+    sigma_m_scale : float
+        Scale of the HalfNormal prior on s_m, the population scale of σ_m, N·m.
+    sigma_log_R_gamma : (float, float) or None
+        Shape and rate of a Gamma prior on σ_R, the between-subject SD of log R, in place
+        of the cost blocks' HalfNormal(``Priors.sigma_log_R``); None (default) keeps the
+        half-normal. A Gamma of shape 2 has density 0 at σ_R = 0 (a boundary-avoiding
+        prior, Chung et al. 2013), meant to remove the neck near 0 where the sampler stalled;
+        its help is not established (module docstring).
+    R_population : {"lognormal", "policy_scale"}
+        The population of each subject's baseline R. ``lognormal`` (the max-ent model's):
+        log R[i, baseline] ~ N(μ_R, σ_R). ``policy_scale``: ρ[i] = R[i, baseline]^(-1/2),
+        the scale of the subject's max-ent (policy) noise at given gains, ρ[i] ~
+        HalfNormal(s_ρ) (``rho``, ``rho_scale``), so that a human without policy noise
+        (ρ = 0, R = ∞, as KBL's) is inside the population and the direction the data do not
+        fix (policy against motor noise, :mod:`models.bayes.delayed_model` "Geometry") is bounded. The
+        changes of log R across levels are the same in both.
+    rho_scale_factor : float
+        s_ρ ~ HalfNormal(``rho_scale_factor`` × exp(-μ/2)), μ the centre of ``Priors.mu_log_R``
+        (:meth:`rho_prior_scale`; so it follows :meth:`Priors.for_design`'s sample time).
+    """
+
+    tau_nm_scale: float = 0.1
+    sigma_m_scale: float = 0.3
+    sigma_log_R_gamma: tuple[float, float] | None = None
+    R_population: str = "lognormal"
+    rho_scale_factor: float = 2.0
+
+    def __post_init__(self):
+        g = self.sigma_log_R_gamma
+        if g is not None and not (len(g) == 2 and all(np.isfinite(v) and v > 0 for v in g)):
+            raise ValueError(f"sigma_log_R_gamma must be (shape, rate), both > 0; got {g!r}")
+        if self.R_population not in R_POPULATIONS:
+            raise ValueError(f"R_population must be one of {R_POPULATIONS}; got {self.R_population!r}")
+        if self.R_population == "policy_scale" and g is not None:
+            raise ValueError("sigma_log_R_gamma is a prior of the lognormal R population; "
+                             "R_population='policy_scale' has no σ_R")
+        if not (np.isfinite(self.rho_scale_factor) and self.rho_scale_factor > 0):
+            raise ValueError(f"rho_scale_factor must be > 0; got {self.rho_scale_factor!r}")
+
+    def rho_prior_scale(self, priors: Priors) -> float:
+        """Scale of the HalfNormal prior on s_ρ: ``rho_scale_factor`` × exp(-μ/2), μ the centre of ``priors.mu_log_R``."""
+        return float(self.rho_scale_factor * np.exp(-0.5 * priors.mu_log_R[0]))
+
+
+@dataclass(frozen=True)
+class DelayedForm:
+    """Centred or non-centred form of the lag and motor-noise blocks.
+
+    ``centred`` samples the subject's value, τ_nm[i] ~ HalfNormal(s_τ) (σ_m[i] ~
+    HalfNormal(s_m)); ``noncentred`` samples z[i] ~ HalfNormal(1) and sets s_τ z[i] (s_m z[i]).
+    ``rho`` is the form of ρ = R^(-1/2) with ``DelayedPriors(R_population="policy_scale")``
+    (unused otherwise): ``centred``, ``noncentred``, or ``folded`` (default), z[i] ~ N(0, 1) and
+    ρ[i] = s_ρ |z[i]| (the same half-normal law, with z unconstrained where the log transform of
+    a half-normal stretches ρ -> 0 to an infinite tail; measured in the module docstring).
+    """
+
+    tau_nm: str = "centred"
+    sigma_m: str = "centred"
+    rho: str = "folded"
+
+    def __post_init__(self):
+        for name in ("tau_nm", "sigma_m", "rho"):
+            if getattr(self, name) not in ("centred", "noncentred") + (("folded",) if name == "rho" else ()):
+                raise ValueError(f"DelayedForm.{name} must be 'centred' or 'noncentred' (or 'folded', rho only); "
+                                 f"got {getattr(self, name)!r}")
+
+
+def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: "DelayedForm"):
+    """The subjects' baseline log R as -2 log ρ, ρ = R^(-1/2) ~ HalfNormal(s_ρ) (``R_population="policy_scale"``)."""
+    scale = pm.HalfNormal("rho_scale", delayed_priors.rho_prior_scale(priors))
+    if form.rho == "centred":
+        rho = pm.HalfNormal("rho", scale, dims="subject")
+    elif form.rho == "noncentred":
+        rho = pm.Deterministic("rho", scale * pm.HalfNormal("z_rho", 1.0, dims="subject"), dims="subject")
+    else:  # folded: ρ = s_ρ |z|, z ~ N(0, 1) unconstrained, so ρ -> 0 is a finite step, not log ρ -> -∞;
+        # the initial point z = 1, not the prior's centre z = 0 (R = ∞, a human without any policy noise).
+        n = len(pm.modelcontext(None).coords["subject"])
+        z = pm.Normal("z_rho", 0.0, 1.0, dims="subject", initval=np.ones(n))
+        rho = pm.Deterministic("rho", scale * pt.abs(z), dims="subject")
+    return -2.0 * pt.log(rho)
+
+
+def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict,
+                 delayed_priors: DelayedPriors = None, delayed_form: DelayedForm = None):
+    """The population parameters and unit blocks of θ, as :func:`models.bayes.hierarchical.build_model` has them
+    (σ_R Gamma(shape, rate) instead of half-normal with ``sigma_log_R_gamma``; the baseline log R from a
+    half-normal ρ = R^(-1/2) with ``R_population="policy_scale"``: :class:`DelayedPriors`)."""
+    delayed_priors = DelayedPriors() if delayed_priors is None else delayed_priors
+    delayed_form = DelayedForm() if delayed_form is None else delayed_form
+    sigma_R_gamma = delayed_priors.sigma_log_R_gamma
+    mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
+    beta = pm.Normal("beta", 0.0, priors.beta_sd, **effect)
+    sigma = pm.HalfNormal("sigma_log_theta1", priors.sigma_log_theta1)
+    sigma_b = pm.HalfNormal("sigma_beta", priors.sigma_beta, **effect)
+    beta_R = pm.Normal("beta_log_R", 0.0, priors.beta_log_R_sd, **effect)
+    sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R, **effect)
+    if delayed_priors.R_population == "policy_scale":
+        mu_R, sigma_R, form_R = baseline_log_R(priors, delayed_priors, delayed_form), None, "given"
+    else:
+        mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
+        sigma_R = (pm.HalfNormal("sigma_log_R", priors.sigma_log_R) if sigma_R_gamma is None
+                   else pm.Gamma("sigma_log_R", alpha=sigma_R_gamma[0], beta=sigma_R_gamma[1]))
+        form_R = form.R_mc
+    tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
+    log_theta1 = unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc, n_levels)
+    log_R = unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form_R, form.R_sc, n_levels)
+    if form.theta2 == "centred":
+        theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))
+    else:
+        theta2 = pm.Deterministic("theta2", tau * pm.HalfNormal("z_theta2", 1.0, dims=("subject", "condition")),
+                                  dims=("subject", "condition"))
+    pm.Deterministic("theta1", pt.exp(log_theta1), dims=("subject", "condition"))
+    R = pm.Deterministic("R", pt.exp(log_R), dims=("subject", "condition"))
+    return log_theta1, log_R, theta2, R
+
+
+def motor_blocks(priors: DelayedPriors, form: DelayedForm):
+    """τ_nm and σ_m per subject, each from a half-normal population (module docstring)."""
+    out = []
+    for name, scale_name, f in (("tau_nm", "tau_nm_scale", form.tau_nm), ("sigma_m", "sigma_m_scale", form.sigma_m)):
+        scale = pm.HalfNormal(scale_name, getattr(priors, scale_name))
+        if f == "centred":
+            out.append(pm.HalfNormal(name, scale, dims="subject"))
+        else:
+            out.append(pm.Deterministic(name, scale * pm.HalfNormal(f"z_{name}", 1.0, dims="subject"), dims="subject"))
+    return tuple(out)
+
+
+__all__ = ["DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors", "R_POPULATIONS", "baseline_log_R",
+           "cost_blocks", "motor_blocks"]

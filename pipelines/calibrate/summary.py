@@ -125,6 +125,8 @@ def format_summary(summary: dict) -> str:
         contraction = "-" if p["contraction"] is None else f"{p['contraction']:.3f}"
         lines.append(f"  {name:>18}: KS p = {p['p_value']:.3g} (alpha {p['alpha']:.3g}) "
                      f"{'ok' if p['passed'] else 'NOT UNIFORM'}; coverage {cov}; contraction {contraction}")
-    lines.append(f"  wall time {summary['wall_seconds_this_run']:.0f} s this run, {summary['wall_seconds_total']:.0f} s in all; "
+    # The replications' own times survive an interrupted run; the wall times count only finished invocations.
+    lines.append(f"  wall time {summary['wall_seconds_this_run']:.0f} s this run, {summary['wall_seconds_total']:.0f} s "
+                 f"over the finished invocations; the replications' own fits {summary['fit_seconds_total']:.0f} s; "
                  f"divergences {summary['divergences']}")
     return "\n".join(lines)

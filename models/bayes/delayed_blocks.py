@@ -64,6 +64,9 @@ from models.bayes.hierarchical import Priors
 DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 #: The populations of the subjects' baseline R (:class:`DelayedPriors`).
 R_POPULATIONS = ("lognormal", "policy_scale")
+#: The forms of τ_nm and σ_m, and of ρ (:class:`DelayedForm`).
+MOTOR_FORMS = ("centred", "noncentred")
+RHO_FORMS = ("centred", "noncentred", "folded")
 
 
 @dataclass(frozen=True)
@@ -135,13 +138,12 @@ class DelayedForm:
     rho: str = "folded"
 
     def __post_init__(self):
-        for name in ("tau_nm", "sigma_m", "rho"):
-            if getattr(self, name) not in ("centred", "noncentred") + (("folded",) if name == "rho" else ()):
-                raise ValueError(f"DelayedForm.{name} must be 'centred' or 'noncentred' (or 'folded', rho only); "
-                                 f"got {getattr(self, name)!r}")
+        for name, allowed in (("tau_nm", MOTOR_FORMS), ("sigma_m", MOTOR_FORMS), ("rho", RHO_FORMS)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"DelayedForm.{name} must be one of {allowed}; got {getattr(self, name)!r}")
 
 
-def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: "DelayedForm"):
+def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedForm):
     """The subjects' baseline log R as -2 log ρ, ρ = R^(-1/2) ~ HalfNormal(s_ρ) (``R_population="policy_scale"``)."""
     scale = pm.HalfNormal("rho_scale", delayed_priors.rho_prior_scale(priors))
     if form.rho == "centred":
@@ -156,13 +158,11 @@ def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: "Delayed
     return -2.0 * pt.log(rho)
 
 
-def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict,
-                 delayed_priors: DelayedPriors = None, delayed_form: DelayedForm = None):
+def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict, delayed_priors: DelayedPriors,
+                delayed_form: DelayedForm):
     """The population parameters and unit blocks of θ, as :func:`models.bayes.hierarchical.build_model` has them
     (σ_R Gamma(shape, rate) instead of half-normal with ``sigma_log_R_gamma``; the baseline log R from a
     half-normal ρ = R^(-1/2) with ``R_population="policy_scale"``: :class:`DelayedPriors`)."""
-    delayed_priors = DelayedPriors() if delayed_priors is None else delayed_priors
-    delayed_form = DelayedForm() if delayed_form is None else delayed_form
     sigma_R_gamma = delayed_priors.sigma_log_R_gamma
     mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
     beta = pm.Normal("beta", 0.0, priors.beta_sd, **effect)
@@ -202,5 +202,5 @@ def motor_blocks(priors: DelayedPriors, form: DelayedForm):
     return tuple(out)
 
 
-__all__ = ["DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors", "R_POPULATIONS", "baseline_log_R",
-           "cost_blocks", "motor_blocks"]
+__all__ = ["DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors", "MOTOR_FORMS", "RHO_FORMS",
+           "R_POPULATIONS", "baseline_log_R", "cost_blocks", "motor_blocks"]

@@ -102,11 +102,15 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
     """
     plant = discretize(DT_HUMAN)
     w = delayed_windows(n_subjects, np.random.default_rng(np.random.SeedSequence(seed)))
-    kw = {k: v for k, v in (("delayed_form", delayed_form), ("parameterization", parameterization),
-                            ("delayed_priors", delayed_priors)) if v is not None}
+    # The defaults resolved once: the model is built with them and the JSON records them.
+    delayed_priors = DelayedPriors() if delayed_priors is None else delayed_priors
+    delayed_form = DelayedForm() if delayed_form is None else delayed_form
+    parameterization = DELAYED_PARAMETERIZATION if parameterization is None else parameterization
     nuts = DELAYED_NUTS if nuts is None else nuts
     t0 = time.perf_counter()
-    model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, tau0=w.tau0, **kw)
+    model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, tau0=w.tau0,
+                                delayed_priors=delayed_priors, delayed_form=delayed_form,
+                                parameterization=parameterization)
     t1 = time.perf_counter()
     idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, log_likelihood=False,
                               nuts=nuts)
@@ -128,9 +132,8 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
     return {"settings": {"segments": len(w.segments), "K": w.segments[0].K, "preview_steps": w.segments[0].preview,
                          "chains": chains, "draws": draws, "tune": tune, "seed": seed, "cpus": os.cpu_count(),
                          "delays": [int(w.delay.min()), int(w.delay.max())],
-                         "delayed_priors": asdict(delayed_priors or DelayedPriors()),
-                         "delayed_form": asdict(delayed_form or DelayedForm()),
-                         "parameterization": asdict(parameterization or DELAYED_PARAMETERIZATION),
+                         "delayed_priors": asdict(delayed_priors), "delayed_form": asdict(delayed_form),
+                         "parameterization": asdict(parameterization),
                          "nuts": dict(nuts) or {"adaptation": "diag (nutpie's default)"}},
             "seconds": {"build": t1 - t0, "compile_and_sample": sec["compile_and_sample"], "sample": sec["sample"],
                         "fit": fit_s},

@@ -79,6 +79,8 @@ MAX_DELAY_S = 0.3
 LIKELIHOOD_NAMES = ("torques", "angles")
 #: The delayed model's baseline-R populations (:data:`models.bayes.delayed_model.R_POPULATIONS`, tested equal).
 R_POPULATION_NAMES = ("lognormal", "policy_scale")
+#: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
+RHO_FORM_NAMES = ("centred", "noncentred", "folded")
 
 
 def _human_models_list(text: str) -> tuple:
@@ -341,7 +343,8 @@ def build_parser() -> argparse.ArgumentParser:
     for name, default in PARAMETERIZATION_BLOCKS.items():
         p.add_argument(f"--{name.replace('_', '-')}", choices=["centred", "noncentred", "mean"], default=default,
                        help=f"form of the {name} block (default {default})")
-    g = p.add_argument_group("--human-model delayed (how the tables in models/bayes/delayed_model.py were measured)")
+    g = p.add_argument_group("--human-model delayed (how the population-of-R tables in models/bayes/delayed_blocks.py "
+                             "were measured)")
     g.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent",
                    help="maxent (default): the forms above on the default study; delayed: one fit of a study drawn "
                    "from the delayed human (pipelines/bench/fit_delayed.py; --seed seeds its study and its sampler, "
@@ -353,7 +356,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal",
                    help="population of the subjects' baseline R (default lognormal; policy_scale: R^(-1/2) "
                    "half-normal)")
-    g.add_argument("--rho-form", choices=["centred", "noncentred", "folded"], default="folded",
+    g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
     g.add_argument("--adaptation", choices=["low_rank", "diag"], default="low_rank",
                    help="nutpie's mass matrix (default low_rank, the delayed fit's)")

@@ -11,11 +11,12 @@ import pytest
 from models.delayed import (DELAY_GRID_S, Warmup, forward_delayed, identify_unit_delayed, lag_coefficients, loglik_grad,
                             window_loglik, window_tau0)
 from models.maxent import forward_optimal_control
+from models.bayes.delayed_blocks import R_POPULATIONS, RHO_FORMS
 from models.design import STUDY
 from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.cli import main
-from pipelines.cli.parser import HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES
+from pipelines.cli.parser import HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES, RHO_FORM_NAMES
 from pipelines.identify import identify_to_dir
 from pipelines.loglik import LIKELIHOODS
 from pipelines.io import load_study
@@ -42,9 +43,7 @@ def settings(human_model="delayed", **kw):
 def test_the_names_the_parser_spells_are_the_pipelines():
     assert HUMAN_MODEL_NAMES == HUMAN_MODELS
     assert LIKELIHOOD_NAMES == LIKELIHOODS
-    from models.bayes.delayed_model import R_POPULATIONS
-
-    assert R_POPULATION_NAMES == R_POPULATIONS
+    assert R_POPULATION_NAMES == R_POPULATIONS and RHO_FORM_NAMES == RHO_FORMS
     assert MAX_DELAY_S == DELAY_GRID_S[-1]
 
 

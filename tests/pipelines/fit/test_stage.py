@@ -120,8 +120,12 @@ def test_same_seed_same_results(small_fit, tmp_path):
     for v in ("beta", "log_theta1", "log_R", "theta2"):
         np.testing.assert_array_equal(a["posterior"][v].values, b["posterior"][v].values)
     np.testing.assert_array_equal(a["log_likelihood"]["u_H"].values, b["log_likelihood"]["u_H"].values)
-    assert (json.loads((root / "fit" / "contrasts.json").read_text())
-            == json.loads((tmp_path / "again" / "contrasts.json").read_text()))
+    ca, cb = (json.loads((d / "contrasts.json").read_text()) for d in (root / "fit", tmp_path / "again"))
+    # The truth's source is written relative to its own fit folder, and these two folders sit in
+    # different places: the paths differ, the folder they name must not.
+    sa, sb = ca["truth"].pop("source"), cb["truth"].pop("source")
+    assert (root / "fit" / sa).resolve() == (tmp_path / "again" / sb).resolve() == Path(sim["study"]).parent.resolve()
+    assert ca == cb
     pd.testing.assert_frame_equal(pd.read_parquet(root / "fit" / "ppc.parquet"),
                                   pd.read_parquet(tmp_path / "again" / "ppc.parquet"))
     for group in ("posterior_predictive", "constant_data"):
@@ -187,6 +191,7 @@ def test_fit_options_are_validated(tiny_study):
 @pytest.mark.slow
 def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
     """SIGINT while sampling: exit 130 within seconds, the previous results untouched, no temporary folder."""
+    import os
     import signal
     import subprocess
     import sys
@@ -198,12 +203,18 @@ def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
     (out / "contrasts.json").write_text('{"old": true}')
     cmd = [sys.executable, "-m", "pipelines.cli", "fit", str(root / "data" / "study.parquet"), "--out", str(out),
            "--force", "--draws", "200000", "--tune", "200", "--chains", "2", "--window", "20,5"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # PYTHONFAULTHANDLER: if it does not stop, SIGABRT makes it print where every thread is.
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONFAULTHANDLER": "1"})
     time.sleep(25)  # well into compiling or sampling: 200000 draws take far longer
     assert proc.poll() is None, proc.communicate()
     t0 = time.perf_counter()
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGABRT)
+        pytest.fail("still running 60 s after SIGINT; its threads:\n" + proc.communicate(timeout=60)[1][-8000:])
     assert proc.returncode == 130, err[-2000:]
     assert time.perf_counter() - t0 < 30
     assert "interrupted" in err

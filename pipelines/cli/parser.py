@@ -80,7 +80,7 @@ LIKELIHOOD_NAMES = ("torques", "angles")
 #: The delayed model's baseline-R populations (:data:`models.bayes.delayed_model.R_POPULATIONS`, tested equal).
 R_POPULATION_NAMES = ("lognormal", "policy_scale")
 #: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
-RHO_FORM_NAMES = ("centred", "noncentred", "folded")
+RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred")
 
 
 def _human_models_list(text: str) -> tuple:

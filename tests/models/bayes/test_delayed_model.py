@@ -170,6 +170,20 @@ def test_policy_scale_population_of_R(plant, study):
     outs = folded.replace_rvs_by_values([folded["rho"], folded["rho_scale"]])
     rho, scale = folded.compile_fn(outs, inputs=folded.value_vars, on_unused_input="ignore")(start)
     np.testing.assert_allclose(rho, scale * np.array([0.5, 0.7, 2.0]), rtol=1e-12)
+    # Folded and centred: ρ = |ρ̃|, ρ̃ ~ N(0, s_ρ), starting at ρ = exp(-μ/2) (R at the prior's centre).
+    fc = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, delayed_priors=dp,
+                             delayed_form=DelayedForm(rho="folded_centred"))
+    assert {v.name for v in fc.free_RVs} - names == {"rho_signed"}
+    start = fc.initial_point()
+    np.testing.assert_allclose(start["rho_signed"], np.full(3, np.exp(-0.5 * Priors().mu_log_R[0])), rtol=1e-12)
+    assert np.isfinite(fc.compile_logp()(start))
+    start["rho_signed"] = np.array([-0.05, 0.07, 0.2])
+    outs = fc.replace_rvs_by_values([fc["rho"], fc["log_R"]])
+    rho, lR = fc.compile_fn(outs, inputs=fc.value_vars, on_unused_input="ignore")(start)
+    np.testing.assert_allclose(rho, [0.05, 0.07, 0.2], rtol=1e-12)
+    np.testing.assert_allclose(lR[:, 0], -2.0 * np.log(rho), rtol=1e-12)
+    assert float(pm.logp(fc["rho_signed"], np.array([-0.1, 0.3])).sum().eval({fc["rho_scale"]: 0.4})) == \
+        pytest.approx(stats.norm(scale=0.4).logpdf([-0.1, 0.3]).sum(), rel=1e-10)
     with pytest.raises(ValueError, match="folded"):
         DelayedForm(tau_nm="folded")
     with pytest.raises(ValueError, match="R_population"):

@@ -43,11 +43,12 @@ a human without policy noise is in the population::
 (``folded``: z ~ N(0, 1), ρ = s_ρ |z|, :class:`DelayedForm`; these two rows ran before z's
 initial point was set to 1, from nutpie's jittered start. ``folded centred``: ρ̃ ~ N(0, s_ρ),
 ρ = |ρ̃|, measured 2026-12-02 beside a two-worker calibration run, ``--rho-form
-folded_centred``; its own slowest quantities were σ_β and σ_βR, ESS 126 and 121, and
+folded_centred``; its slowest quantities were σ_β and σ_βR, ESS 121 each (the smaller of bulk
+and tail), and
 τ_nm's truth was inside its HDI for 10 of 12 subjects, σ_m's for 11, β's yes.) Centring the
 folded form cut the steps per draw by a third but halved the worst unit log R's ESS: per
 gradient it is about as good as ``folded`` on the population and worse on the units, in one
-run each. Centred, PyMC's log transform
+run each. Centred (the second row), PyMC's log transform
 stretches ρ -> 0 into an infinite tail of log ρ and the units stall (one subject's ρ at
 ESS 4). Folded, every block mixes (R-hat <= 1.032, every unit ESS >= 99; β's truth, τ_nm's
 for 11 of 12 and σ_m's for 12 of 12 inside their 94 % HDIs): per gradient about three times
@@ -155,17 +156,16 @@ class DelayedForm:
 def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedForm):
     """The subjects' baseline log R as -2 log ρ, ρ = R^(-1/2) ~ HalfNormal(s_ρ) (``R_population="policy_scale"``)."""
     scale = pm.HalfNormal("rho_scale", delayed_priors.rho_prior_scale(priors))
+    n = len(pm.modelcontext(None).coords["subject"])
     if form.rho == "centred":
         rho = pm.HalfNormal("rho", scale, dims="subject")
     elif form.rho == "noncentred":
         rho = pm.Deterministic("rho", scale * pm.HalfNormal("z_rho", 1.0, dims="subject"), dims="subject")
     elif form.rho == "folded":  # ρ = s_ρ |z|, z ~ N(0, 1) unconstrained, so ρ -> 0 is a finite step, not
         # log ρ -> -∞; the initial point z = 1, not the prior's centre z = 0 (R = ∞, a human without policy noise).
-        n = len(pm.modelcontext(None).coords["subject"])
         z = pm.Normal("z_rho", 0.0, 1.0, dims="subject", initval=np.ones(n))
         rho = pm.Deterministic("rho", scale * pt.abs(z), dims="subject")
     else:  # folded_centred: ρ = |ρ̃|, ρ̃ ~ N(0, s_ρ) unconstrained; starts at ρ = exp(-μ/2), R at the prior's centre.
-        n = len(pm.modelcontext(None).coords["subject"])
         signed = pm.Normal("rho_signed", 0.0, scale, dims="subject",
                            initval=np.full(n, np.exp(-0.5 * priors.mu_log_R[0])))
         rho = pm.Deterministic("rho", pt.abs(signed), dims="subject")

@@ -215,6 +215,11 @@ def cmd_fit(args) -> int:
         raise ValueError("--compare-to compares a delayed fit with a max-ent one: it needs --human-model delayed")
     if args.delay != "profile" and args.human_model != "delayed":
         raise ValueError("--delay sampled samples the delayed human's delays: it needs --human-model delayed")
+    if args.R_population != "lognormal" and args.human_model != "delayed":
+        raise ValueError("--R-population is the delayed model's population of R: it needs --human-model delayed")
+    if args.rho_form is not None and args.R_population != "policy_scale":
+        raise ValueError("--rho-form is the form of R^(-1/2) under --R-population policy_scale: it needs that option")
+    from models.bayes.delayed_blocks import DelayedPriors
     from pipelines.fit import fit_to_dir, format_fit  # imports PyMC (seconds): only when fitting
 
     settings, source = window_settings(args)
@@ -227,7 +232,8 @@ def cmd_fit(args) -> int:
     paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
                        settings=settings, experiment_file=source, subject=args.subject, estimates_path=args.estimates,
                        truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
-                       human_model=args.human_model, delay_mode=args.delay)
+                       human_model=args.human_model, delay_mode=args.delay,
+                       delayed_priors=DelayedPriors(R_population=args.R_population), rho_form=args.rho_form)
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")

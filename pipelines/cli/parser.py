@@ -224,6 +224,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --human-model delayed: each subject's delay fixed at its profile-likelihood maximum "
                         "(default profile; nutpie), or sampled beside the other parameters (sampled; PyMC's NUTS and a "
                         "Metropolis step for the delay: delay-marginal posteriors, slower)")
+    p.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal",
+                   help="with --human-model delayed: population of the subjects' baseline R (default lognormal; "
+                        "policy_scale: R^(-1/2) half-normal, models/bayes/delayed_blocks.py)")
+    p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
+                   help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--compare-to", metavar="MAXENT_FIT",
                    help="with --human-model delayed: a finished max-ent fit folder of the same study and settings; "
                         "after the fit, leave-one-subject-out between the two human models, beside each one's "

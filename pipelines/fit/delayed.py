@@ -228,7 +228,7 @@ def sampled_delays(idata, prepared, dt: float, grid: np.ndarray) -> Delays:
 def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
                          tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors = DelayedPriors(),
                          delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
-                         delay_mode: str = "profile") -> DelayedFit:
+                         delay_mode: str = "profile", rho_form: str | None = None) -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
@@ -237,6 +237,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     ``delay_mode`` (:data:`DELAY_MODES`): ``profile`` conditions on ``delays``; ``sampled``
     samples one delay per subject (``delays`` then only supplies the lag and noise estimates
     that choose the blocks' forms), and the returned fit's delays are the posterior modes.
+    ``rho_form`` (:data:`models.bayes.delayed_blocks.RHO_FORMS`, with ``R_population="policy_scale"``)
+    replaces the ρ form of the chosen (or given) ``delayed_form``.
     """
     if delay_mode not in DELAY_MODES:
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
@@ -246,6 +248,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         delayed_form, form_reason = choose_delayed_form(estimates if estimates is not None else delays.estimates)
     else:
         form_reason = "given"
+    if rho_form is not None:
+        delayed_form = replace(delayed_form, rho=rho_form)
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
     grid = delay_grid(float(plant.dt))

@@ -53,6 +53,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from models.bayes.delayed_blocks import DelayedPriors
 from models.bayes.hierarchical import Parameterization, Priors, build_model
 from models.identify import identify_unit
 from models.plant import discretize
@@ -136,7 +137,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
-               human_model: str | None = None, delay_mode: str = "profile") -> dict:
+               human_model: str | None = None, delay_mode: str = "profile",
+               delayed_priors: DelayedPriors = DelayedPriors(), rho_form: str | None = None) -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -181,9 +183,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         delay from the estimates' ``delay_s`` or the ML profile (:mod:`pipelines.fit.delayed`;
         no ``posterior_pooled.nc``). ``posterior.json`` records it, and for ``delayed`` the
         delay of every unit and how it was chosen.
-    delay_mode : {"profile", "sampled"}
-        ``delayed`` only (:data:`pipelines.fit.delayed.DELAY_MODES`): each subject's delay fixed at its
-        profile maximum (nutpie), or sampled (PyMC's NUTS and :class:`models.bayes.delay_step.DelayMetropolis`).
+    delay_mode, delayed_priors, rho_form
+        ``delayed`` only, as :func:`pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
+        at each subject's profile maximum or sampled, the priors (e.g. the population of R), the form of ρ.
 
     Returns
     -------
@@ -253,7 +255,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         delays = unit_delays(prepared, estimates, plant, estimates_path)
         fit = sample_delayed_model(prepared, batch, plant, priors, form, delays, seed=seeds["condition"], chains=chains,
                                    draws=draws, tune=tune, cores=cores, show_progress=show_progress,
-                                   estimates=estimates, delay_mode=delay_mode)
+                                   estimates=estimates, delay_mode=delay_mode, delayed_priors=delayed_priors,
+                                   rho_form=rho_form)
         delays = fit.delays  # sampled: each subject's posterior mode
         fits, diag, extra = {"condition": fit.idata}, {"condition": fit.diagnostics}, fit.sidecar
         timing["condition"] = fit.timing
@@ -341,9 +344,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         write_text_atomic(tmp / "contrasts.json", strict_json(res))
     names = {"posterior": "posterior.nc", "posterior_pooled": "posterior_pooled.nc", "ppc": "ppc.parquet",
              "sidecar": "posterior.json", "contrasts": "contrasts.json"}
-    if "pooled" not in fits:
-        del names["posterior_pooled"]
-    return {k: str(out / v) for k, v in names.items()}
+    return {k: str(out / v) for k, v in names.items() if k != "posterior_pooled" or "pooled" in fits}
 
 
 def _beta_lines(b: dict, r: dict, what: str) -> list:

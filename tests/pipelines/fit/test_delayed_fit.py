@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.bayes.delayed_model import DelayedForm
+from models.bayes.delayed_model import DelayedForm, DelayedPriors
 from models.design import STUDY
 from models.plant import discretize
 from pipelines.fit import fit_to_dir, format_fit
@@ -164,3 +164,22 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
     with pytest.raises(ValueError, match="delay_mode"):
         fit_to_dir(sim["study"], root / "fit_bad", settings=IdentifySettings.for_design(SENSOR), prepared=prepared,
                    human_model="maxent", delay_mode="sampled", **small)
+
+
+@pytest.mark.slow
+def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
+    # scioc fit --R-population policy_scale --rho-form folded_centred: the sidecar records the population and the ρ
+    # form, the lag and noise forms are still the data's, the posterior has ρ and no log-normal μ_R.
+    root, sim, prepared = delayed_study
+    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
+    paths = fit_to_dir(sim["study"], root / "fit_rho", settings=SETTINGS, prepared=prepared,
+                       delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="folded_centred", **small)
+    side = json.loads(open(paths["sidecar"]).read())
+    assert side["delayed_priors"]["R_population"] == "policy_scale"
+    chosen, _ = choose_delayed_form(pd.read_parquet(root / "identify" / "estimates.parquet"))
+    assert side["delayed_form"] == {**side["delayed_form"], "rho": "folded_centred", "tau_nm": chosen.tau_nm,
+                                    "sigma_m": chosen.sigma_m}
+    assert "rho_scale" in side["diagnostics"]["condition"]["population"]
+    assert "mu_log_R" not in side["diagnostics"]["condition"]["population"]
+    res = json.loads(open(paths["contrasts"]).read())
+    assert "beta" in res and res["adequacy"]["verdict"] in ("pass", "fail")

@@ -39,6 +39,17 @@ def test_compare_to_needs_the_delayed_human_model(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("options, needs", [
+    (["--R-population", "policy_scale"], "--human-model delayed"),
+    (["--human-model", "delayed", "--rho-form", "folded_centred"], "--R-population policy_scale"),
+])
+def test_the_population_of_R_and_its_form_are_the_delayed_models(tmp_path, capsys, options, needs):
+    assert _fit(tmp_path, *options) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.startswith("scioc fit: error:") and needs in err
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("case, message", [
     ("missing", "is not a finished scioc fit folder (no posterior.json, posterior.nc, contrasts.json)"),
     ("delayed", "is a delayed fit; compare with a max-ent fit"),

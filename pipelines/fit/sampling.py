@@ -89,19 +89,33 @@ def stdout_to_stderr():
 
 
 @contextlib.contextmanager
-def interrupt_guard():
+def interrupt_guard(redeliver_every: float = 1.0):
     """Note a Ctrl-C (SIGINT) even if the code inside catches it; yields a function that tells.
 
     The previous handler still runs (Python's raises KeyboardInterrupt), so the code inside
     stops as it would; afterwards the caller can refuse a result the interruption cut short.
+
+    A KeyboardInterrupt raised inside a callback from compiled code (llvmlite's object cache
+    while numba compiles, a ctypes callback) is printed and dropped, and the sampler would go
+    on for hours. So after the first Ctrl-C the signal is sent again every ``redeliver_every``
+    seconds until the code inside has stopped; nutpie returns at the first one it sees.
     """
     seen = []
     if threading.current_thread() is not threading.main_thread():
         yield lambda: False
         return
     previous = signal.getsignal(signal.SIGINT)
+    stopped = threading.Event()
+
+    def redeliver():
+        while not stopped.wait(redeliver_every):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    resender = threading.Thread(target=redeliver, name="scioc-interrupt", daemon=True)
 
     def handler(signum, frame):
+        if not seen:
+            resender.start()
         seen.append(signum)
         if callable(previous):
             previous(signum, frame)
@@ -112,4 +126,7 @@ def interrupt_guard():
     try:
         yield lambda: bool(seen)
     finally:
+        stopped.set()
+        if resender.is_alive():
+            resender.join()
         signal.signal(signal.SIGINT, previous)

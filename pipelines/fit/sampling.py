@@ -105,7 +105,7 @@ def interrupt_guard(redeliver_every: float = 1.0):
     while numba compiles, a ctypes callback) is printed and dropped, and the sampler would go
     on for hours. So after the first Ctrl-C the signal is sent again every ``redeliver_every``
     seconds until the code inside has stopped; nutpie returns at the first one it sees. Inside
-    llvmlite's callbacks it is not raised at all (measured: once in 9 tries the process then
+    llvmlite's callbacks it is not raised at all (measured: once in 12 tries the process then
     died of a segmentation fault instead of exiting 130); the next one is.
     """
     seen = []

@@ -9,7 +9,8 @@ module                     what it holds
 :mod:`.loo`                PSIS-LOO over segments and leave-one-subject-out
 :mod:`.ppc`                posterior predictive draws and ``constant_data``
 :mod:`.checks`             mixed model, truth check, adequacy at the posterior θ
-:mod:`.stage`              :func:`fit_to_dir` (the artifacts) and :func:`format_fit`
+:mod:`.stage`              :func:`fit_to_dir` (the artifacts)
+:mod:`.summary`            :func:`format_fit`: the lines ``scioc fit`` prints
 =========================  ===========================================================
 
 Importing this package imports PyMC (seconds): the CLI imports it only to fit.
@@ -17,6 +18,7 @@ Importing this package imports PyMC (seconds): the CLI imports it only to fit.
 
 from pipelines.fit.checks import mixedlm_check, truth_check
 from pipelines.fit.diagnostics import ESS_MIN, RHAT_MAX, diagnostics
-from pipelines.fit.stage import fit_to_dir, format_fit
+from pipelines.fit.stage import fit_to_dir
+from pipelines.fit.summary import format_fit
 
 __all__ = ["fit_to_dir", "format_fit", "diagnostics", "mixedlm_check", "truth_check", "ESS_MIN", "RHAT_MAX"]

@@ -71,7 +71,7 @@ from models.bayes.hierarchical import Priors
 #: Population parameters of the lag and motor-noise blocks (and of ρ, with ``R_population="policy_scale"``).
 DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 #: The populations of the subjects' baseline R (:class:`DelayedPriors`).
-R_POPULATIONS = ("lognormal", "policy_scale")
+R_POPULATIONS = ("lognormal", "policy_scale", "unpooled")
 #: The forms of τ_nm and σ_m, and of ρ (:class:`DelayedForm`).
 MOTOR_FORMS = ("centred", "noncentred")
 RHO_FORMS = ("centred", "noncentred", "folded", "folded_centred")
@@ -99,8 +99,12 @@ class DelayedPriors:
         the scale of the subject's max-ent (policy) noise at given gains, ρ[i] ~
         HalfNormal(s_ρ) (``rho``, ``rho_scale``), so that a human without policy noise
         (ρ = 0, R = ∞, as KBL's) is inside the population and the direction the data do not
-        fix (policy against motor noise, :mod:`models.bayes.delayed_model` "Geometry") is bounded. The
-        changes of log R across levels are the same in both.
+        fix (policy against motor noise, :mod:`models.bayes.delayed_model` "Geometry") is bounded.
+        ``unpooled``: no population, each subject's baseline log R ~ N(m, s) on its own, with
+        the lognormal population's marginal centre and spread (:meth:`unpooled_log_R_prior`),
+        so that no between-subject SD of log R (σ_R, the quantity that did not mix) exists;
+        the subjects' R are then not shrunk towards each other. The changes of log R across
+        levels are the same in all three.
     rho_scale_factor : float
         s_ρ ~ HalfNormal(``rho_scale_factor`` × exp(-μ/2)), μ the centre of ``Priors.mu_log_R``
         (:meth:`rho_prior_scale`; so it follows :meth:`Priors.for_design`'s sample time).
@@ -118,15 +122,26 @@ class DelayedPriors:
             raise ValueError(f"sigma_log_R_gamma must be (shape, rate), both > 0; got {g!r}")
         if self.R_population not in R_POPULATIONS:
             raise ValueError(f"R_population must be one of {R_POPULATIONS}; got {self.R_population!r}")
-        if self.R_population == "policy_scale" and g is not None:
+        if self.R_population != "lognormal" and g is not None:
             raise ValueError("sigma_log_R_gamma is a prior of the lognormal R population; "
-                             "R_population='policy_scale' has no σ_R")
+                             f"R_population={self.R_population!r} has no σ_R")
         if not (np.isfinite(self.rho_scale_factor) and self.rho_scale_factor > 0):
             raise ValueError(f"rho_scale_factor must be > 0; got {self.rho_scale_factor!r}")
 
     def rho_prior_scale(self, priors: Priors) -> float:
         """Scale of the HalfNormal prior on s_ρ: ``rho_scale_factor`` × exp(-μ/2), μ the centre of ``priors.mu_log_R``."""
         return float(self.rho_scale_factor * np.exp(-0.5 * priors.mu_log_R[0]))
+
+    @staticmethod
+    def unpooled_log_R_prior(priors: Priors) -> tuple[float, float]:
+        """(m, s) of ``R_population="unpooled"``: log R[i, baseline] ~ N(m, s), each subject on its own.
+
+        m is the centre of ``priors.mu_log_R`` and s = sqrt(sd² + σ²), sd its SD and σ the
+        scale of σ_R's half-normal prior: the lognormal population's marginal prior of one
+        subject has this centre and (as E[σ_R²] = σ²) this variance.
+        """
+        centre, sd = priors.mu_log_R
+        return float(centre), float(np.hypot(sd, priors.sigma_log_R))
 
 
 @dataclass(frozen=True)
@@ -176,7 +191,8 @@ def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: d
                 delayed_form: DelayedForm):
     """The population parameters and unit blocks of θ, as :func:`models.bayes.hierarchical.build_model` has them
     (σ_R Gamma(shape, rate) instead of half-normal with ``sigma_log_R_gamma``; the baseline log R from a
-    half-normal ρ = R^(-1/2) with ``R_population="policy_scale"``: :class:`DelayedPriors`)."""
+    half-normal ρ = R^(-1/2) with ``R_population="policy_scale"``, or each subject's own normal prior with
+    ``R_population="unpooled"``: :class:`DelayedPriors`)."""
     sigma_R_gamma = delayed_priors.sigma_log_R_gamma
     mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
     beta = pm.Normal("beta", 0.0, priors.beta_sd, **effect)
@@ -186,6 +202,9 @@ def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: d
     sigma_bR = pm.HalfNormal("sigma_beta_log_R", priors.sigma_beta_log_R, **effect)
     if delayed_priors.R_population == "policy_scale":
         mu_R, sigma_R, form_R = baseline_log_R(priors, delayed_priors, delayed_form), None, "given"
+    elif delayed_priors.R_population == "unpooled":
+        m, sd = delayed_priors.unpooled_log_R_prior(priors)
+        mu_R, sigma_R, form_R = pm.Normal("log_R_base", m, sd, dims="subject"), None, "given"
     else:
         mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
         sigma_R = (pm.HalfNormal("sigma_log_R", priors.sigma_log_R) if sigma_R_gamma is None

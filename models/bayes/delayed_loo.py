@@ -13,7 +13,8 @@ adds them, as ``extra``:
 * to the conditional prior: ``τ_nm ~ HalfNormal(s_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
   population draw (the model's, whatever form the sampler used), and, for a model whose
   baseline R has the ``policy_scale`` population (:class:`models.bayes.delayed_model.DelayedPriors`),
-  ``R^(-1/2) ~ HalfNormal(s_ρ)`` in place of N(μ_R, σ_R) on log R;
+  ``R^(-1/2) ~ HalfNormal(s_ρ)`` in place of N(μ_R, σ_R) on log R, and for an ``unpooled`` one
+  the subject's own fixed N(m, s) (``baseline_log_R_prior``);
 * and the segments' log-likelihood is the delayed one
   (:func:`models.delayed.likelihood.loglik_grad`) at the segment's plug-in delay, with
   τ_0 fixed or following the warm-up at each proposed τ_nm (as the Op computes it).
@@ -54,10 +55,14 @@ class DelayedSubjectTerms:
     params : WheelParameters
     chunk : int
         Points per kernel call.
+    baseline_log_R_prior : (float, float), optional
+        (m, s) of a model fitted with ``DelayedPriors(R_population="unpooled")``: each subject's
+        baseline log R ~ N(m, s) (:meth:`models.bayes.delayed_blocks.DelayedPriors.unpooled_log_R_prior`),
+        which its posterior draws do not hold.
     """
 
     def __init__(self, post: dict, batch: SegmentBatch, plant: DiscretePlant, delay, tau0=0.0,
-                 params: WheelParameters = WheelParameters(), chunk: int = 256):
+                 params: WheelParameters = WheelParameters(), chunk: int = 256, baseline_log_R_prior=None):
         self.log_tau = np.log(np.asarray(post["tau_nm"], dtype=float))
         self.log_sig = np.log(np.asarray(post["sigma_m"], dtype=float))
         self.s_t = np.asarray(post["tau_nm_scale"], dtype=float)[:, None]
@@ -65,6 +70,12 @@ class DelayedSubjectTerms:
         if "rho_scale" in post:  # R_population="policy_scale": ρ = R^(-1/2) ~ HalfNormal(s_ρ)
             self.s_rho = np.asarray(post["rho_scale"], dtype=float)[:, None]
             self.baseline_log_R_logpdf = self._policy_scale_logpdf
+        if baseline_log_R_prior is not None:  # R_population="unpooled": a fixed N(m, s) per subject
+            if "rho_scale" in post:
+                raise ValueError("baseline_log_R_prior is the unpooled model's; these draws have a policy_scale population")
+            self.m_R, self.s_R = (float(v) for v in baseline_log_R_prior)
+            self.n_draws = self.s_t.shape[0]
+            self.baseline_log_R_logpdf = self._unpooled_logpdf
         self.batch, self.plant, self.params, self.chunk = batch, plant, params, int(chunk)
         self.delay = np.broadcast_to(np.asarray(delay, dtype=np.int64), (batch.n,))
         self.warmups = warmups_of(tau0, batch.n)
@@ -84,6 +95,12 @@ class DelayedSubjectTerms:
         """(S, M): log p(log R[i, baseline] | s_ρ) of ρ = exp(-log R / 2) ~ HalfNormal(s_ρ), Jacobian ρ/2 included."""
         rho = np.exp(-0.5 * np.asarray(log_R, dtype=float))
         return halfnorm_logpdf(rho[None, :], self.s_rho) + (np.log(0.5 * rho))[None, :]
+
+    def _unpooled_logpdf(self, log_R: np.ndarray) -> np.ndarray:
+        """(S, M): log N(log R[i, baseline]; m, s), the same under every draw."""
+        z = (np.asarray(log_R, dtype=float) - self.m_R) / self.s_R
+        row = -0.5 * z * z - np.log(self.s_R) - 0.5 * np.log(2.0 * np.pi)
+        return np.broadcast_to(row[None, :], (self.n_draws, row.shape[0]))
 
     def _tau0(self, j: int, tau: np.ndarray) -> np.ndarray:
         if self.warmups is None:

@@ -78,7 +78,7 @@ MAX_DELAY_S = 0.3
 #: What ``scioc loglik`` evaluates the likelihood of (:data:`pipelines.loglik.LIKELIHOODS`, tested equal).
 LIKELIHOOD_NAMES = ("torques", "angles")
 #: The delayed model's baseline-R populations (:data:`models.bayes.delayed_model.R_POPULATIONS`, tested equal).
-R_POPULATION_NAMES = ("lognormal", "policy_scale")
+R_POPULATION_NAMES = ("lognormal", "policy_scale", "unpooled")
 #: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
 RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred")
 
@@ -226,7 +226,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "Metropolis step for the delay: delay-marginal posteriors, slower)")
     p.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal",
                    help="with --human-model delayed: population of the subjects' baseline R (default lognormal; "
-                        "policy_scale: R^(-1/2) half-normal, models/bayes/delayed_blocks.py)")
+                        "policy_scale: R^(-1/2) half-normal; unpooled: each subject's own normal prior on log R, no "
+                        "population; models/bayes/delayed_blocks.py)")
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--compare-to", metavar="MAXENT_FIT",
@@ -360,7 +361,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--tune", type=_positive_int, default=1000, help="tuning draws per chain (default 1000)")
     g.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal",
                    help="population of the subjects' baseline R (default lognormal; policy_scale: R^(-1/2) "
-                   "half-normal)")
+                   "half-normal; unpooled: none, each subject's own prior)")
     g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
     g.add_argument("--adaptation", choices=["low_rank", "diag"], default="low_rank",

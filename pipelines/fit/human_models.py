@@ -27,7 +27,9 @@ from pathlib import Path
 import arviz as az
 import numpy as np
 
+from models.bayes.delayed_blocks import DelayedPriors
 from models.bayes.delayed_loo import DelayedSubjectTerms
+from models.bayes.hierarchical import Priors
 from models.plant import discretize
 from models.segment import prepare_batch
 from models.units import index_study
@@ -147,6 +149,21 @@ def adequacy_brief(adequacy: dict | None, where: str) -> dict:
     return {**{k: a[k] for k in keep if k in a}, "where": where}
 
 
+def unpooled_log_R_prior(side: dict, folder: Path):
+    """(m, s) of a delayed fit whose subjects' baseline log R had no population (``--R-population unpooled``), else None."""
+    population = side.get("delayed_priors", {}).get("R_population", "lognormal")
+    if population != "unpooled":
+        return None
+    try:
+        centre, sd = side["priors"]["mu_log_R"]
+        spread = side["priors"]["sigma_log_R"]
+        return DelayedPriors.unpooled_log_R_prior(Priors(mu_log_R=(float(centre), float(sd)),
+                                                         sigma_log_R=float(spread)))
+    except (KeyError, TypeError, ValueError):
+        raise InputDataError(f"{folder / 'posterior.json'}: an unpooled R population needs the priors "
+                             "'mu_log_R' and 'sigma_log_R' it was fitted with") from None
+
+
 def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings | None = None,
                          prepared: PreparedStudy | None = None, seed: int = 2018, out=None, study=None) -> dict:
     """Leave-one-subject-out ELPD per subject under the max-ent and the delayed human, and their difference.
@@ -220,10 +237,12 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
     warm = [p.warmup for p in prepared.segments]
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(2)]
     summaries, pointwise = {}, {}
+    base_R = unpooled_log_R_prior(sides["delayed"], folders["delayed"])
     for (name, folder), rng in zip(folders.items(), rngs):
         idata = az.from_netcdf(folder / "posterior.nc")
         extra = None if name == "maxent" else (
-            lambda flat: DelayedSubjectTerms(flat, batch, plant, delay, warm, params=design.wheel))
+            lambda flat: DelayedSubjectTerms(flat, batch, plant, delay, warm, params=design.wheel,
+                                             baseline_log_R_prior=base_R))
         summaries[name], pointwise[name] = subject_elpd(idata, batch, index, plant, rng, levels, extra=extra)
     diff_i = pointwise["delayed"] - pointwise["maxent"]
     n = diff_i.shape[0]

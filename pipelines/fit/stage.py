@@ -54,6 +54,7 @@ import numpy as np
 import pandas as pd
 
 from models.bayes.delayed_blocks import DelayedPriors
+from models.bayes.delayed_model import DELAYED_NUTS
 from models.bayes.hierarchical import Parameterization, Priors, build_model
 from models.identify import identify_unit
 from models.plant import discretize
@@ -312,7 +313,10 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                        {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])"}),
                     "chains": int(chains),
                     "draws": int(draws), "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)),
-                    "target_accept": 0.8, "adaptation": "diag (nutpie default)"},
+                    "target_accept": 0.8,
+                    "adaptation": ("diag (PyMC's NUTS)" if human_model == "delayed" and delay_mode != "profile" else
+                                   f"{DELAYED_NUTS['adaptation']} (nutpie)" if human_model == "delayed" else
+                                   "diag (nutpie default)")},
         "identify_settings": settings.as_dict(),
         "priors": asdict(priors),
         "parameterization": {**asdict(form), "reason": form_reason},

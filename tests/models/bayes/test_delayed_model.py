@@ -192,6 +192,46 @@ def test_policy_scale_population_of_R(plant, study):
         DelayedPriors(R_population="policy_scale", sigma_log_R_gamma=(2.0, 4.0))
 
 
+def test_unpooled_baseline_R(plant, study):
+    """DelayedPriors(R_population="unpooled"): each subject's baseline log R ~ N(m, s) on its own (no μ_R, σ_R);
+    the level changes are the lognormal model's; the LOSO density of log R is that N(m, s) under every draw."""
+    from scipy import stats
+
+    from models.bayes.delayed_loo import DelayedSubjectTerms
+    from models.bayes.delayed_model import DelayedPriors
+    from models.bayes.hierarchical import Priors
+
+    w = study
+    dp = DelayedPriors(R_population="unpooled")
+    m, s = dp.unpooled_log_R_prior(Priors(mu_log_R=(2.0, 0.6), sigma_log_R=0.8))
+    assert (m, s) == (2.0, pytest.approx(1.0, rel=1e-12))
+    model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, delayed_priors=dp)
+    lognormal = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
+    names = {v.name for v in model.free_RVs}
+    assert names - {v.name for v in lognormal.free_RVs} == {"log_R_base"}
+    assert {v.name for v in lognormal.free_RVs} - names == {"mu_log_R", "sigma_log_R", "z_log_R_MC"}
+    m, s = dp.unpooled_log_R_prior(Priors())
+    x = np.array([1.0, 3.0, 6.0])
+    assert float(pm.logp(model["log_R_base"], x).sum().eval()) == \
+        pytest.approx(stats.norm(m, s).logpdf(x).sum(), rel=1e-12)
+    point = _point(model, 5)
+    outs = model.replace_rvs_by_values([model[v] for v in ("log_R", "beta_log_R", "sigma_beta_log_R")])
+    lR, bR, sbR = model.compile_fn(outs, inputs=model.value_vars, on_unused_input="ignore")(point)
+    np.testing.assert_allclose(lR[:, 0], point["log_R_base"], rtol=1e-12)
+    np.testing.assert_allclose(lR[:, 1], lR[:, 0] + bR + sbR * point["z_log_R_SC"], rtol=1e-12)
+    post = {"tau_nm": np.full((2, 3), 0.05), "sigma_m": np.full((2, 3), 0.2), "tau_nm_scale": np.full(2, 0.1),
+            "sigma_m_scale": np.full(2, 0.3)}
+    batch = prepare_batch(plant, w.segments)
+    terms = DelayedSubjectTerms(post, batch, plant, w.delay, baseline_log_R_prior=(m, s))
+    got = terms.baseline_log_R_logpdf(x)
+    assert got.shape == (2, 3)
+    np.testing.assert_allclose(got, np.tile(stats.norm(m, s).logpdf(x), (2, 1)), rtol=1e-12)
+    with pytest.raises(ValueError, match="policy_scale"):
+        DelayedSubjectTerms({**post, "rho_scale": np.ones(2)}, batch, plant, w.delay, baseline_log_R_prior=(m, s))
+    with pytest.raises(ValueError, match="unpooled"):
+        DelayedPriors(R_population="unpooled", sigma_log_R_gamma=(2.0, 4.0))
+
+
 @pytest.mark.slow
 def test_short_fit_recovers_lag_and_motor_noise(plant):
     """4 subjects of the delayed human (each its own lag; motor noise 0.25 N·m), 2 chains × 300 draws: every

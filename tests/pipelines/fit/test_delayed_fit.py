@@ -50,6 +50,7 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     root, _, prepared = delayed_study
     side = json.loads(open(delayed_fit["sidecar"]).read())
     assert side["human_model"] == "delayed"
+    assert side["sampler"]["adaptation"] == "low_rank (nutpie)" == f"{side['nutpie_options']['adaptation']} (nutpie)"
     assert "posterior_pooled" not in delayed_fit
     est = pd.read_parquet(root / "identify" / "estimates.parquet")
     by_unit = side["delay"]["by_unit"]
@@ -149,6 +150,7 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
                        **small)
     side = json.loads(open(paths["sidecar"]).read())
     assert side["delay"]["mode"] == "sampled" and side["sampler"]["name"].startswith("PyMC NUTS")
+    assert side["sampler"]["adaptation"] == "diag (PyMC's NUTS)" and "nutpie_options" not in side
     for unit in side["delay"]["by_unit"].values():
         assert unit["q03_s"] <= unit["delay_s"] <= unit["q97_s"] <= 0.3 and 0 <= unit["mean_s"] <= 0.3
     res = json.loads(open(paths["contrasts"]).read())

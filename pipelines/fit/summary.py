@@ -1,0 +1,64 @@
+"""The few lines ``scioc fit`` prints: a fit folder's sidecar and contrasts, the adequacy verdict first."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from pipelines.adequacy import format_adequacy, not_checked
+
+
+def _beta_lines(b: dict, r: dict, what: str) -> list:
+    return [f"beta ({what}): {b['mean']:.3f} ± {b['sd']:.3f}, 94 % HDI "
+            f"[{b['hdi'][0]:.3f}, {b['hdi'][1]:.3f}], P(beta < 0) = {b['p_negative']:.3f}",
+            f"exp(beta): {r['median']:.3f} (94 % HDI {r['hdi'][0]:.3f}-{r['hdi'][1]:.3f})"]
+
+
+def _truth_line(t: dict, level: str = "") -> str:
+    return (f"true beta{level} {t['truth']:g}: {'inside' if t['in_hdi'] else 'outside'} the HDI "
+            f"(posterior mean - truth = {t['discrepancy']:+.3f})")
+
+
+def format_fit(out) -> str:
+    """A few lines summarizing a fit folder's sidecar and contrasts, the adequacy verdict first.
+
+    With more than two levels, β and exp(β) (and the truth check) of every non-baseline level.
+    """
+    out = Path(out)
+    side = json.loads((out / "posterior.json").read_text())
+    res = json.loads((out / "contrasts.json").read_text())
+    loo = res["loo"].get("difference")
+    conv = side["convergence_verdict"]
+    adequacy = res.get("adequacy") or not_checked("not in this fit's contrasts.json")
+    lines = [format_adequacy(adequacy)]
+    if adequacy["verdict"] == "fail":
+        lines.append("CAVEAT: the numbers below assume a human model that fails its adequacy checks; "
+                     "beta may be an artifact of model misfit")
+    if side.get("human_model", "maxent") != "maxent":
+        lines.append(f"human model: {side['human_model']} (delays: {side['delay']['source']})")
+    lines.append(f"sampler convergence: condition model {conv['condition']}"
+                 + (f"; pooled model {conv['pooled']}" if "pooled" in conv else ""))
+    if "contrasts" in res:
+        for level, c in res["contrasts"].items():
+            lines += _beta_lines(c["beta"], c["ratio"], f"mean change of log theta1, {level} against {res['baseline']}")
+    else:
+        cond = side.get("experiment", {}).get("conditions", {"levels": ["MC", "SC"], "baseline": "MC"})
+        other = next(v for v in cond["levels"] if v != cond["baseline"])
+        lines += _beta_lines(res["beta"], res["ratio"], f"mean {other} change of log theta1")
+    if loo is not None:
+        lines.append(f"LOO: elpd(condition) - elpd(pooled) = {loo['elpd_diff']:.1f} ± {loo['se']:.1f} "
+                     f"({'reliable' if loo['reliable'] else 'Pareto k high: unreliable'})")
+    if res.get("loo_subject"):
+        ls = res["loo_subject"]["difference"]
+        se = "n/a (one subject)" if ls.get("se") is None else f"{ls['se']:.1f}"
+        lines.append(f"leave-one-subject-out: elpd(condition) - elpd(pooled) = {ls['elpd_diff']:.1f} ± {se} "
+                     f"({'reliable' if ls['reliable'] else 'Pareto k high: unreliable'})")
+    truth = res.get("truth")
+    if truth and "contrasts" in truth:
+        lines += [_truth_line(c["beta"], f" ({level})") for level, c in truth["contrasts"].items()]
+    elif truth:
+        lines.append(_truth_line(truth["beta"]))
+    return "\n".join(lines)
+
+
+__all__ = ["format_fit"]

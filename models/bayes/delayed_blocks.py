@@ -59,8 +59,8 @@ it has not been run at full size, and the step count is the next thing to unders
 
 Without a population (``DelayedPriors(R_population="unpooled")``, the last row, measured
 2026-12-03 beside a full-size delayed fit, ``--R-population unpooled``): each subject's
-baseline log R has its own N(m, s) prior, with the lognormal population's marginal centre and variance
-(:meth:`DelayedPriors.unpooled_log_R_prior`), so there is no σ_R. Every population
+baseline log R has its own N(m, s) prior, with the lognormal population's marginal centre
+and variance (:meth:`DelayedPriors.unpooled_log_R_prior`), so there is no σ_R. Every population
 parameter mixed (worst σ_β: R-hat 1.015, ESS 110 of 600 draws; μ_log θ1's R-hat 1.015),
 at 34.4 leapfrog steps per draw, about the lognormal population's 31.8 and 40 % of
 the folded ρ's; β's truth inside its HDI (−0.62, [−0.82, −0.42], truth −0.7), τ_nm's and

@@ -233,7 +233,8 @@ def cmd_fit(args) -> int:
                        settings=settings, experiment_file=source, subject=args.subject, estimates_path=args.estimates,
                        truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
                        human_model=args.human_model, delay_mode=args.delay,
-                       delayed_priors=DelayedPriors(R_population=args.R_population), rho_form=args.rho_form)
+                       delayed_priors=DelayedPriors(R_population=args.R_population), rho_form=args.rho_form,
+                       adequacy_at=args.adequacy_at)
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")
@@ -249,6 +250,30 @@ def cmd_fit(args) -> int:
     res = json.loads(Path(paths["contrasts"]).read_text())
     converged = all(v == "pass" for v in side["convergence_verdict"].values())
     return 0 if converged and res["adequacy"]["verdict"] != "fail" else 1
+
+
+def cmd_adequacy(args) -> int:
+    from pipelines.adequacy import format_adequacy
+    from pipelines.fit.artifacts import strict_json
+    from pipelines.fit.recheck import recheck_adequacy, write_recheck
+    from pipelines.storage import refuse_inputs_inside
+
+    if args.out is not None:  # never onto one of the fit's own files
+        refuse_inputs_inside(args.out, *(Path(args.fit) / name for name in ("posterior.json", "posterior.nc",
+                                                                            "contrasts.json")))
+    res = recheck_adequacy(args.fit, at=args.at, seed=args.seed, study=args.study)
+    if args.format == "json":
+        print(strict_json(res), end="")
+    else:
+        point = res["adequacy"].get("point", {})
+        print(f"{res['fit']} ({res['human_model']} human), adequacy at {point.get('what', 'the posterior')}"
+              + (f": chain {point['chain']}, draw {point['draw']}" if point.get("at") == "draw" else ""))
+        print(format_adequacy(res["adequacy"]))
+    if args.out is not None:
+        write_recheck(res, args.out)
+        print(f"wrote {args.out}", file=sys.stderr if args.format == "json" else sys.stdout)
+    # Exit 1 when the human model fails its adequacy checks, as scioc fit.
+    return 1 if res["adequacy"]["verdict"] == "fail" else 0
 
 
 def cmd_human_models(args) -> int:

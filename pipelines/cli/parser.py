@@ -81,6 +81,10 @@ LIKELIHOOD_NAMES = ("torques", "angles")
 R_POPULATION_NAMES = ("lognormal", "policy_scale", "unpooled")
 #: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
 RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred")
+#: Points of the adequacy check at the posterior (:data:`pipelines.fit.checks.ADEQUACY_POINTS`, tested equal).
+ADEQUACY_AT_NAMES = ("draw", "means")
+_ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one joint posterior draw picked by the "
+                     "adequacy seed; means: each parameter's posterior mean, the rule before 2026-12-03)")
 
 
 def _human_models_list(text: str) -> tuple:
@@ -234,8 +238,21 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --human-model delayed: a finished max-ent fit folder of the same study and settings; "
                         "after the fit, leave-one-subject-out between the two human models, beside each one's "
                         "adequacy verdict (OUT/human_models.json)")
+    p.add_argument("--adequacy-at", choices=ADEQUACY_AT_NAMES, default="draw", help=_ADEQUACY_AT_HELP)
     _add_force_option(p)
     p.set_defaults(func=commands.cmd_fit)
+
+    p = sub.add_parser("adequacy", help="the adequacy check of a finished fit again, at another posterior point or "
+                                        "seed, without refitting (writes nothing without --out)")
+    p.add_argument("fit", metavar="FIT", help="folder of `scioc fit` (either human model)")
+    p.add_argument("--at", choices=ADEQUACY_AT_NAMES, default="draw", help=_ADEQUACY_AT_HELP)
+    p.add_argument("--seed", type=_nonnegative_int, default=None,
+                   help="adequacy seed: the draw and the bootstrap (default: the one the fit used)")
+    p.add_argument("--study", metavar="PATH", help="the study file the fit read (default: the path its "
+                                                   "posterior.json records)")
+    p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
+    p.add_argument("--out", metavar="FILE", help="also write the result as JSON to FILE (atomically)")
+    p.set_defaults(func=commands.cmd_adequacy)
 
     p = sub.add_parser("human-models", help="leave-one-subject-out between a max-ent and a delayed fit of the same "
                                             "study, beside each one's adequacy verdict (writes nothing without --out)")

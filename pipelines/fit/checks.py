@@ -167,24 +167,75 @@ def truth_check(idata, truth_dir, estimates: pd.DataFrame | None = None, design:
     return out
 
 
-def posterior_adequacy(idata, prepared: PreparedStudy, plant) -> dict:
-    """Model adequacy (:func:`pipelines.adequacy.assess_study`) at each segment's posterior θ.
+#: Where the adequacy check at the posterior takes its one parameter point (``scioc fit --adequacy-at``).
+#:
+#: ``draw`` (default): one joint posterior draw, picked by the adequacy seed. If the model and its
+#: prior are right, a posterior draw and the data are distributed as the truth and the data (the
+#: argument of simulation-based calibration), so the bootstrap's p-values at that draw are uniform
+#: (Johnson 2007, Bayesian Analysis 2(4), "Bayesian model assessment using pivotal quantities").
+#: ``means``: each parameter's posterior mean on its own (log θ1, log R, θ2; τ_nm and σ_m of the
+#: delayed human), the rule before 2026-12-03. It sits near the best fit, so its p-values lean
+#: towards 1 (the plug-in p-value is conservative: Bayarri & Berger 2000), and where parameters
+#: trade off along a curved ridge it leaves the posterior: the delayed human's torque variance is
+#: split between policy noise (R) and motor noise (σ_m), and the means of log R and σ_m predict less
+#: variance than the draws on the ridge do (measured: README, "Human models").
+ADEQUACY_POINTS = ("draw", "means")
 
-    The plug-in θ of a segment is exp(posterior mean of log θ1) and of log R, and the
-    posterior mean of θ2, of its subject × condition: the trials of a unit share it, and
-    the verdict then counts units (:func:`pipelines.adequacy.assess_study`). ``plant`` is
-    the wheel at the recording's sample time; the assistants and the encoder come from
-    the study's settings.
+
+def posterior_point(post, at: str, seed: int):
+    """The parameter point of the adequacy check at the posterior (:data:`ADEQUACY_POINTS`), and what it is.
+
+    Parameters
+    ----------
+    post : xarray.Dataset
+        The posterior group (dimensions ``chain`` and ``draw`` first).
+    at : {"draw", "means"}
+    seed : int
+        The adequacy seed: ``draw`` takes the draw ``numpy.random.default_rng([seed, 1])`` picks
+        uniformly among all chains × draws (a stream apart from the bootstrap's
+        ``SeedSequence(seed).spawn``).
+
+    Returns
+    -------
+    point : xarray.Dataset
+        Every posterior variable at that point, without ``chain`` and ``draw``.
+    described : dict
+        ``at`` and, for ``draw``, the chain and draw taken.
+    """
+    if at not in ADEQUACY_POINTS:
+        raise ValueError(f"the adequacy check's point must be one of {', '.join(ADEQUACY_POINTS)}; got {at!r}")
+    if at == "means":
+        return post.mean(("chain", "draw")), {"at": "means", "what": "each parameter's posterior mean on its own "
+                                              "(log θ1, log R, θ2, and τ_nm, σ_m)"}
+    rng = np.random.default_rng([int(seed), 1])
+    flat = int(rng.integers(post.sizes["chain"] * post.sizes["draw"]))
+    c, d = divmod(flat, post.sizes["draw"])
+    point = post.isel(chain=c, draw=d)
+    return point, {"at": "draw", "chain": int(post["chain"].values[c]), "draw": int(post["draw"].values[d]),
+                   "what": "one joint posterior draw, picked by the adequacy seed (Johnson 2007)"}
+
+
+def unit_theta(point, prepared: PreparedStudy) -> np.ndarray:
+    """θ of every segment (rows: segments) at a :func:`posterior_point`: its subject × condition's θ1, θ2, R."""
+    sel = [dict(subject=s, condition=c) for s, c in zip(prepared.subjects, prepared.conditions)]
+    theta = from_normalized([float(np.exp(point["log_theta1"].sel(**k))) for k in sel],
+                            [float(point["theta2"].sel(**k)) for k in sel],
+                            [float(np.exp(point["log_R"].sel(**k))) for k in sel])
+    return theta.T
+
+
+def posterior_adequacy(idata, prepared: PreparedStudy, plant, at: str = "draw") -> dict:
+    """Model adequacy (:func:`pipelines.adequacy.assess_study`) at one posterior point of θ.
+
+    The point (``at``, :func:`posterior_point`) gives each segment the θ of its subject ×
+    condition: the trials of a unit share it, and the verdict then counts units
+    (:func:`pipelines.adequacy.assess_study`). ``plant`` is the wheel at the recording's
+    sample time; the assistants and the encoder come from the study's settings.
     """
     if prepared.settings.adequacy_boot == 0:
         return not_checked("switched off (adequacy bootstrap size 0)")
-    post = idata["posterior"]
-    lt1 = post["log_theta1"].mean(("chain", "draw"))
-    lr = post["log_R"].mean(("chain", "draw"))
-    t2 = post["theta2"].mean(("chain", "draw"))
-    sel = [dict(subject=s, condition=c) for s, c in zip(prepared.subjects, prepared.conditions)]
-    theta = from_normalized([float(np.exp(lt1.sel(**k))) for k in sel], [float(t2.sel(**k)) for k in sel],
-                            [float(np.exp(lr.sel(**k))) for k in sel])
-    _, summary = assess_study(prepared.segments, theta.T, plant, prepared.settings)
-    summary["theta"] = "posterior means of log θ1, log R and θ2 per subject × condition (plug-in)"
+    point, described = posterior_point(idata["posterior"], at, prepared.settings.adequacy_seed)
+    _, summary = assess_study(prepared.segments, unit_theta(point, prepared), plant, prepared.settings)
+    summary["theta"] = f"θ per subject × condition at {described['what']}"
+    summary["point"] = described
     return summary

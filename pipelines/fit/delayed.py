@@ -35,12 +35,11 @@ from models.bayes.delayed_model import (DELAY_INDEX, DELAYED_NUTS, DELAYED_PARAM
                                         DELAYED_POPULATION_PARAMETERS, DelayedForm, DelayedPriors, build_delayed_model,
                                         delay_step)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
-from models.cost import from_normalized
 from models.delayed.identify import delay_grid, identify_unit_delayed
 from models.delayed.lag import lag_coefficients, window_tau0
 from models.segment import prepare_batch
 from pipelines.adequacy import assess_study, not_checked
-from pipelines.fit.checks import mixedlm_check, truth_check
+from pipelines.fit.checks import mixedlm_check, posterior_point, truth_check, unit_theta
 from pipelines.fit.contrasts import contrasts, hdi
 from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
@@ -282,31 +281,35 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     return DelayedFit(idata, diag, timing, delays, side)
 
 
-def per_segment_motor(idata, prepared, plant, delays: Delays) -> dict:
-    """Per segment: its subject's posterior mean τ_nm and σ_m, its delay and arm torque at the start (adequacy)."""
-    post = idata["posterior"]
-    tau = post["tau_nm"].mean(("chain", "draw"))
-    sig = post["sigma_m"].mean(("chain", "draw"))
+def per_segment_motor(point, prepared, plant, delays: Delays, own_delay: bool = False) -> dict:
+    """Per segment at a posterior point (:func:`pipelines.fit.checks.posterior_point`): its subject's τ_nm and σ_m,
+    its delay and its arm torque at the start (for the adequacy check).
+
+    The delay is the point's own with ``own_delay`` (a draw of a fit that sampled the delays), else
+    the plug-in ``delays.samples`` (profile delays, or the sampled delays' modes).
+    """
+    t = np.array([float(point["tau_nm"].sel(subject=s)) for s in prepared.subjects])
+    sig = np.array([float(point["sigma_m"].sel(subject=s)) for s in prepared.subjects])
+    delay = delays.samples
+    if own_delay:
+        grid = delay_grid(float(plant.dt))
+        delay = np.array([int(grid[int(point[DELAY_INDEX].sel(subject=s))]) for s in prepared.subjects], dtype=np.int64)
     at = tau0_function(prepared, plant)
-    t = np.array([float(tau.sel(subject=s)) for s in prepared.subjects])
-    return {"tau_nm": t, "sigma_m": np.array([float(sig.sel(subject=s)) for s in prepared.subjects]),
-            "delay": delays.samples, "tau0": np.array([at(i, v) for i, v in enumerate(t)])}
+    return {"tau_nm": t, "sigma_m": sig, "delay": delay, "tau0": np.array([at(i, v) for i, v in enumerate(t)])}
 
 
-def delayed_adequacy(idata, prepared, plant, delays: Delays) -> dict:
-    """Model adequacy at the posterior (plug-in: posterior means, as :func:`pipelines.fit.checks.posterior_adequacy`)
-    with the bootstrap drawn from the delayed human."""
+def delayed_adequacy(idata, prepared, plant, delays: Delays, at: str = "draw") -> dict:
+    """Model adequacy at one posterior point (``at``, as :func:`pipelines.fit.checks.posterior_adequacy`) with the
+    bootstrap drawn from the delayed human."""
     if prepared.settings.adequacy_boot == 0:
         return not_checked("switched off (adequacy bootstrap size 0)")
-    post = idata["posterior"]
-    lt1, lr, t2 = (post[v].mean(("chain", "draw")) for v in ("log_theta1", "log_R", "theta2"))
-    sel = [dict(subject=s, condition=c) for s, c in zip(prepared.subjects, prepared.conditions)]
-    theta = from_normalized([float(np.exp(lt1.sel(**k))) for k in sel], [float(t2.sel(**k)) for k in sel],
-                            [float(np.exp(lr.sel(**k))) for k in sel])
-    _, summary = assess_study(prepared.segments, theta.T, plant, prepared.settings,
-                              delayed=per_segment_motor(idata, prepared, plant, delays))
-    summary["theta"] = ("posterior means of log θ1, log R and θ2 per subject × condition, of τ_nm and σ_m per "
-                        "subject, the plug-in delays (plug-in)")
+    point, described = posterior_point(idata["posterior"], at, prepared.settings.adequacy_seed)
+    own = at == "draw" and DELAY_INDEX in point
+    _, summary = assess_study(prepared.segments, unit_theta(point, prepared), plant, prepared.settings,
+                              delayed=per_segment_motor(point, prepared, plant, delays, own_delay=own))
+    summary["theta"] = (f"θ per subject × condition, τ_nm and σ_m per subject at {described['what']}; the delays "
+                        + ("of that draw" if own else "plug-in"))
+    summary["point"] = described
     return summary
 
 

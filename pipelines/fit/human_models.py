@@ -142,6 +142,30 @@ def fit_settings(side: dict, folder) -> IdentifySettings:
         raise InputDataError(f"{path}: identify_settings: {exc}") from None
 
 
+def fit_study(side: dict, folder, study=None) -> Path:
+    """The study file a fit read: ``study`` if given, else the path its sidecar records.
+
+    A fit records the path as it was given (relative to the folder the fit ran in) and
+    relative to its own folder (``study_relative``): a run's folder, staged elsewhere and
+    moved into place, still finds it.
+
+    Raises
+    ------
+    pipelines.io.InputDataError
+        If the file is not there.
+    """
+    folder = Path(folder)
+    if study is None:
+        study = side["study"]
+        relative = side.get("study_relative")
+        if not Path(study).is_file() and relative is not None:
+            study = folder / relative
+    if not Path(study).is_file():
+        raise InputDataError(f"{folder / 'posterior.json'}: its study file {study} is not there "
+                             "(moved, or the fit ran in another folder); give the study file")
+    return Path(study)
+
+
 def adequacy_brief(adequacy: dict | None, where: str) -> dict:
     """The adequacy verdict of a fit at its posterior θ, short: verdict, failed checks, flagged segments."""
     a = adequacy or {"verdict": "not checked", "reason": "no adequacy block"}
@@ -215,14 +239,7 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         settings = fit_settings(sides["maxent"], folders["maxent"]) if settings is None else settings
         if not _same_settings(settings.as_dict(), sides["maxent"]["identify_settings"]):
             raise ValueError("these settings are not the ones the fits used")
-        if study is None:
-            study = sides["maxent"]["study"]
-            relative = sides["maxent"].get("study_relative")
-            if not Path(study).is_file() and relative is not None:
-                study = folders["maxent"] / relative  # a run's folder, staged elsewhere and moved into place
-        if not Path(study).is_file():
-            raise InputDataError(f"{folders['maxent'] / 'posterior.json'}: its study file {study} is not there "
-                                 "(moved, or the fit ran in another folder); give the study file")
+        study = fit_study(sides["maxent"], folders["maxent"], study)
         prepared = prepare_study(load_study(study, settings.design), settings)
     design = prepared.settings.design
     plant = discretize(design.dt, design.wheel)
@@ -314,5 +331,5 @@ def format_human_models(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "adequacy_brief", "check_maxent_fit", "compare_human_models",
+__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "adequacy_brief", "check_maxent_fit", "fit_study", "compare_human_models",
            "fit_settings", "fit_sidecar", "format_human_models", "write_human_models"]

@@ -61,7 +61,7 @@ from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.experiment import sidecar as experiment_fields
 from pipelines.fit.artifacts import require_netcdf, strict_json, write_netcdf
-from pipelines.fit.checks import mixedlm_check, posterior_adequacy, truth_check
+from pipelines.fit.checks import ADEQUACY_POINTS, mixedlm_check, posterior_adequacy, truth_check
 from pipelines.fit.contrasts import contrasts
 from pipelines.fit.delayed import DELAY_MODES, delayed_adequacy, delayed_results, sample_delayed_model, unit_delays
 from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, RHAT_MAX, diagnostics
@@ -138,7 +138,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
                human_model: str | None = None, delay_mode: str = "profile",
-               delayed_priors: DelayedPriors = DelayedPriors(), rho_form: str | None = None) -> dict:
+               delayed_priors: DelayedPriors = DelayedPriors(), rho_form: str | None = None,
+               adequacy_at: str = "draw") -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -186,6 +187,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     delay_mode, delayed_priors, rho_form
         ``delayed`` only, as :func:`pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
         at each subject's profile maximum or sampled, the priors (e.g. the population of R), the form of ρ.
+    adequacy_at : {"draw", "means"}
+        The posterior point of the adequacy check (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
 
     Returns
     -------
@@ -205,6 +208,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     if delay_mode not in DELAY_MODES or (delay_mode != "profile" and human_model != "delayed"):
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)} ('sampled' for the delayed human only); "
                          f"got {delay_mode!r} with {human_model!r}")
+    if adequacy_at not in ADEQUACY_POINTS:
+        raise ValueError(f"--adequacy-at must be one of {', '.join(ADEQUACY_POINTS)}; got {adequacy_at!r}")
     if human_model != settings.human_model and settings.human_model != "maxent":
         raise ValueError(f"human_model {human_model!r} contradicts the settings' {settings.human_model!r}")
     for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
@@ -265,7 +270,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                                               np.random.default_rng(seeds["ppc"]), n_draws=PPC_DRAWS)
         timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        res["adequacy"] = delayed_adequacy(fit.idata, prepared, plant, delays)
+        res["adequacy"] = delayed_adequacy(fit.idata, prepared, plant, delays, at=adequacy_at)
         timing["adequacy_s"] = time.perf_counter() - t0
     else:
         for name, effects in (("condition", True), ("pooled", False)):
@@ -297,7 +302,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                               "u_H is the reconstructed torque where the file has none"}
         timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        res["adequacy"] = posterior_adequacy(fits["condition"], prepared, plant)
+        res["adequacy"] = posterior_adequacy(fits["condition"], prepared, plant, at=adequacy_at)
         timing["adequacy_s"] = time.perf_counter() - t0
 
     timing["total_s"] = time.perf_counter() - t_start

@@ -112,3 +112,12 @@ def test_the_parameterization_options_are_the_models():
     assert PARAMETERIZATION_BLOCKS == {f.name: f.default for f in dataclasses.fields(Parameterization)}
     args = build_parser().parse_args(["bench-fit"])
     assert {k: getattr(args, k) for k in PARAMETERIZATION_BLOCKS} == PARAMETERIZATION_BLOCKS
+
+
+def test_the_adequacy_points_are_the_checks():
+    from pipelines.cli.parser import ADEQUACY_AT_NAMES
+    from pipelines.fit.checks import ADEQUACY_POINTS
+
+    assert ADEQUACY_AT_NAMES == ADEQUACY_POINTS
+    assert build_parser().parse_args(["fit", "S", "--out", "D"]).adequacy_at == "draw"
+    assert build_parser().parse_args(["adequacy", "F"]).at == "draw"

@@ -155,6 +155,7 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
         assert unit["q03_s"] <= unit["delay_s"] <= unit["q97_s"] <= 0.3 and 0 <= unit["mean_s"] <= 0.3
     res = json.loads(open(paths["contrasts"]).read())
     assert res["human_model"] == "delayed" and "beta" in res and res["adequacy"]["verdict"] in ("pass", "fail")
+    assert res["adequacy"]["theta"].endswith("the delays of that draw")  # the draw's own delays, not the modes
     import arviz as az
 
     post = az.from_netcdf(paths["posterior"]) if str(paths["posterior"]).endswith(".nc") else None
@@ -185,3 +186,31 @@ def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
     assert "mu_log_R" not in side["diagnostics"]["condition"]["population"]
     res = json.loads(open(paths["contrasts"]).read())
     assert "beta" in res and res["adequacy"]["verdict"] in ("pass", "fail")
+
+
+@pytest.mark.slow
+def test_the_adequacy_of_a_finished_fit_is_checked_again_as_the_fit_checked_it(delayed_study, delayed_fit, tmp_path):
+    # scioc adequacy FIT: at the fit's own point and seed it reproduces contrasts.json's verdict exactly; at the means
+    # it is the former rule; --out writes a file of its own and never one of the fit's.
+    from pipelines import cli
+    from pipelines.fit.recheck import recheck_adequacy
+
+    root, sim, _ = delayed_study
+    fit = root / "fit_delayed"
+    stored = json.loads(open(delayed_fit["contrasts"]).read())["adequacy"]
+    assert stored["point"]["at"] == "draw" and "that draw" not in stored["theta"]  # profile delays: plug-in
+    again = recheck_adequacy(fit)
+    assert again["human_model"] == "delayed"
+    assert json.loads(json.dumps(again["adequacy"])) == stored
+    means = recheck_adequacy(fit, at="means")["adequacy"]
+    assert means["point"]["at"] == "means" and means["combined_p"] != stored["combined_p"]
+    other = recheck_adequacy(fit, seed=7)["adequacy"]["point"]
+    assert (other["chain"], other["draw"]) != (stored["point"]["chain"], stored["point"]["draw"])
+    out = tmp_path / "adequacy.json"
+    code = cli.main(["adequacy", str(fit), "--at", "means", "--out", str(out)])
+    assert code == (1 if means["verdict"] == "fail" else 0)
+    assert json.loads(out.read_text())["adequacy"]["combined_p"] == means["combined_p"]
+    before = (fit / "contrasts.json").read_bytes()
+    assert cli.main(["adequacy", str(fit), "--out", str(fit / "contrasts.json")]) == 2
+    assert (fit / "contrasts.json").read_bytes() == before
+    assert cli.main(["adequacy", str(tmp_path)]) == 2  # not a fit folder: a usage error

@@ -1,0 +1,93 @@
+"""The adequacy check of a finished fit, again, without refitting (``scioc adequacy``).
+
+``scioc fit`` checks the human model at one point of its posterior
+(:func:`pipelines.fit.checks.posterior_point`). :func:`recheck_adequacy` repeats that
+check on a finished fit folder: at another point (``--at draw`` or ``means``), with another
+seed (another draw, another bootstrap), or after the check itself changed. It reads the
+folder's ``posterior.json`` (study, settings, experiment, the delayed fit's delays) and
+``posterior.nc``, prepares the study as the fit did and writes nothing there: the result
+goes to the console and, with ``--out``, to a file of its own.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import arviz as az
+import numpy as np
+
+from models.plant import discretize
+from pipelines.fit.artifacts import strict_json
+from pipelines.fit.checks import posterior_adequacy
+from pipelines.fit.delayed import Delays, delayed_adequacy
+from pipelines.fit.human_models import fit_settings, fit_sidecar, fit_study
+from pipelines.io import InputDataError, load_study
+from pipelines.prepare import prepare_study
+from pipelines.storage import write_text_atomic
+
+
+def sidecar_delays(side: dict, folder: Path, prepared) -> Delays:
+    """The delays a delayed fit used (its ``posterior.json``: ``delay.by_unit``), one per segment."""
+    by_unit = side.get("delay", {}).get("by_unit")
+    if by_unit is None:
+        raise InputDataError(f"{folder / 'posterior.json'}: no key 'delay' with 'by_unit' (the delays the delayed "
+                             "fit used)")
+    try:
+        samples = np.array([int(by_unit[f"{p.data.subject}/{p.data.condition}"]["delay_samples"])
+                            for p in prepared.segments], dtype=np.int64)
+    except KeyError as exc:
+        raise InputDataError(f"{folder / 'posterior.json'}: delay.by_unit has no delay_samples for unit "
+                             f"{exc.args[0]!r} of the study") from None
+    return Delays(samples, by_unit, f"{folder / 'posterior.json'} (delay.by_unit)", None)
+
+
+def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, study=None) -> dict:
+    """The adequacy verdict of a finished ``scioc fit`` folder at a posterior point.
+
+    Parameters
+    ----------
+    fit_dir : str or Path
+        A finished fit folder (max-ent or delayed human).
+    at : {"draw", "means"}
+        The posterior point (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
+    seed : int, optional
+        The adequacy seed (the draw and the bootstrap); default: the one the fit used.
+    study : str or Path, optional
+        The study file (default: the path ``posterior.json`` records).
+
+    Returns
+    -------
+    dict
+        ``fit``, ``study``, ``human_model`` and ``adequacy`` (as ``contrasts.json``'s).
+
+    Raises
+    ------
+    ValueError
+        If ``fit_dir`` is not a finished fit folder.
+    pipelines.io.InputDataError
+        If its sidecar lacks what the check needs, or the study file is not found.
+    """
+    folder = Path(fit_dir)
+    side = fit_sidecar(folder)
+    settings = fit_settings(side, folder)
+    if seed is not None:
+        settings = dataclasses.replace(settings, adequacy_seed=int(seed))
+    study = fit_study(side, folder, study)
+    prepared = prepare_study(load_study(study, settings.design), settings)
+    plant = discretize(settings.design.dt, settings.design.wheel)
+    idata = az.from_netcdf(folder / "posterior.nc")
+    human_model = side.get("human_model", "maxent")
+    if human_model == "delayed":
+        summary = delayed_adequacy(idata, prepared, plant, sidecar_delays(side, folder, prepared), at=at)
+    else:
+        summary = posterior_adequacy(idata, prepared, plant, at=at)
+    return {"fit": str(folder), "study": str(study), "human_model": human_model, "adequacy": summary}
+
+
+def write_recheck(result: dict, path) -> Path:
+    """Write a re-check as strict JSON, atomically (nothing half-written)."""
+    return write_text_atomic(path, strict_json(result))
+
+
+__all__ = ["recheck_adequacy", "sidecar_delays", "write_recheck"]

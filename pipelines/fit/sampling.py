@@ -46,13 +46,16 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     import pymc as pm  # lazy: PyMC takes seconds to import
 
     t0 = time.perf_counter()
-    with stdout_to_stderr(), interrupt_guard() as interrupted:
+    # On a terminal the sampler's own table; in a log file (not a terminal) a line a minute instead, as the
+    # table would appear only when the fit has ended.
+    lines = show_progress and not steps and not sys.stderr.isatty()
+    with stdout_to_stderr(), interrupt_guard() as interrupted, progress_lines(lines):
         sampler = ({"step": list(steps), "compute_convergence_checks": False, "compile_kwargs": {"mode": "NUMBA"}}
                    if steps else {"nuts_sampler": "nutpie", **({"nuts": dict(nuts)} if nuts else {})})
         try:
             idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
-                              random_seed=seed, progressbar=show_progress, quiet=not show_progress, model=model,
-                              **sampler)
+                              random_seed=seed, progressbar=show_progress and not lines,
+                              quiet=not show_progress, model=model, **sampler)
         except BaseException as exc:
             if interrupted():  # a Ctrl-C inside nutpie's Rust code comes out as a PanicException, say
                 raise KeyboardInterrupt from exc
@@ -74,6 +77,51 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     attrs = idata["sample_stats" if steps else "posterior"].attrs  # PyMC's own sampler records it there
     return idata, {"compile_and_sample": t1 - t0, "sample": float(attrs.get("sampling_time", t1 - t0)),
                    "log_likelihood": t2 - t1}
+
+
+def progress_line(chain_progresses, seconds: float) -> str:
+    """One line of nutpie's progress (a list of ``nutpie.ChainProgress``): draws done, divergences, steps per draw."""
+    done = sum(cp.finished_draws for cp in chain_progresses)
+    total = sum(cp.total_draws for cp in chain_progresses)
+    tuning = sum(bool(cp.tuning) and bool(cp.started) for cp in chain_progresses)
+    steps = sum(cp.total_num_steps for cp in chain_progresses)
+    divergent = sum(cp.divergences for cp in chain_progresses)
+    return (f"sampling: {done} of {total} draws of {len(chain_progresses)} chains"
+            + (f" ({tuning} tuning)" if tuning else "") + f", {divergent} divergent, "
+            + (f"{steps / done:.1f} leapfrog steps per draw, " if done else "") + f"{seconds / 60:.1f} min")
+
+
+@contextlib.contextmanager
+def progress_lines(on: bool, every: float = 60.0):
+    """While sampling with nutpie through PyMC, write :func:`progress_line` to stderr every ``every`` seconds.
+
+    PyMC hands nutpie's progress to its ``NutpieProgressBarManager``; inside this context that
+    class also writes the lines (the draws do not change). Nothing happens when ``on`` is False
+    or PyMC no longer has that class.
+    """
+    import pymc.sampling.mcmc as mcmc
+
+    base = getattr(mcmc, "NutpieProgressBarManager", None)
+    if not on or base is None:
+        yield
+        return
+    start = time.monotonic()
+
+    class WithLines(base):
+        _last = start
+
+        def update(self, chain_progresses) -> None:
+            super().update(chain_progresses)
+            now = time.monotonic()
+            if now - self._last >= every:
+                type(self)._last = now
+                print(progress_line(chain_progresses, now - start), file=sys.stderr, flush=True)
+
+    mcmc.NutpieProgressBarManager = WithLines
+    try:
+        yield
+    finally:
+        mcmc.NutpieProgressBarManager = base
 
 
 @contextlib.contextmanager

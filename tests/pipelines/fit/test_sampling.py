@@ -1,4 +1,4 @@
-"""The sampler's Ctrl-C guard: an interruption that compiled code swallows is not lost."""
+"""The sampler's Ctrl-C guard: an interruption that compiled code swallows is not lost; progress in a log file."""
 
 import os
 import signal
@@ -39,3 +39,29 @@ def test_negative_control_without_redelivery_the_swallowed_ctrl_c_is_lost():
         _swallow_one_ctrl_c_then_wait(0.5)
     assert time.perf_counter() - t0 >= 0.5
     assert interrupted()
+
+
+def test_progress_lines_report_draws_divergences_and_steps_and_leave_the_draws_alone(capsys):
+    # In a log file (not a terminal) nutpie's table would appear only at the end: scioc fit writes a line instead.
+    # The same seed gives the same draws with and without the lines.
+    import numpy as np
+    import pymc as pm
+    import pymc.sampling.mcmc as mcmc
+
+    from pipelines.fit.sampling import progress_lines
+
+    with pm.Model() as model:
+        pm.Normal("x", 0.0, 1.0, shape=2)
+    kw = {"draws": 30, "tune": 30, "chains": 2, "cores": 1, "random_seed": 3, "nuts_sampler": "nutpie",
+          "progressbar": False, "model": model}
+    base = mcmc.NutpieProgressBarManager
+    with progress_lines(True, every=0.0):
+        a = pm.sample(**kw)
+    assert mcmc.NutpieProgressBarManager is base  # put back
+    err = capsys.readouterr().err
+    last = [line for line in err.splitlines() if line.startswith("sampling: ")][-1]
+    assert last.startswith("sampling: 120 of 120 draws of 2 chains, 0 divergent, ") and "leapfrog steps per draw" in last
+    with progress_lines(False, every=0.0):
+        b = pm.sample(**kw)
+    assert "sampling: " not in capsys.readouterr().err
+    np.testing.assert_array_equal(a["posterior"]["x"].values, b["posterior"]["x"].values)

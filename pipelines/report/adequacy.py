@@ -30,7 +30,8 @@ def headline(adequacy: dict | None, fit_adequacy: dict | None = None,
     return render("adequacy_headline.html.j2", verdict=verdict, a=adequacy,
                   reason=None if not adequacy else adequacy.get("reason", ""),
                   failed=_failed_names(adequacy or {}), chain=chain,
-                  fit_verdict=None if fit_verdict in (None, "not checked") else fit_verdict)
+                  fit_verdict=None if fit_verdict in (None, "not checked") else fit_verdict,
+                  fit_point=(fit_adequacy or {}).get("point", {}).get("what"))
 
 
 def caveat(adequacy: dict | None) -> Markup:

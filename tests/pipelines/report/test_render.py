@@ -26,3 +26,13 @@ def test_a_figure_is_an_embedded_png_with_its_caption_escaped():
     html = figure(fig, "a < b")
     assert "data:image/png;base64," in html and html.count("a &lt; b") == 2
     assert not plt.fignum_exists(fig.number)  # closed
+
+
+def test_the_headline_says_at_which_posterior_point_the_fit_was_checked():
+    from pipelines.report.adequacy import headline
+
+    a = {"verdict": "pass", "combined_p": {"variance": 0.5}, "study_alpha": 0.01}
+    at_draw = {"verdict": "fail", "point": {"at": "draw", "what": "one joint posterior draw"}}
+    html = headline(a, at_draw)
+    assert "posterior θ (one joint posterior draw) the verdict is <b>fail</b>" in html
+    assert "posterior θ the verdict is <b>fail</b>" in headline(a, {"verdict": "fail"})  # a fit from before

@@ -117,6 +117,16 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
                                            for idx in prepared.units.values()]})
 
 
+def sampler_record(human_model: str, delay_mode: str) -> dict:
+    """Which sampler a fit used and its mass-matrix adaptation, for the sidecar."""
+    if human_model == "delayed" and delay_mode == "sampled":
+        return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
+                "adaptation": "diag (PyMC's NUTS)"}
+    return {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')",
+            "adaptation": f"{DELAYED_NUTS['adaptation']} (nutpie)" if human_model == "delayed" else
+            "diag (nutpie default)"}
+
+
 def choose_parameterization(estimates) -> tuple[Parameterization, str]:
     """The form of the log θ1 blocks for these data, and why (recorded in the sidecar).
 
@@ -313,15 +323,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
         "human_model": human_model, "seed": int(seed), "seeds": seeds,
-        "sampler": {**({"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')"} if delay_mode == "profile"
-                       or human_model != "delayed" else
-                       {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])"}),
-                    "chains": int(chains),
-                    "draws": int(draws), "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)),
-                    "target_accept": 0.8,
-                    "adaptation": ("diag (PyMC's NUTS)" if human_model == "delayed" and delay_mode != "profile" else
-                                   f"{DELAYED_NUTS['adaptation']} (nutpie)" if human_model == "delayed" else
-                                   "diag (nutpie default)")},
+        "sampler": {**sampler_record(human_model, delay_mode), "chains": int(chains), "draws": int(draws),
+                    "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)), "target_accept": 0.8},
         "identify_settings": settings.as_dict(),
         "priors": asdict(priors),
         "parameterization": {**asdict(form), "reason": form_reason},

@@ -3,12 +3,15 @@
 =========================  ===========================================================
 module                     what it holds
 =========================  ===========================================================
-:mod:`.sampling`           nutpie through ``pm.sample``: seeds, clean stdout, Ctrl-C
+:mod:`.sampling`           nutpie through ``pm.sample``: seeds, clean stdout, Ctrl-C, log lines
 :mod:`.diagnostics`        R-hat, ESS, E-BFMI, divergences and the sampler's verdict
 :mod:`.contrasts`          β, exp(β), P(β < 0), HDIs, per-subject contrasts
 :mod:`.loo`                PSIS-LOO over segments and leave-one-subject-out
 :mod:`.ppc`                posterior predictive draws and ``constant_data``
-:mod:`.checks`             mixed model, truth check, adequacy at the posterior θ
+:mod:`.checks`             mixed model, truth check, adequacy at a posterior point
+:mod:`.delayed`            the delayed human's fit: delays, sampling, results, adequacy
+:mod:`.human_models`       leave-one-subject-out between a max-ent and a delayed fit
+:mod:`.recheck`            ``scioc adequacy``: a finished fit's adequacy, again
 :mod:`.stage`              :func:`fit_to_dir` (the artifacts)
 :mod:`.summary`            :func:`format_fit`: the lines ``scioc fit`` prints
 =========================  ===========================================================

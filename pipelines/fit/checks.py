@@ -178,7 +178,7 @@ def truth_check(idata, truth_dir, estimates: pd.DataFrame | None = None, design:
 #: towards 1 (the plug-in p-value is conservative: Bayarri & Berger 2000), and where parameters
 #: trade off along a curved ridge it leaves the posterior: the delayed human's torque variance is
 #: split between policy noise (R) and motor noise (σ_m), and the means of log R and σ_m predict less
-#: variance than the draws on the ridge do (measured: README, "Human models").
+#: variance than the draws on the ridge do (measured: README, "At the posterior").
 ADEQUACY_POINTS = ("draw", "means")
 
 

@@ -166,6 +166,26 @@ def fit_study(side: dict, folder, study=None) -> Path:
     return Path(study)
 
 
+def sidecar_delays(side: dict, folder, prepared) -> np.ndarray:
+    """The delay (samples) a delayed fit used for each segment of ``prepared`` (its sidecar's ``delay.by_unit``).
+
+    Raises
+    ------
+    pipelines.io.InputDataError
+        If the sidecar has no delays, or none for a unit of the study.
+    """
+    path = Path(folder) / "posterior.json"
+    by_unit = side.get("delay", {}).get("by_unit")
+    if by_unit is None:
+        raise InputDataError(f"{path}: no key 'delay' with 'by_unit' (the delays the delayed fit used)")
+    try:
+        return np.array([int(by_unit[f"{p.data.subject}/{p.data.condition}"]["delay_samples"])
+                         for p in prepared.segments], dtype=np.int64)
+    except KeyError as exc:
+        raise InputDataError(f"{path}: delay.by_unit has no delay_samples for unit {exc.args[0]!r} of the "
+                             "study") from None
+
+
 def adequacy_brief(adequacy: dict | None, where: str) -> dict:
     """The adequacy verdict of a fit at its posterior θ, short: verdict, failed checks, flagged segments."""
     a = adequacy or {"verdict": "not checked", "reason": "no adequacy block"}
@@ -246,11 +266,7 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
     levels = design.ordered_levels
     batch = prepare_batch(plant, [p.segment for p in prepared.segments])
     index = index_study(prepared.subjects, prepared.conditions, levels)
-    if "by_unit" not in sides["delayed"].get("delay", {}):
-        raise InputDataError(f"{folders['delayed'] / 'posterior.json'}: no key 'delay' with 'by_unit' (the delays the "
-                             "delayed fit used)")
-    by_unit = sides["delayed"]["delay"]["by_unit"]
-    delay = np.array([by_unit[f"{p.data.subject}/{p.data.condition}"]["delay_samples"] for p in prepared.segments])
+    delay = sidecar_delays(sides["delayed"], folders["delayed"], prepared)
     warm = [p.warmup for p in prepared.segments]
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(2)]
     summaries, pointwise = {}, {}
@@ -331,5 +347,5 @@ def format_human_models(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "adequacy_brief", "check_maxent_fit", "fit_study", "compare_human_models",
-           "fit_settings", "fit_sidecar", "format_human_models", "write_human_models"]
+__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "adequacy_brief", "check_maxent_fit", "compare_human_models",
+           "fit_settings", "fit_sidecar", "fit_study", "format_human_models", "sidecar_delays", "write_human_models"]

@@ -15,31 +15,15 @@ import dataclasses
 from pathlib import Path
 
 import arviz as az
-import numpy as np
 
 from models.plant import discretize
 from pipelines.fit.artifacts import strict_json
 from pipelines.fit.checks import posterior_adequacy
 from pipelines.fit.delayed import Delays, delayed_adequacy
-from pipelines.fit.human_models import fit_settings, fit_sidecar, fit_study
-from pipelines.io import InputDataError, load_study
+from pipelines.fit.human_models import fit_settings, fit_sidecar, fit_study, sidecar_delays
+from pipelines.io import load_study
 from pipelines.prepare import prepare_study
 from pipelines.storage import write_text_atomic
-
-
-def sidecar_delays(side: dict, folder: Path, prepared) -> Delays:
-    """The delays a delayed fit used (its ``posterior.json``: ``delay.by_unit``), one per segment."""
-    by_unit = side.get("delay", {}).get("by_unit")
-    if by_unit is None:
-        raise InputDataError(f"{folder / 'posterior.json'}: no key 'delay' with 'by_unit' (the delays the delayed "
-                             "fit used)")
-    try:
-        samples = np.array([int(by_unit[f"{p.data.subject}/{p.data.condition}"]["delay_samples"])
-                            for p in prepared.segments], dtype=np.int64)
-    except KeyError as exc:
-        raise InputDataError(f"{folder / 'posterior.json'}: delay.by_unit has no delay_samples for unit "
-                             f"{exc.args[0]!r} of the study") from None
-    return Delays(samples, by_unit, f"{folder / 'posterior.json'} (delay.by_unit)", None)
 
 
 def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, study=None) -> dict:
@@ -79,7 +63,9 @@ def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, stud
     idata = az.from_netcdf(folder / "posterior.nc")
     human_model = side.get("human_model", "maxent")
     if human_model == "delayed":
-        summary = delayed_adequacy(idata, prepared, plant, sidecar_delays(side, folder, prepared), at=at)
+        delays = Delays(sidecar_delays(side, folder, prepared), side["delay"]["by_unit"],
+                        f"{folder / 'posterior.json'} (delay.by_unit)")
+        summary = delayed_adequacy(idata, prepared, plant, delays, at=at)
     else:
         summary = posterior_adequacy(idata, prepared, plant, at=at)
     return {"fit": str(folder), "study": str(study), "human_model": human_model, "adequacy": summary}
@@ -90,4 +76,4 @@ def write_recheck(result: dict, path) -> Path:
     return write_text_atomic(path, strict_json(result))
 
 
-__all__ = ["recheck_adequacy", "sidecar_delays", "write_recheck"]
+__all__ = ["recheck_adequacy", "write_recheck"]

@@ -45,6 +45,7 @@ from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import sample_model
+from pipelines.fit.start import start_point
 from pipelines.io import InputDataError
 
 #: Unit-level quantities of the delayed model whose diagnostics are reported.
@@ -257,14 +258,16 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                 tau0=[p.warmup for p in prepared.segments], priors=priors,
                                 delayed_priors=delayed_priors, parameterization=form, delayed_form=delayed_form,
                                 segment_ids=prepared.labels, levels=levels, params=prepared.settings.design.wheel)
+    start = start_point(model, estimates if estimates is not None else delays.estimates)
     t1 = time.perf_counter()
     if sampled:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
-                                  show_progress=show_progress, steps=[delay_step(model, mode="NUMBA")])
+                                  show_progress=show_progress, steps=[delay_step(model, mode="NUMBA")],
+                                  initvals=start)
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     else:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
-                                  show_progress=show_progress, nuts=DELAYED_NUTS)
+                                  show_progress=show_progress, nuts=DELAYED_NUTS, initvals=start)
     timing = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
     diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
     side = {"delay": {"mode": delay_mode, "source": delays.source, "by_unit": delays.by_unit,
@@ -273,6 +276,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                "models/bayes/delayed_model.py says what that costs")},
             "tau0": "each window's arm torque follows from the torques before it (PreparedSegment.warmup) "
                     "at every τ_nm",
+            "start": ("the chains start near the ML estimates (pipelines/fit/start.py), jittered" if start else
+                      "the chains start at PyMC's initial point (no ML estimates), jittered"),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
             "delayed_parameterization": asdict(form),
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled"} if sampled

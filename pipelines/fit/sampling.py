@@ -21,7 +21,8 @@ def child_seeds(seed: int) -> dict:
 
 
 def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
-                 show_progress: bool = False, log_likelihood: bool = True, nuts: dict | None = None, steps=None):
+                 show_progress: bool = False, log_likelihood: bool = True, nuts: dict | None = None, steps=None,
+                 initvals: dict | None = None):
     """Sample ``model`` with nutpie (through ``pm.sample``) and add the pointwise log-likelihood.
 
     ``log_likelihood=False`` skips the pointwise log-likelihood (for timing the fit alone).
@@ -35,6 +36,9 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     ``steps``: step methods for some of the model's variables (e.g. a sampled delay, which
     nutpie cannot update): the model is then sampled by PyMC's compound step, ``steps`` for
     their variables and PyMC's own NUTS (diagonal mass matrix) for the rest, compiled by numba.
+
+    ``initvals``: where the chains start (RV name -> value; :func:`pipelines.fit.start.start_point`),
+    jittered per chain as PyMC's own start is; passed on only when given.
 
     Returns
     -------
@@ -55,7 +59,8 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
         try:
             idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
                               random_seed=seed, progressbar=show_progress and not lines,
-                              quiet=not show_progress, model=model, **sampler)
+                              quiet=not show_progress, model=model, **sampler,
+                              **({"initvals": dict(initvals)} if initvals else {}))
         except BaseException as exc:
             if interrupted():  # a Ctrl-C inside nutpie's Rust code comes out as a PanicException, say
                 raise KeyboardInterrupt from exc

@@ -1,0 +1,140 @@
+"""Where a hierarchical fit's chains start: near the ML estimates of ``scioc identify``.
+
+PyMC starts every chain at the prior's support point (jittered): the population centres,
+offsets of 0. For the ``delayed`` model of a default-size study that point lies far from the
+posterior, whose units the 84 windows of 1500 samples fix tightly, and nutpie's first
+tuning draws then take trees of hundreds of leapfrog steps while the step size and mass
+matrix adapt (measured: README "Human models", "Speed of the hierarchical fit").
+
+:func:`start_point` puts the chains where the identification already is. It minimizes over
+the model's free variables (on the sampler's unconstrained scale)::
+
+    -log p_prior(free variables)  +  1/2 sum_units sum_q ((q(free) - q_ML) / se_q)^2
+
+where q runs over the unit quantities the ML estimates give (log θ1, log R, θ2 per unit;
+τ_nm and σ_m per subject) with their standard errors: a Gaussian stand-in for the likelihood
+around the ML point, so the optimum is an approximate posterior mode built without one
+evaluation of the likelihood (milliseconds per gradient, whatever the forms of the blocks).
+The result is a starting point only: the chains are jittered around it as around PyMC's own
+(U(-1, 1) on the unconstrained scale), tuning still runs, and the posterior is the model's.
+The population scales (every positive free variable without a subject dimension: σ_log θ1,
+σ_β, τ_θ2, s_τ, s_m, ...) are held at PyMC's initial point, not optimized. A hierarchical prior's
+density grows without bound as a population scale goes to 0 with its units on their centre, so
+where the targets agree within their SEs the optimum is a funnel's neck: on a 3-subject ``kbl``
+study the optimizer put σ_log θ1 at 0, and from there one of two chains stayed stuck for 100
+tuning draws (β 0.09 against the other's −0.81, the truth −0.7), where both chains started at
+PyMC's point agreed. A start that the optimizer cannot improve on PyMC's own is not used
+(:func:`start_point` returns None), nor one with a coordinate at the optimizer's box
+(:data:`UNCONSTRAINED_BOUND`), nor one from estimates without the cost (θ1, R) targets (a fit
+without ``--estimates`` has only τ_nm and σ_m from its delay profile). Discrete variables (the
+sampled delays of ``--delay sampled``) stay at PyMC's initial point too.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+#: Unit quantities of the ML estimates used as targets: model deterministic -> (estimate column, SE column,
+#: transform of the estimate to the deterministic's scale).
+UNIT_TARGETS = {"log_theta1": ("theta1", "se_log_theta1", np.log), "log_R": ("R", "se_log_R", np.log),
+                "theta2": ("theta2", "se_theta2", None)}
+#: Subject quantities (per-subject parameters of the delayed model): the inverse-variance mean of the subject's units.
+SUBJECT_TARGETS = {"tau_nm": ("tau_nm", "se_tau_nm"), "sigma_m": ("sigma_m", "se_sigma_m")}
+#: Smallest SE a target is given (relative scale of its quantity: log units, s, N·m), so that one unit's
+#: near-zero SE does not make the stand-in a constraint.
+SE_FLOOR = {"log_theta1": 0.05, "log_R": 0.1, "theta2": 0.02, "tau_nm": 0.002, "sigma_m": 0.005}
+#: The optimizer's box on every unconstrained coordinate (exp(-50) is still a positive scale).
+UNCONSTRAINED_BOUND = 50.0
+
+
+def _targets(model, estimates: pd.DataFrame) -> dict:
+    """name -> (target array, SE array) in the model's dims (subject, condition) or (subject,)."""
+    subjects = [str(s) for s in model.coords["subject"]]
+    levels = [str(c) for c in model.coords.get("condition", ())]
+    est = estimates.assign(subject=estimates["subject"].astype(str), condition=estimates["condition"].astype(str))
+    by_unit = est.set_index(["subject", "condition"])
+    out = {}
+    for name, (col, se_col, f) in UNIT_TARGETS.items():
+        if name not in model.named_vars or col not in est or se_col not in est:
+            continue
+        idx = pd.MultiIndex.from_product([subjects, levels])
+        value = by_unit[col].reindex(idx).to_numpy(float).reshape(len(subjects), len(levels))
+        se = by_unit[se_col].reindex(idx).to_numpy(float).reshape(len(subjects), len(levels))
+        out[name] = (f(value) if f is not None else value, se)
+    for name, (col, se_col) in SUBJECT_TARGETS.items():
+        if name not in model.named_vars or col not in est or se_col not in est:
+            continue
+        value, se = [], []
+        for s in subjects:
+            rows = est[est["subject"] == s]
+            v, e = rows[col].to_numpy(float), np.maximum(rows[se_col].to_numpy(float), SE_FLOOR[name])
+            ok = np.isfinite(v) & np.isfinite(e)
+            w = 1.0 / e[ok] ** 2
+            value.append(float(np.sum(w * v[ok]) / np.sum(w)) if ok.any() else np.nan)
+            se.append(float(np.sqrt(1.0 / np.sum(w))) if ok.any() else np.nan)
+        out[name] = (np.array(value), np.array(se))
+    return out
+
+
+def _is_population_scale(model, rv) -> bool:
+    """A positive (transformed) free variable without a subject dimension: a population's scale."""
+    return model.rvs_to_transforms.get(rv) is not None and "subject" not in (model.named_vars_to_dims.get(rv.name) or ())
+
+
+def _held(model, rv) -> bool:
+    """Held at PyMC's initial point: a population's scale, or a discrete variable (the sampled delays)."""
+    return _is_population_scale(model, rv) or rv.dtype.startswith("int")
+
+
+def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) -> dict | None:
+    """Initial values (RV name -> value, constrained scale) near the ML estimates; None without estimates.
+
+    See the module docstring. Units whose estimate or SE is missing or not finite do not
+    pull (their quantities follow the prior). The values are those PyMC's ``initvals`` takes.
+    """
+    if estimates is None or estimates.empty:
+        return None
+    import pytensor
+    import pytensor.tensor as pt
+    from pymc.pytensorf import compile as compile_pymc
+    from pymc.pytensorf import join_nonshared_inputs
+    from scipy.optimize import minimize
+
+    targets = _targets(model, estimates)
+    if not targets or any(name in model.named_vars and name not in targets for name in UNIT_TARGETS):
+        return None  # without every unit cost target, units the targets leave free collapse onto their population
+    penalty = pt.constant(0.0)
+    for name, (value, se) in targets.items():
+        ok = np.isfinite(value) & np.isfinite(se)
+        scale = np.where(ok, np.maximum(np.nan_to_num(se, nan=1.0), SE_FLOOR[name]), 1.0)
+        z = (model.named_vars[name] - np.nan_to_num(value)) / scale
+        penalty = penalty + 0.5 * pt.sum(pt.where(ok, z, 0.0) ** 2)
+    objective = -model.varlogp + model.replace_rvs_by_values([penalty])[0]
+    ip = model.initial_point()
+    [obj], flat = join_nonshared_inputs(ip, [objective], model.value_vars)
+    # PyMC's compile turns a parameter check (sigma > 0, ...) into an objective of +inf, not an exception.
+    fn = compile_pymc([flat], [obj, pt.grad(obj, flat)])
+    x0 = np.concatenate([np.asarray(ip[v.name], float).ravel() for v in model.value_vars])
+    f0 = float(fn(x0)[0])
+    # Bounds on the unconstrained scale keep exp() of a log-transformed scale positive in floating point.
+    # Population scales (module docstring) and discrete variables are held at PyMC's initial point (equal bounds).
+    held = np.concatenate([np.full(int(np.prod(ip[v.name].shape)), _held(model, rv))
+                           for rv, v in zip(model.free_RVs, model.value_vars)])
+    bounds = [(x, x) if h else (-UNCONSTRAINED_BOUND, UNCONSTRAINED_BOUND) for x, h in zip(x0, held)]
+    res = minimize(lambda x: tuple(np.asarray(a, float) for a in fn(x)), x0, jac=True, method="L-BFGS-B",
+                   bounds=bounds, options={"maxiter": int(max_iter)})
+    if not (np.isfinite(res.fun) and res.fun < f0) or np.any(np.abs(res.x[~held]) >= UNCONSTRAINED_BOUND * (1 - 1e-9)):
+        return None  # no improvement, or a coordinate at the box
+    point, i = {}, 0
+    for v in model.value_vars:
+        size = int(np.prod(ip[v.name].shape))
+        point[v.name] = res.x[i:i + size].reshape(ip[v.name].shape).astype(v.dtype)
+        i += size
+    rvs = model.free_RVs
+    constrained = pytensor.function(model.value_vars, model.replace_rvs_by_values(rvs), on_unused_input="ignore")
+    values = constrained(*[point[v.name] for v in model.value_vars])
+    return {rv.name: np.asarray(val) for rv, val in zip(rvs, values)}
+
+
+__all__ = ["SE_FLOOR", "SUBJECT_TARGETS", "UNCONSTRAINED_BOUND", "UNIT_TARGETS", "start_point"]

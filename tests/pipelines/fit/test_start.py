@@ -1,0 +1,81 @@
+"""Where a fit's chains start (pipelines/fit/start.py): near the ML estimates, on any form of the blocks."""
+
+import numpy as np
+import pandas as pd
+import pymc as pm
+import pytensor
+import pytest
+
+from pipelines.fit.start import start_point
+
+SUBJECTS = ["S1", "S2", "S3", "S4"]
+LEVELS = ["MC", "SC"]
+
+
+def toy_model(noncentred: bool):
+    """A population of log θ1 per unit (non-centred or centred) and a per-subject τ_nm, as the delayed model has them."""
+    with pm.Model(coords={"subject": SUBJECTS, "condition": LEVELS}) as model:
+        mu = pm.Normal("mu_log_theta1", 3.0, 1.0)
+        sigma = pm.HalfNormal("sigma_log_theta1", 1.0)
+        if noncentred:
+            z = pm.Normal("z", 0.0, 1.0, dims=("subject", "condition"))
+            pm.Deterministic("log_theta1", mu + sigma * z, dims=("subject", "condition"))
+        else:
+            pm.Normal("log_theta1", mu, sigma, dims=("subject", "condition"))
+        pm.HalfNormal("tau_nm", 0.1, dims="subject")
+    return model
+
+
+def estimates(log_theta1, tau):
+    rows = []
+    for i, s in enumerate(SUBJECTS):
+        for j, c in enumerate(LEVELS):
+            rows.append({"subject": s, "condition": c, "theta1": float(np.exp(log_theta1[i, j])),
+                         "se_log_theta1": 0.05, "tau_nm": tau[i], "se_tau_nm": 0.005})
+    return pd.DataFrame(rows)
+
+
+@pytest.mark.parametrize("noncentred", [True, False])
+def test_start_is_near_the_estimates_in_any_form(noncentred):
+    rng = np.random.default_rng(1)
+    target = 3.0 + 0.5 * rng.standard_normal((4, 2))
+    tau = np.array([0.05, 0.08, 0.11, 0.07])
+    model = toy_model(noncentred)
+    start = start_point(model, estimates(target, tau))
+    fn = pytensor.function(model.free_RVs, [model["log_theta1"], model["tau_nm"]], on_unused_input="ignore")
+    log_theta1, tau_nm = fn(*[start[rv.name] for rv in model.free_RVs])
+    # within the stand-in likelihood's SE of the ML value (the prior pulls only a little), where PyMC's own
+    # start (all log θ1 at 3, every τ_nm at the half-normal's support point) is up to 1.2 and 0.04 away
+    assert np.max(np.abs(log_theta1 - target)) < 0.05
+    assert np.max(np.abs(tau_nm - tau)) < 0.005
+    assert np.max(np.abs(3.0 - target)) > 0.5
+
+
+def test_missing_estimates_follow_the_prior_and_none_without_estimates():
+    target = np.full((4, 2), 4.0)
+    est = estimates(target, np.full(4, 0.06))
+    est.loc[0, "theta1"] = np.nan  # S1/MC: no estimate, so its log θ1 follows the population
+    model = toy_model(noncentred=True)
+    start = start_point(model, est)
+    fn = pytensor.function(model.free_RVs, model["log_theta1"], on_unused_input="ignore")
+    log_theta1 = fn(*[start[rv.name] for rv in model.free_RVs])
+    assert np.all(np.isfinite(log_theta1))
+    assert np.max(np.abs(log_theta1.ravel()[1:] - 4.0)) < 0.05
+    assert start_point(model, None) is None
+    assert start_point(model, est.iloc[0:0]) is None
+
+
+def test_no_start_without_cost_targets():
+    """Without θ1 targets the centred units would collapse onto μ and σ -> 0 (the funnel's neck): no start."""
+    est = estimates(np.full((4, 2), 4.0), np.full(4, 0.06))
+    model = toy_model(noncentred=False)
+    assert start_point(model, est.drop(columns=["theta1", "se_log_theta1"])) is None
+
+
+def test_population_scales_are_held_where_the_targets_agree():
+    """Centred units whose targets agree: the optimum over σ would be its funnel's neck (σ -> 0); σ is held."""
+    model = toy_model(noncentred=False)
+    start = start_point(model, estimates(np.full((4, 2), 4.0), np.full(4, 0.06)))
+    sigma0 = model.initial_point()["sigma_log_theta1_log__"]
+    assert np.log(start["sigma_log_theta1"]) == pytest.approx(sigma0, abs=1e-12)
+    assert np.max(np.abs(start["log_theta1"] - 4.0)) < 0.05

@@ -165,6 +165,11 @@ def format_delay_profile(res: dict) -> str:
     return "\n".join(lines)
 
 
+def _tuning_text(sampler: dict) -> str:
+    t = sampler.get("tuning_mean_steps_per_draw")
+    return "warm-up: not counted" if t is None else f"warm-up: {t:.1f}"
+
+
 def _goal_text(res: dict) -> str:
     if res["within_goal"] is None:
         g = FIT_DELAYED_GOAL_SIZE
@@ -187,7 +192,8 @@ def format_fit_delayed(res: dict) -> str:
         f"  wall: build {s['build']:.1f} s + compile and sample {s['compile_and_sample']:.1f} s = {s['fit']:.1f} s "
         f"({_goal_text(res)}); sampling alone {s['sample']:.1f} s",
         f"  sampler: {d['sampler']['divergences']} divergences, mean {d['sampler']['mean_steps_per_draw']:.1f} leapfrog "
-        f"steps per draw, {res['grad_evals']} gradient evaluations; sampler convergence: {d['convergence_verdict']}",
+        f"steps per draw ({_tuning_text(d['sampler'])}), {res['grad_evals']} gradient evaluations after tuning; "
+        f"sampler convergence: {d['convergence_verdict']}",
         f"  worst population parameter: R-hat {d['worst']['rhat']:.3f}, ESS {d['worst']['ess']:.0f} "
         f"({d['worst']['ess_parameter']})",
         f"  τ_nm: {rec['tau_nm']['n_in_hdi94']} of {rec['tau_nm']['n']} subjects' truths in their 94 % HDI; σ_m: "

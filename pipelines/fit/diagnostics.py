@@ -71,6 +71,9 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
                                           else "reached_max_treedepth"].values.sum()),
         "mean_steps_per_draw": float(n_steps.mean()),
         "max_steps_per_draw": int(n_steps.max()),
+        # the warm-up's (nutpie: pipelines.fit.sampling.keep_tuning_steps), None where not counted
+        "tuning_mean_steps_per_draw": (ss.attrs["tuning_leapfrog_steps"] / (ss.attrs["tuning_draws"] * n_steps.shape[0])
+                                       if ss.attrs.get("tuning_draws") else None),
         "step_size": [float(x) for x in ss["step_size"].values[:, -1]],
     }
     worst_rhat = max(population.values(), key=lambda p: p["rhat"])

@@ -37,6 +37,9 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     nutpie cannot update): the model is then sampled by PyMC's compound step, ``steps`` for
     their variables and PyMC's own NUTS (diagonal mass matrix) for the rest, compiled by numba.
 
+    With nutpie the warm-up's leapfrog steps are counted and its draws dropped
+    (:func:`keep_tuning_steps`).
+
     ``initvals``: where the chains start (RV name -> value; :func:`pipelines.fit.start.start_point`),
     jittered per chain as PyMC's own start is; passed on only when given.
 
@@ -55,7 +58,8 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     lines = show_progress and not steps and not sys.stderr.isatty()
     with stdout_to_stderr(), interrupt_guard() as interrupted, progress_lines(lines):
         sampler = ({"step": list(steps), "compute_convergence_checks": False, "compile_kwargs": {"mode": "NUMBA"}}
-                   if steps else {"nuts_sampler": "nutpie", **({"nuts": dict(nuts)} if nuts else {})})
+                   if steps else {"nuts_sampler": "nutpie", "discard_tuned_samples": False,
+                                  **({"nuts": dict(nuts)} if nuts else {})})
         try:
             idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
                               random_seed=seed, progressbar=show_progress and not lines,
@@ -68,6 +72,7 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     if interrupted():
         # nutpie stops on Ctrl-C and returns the draws so far; a partial posterior is not a result.
         raise KeyboardInterrupt
+    keep_tuning_steps(idata)
     t1 = time.perf_counter()
     if log_likelihood:
         # PyMC cannot rebuild a model with initial values (the folded ρ's of delayed_blocks.py) for the
@@ -82,6 +87,23 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     attrs = idata["sample_stats" if steps else "posterior"].attrs  # PyMC's own sampler records it there
     return idata, {"compile_and_sample": t1 - t0, "sample": float(attrs.get("sampling_time", t1 - t0)),
                    "log_likelihood": t2 - t1}
+
+
+def keep_tuning_steps(idata) -> None:
+    """Record the warm-up's leapfrog steps in ``sample_stats.attrs`` and drop nutpie's warm-up groups.
+
+    ``tuning_leapfrog_steps`` (all chains) and ``tuning_draws`` (per chain), so that
+    :func:`pipelines.fit.diagnostics.diagnostics` can say where the sampling time went: the
+    kept draws' steps alone do not (the delayed fit's warm-up took most of it). The warm-up
+    draws themselves are not kept (nutpie hands them back only so that this can be counted).
+    """
+    names = [g for g in list(idata.children) if g.startswith("warmup_")]
+    if "warmup_sample_stats" in names:
+        n = idata["warmup_sample_stats"]["n_steps"].values
+        idata["sample_stats"].attrs["tuning_leapfrog_steps"] = int(n.sum())
+        idata["sample_stats"].attrs["tuning_draws"] = int(n.shape[1])
+    for g in names:
+        del idata[g]
 
 
 def progress_line(chain_progresses, seconds: float) -> str:

@@ -42,7 +42,8 @@ def section_diagnostics(side: dict, design: Design = STUDY) -> Markup:
             "model": model, "divergences": sm["divergences"],
             "max R-hat": d["worst"]["rhat"], "min ESS (parameter)": f"{d['worst']['ess']:.0f} ({d['worst']['ess_parameter']})",
             "min E-BFMI": min(sm["ebfmi"]), "max tree depth": sm["max_tree_depth"],
-            "steps/draw": sm["mean_steps_per_draw"], "sampling (s)": sec["sample_s"],
+            "steps/draw": sm["mean_steps_per_draw"], "warm-up steps/draw": sm.get("tuning_mean_steps_per_draw"),
+            "sampling (s)": sec["sample_s"],
             "compile + sample (s)": sec["compile_and_sample_s"], "min ESS/s": d["worst"]["min_ess_bulk_per_s"],
         })
     d = side["diagnostics"]["condition"]

@@ -65,3 +65,25 @@ def test_progress_lines_report_draws_divergences_and_steps_and_leave_the_draws_a
         b = pm.sample(**kw)
     assert "sampling: " not in capsys.readouterr().err
     np.testing.assert_array_equal(a["posterior"]["x"].values, b["posterior"]["x"].values)
+
+
+def test_the_warm_up_steps_are_counted_and_its_draws_dropped_without_changing_the_kept_draws():
+    """The diagnostics report the warm-up's steps per draw (where the delayed fit's time goes); the kept draws
+    are those of PyMC's default, which discards the warm-up."""
+    import numpy as np
+    import pymc as pm
+
+    from pipelines.fit.diagnostics import diagnostics
+    from pipelines.fit.sampling import sample_model
+
+    with pm.Model() as model:
+        mu = pm.Normal("mu_log_theta1", 0.0, 1.0)
+        pm.Normal("y", mu, pm.HalfNormal("sigma_log_theta1", 1.0), observed=np.array([0.1, 0.3, -0.5]))
+    idata, sec = sample_model(model, seed=3, chains=2, draws=40, tune=30, cores=1)
+    assert not [g for g in idata.children if g.startswith("warmup")]
+    sampler = diagnostics(idata, sec["sample"], ["mu_log_theta1"], [])["sampler"]
+    assert sampler["tuning_mean_steps_per_draw"] >= 1.0
+    assert idata["sample_stats"].attrs["tuning_draws"] == 30
+    plain = pm.sample(draws=40, tune=30, chains=2, cores=1, random_seed=3, nuts_sampler="nutpie", progressbar=False,
+                      model=model)
+    np.testing.assert_array_equal(idata["posterior"]["mu_log_theta1"].values, plain["posterior"]["mu_log_theta1"].values)

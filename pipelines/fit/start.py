@@ -4,7 +4,7 @@ PyMC starts every chain at the prior's support point (jittered): the population 
 offsets of 0. For the ``delayed`` model of a default-size study that point lies far from the
 posterior, whose units the 84 windows of 1500 samples fix tightly, and nutpie's first
 tuning draws then take trees of hundreds of leapfrog steps while the step size and mass
-matrix adapt (measured: README "Human models", "Speed of the hierarchical fit").
+matrix adapt (README "Human models", "Where the delayed fit's time goes").
 
 :func:`start_point` puts the chains where the identification already is. It minimizes over
 the model's free variables (on the sampler's unconstrained scale)::
@@ -20,10 +20,11 @@ The result is a starting point only: the chains are jittered around it as around
 The population scales (every positive free variable without a subject dimension: σ_log θ1,
 σ_β, τ_θ2, s_τ, s_m, ...) are held at PyMC's initial point, not optimized. A hierarchical prior's
 density grows without bound as a population scale goes to 0 with its units on their centre, so
-where the targets agree within their SEs the optimum is a funnel's neck: on a 3-subject ``kbl``
-study the optimizer put σ_log θ1 at 0, and from there one of two chains stayed stuck for 100
-tuning draws (β 0.09 against the other's −0.81, the truth −0.7), where both chains started at
-PyMC's point agreed. A start that the optimizer cannot improve on PyMC's own is not used
+where the targets agree within their SEs the optimum is a funnel's neck. On the 3-subject ``kbl``
+study of ``tests/pipelines/fit/test_delayed_fit.py`` the optimizer put σ_log θ1 at 0; one of the
+two short chains stayed near that start, and leave-one-subject-out then preferred the max-ent
+model to the delayed one, which that test catches (it passes from PyMC's own start and with the
+scales held). A start that the optimizer cannot improve on PyMC's own is not used
 (:func:`start_point` returns None), nor one with a coordinate at the optimizer's box
 (:data:`UNCONSTRAINED_BOUND`), nor one from estimates without the cost (θ1, R) targets (a fit
 without ``--estimates`` has only τ_nm and σ_m from its delay profile). Discrete variables (the

@@ -98,6 +98,7 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
         return None
     import pytensor
     import pytensor.tensor as pt
+    from pymc.blocking import DictToArrayBijection, RaveledVars
     from pymc.pytensorf import compile as compile_pymc
     from pymc.pytensorf import join_nonshared_inputs
     from scipy.optimize import minimize
@@ -116,22 +117,19 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
     [obj], flat = join_nonshared_inputs(ip, [objective], model.value_vars)
     # PyMC's compile turns a parameter check (sigma > 0, ...) into an objective of +inf, not an exception.
     fn = compile_pymc([flat], [obj, pt.grad(obj, flat)])
-    x0 = np.concatenate([np.asarray(ip[v.name], float).ravel() for v in model.value_vars])
+    raveled = DictToArrayBijection.map({v.name: ip[v.name] for v in model.value_vars})  # join's order
+    x0 = raveled.data.astype(float)
     f0 = float(fn(x0)[0])
     # Bounds on the unconstrained scale keep exp() of a log-transformed scale positive in floating point.
     # Population scales (module docstring) and discrete variables are held at PyMC's initial point (equal bounds).
-    held = np.concatenate([np.full(int(np.prod(ip[v.name].shape)), _held(model, rv))
-                           for rv, v in zip(model.free_RVs, model.value_vars)])
+    held = np.concatenate([np.full(size, _held(model, rv))
+                           for rv, (_, _, size, _) in zip(model.free_RVs, raveled.point_map_info)])
     bounds = [(x, x) if h else (-UNCONSTRAINED_BOUND, UNCONSTRAINED_BOUND) for x, h in zip(x0, held)]
     res = minimize(lambda x: tuple(np.asarray(a, float) for a in fn(x)), x0, jac=True, method="L-BFGS-B",
                    bounds=bounds, options={"maxiter": int(max_iter)})
     if not (np.isfinite(res.fun) and res.fun < f0) or np.any(np.abs(res.x[~held]) >= UNCONSTRAINED_BOUND * (1 - 1e-9)):
         return None  # no improvement, or a coordinate at the box
-    point, i = {}, 0
-    for v in model.value_vars:
-        size = int(np.prod(ip[v.name].shape))
-        point[v.name] = res.x[i:i + size].reshape(ip[v.name].shape).astype(v.dtype)
-        i += size
+    point = DictToArrayBijection.rmap(RaveledVars(res.x, raveled.point_map_info))  # back to each dtype
     rvs = model.free_RVs
     constrained = pytensor.function(model.value_vars, model.replace_rvs_by_values(rvs), on_unused_input="ignore")
     values = constrained(*[point[v.name] for v in model.value_vars])

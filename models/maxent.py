@@ -53,6 +53,10 @@ from models.segment import SegmentBatch, prepare_batch
 
 #: ½ log 2π, the Gaussian normalization per observed torque.
 HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
+#: The running product of S_k is logged every 16 steps, or sooner once it leaves [PROD_TINY, PROD_HUGE]:
+#: at an extreme θ (S_k ~ 1e20 per step) 16 factors overflow a double, and log(inf) made the density +inf.
+PROD_HUGE = 1e150
+PROD_TINY = 1e-150
 
 
 class LoglikGrad(NamedTuple):
@@ -128,7 +132,7 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
         if observed:
             prod *= S
             nprod += 1
-            if nprod == 16:
+            if nprod == 16 or not (PROD_TINY < prod < PROD_HUGE):  # a log per 16 steps, or before over/underflow
                 logs += math.log(prod)
                 prod = 1.0
                 nprod = 0

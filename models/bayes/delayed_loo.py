@@ -85,6 +85,11 @@ class DelayedSubjectTerms:
         """Posterior draws of subject i's (log τ_nm, log σ_m), each (S,)."""
         return [self.log_tau[:, i], self.log_sig[:, i]]
 
+    def representable(self, z: np.ndarray) -> np.ndarray:
+        """(M,) bool: τ_nm = exp(z[:, 0]) and σ_m = exp(z[:, 1]) are finite (elsewhere their half-normal prior is 0)."""
+        with np.errstate(over="ignore"):
+            return np.all(np.isfinite(np.exp(z)), axis=1)
+
     def log_prior(self, z: np.ndarray) -> np.ndarray:
         """(S, M): log p(log τ_nm, log σ_m | ψ_s) at the M points z (M, 2), the Jacobians τ_nm σ_m included."""
         tau, sig = np.exp(z[:, 0]), np.exp(z[:, 1])

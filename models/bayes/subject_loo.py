@@ -63,10 +63,14 @@ class SubjectLoglik(NamedTuple):
         ``log p(y_i | ψ_s)``, nats.
     is_ess : ndarray, shape (n_subjects,)
         Importance-sampling effective sample size of the inner integral, the smallest over ψ_s.
+    n_outside : ndarray of int, shape (n_subjects,)
+        Proposal points of each subject at which the parameters are not representable
+        (θ1 R, R or an ``extra`` parameter overflows or underflows): weight 0, see :func:`representable`.
     """
 
     loglik: np.ndarray
     is_ess: np.ndarray
+    n_outside: np.ndarray
 
 
 def _norm(x, m, s):
@@ -104,6 +108,24 @@ def _segment_loglik(batch: SegmentBatch, j: int, plant: DiscretePlant, lt1, lR, 
         theta = from_normalized(np.exp(lt1[a:b]), t2[a:b], np.exp(lR[a:b]))
         out[a:b] = loglik_grad(theta, rep, plant).loglik
     return out
+
+
+def representable(lt, lR, t2, extra=None, z=None) -> np.ndarray:
+    """(M,) bool: the points whose cost (every level) and ``extra`` parameters are finite numbers.
+
+    The Student-t proposal's tails reach log θ1 or log R of hundreds (a posterior with a
+    wandering chain widens it further), where ``from_normalized`` gives q11 = inf or R = 0. The
+    integrand there is p(y_i | φ) p(φ | ψ) / q(φ): its prior factor, a normal in log θ1 and log R
+    with the population's SDs, is below the smallest double far before overflow (log θ1 = 709
+    is ~40 SDs of even σ = 16 from any centre), so weight 0 is the integrand's floating-point
+    value, not an approximation. The points are counted (``n_outside``), not hidden.
+    """
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        R = np.exp(lR)
+        ok = np.all(np.isfinite(from_normalized(np.exp(lt), t2, R)), axis=(0, 2)) & np.all(R > 0, axis=1)
+    if extra is not None and hasattr(extra, "representable"):
+        ok &= extra.representable(z)
+    return ok
 
 
 def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, plant: DiscretePlant,
@@ -168,6 +190,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
     taus = np.geomspace(tau_lo, max(tau_hi, tau_lo), TAU_GRID)
     out = np.empty((S, n_subj))
     ess = np.empty(n_subj)
+    outside = np.zeros(n_subj, dtype=np.int64)
     for i in range(n_subj):
         # Gaussian-ish block: log θ1 (one, or one per level) and log R of every level.
         if condition_effects:
@@ -200,14 +223,16 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         else:
             lt = np.column_stack([x[:, 0]] * L)
         lR = x[:, n_cost - L : n_cost]
-        # Likelihood of the subject's segments at the M points.
-        ll = np.zeros(M)
+        # Likelihood of the subject's segments at the M points (-inf where not representable).
+        ok = representable(lt, lR, t2, extra, x[:, n_cost:])
+        outside[i] = M - int(ok.sum())
+        ll = np.where(ok, 0.0, -np.inf)
         for j in np.flatnonzero(s_idx == i):
             c = int(c_idx[j])
             if extra is None:
-                ll += _segment_loglik(batch, j, plant, lt[:, c], lR[:, c], t2[:, c])
+                ll[ok] += _segment_loglik(batch, j, plant, lt[ok, c], lR[ok, c], t2[ok, c])
             else:
-                ll += extra.segment_loglik(j, lt[:, c], lR[:, c], t2[:, c], x[:, n_cost:])
+                ll[ok] += extra.segment_loglik(j, lt[ok, c], lR[ok, c], t2[ok, c], x[ok, n_cost:])
         # Conditional prior of the subject's unit parameters under each population draw (S, M).
         lp = _norm(lt[None, :, 0], mu, sig)
         if condition_effects:
@@ -224,7 +249,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         out[:, i] = special.logsumexp(logw, axis=1) - np.log(M)
         w = np.exp(logw - logw.max(axis=1, keepdims=True))
         ess[i] = float(np.min(w.sum(axis=1) ** 2 / np.sum(w * w, axis=1)))
-    return SubjectLoglik(out, ess)
+    return SubjectLoglik(out, ess, outside)
 
 
 def norm_logpdf(x, m, s):
@@ -237,4 +262,4 @@ def halfnorm_logpdf(x, s):
     return _halfnorm(x, s)
 
 
-__all__ = ["SubjectLoglik", "subject_loglik", "NU", "INFLATE", "halfnorm_logpdf", "norm_logpdf"]
+__all__ = ["SubjectLoglik", "subject_loglik", "representable", "NU", "INFLATE", "halfnorm_logpdf", "norm_logpdf"]

@@ -50,7 +50,7 @@ import math
 import numpy as np
 from numba import njit
 
-from models.maxent import FREEZE_RTOL, HALF_LOG_2PI
+from models.maxent import FREEZE_RTOL, HALF_LOG_2PI, PROD_HUGE, PROD_TINY
 
 #: The Schur columns count as stationary once d + 1 consecutive steps change x by at most
 #: FREEZE_RTOL relative and y (which drives every later change of x, to second order) is below
@@ -208,7 +208,7 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
             quad += f * f
             if k <= k_f:
                 prod *= Dk
-                if k % 16 == 15:  # one log per 16 columns
+                if k % 16 == 15 or not (PROD_TINY < prod < PROD_HUGE):  # one log per 16 columns, or before over/underflow
                     logs += math.log(prod)
                     prod = 1.0
             uk = U(k + d)

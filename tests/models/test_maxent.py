@@ -217,3 +217,20 @@ def test_zero_feedback_is_the_paper_model_bit_for_bit(plant):
     np.testing.assert_array_equal(both.grad[:, 0], plain.grad[:, 0])
     alone = loglik_grad(theta, prepare_batch(plant, [fb_seg]), plant)
     assert both.loglik[1] == alone.loglik[0]
+
+
+@pytest.mark.parametrize("c", [1e10, 1e19, 1e40])
+def test_an_extreme_theta_gives_the_scaled_density_not_infinity(plant, c):
+    # Scaling θ by c scales every S_k by c and leaves the residuals v_k alone, so
+    # log p(cθ) = log p(θ) + (c - 1) quad(θ) + K/2 log c, with quad(θ) = θ·∇log p(θ) - K/2 (Euler).
+    # At c = 1e19 sixteen factors S_k overflowed the kernel's running product and gave +inf
+    # (leave-one-subject-out's proposal reaches such θ).
+    rng = np.random.default_rng(41)
+    seg = random_segment(rng, 60, True)
+    theta = random_theta(rng, False)
+    batch = prepare_batch(plant, [seg])
+    base = loglik_grad(theta, batch, plant)
+    quad = float(theta @ base.grad[:, 0]) - 0.5 * 60
+    expected = base.loglik[0] + (c - 1.0) * quad + 0.5 * 60 * np.log(c)
+    got = loglik_grad(c * np.asarray(theta), batch, plant).loglik[0]
+    assert np.isfinite(got) and abs(got - expected) <= 1e-9 * abs(expected)

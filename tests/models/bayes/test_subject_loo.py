@@ -72,3 +72,25 @@ def test_wrong_population_predicts_worse(plant):
     post["mu_log_theta1"] = np.where(np.arange(400) < 200, 3.0, 6.0)
     res = subject_loglik(post, batch, np.repeat([0, 1], 2), np.tile([0, 1], 2), plant, np.random.default_rng(9))
     assert np.all(res.loglik[:200].mean(axis=0) > res.loglik[200:].mean(axis=0) + 5.0)
+
+
+def test_points_that_overflow_get_weight_zero_instead_of_stopping(plant):
+    # A chain that wandered (the max-ent study's delayed fit: log θ1 from -145 to 68) widens
+    # the proposal until its tails reach log θ1 > 709, where q11 = θ1 R overflows; the
+    # kernel's θ check then stopped `scioc human-models`. Such points must weigh 0 and be counted.
+    from models.bayes.subject_loo import representable
+
+    lt = np.array([[3.0, 3.0], [710.0, 3.0], [400.0, 3.0], [300.0, 3.0], [3.0, 3.0]])
+    lR = np.array([[3.0, 3.0], [3.0, 3.0], [400.0, 3.0], [-300.0, 3.0], [3.0, -800.0]])
+    t2 = np.zeros((5, 2))
+    assert representable(lt, lR, t2).tolist() == [True, False, False, True, False]
+    rng = np.random.default_rng(10)
+    study = simulate_windows(2, rng, Population(), K=30, preview=20)
+    batch = prepare_batch(plant, study.segments)
+    lt, lr, t2 = _prior_draws(rng, 400, 2, True)
+    lt[:40, 0, :] = rng.normal(0.0, 300.0, (40, 2))  # a tenth of the draws far out
+    post = dict(log_theta1=lt, log_R=lr, theta2=t2, **{k: np.full(400, v) for k, v in PSI.items()})
+    res = subject_loglik(post, batch, np.repeat([0, 1], 2), np.tile([0, 1], 2), plant,
+                         np.random.default_rng(11), M=2000)
+    assert res.n_outside[0] > 0 and res.n_outside[1] == 0
+    assert np.all(np.isfinite(res.loglik))

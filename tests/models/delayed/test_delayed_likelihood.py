@@ -219,3 +219,18 @@ def test_a_lag_whose_alpha_rounds_to_one_gives_minus_infinity_not_an_exception(p
                         np.zeros(n), np.zeros((n, 2)), batch.x1, batch.x2, batch.r, batch.u, batch.a, True, 1, out,
                         np.empty((n, 0)))
     assert np.all(np.isfinite(out[0]))
+
+
+@pytest.mark.parametrize("sigma_m", [1e10, 1e14, 1e20, 1e-12, 1e-30])
+def test_extreme_motor_noise_equals_dense(plant, sigma_m):
+    # The innovations' running product of D_k (variances ~ sigma_m²) is logged before it
+    # over- or underflows: with 16 factors per log, sigma_m = 1e10, 1e14 and 1e20 gave a
+    # non-finite or wrong density on this 400-step window; 1e-12 and 1e-30 did not.
+    rng = np.random.default_rng(43)
+    theta = random_theta(rng, False)
+    par = dict(tau_nm=0.05, sigma_m=sigma_m, delay=5, tau0=0.0)
+    seg = window(rng, plant, 400, 200, "MC", drawn=False, **par)
+    dense = loglik_dense(theta, seg, plant, **par)
+    for freeze in (True, False):  # unheld, every column's D_k enters the product
+        fast = loglik_grad(theta, prepare_batch(plant, [seg]), plant, freeze=freeze, **par)
+        assert np.isfinite(fast.loglik[0]) and abs(fast.loglik[0] - dense.loglik) <= 1e-9 * abs(dense.loglik)

@@ -114,7 +114,8 @@ def subject_elpd(idata, batch, index, plant, rng: np.random.Generator, levels, *
     tree = xr.DataTree.from_dict({"posterior": keep[["mu_log_theta1"]], "log_likelihood": xr.Dataset({"y": ll})})
     summary, pointwise = psis_summary(tree, "y", "subject")
     summary.update(is_ess_min=float(res.is_ess.min()), is_ess_median=float(np.median(res.is_ess)),
-                   draws=int(res.loglik.shape[0]))
+                   draws=int(res.loglik.shape[0]), proposal_points_per_subject=LOSO_POINTS,
+                   proposal_points_outside=int(res.n_outside.sum()))
     return summary, pointwise
 
 

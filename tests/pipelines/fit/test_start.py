@@ -79,3 +79,21 @@ def test_population_scales_are_held_where_the_targets_agree():
     sigma0 = model.initial_point()["sigma_log_theta1_log__"]
     assert np.log(start["sigma_log_theta1"]) == pytest.approx(sigma0, abs=1e-12)
     assert np.max(np.abs(start["log_theta1"] - 4.0)) < 0.05
+
+
+def test_an_estimate_at_its_bound_without_se_still_pulls():
+    """τ_nm = 0 with no SE (identify's NaN at a bound, the rule for a human without lag) pulls τ_nm to ~0.
+
+    Without it such subjects started at the prior's initial point (0.1 s here), where the delayed
+    likelihood of a lag-free human is about -1e7 per segment and the chains never left.
+    """
+    est = estimates(np.full((4, 2), 4.0), np.array([0.0, 0.0, 0.06, 0.0]))
+    est.loc[est["tau_nm"] == 0.0, "se_tau_nm"] = np.nan
+    model = toy_model(noncentred=True)
+    start = start_point(model, est)
+    tau_nm = start["tau_nm"]
+    assert np.all(tau_nm[[0, 1, 3]] < 0.01) and abs(tau_nm[2] - 0.06) < 0.005
+    # a value inside its range without an SE still does not pull
+    est.loc[est["subject"] == "S3", "se_tau_nm"] = np.nan
+    free = start_point(model, est)["tau_nm"][2]
+    assert abs(free - 0.06) > 0.005

@@ -86,7 +86,7 @@ class DelayedSubjectTerms:
         return [self.log_tau[:, i], self.log_sig[:, i]]
 
     def representable(self, z: np.ndarray) -> np.ndarray:
-        """(M,) bool: τ_nm = exp(z[:, 0]) and σ_m = exp(z[:, 1]) are finite (elsewhere their half-normal prior is 0)."""
+        """(M,) bool: τ_nm = exp(z[:, 0]) and σ_m = exp(z[:, 1]) are finite (elsewhere their prior is 0)."""
         with np.errstate(over="ignore"):
             return np.all(np.isfinite(np.exp(z)), axis=1)
 

@@ -116,9 +116,10 @@ def representable(lt, lR, t2, extra=None, z=None) -> np.ndarray:
     The Student-t proposal's tails reach log θ1 or log R of hundreds (a posterior with a
     wandering chain widens it further), where ``from_normalized`` gives q11 = inf or R = 0. The
     integrand there is p(y_i | φ) p(φ | ψ) / q(φ): its prior factor, a normal in log θ1 and log R
-    with the population's SDs, is below the smallest double far before overflow (log θ1 = 709
-    is ~40 SDs of even σ = 16 from any centre), so weight 0 is the integrand's floating-point
-    value, not an approximation. The points are counted (``n_outside``), not hidden.
+    with the population's SDs, is below the smallest double long before overflow (exp(-745)
+    underflows; log θ1 = 709 is more than 38 SDs from a centre near 3 for any SD below 18), so
+    weight 0 is the integrand's floating-point value, not an approximation. The points are
+    counted (``n_outside``), not hidden.
     """
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         R = np.exp(lR)

@@ -208,7 +208,8 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
             quad += f * f
             if k <= k_f:
                 prod *= Dk
-                if k % 16 == 15 or not (PROD_TINY < prod < PROD_HUGE):  # one log per 16 columns, or before over/underflow
+                # one log per 16 columns, or sooner before the product over- or underflows
+                if k % 16 == 15 or not (PROD_TINY < prod < PROD_HUGE):
                     logs += math.log(prod)
                     prod = 1.0
             uk = U(k + d)

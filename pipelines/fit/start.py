@@ -56,7 +56,7 @@ def _se_at_bound(value, se) -> np.ndarray:
     study 14 of 24 units had τ_nm = 0 with no SE. Left without a target, their subjects' τ_nm
     started at the prior's initial point, 0.1 s, where the lag's inversion made each of their
     segments' log-likelihood about -1e7 (against +500 at the estimate); nutpie's step size
-    collapsed to 0.003 and the chains never left (``tests/pipelines/fit/test_start.py``).
+    collapsed to 0.003-0.006 and the chains never left (``tests/pipelines/fit/test_start.py``).
     """
     value, se = np.asarray(value, dtype=float), np.asarray(se, dtype=float)
     return np.where(np.isnan(se) & (value == 0.0), 0.0, se)
@@ -107,7 +107,8 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
 
     See the module docstring. Units whose estimate is missing or not finite, or whose SE is
     missing with the estimate inside its range, do not pull (their quantities follow the
-    prior); an estimate at its bound 0 without an SE pulls with the floor SE (:func:`_se_at_bound`). The values are those PyMC's ``initvals`` takes.
+    prior); an estimate at its bound 0 without an SE pulls with the floor SE
+    (:func:`_se_at_bound`). The values are those PyMC's ``initvals`` takes.
     """
     if estimates is None or estimates.empty:
         return None

@@ -162,7 +162,9 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         join the Student-t block, their conditional prior joins the weights, and the
         segments' log-likelihood is theirs; an ``extra`` with a ``baseline_log_R_logpdf``
         method (M,) -> (S, M) replaces the N(μ_R, σ_R) of the subjects' baseline log R
-        (``mu_log_R``, ``sigma_log_R`` are then not needed). None (default): the max-ent
+        (``mu_log_R``, ``sigma_log_R`` are then not needed); one with a ``representable`` method
+        (M, k) -> (M,) bool marks its points at which a parameter overflows (weight 0,
+        :func:`representable`). None (default): the max-ent
         model, exactly.
 
     Returns

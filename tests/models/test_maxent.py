@@ -223,8 +223,8 @@ def test_zero_feedback_is_the_paper_model_bit_for_bit(plant):
 def test_an_extreme_theta_gives_the_scaled_density_not_infinity(plant, c):
     # Scaling θ by c scales every S_k by c and leaves the residuals v_k alone, so
     # log p(cθ) = log p(θ) + (c - 1) quad(θ) + K/2 log c, with quad(θ) = θ·∇log p(θ) - K/2 (Euler).
-    # At c = 1e19 sixteen factors S_k overflowed the kernel's running product and gave +inf
-    # (leave-one-subject-out's proposal reaches such θ).
+    # At c = 1e40 sixteen factors S_k overflowed the kernel's running product and gave +inf
+    # (leave-one-subject-out's proposal reaches such θ); 1e10 and 1e19 were finite before too.
     rng = np.random.default_rng(41)
     seg = random_segment(rng, 60, True)
     theta = random_theta(rng, False)

@@ -7,8 +7,8 @@
 * per contrast against the baseline: the subjects' mean estimated change of log θ1, their
   mean true change, and the difference (the bias of the condition effect);
 
-and for estimates of the ``delayed`` model against a simulated human with a delay and a lag
-(``truth.parquet`` then has ``delay_s``, ``tau_nm`` and ``motor_sd``): how often the delay is
+and for estimates of the ``delayed`` model (against any simulated human: ``truth.parquet`` has its
+``delay_s``, ``tau_nm`` and ``motor_sd``, 0 for the paper's agent): how often the delay is
 exact, its mean error and mean absolute error, the same for τ_nm, and σ_m's mean against
 the motor noise's SD. The numbers of the README's human-model table come from here.
 """
@@ -21,6 +21,7 @@ from scipy.stats import spearmanr
 
 from pipelines.compare import estimates_design, human_model_of
 from pipelines.io import read_table
+from pipelines.simulate import BODY_COLUMNS, read_truth
 
 #: Tolerance for "the delay is exact", s (delays are whole samples).
 DELAY_EXACT_S = 1e-9
@@ -63,7 +64,7 @@ def recovery(estimates: pd.DataFrame, truth: pd.DataFrame, levels, baseline: str
         est, true = (e[v] - e[baseline]).mean(), (t[v] - t[baseline]).mean()
         out["contrasts"][v] = {"mean_estimated_change_log_theta1": float(est), "mean_true_change_log_theta1": float(true),
                                "bias": float(est - true)}
-    if out["human_model"] == "delayed" and {"delay_s", "tau_nm", "motor_sd"} <= set(truth.columns):
+    if out["human_model"] == "delayed" and set(BODY_COLUMNS) <= set(truth.columns):
         m = estimates.merge(truth.drop_duplicates(["subject", "condition"])[["subject", "condition", "delay_s", "tau_nm",
                                                                            "motor_sd"]],
                             on=["subject", "condition"], suffixes=("", "_true"))
@@ -129,7 +130,7 @@ def format_recovery(res: dict) -> str:
 def recovery_of_files(estimates_path, truth_path) -> dict:
     """:func:`recovery` of an ``estimates.parquet`` against a ``truth.parquet``, with the levels identify recorded."""
     design, _ = estimates_design(estimates_path)
-    return recovery(read_table(estimates_path), read_table(truth_path), design.ordered_levels, design.baseline)
+    return recovery(read_table(estimates_path), read_truth(truth_path), design.ordered_levels, design.baseline)
 
 
 __all__ = ["recovery", "recovery_of_files", "format_recovery"]

@@ -7,7 +7,9 @@ Artifacts in ``--out DIR``:
   (``[simulation] torque_sensor``) also u_H.
 * ``experiment.toml`` — the experiment simulated (:mod:`pipelines.experiment`): every
   command finds it beside the study file.
-* ``truth.parquet`` — one row per subject × condition: run order, true q11, q22, R, θ1, θ2.
+* ``truth.parquet`` — one row per subject × condition: run order, true q11, q22, R, θ1, θ2 and
+  the human's own delay, lag and motor noise (``delay_s``, ``tau_nm``, ``motor_sd``; 0 for the
+  paper's agent).
 * ``truth_trajectories.parquet`` — true angle, velocity and u_H per sample.
 * ``simulation.json`` — seed, population, design and package versions.
 """
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict, replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -26,11 +29,29 @@ from models.reference import reference_trajectory
 from models.simulate import Population, simulate_study
 from pipelines.assistant_check import assistant_alone
 from pipelines.experiment import EXPERIMENT_FILE, resolved, sidecar, write_experiment
+from pipelines.io import read_table
 from pipelines.provenance import versions
 from pipelines.storage import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 
 DEFAULT_SEED = 2018
 DEFAULT_SUBJECTS = 42
+#: The human's own delay (s, on the sample grid), neuromuscular lag (s) and motor-noise SD (N·m) in ``truth.parquet``.
+BODY_COLUMNS = ("delay_s", "tau_nm", "motor_sd")
+
+
+def read_truth(path) -> pd.DataFrame:
+    """``truth.parquet`` with the human's delay, lag and motor noise (:data:`BODY_COLUMNS`).
+
+    Files written before these were recorded for the paper's agent lack them; ``simulation.json``
+    beside the file names the human, and the paper's agent has none (0), so they are filled in.
+    """
+    path = Path(path)
+    truth = read_table(path)
+    meta = path.parent / "simulation.json"
+    if not set(BODY_COLUMNS) <= set(truth.columns) and meta.exists():
+        if json.loads(meta.read_text()).get("human", {}).get("name") == "maxent":
+            truth = truth.assign(**dict.fromkeys(BODY_COLUMNS, 0.0))
+    return truth
 
 
 def _labels(s, n: int) -> dict:
@@ -111,10 +132,9 @@ def simulate_to_dir(
                                   "velocity": s.run.true_velocity, "u_H": s.run.u_H}))
         q11, q22, R = s.theta if spec.kind == "lq" else (np.nan, np.nan, np.nan)
         trial = {} if s.trial is None else {"trial": s.trial}
-        # The human's own delay, lag and motor noise (per subject for a human that varies); not for the
-        # paper's agent, whose truth file stays as it was.
-        body = {} if human == "maxent" else {"delay_s": round(s.human.delay_s / design.dt) * design.dt, "tau_nm": s.human.tau_nm,
-                                              "motor_sd": s.human.motor_sd}
+        # The human's own delay, lag and motor noise (per subject for a human that varies; 0 for the paper's agent).
+        body = dict(zip(BODY_COLUMNS, (round(s.human.delay_s / design.dt) * design.dt, s.human.tau_nm,
+                                       s.human.motor_sd)))
         truth.append({"subject": s.subject, "condition": s.condition, **trial, "run_index": s.run_index,
                       "q11": q11, "q22": q22, "R": R, "theta1": q11 / R, "theta2": q22 / R, **body})
     res = resolved(design)

@@ -16,6 +16,7 @@ from models.design import CONDITIONS, STUDY, Design
 from pipelines.adequacy import assess_study, not_checked
 from pipelines.fit.contrasts import HDI_PROB, condition_change, effect_draws, hdi, levels_of
 from pipelines.prepare import PreparedStudy
+from pipelines.simulate import read_truth
 
 
 def _fixed_effect(fit, column: str) -> dict:
@@ -164,6 +165,34 @@ def truth_check(idata, truth_dir, estimates: pd.DataFrame | None = None, design:
                                for c in levels}
         for c in levels[1:]:
             out["ml_log_error"][f"{c}_minus_{levels[0]}"] = out["ml_log_error"][c] - out["ml_log_error"][levels[0]]
+    return out
+
+
+def motor_truth(idata, truth_dir) -> dict | None:
+    """The delayed fit's per-subject τ_nm and σ_m against the simulator's lag and motor-noise SD.
+
+    Per parameter: how many subjects' intervals hold their truth (the 94 % HDI; the one-sided
+    [0, q94] where the truth is 0, as for the population scales, :func:`_interval`), the mean
+    error of the posterior means, the median over subjects of the posterior medians and the
+    largest upper end of the subjects' intervals. For the paper's agent (truth 0) the last two
+    say how near zero the fit puts its lag and motor noise. None when the truth has neither.
+    """
+    truth = read_truth(Path(truth_dir) / "truth.parquet")
+    if not {"tau_nm", "motor_sd"} <= set(truth.columns):
+        return None
+    truth = truth.drop_duplicates("subject").set_index(truth.drop_duplicates("subject")["subject"].astype(str))
+    post = idata["posterior"]
+    out = {}
+    for name, col in (("tau_nm", "tau_nm"), ("sigma_m", "motor_sd")):
+        x = post[name]
+        rows = [(_interval(x.sel(subject=s).values.ravel(), float(truth.loc[str(s), col])),
+                 float(np.median(x.sel(subject=s).values))) for s in x["subject"].values]
+        out[name] = {"n": len(rows), "truth_in_interval": sum(r["in_interval"] for r, _ in rows),
+                     "interval_kinds": sorted({r["interval_kind"] for r, _ in rows}),
+                     "mean_error": float(np.mean([r["mean"] - r["truth"] for r, _ in rows])),
+                     "truth_max": max(r["truth"] for r, _ in rows),
+                     "median_posterior_median": float(np.median([m for _, m in rows])),
+                     "largest_upper": max(r["interval"][1] for r, _ in rows)}
     return out
 
 

@@ -39,8 +39,8 @@ from models.delayed.identify import delay_grid, identify_unit_delayed
 from models.delayed.lag import lag_coefficients, window_tau0
 from models.segment import prepare_batch
 from pipelines.adequacy import assess_study, not_checked
-from pipelines.fit.checks import mixedlm_check, posterior_point, truth_check, unit_theta
-from pipelines.fit.contrasts import contrasts, hdi
+from pipelines.fit.checks import mixedlm_check, motor_truth, posterior_point, truth_check, unit_theta
+from pipelines.fit.contrasts import contrasts
 from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
@@ -318,29 +318,6 @@ def delayed_adequacy(idata, prepared, plant, delays: Delays, at: str = "draw") -
     return summary
 
 
-def motor_truth(idata, truth_dir) -> dict | None:
-    """Each subject's τ_nm, σ_m (and the delays) against the simulator's (``truth.parquet``), when it has them."""
-    truth = pd.read_parquet(f"{truth_dir}/truth.parquet")
-    if not {"tau_nm", "motor_sd"} <= set(truth.columns):
-        return None
-    truth = truth.drop_duplicates("subject").set_index(truth.drop_duplicates("subject")["subject"].astype(str))
-    post = idata["posterior"]
-    out = {}
-    for name, col in (("tau_nm", "tau_nm"), ("sigma_m", "motor_sd")):
-        x = post[name]
-        covered, err = [], []
-        for s in x["subject"].values:
-            draws = x.sel(subject=s).values.ravel()
-            lo, hi = hdi(draws)
-            t = float(truth.loc[str(s), col])
-            covered.append(bool(lo <= t <= hi))
-            err.append(float(draws.mean() - t))
-        out[name] = {"n": len(covered), "truth_in_hdi94": int(sum(covered)), "mean_error": float(np.mean(err))}
-    return out
-
-
-
-
 def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subject: str, rng_ppc, *,
                     n_draws: int) -> tuple[dict, object, object]:
     """contrasts.json of the delayed fit, and the posterior predictive (bands, draws).
@@ -377,4 +354,4 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
 
 
 __all__ = ["DELAY_MODES", "check_recorded_torques", "sampled_delays", "CENTRED_Z", "DELAYED_UNITS", "DelayedFit", "Delays", "choose_delayed_form", "delayed_adequacy",
-           "delayed_results", "motor_truth", "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]
+           "delayed_results", "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]

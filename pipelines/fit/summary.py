@@ -58,6 +58,12 @@ def format_fit(out) -> str:
         lines += [_truth_line(c["beta"], f" ({level})") for level, c in truth["contrasts"].items()]
     elif truth:
         lines.append(_truth_line(truth["beta"]))
+    for k, unit in (("tau_nm", "s"), ("sigma_m", "N·m")):
+        m = ((truth or {}).get("motor") or {}).get(k, {})
+        if "truth_in_interval" in m:  # the delayed fit of a simulated study
+            lines.append(f"{k}: truth (up to {m['truth_max']:.3g} {unit}) inside for {m['truth_in_interval']} of "
+                         f"{m['n']} subjects; median posterior median {m['median_posterior_median']:.3g} {unit}, "
+                         f"largest upper end {m['largest_upper']:.3g} {unit}")
     return "\n".join(lines)
 
 

@@ -63,3 +63,21 @@ def test_delay_profile_spread_counts_each_subjects_summed_profile():
     assert [res["within"][k]["median"] for k in ("3", "6", "10")] == [1.0, 2.0, 3.0]
     both = delay_profile_spread(est.assign(profile_loglik=[peaked, peaked, flat, flat]))
     assert both["subjects"] == 2 and both["within"]["3"] == {"median": 3.0, "min": 1, "max": 5}
+
+
+def test_the_paper_agents_truth_has_no_delay_lag_or_motor_noise(tmp_path, capsys):
+    """A truth file written before the body columns were recorded for the paper's agent reads them as 0."""
+    est, truth = _tables(0.0, 0.0, delayed=True)
+    truth = truth.drop(columns=["delay_s", "tau_nm", "motor_sd"])
+    est.to_parquet(tmp_path / "estimates.parquet")
+    truth.to_parquet(tmp_path / "truth.parquet")
+    args = ["recovery", str(tmp_path / "estimates.parquet"), "--truth", str(tmp_path / "truth.parquet"),
+            "--format", "json"]
+    assert main(args) == 0 and "delayed" not in json.loads(capsys.readouterr().out)  # no simulation.json: unknown
+    (tmp_path / "simulation.json").write_text(json.dumps({"human": {"name": "kbl"}}))
+    assert main(args) == 0 and "delayed" not in json.loads(capsys.readouterr().out)  # another human: not assumed
+    (tmp_path / "simulation.json").write_text(json.dumps({"human": {"name": "maxent"}}))
+    assert main(args) == 0
+    d = json.loads(capsys.readouterr().out)["delayed"]
+    assert d["delay_exact"] == 0 and d["delay_mean_error_s"] == pytest.approx((0.12 * 10 + 0.15 + 0.09) / 12)
+    assert d["tau_nm_mean_error_s"] == pytest.approx(0.065) and d["motor_sd_true_mean"] == 0.0

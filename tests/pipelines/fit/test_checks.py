@@ -78,3 +78,39 @@ def test_the_draw_point_stays_on_a_curved_ridge_where_the_means_leave_it():
     for seed in range(20):
         assert variance(posterior_point(post, "draw", seed)[0]) == pytest.approx(3.0, rel=1e-12)
     assert variance(posterior_point(post, "means", 0)[0]) < 3.0 * (1 - 1e-3)  # 2.72 here
+
+
+def test_motor_truth_counts_intervals_and_says_how_near_zero(tmp_path):
+    """τ_nm, σ_m per subject against the truth: the HDI for a positive truth, [0, q94] for a truth of 0."""
+    import json
+
+    import xarray as xr
+
+    from pipelines.fit.checks import motor_truth
+
+    rng = np.random.default_rng(1)
+    subjects = ["S1", "S2", "S3"]
+    tau = np.stack([np.abs(rng.normal(0, 1e-3, (2, 500))), rng.normal(0.06, 0.005, (2, 500)),
+                    rng.normal(0.2, 0.005, (2, 500))], axis=-1)
+    sig = np.abs(rng.normal(0, 0.02, (2, 500, 3)))
+    post = xr.Dataset({"tau_nm": (("chain", "draw", "subject"), tau), "sigma_m": (("chain", "draw", "subject"), sig)},
+                      coords={"subject": subjects})
+    pd.DataFrame({"subject": subjects * 2, "condition": ["MC"] * 3 + ["SC"] * 3, "theta1": 1.0,
+                  "tau_nm": [0.0, 0.06, 0.06] * 2, "motor_sd": 0.0}).to_parquet(tmp_path / "truth.parquet")
+    m = motor_truth({"posterior": post}, tmp_path)
+    # S1 (truth 0, one-sided) and S2 (inside the HDI) hold it; S3's posterior sits at 0.2 s, far from 0.06 s.
+    assert m["tau_nm"]["truth_in_interval"] == 2 and m["tau_nm"]["n"] == 3
+    assert m["tau_nm"]["interval_kinds"] == ["hdi94", "one-sided [0, q94]"]
+    assert m["tau_nm"]["largest_upper"] == pytest.approx(0.2 + 1.88 * 0.005, abs=0.003)
+    assert m["tau_nm"]["mean_error"] == pytest.approx(np.mean([tau[..., 0].mean(), 0.0, 0.14]), abs=0.002)
+    s = m["sigma_m"]
+    assert s["truth_in_interval"] == 3 and s["truth_max"] == 0.0
+    assert s["median_posterior_median"] == pytest.approx(0.02 * 0.6745, rel=0.1)
+    assert max(np.quantile(sig[..., j], 0.94) for j in range(3)) == s["largest_upper"]
+    # The paper's agent in a truth file without the columns: 0 when simulation.json says so, else no check.
+    pd.DataFrame({"subject": subjects, "condition": "MC", "theta1": 1.0}).to_parquet(tmp_path / "truth.parquet")
+    assert motor_truth({"posterior": post}, tmp_path) is None
+    (tmp_path / "simulation.json").write_text(json.dumps({"human": {"name": "maxent"}}))
+    zero = motor_truth({"posterior": post}, tmp_path)["tau_nm"]
+    # A truth of 0 is always inside [0, q94]: how near zero the fit puts τ_nm is the largest upper end's to say.
+    assert zero["truth_in_interval"] == 3 and zero["truth_max"] == 0.0 and zero["largest_upper"] > 0.2

@@ -64,10 +64,12 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
         side["diagnostics"]["condition"]["population"])
     res = json.loads(open(delayed_fit["contrasts"]).read())
     assert res["human_model"] == "delayed" and "beta" in res and "delayed" in res["loo"]
-    assert res["truth"]["motor"]["tau_nm"]["n"] == 3
+    motor = res["truth"]["motor"]["tau_nm"]
+    assert motor["n"] == 3 and 0 <= motor["truth_in_interval"] <= 3
+    assert motor["largest_upper"] >= motor["median_posterior_median"] > 0
     assert res["adequacy"]["verdict"] in ("pass", "fail")
     text = format_fit(root / "fit_delayed")
-    assert "human model: delayed" in text and "pooled" not in text
+    assert "human model: delayed" in text and "pooled" not in text and "tau_nm: truth" in text
 
 
 @pytest.mark.slow

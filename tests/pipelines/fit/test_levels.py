@@ -84,7 +84,9 @@ def test_three_level_fit_with_trials(three_level_fit):
     mm = res["mixedlm"]
     assert set(mm["coefficients"]) == {"weak", "strong"} and mm["n_obs"] == 12 and mm["baseline"] == "none"
     # The truth: one θ per unit though truth.parquet repeats it per trial; the effects per level.
-    assert "trial" in pd.read_parquet(sim["truth"]).columns
+    truth = pd.read_parquet(sim["truth"])
+    assert "trial" in truth.columns
+    assert (truth[["delay_s", "tau_nm", "motor_sd"]] == 0.0).all().all()  # the paper's agent: no delay, lag, noise
     tr = res["truth"]
     side = json.loads((fit / "posterior.json").read_text())
     # The truth, found from the fit folder (relative paths: a run stages its folders, then moves them).

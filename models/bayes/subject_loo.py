@@ -62,7 +62,16 @@ class SubjectLoglik(NamedTuple):
     loglik : ndarray, shape (S, n_subjects)
         ``log p(y_i | ψ_s)``, nats.
     is_ess : ndarray, shape (n_subjects,)
-        Importance-sampling effective sample size of the inner integral, the smallest over ψ_s.
+        Importance-sampling effective sample size of the inner integral, the smallest over ψ_s
+        (a worst case: one extreme ψ_s, e.g. a σ_β near 0, sets it).
+    is_ess_loo : ndarray, shape (n_subjects,)
+        The effective number of proposal points behind the subject's leave-one-out density
+        p(y_i | y_-i) ≈ 1 / mean_s(1 / p(y_i | ψ_s)) (raw importance weights over ψ_s). To
+        first order its log moves by Σ_s v_s δ_s, δ_s the relative error of the inner estimate
+        at ψ_s and v_s ∝ 1 / p(y_i | ψ_s) the normalized leave-one-out weights; so each point's
+        weight is its normalized inner weight averaged over ψ_s with the v_s, W_m, and the ESS
+        is 1 / Σ_m W_m² (Kong's ESS of those weights; PSIS's smoothing of the v_s is left out).
+        The draws that dominate the leave-one-out density set it, not the single worst one.
     n_outside : ndarray of int, shape (n_subjects,)
         Proposal points of each subject at which the parameters are not representable
         (θ1 R, R or an ``extra`` parameter overflows or underflows): weight 0, see :func:`representable`.
@@ -71,6 +80,7 @@ class SubjectLoglik(NamedTuple):
     loglik: np.ndarray
     is_ess: np.ndarray
     n_outside: np.ndarray
+    is_ess_loo: np.ndarray
 
 
 def _norm(x, m, s):
@@ -193,6 +203,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
     taus = np.geomspace(tau_lo, max(tau_hi, tau_lo), TAU_GRID)
     out = np.empty((S, n_subj))
     ess = np.empty(n_subj)
+    ess_loo = np.empty(n_subj)
     outside = np.zeros(n_subj, dtype=np.int64)
     for i in range(n_subj):
         # Gaussian-ish block: log θ1 (one, or one per level) and log R of every level.
@@ -252,7 +263,10 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         out[:, i] = special.logsumexp(logw, axis=1) - np.log(M)
         w = np.exp(logw - logw.max(axis=1, keepdims=True))
         ess[i] = float(np.min(w.sum(axis=1) ** 2 / np.sum(w * w, axis=1)))
-    return SubjectLoglik(out, ess, outside)
+        v = np.exp(out[:, i].min() - out[:, i])  # the leave-one-out weights 1 / p(y_i | ψ_s), unnormalized
+        pooled = (v / v.sum()) @ (w / w.sum(axis=1, keepdims=True))  # (M,), sums to 1
+        ess_loo[i] = float(1.0 / np.sum(pooled * pooled))
+    return SubjectLoglik(out, ess, outside, ess_loo)
 
 
 def norm_logpdf(x, m, s):

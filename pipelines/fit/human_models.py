@@ -35,7 +35,7 @@ from models.segment import prepare_batch
 from models.units import index_study
 from pipelines.experiment import experiment_hash, parse_experiment
 from pipelines.fit.artifacts import strict_json
-from pipelines.fit.loo import subject_elpd
+from pipelines.fit.loo import comparison_reliability, reliability_words, subject_elpd
 from pipelines.io import InputDataError, load_study
 from pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
 from pipelines.storage import write_text_atomic
@@ -235,8 +235,9 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
     dict
         ``by_subject``: per subject ``elpd_maxent``, ``elpd_delayed``, ``difference``
         (delayed - maxent) and ``preferred``; ``difference``: ``elpd_diff`` ± ``se``, ``z``,
-        ``preferred``, ``n_preferring_delayed``, ``n``, ``reliable`` (every Pareto k of both
-        below the threshold); ``maxent`` and ``delayed``: each model's PSIS summary with the
+        ``preferred``, ``n_preferring_delayed``, ``n``, ``reliable``, ``unreliable_because``
+        and ``importance`` (:func:`pipelines.fit.loo.comparison_reliability`: the Pareto k and the
+        importance sampling); ``maxent`` and ``delayed``: each model's PSIS summary with the
         importance-sampling ESS; ``adequacy``: each fit's verdict at its posterior θ
         (:func:`adequacy_brief`); ``convergence``: each fit's sampler-convergence verdict.
 
@@ -281,7 +282,6 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
     n = diff_i.shape[0]
     se = float(np.sqrt(n * diff_i.var(ddof=1))) if n > 1 else float("nan")
     total = float(diff_i.sum())
-    bad = sum(summaries[k]["pareto_k"]["n_gt_threshold"] for k in summaries)
     result = {
         "maxent": summaries["maxent"], "delayed": summaries["delayed"],
         "by_subject": {str(s): {"elpd_maxent": float(a), "elpd_delayed": float(b), "difference": float(b - a),
@@ -290,7 +290,8 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         "difference": {"elpd_diff": total, "se": se, "z": total / se if se > 0 else float("nan"),
                        "what": "elpd(delayed) - elpd(maxent), summed over subjects",
                        "preferred": "delayed" if total > 0 else "maxent",
-                       "n_preferring_delayed": int((diff_i > 0).sum()), "n": int(n), "reliable": bad == 0},
+                       "n_preferring_delayed": int((diff_i > 0).sum()), "n": int(n),
+                       **comparison_reliability(summaries["maxent"], summaries["delayed"])},
         "seed": int(seed), "fits": {k: str(v) for k, v in folders.items()},
         "adequacy": {k: adequacy_brief(json.loads((v / "contrasts.json").read_text()).get("adequacy"),
                                        f"at the posterior θ ({v / 'contrasts.json'})")
@@ -323,7 +324,7 @@ def format_human_models(res: dict) -> str:
     """The comparison in a few lines, each model's adequacy verdict beside it.
 
     The total difference ± SE and z, how many subjects each model predicts better, whether
-    the PSIS estimates are reliable, and which model the ELPD prefers; a caveat when that
+    the estimates are reliable (Pareto k, importance sampling), and which model the ELPD prefers; a caveat when that
     model fails its adequacy checks.
     """
     d = res["difference"]
@@ -333,9 +334,9 @@ def format_human_models(res: dict) -> str:
     adequacy = res.get("adequacy", {})
     lines = [f"human models, leave-one-subject-out over {n} subjects:",
              *(_adequacy_line(m, adequacy.get(m)) for m in HUMAN_MODELS_COMPARED),
-             f"  elpd(delayed) - elpd(maxent) = {d['elpd_diff']:.1f} ± {se} (z = {z}); PSIS "
-             + ("reliable (every Pareto k below the threshold)" if d["reliable"] else
-                "UNRELIABLE (Pareto k above the threshold for some subjects)"),
+             f"  elpd(delayed) - elpd(maxent) = {d['elpd_diff']:.1f} ± {se} (z = {z}); "
+             + reliability_words(d) + (f"; importance sampling: smallest ESS {imp['is_ess_loo_min']:.0f}, Monte Carlo "
+                                       f"SE of the difference {imp['mcse']:.2f}" if (imp := d.get("importance")) else ""),
              f"  subjects better predicted: delayed {k} of {n}, maxent {n - k} of {n}",
              f"  preferred by the ELPD: {d['preferred']}"]
     for m, v in (res.get("convergence") or {}).items():

@@ -37,8 +37,48 @@ def psis_summary(data, var_name: str, dim: str) -> tuple[dict, np.ndarray]:
     return summary, np.asarray(res.elpd_i).ravel()
 
 
+#: The smallest leave-one-out importance-sampling ESS (``is_ess_loo``, :mod:`models.bayes.subject_loo`)
+#: of any subject for a leave-one-subject-out comparison to count as reliable: a subject's log
+#: density then has a Monte Carlo SE of about 1 / sqrt(ESS) ≤ 0.1 nats (delta method), and
+#: Kong's ESS, itself estimated from the weights, is not yet the few-points regime where it
+#: overstates.
+LOSO_ESS_MIN = 100
+
+
+def comparison_reliability(a: dict, b: dict) -> dict:
+    """Whether the ELPD difference of two models' summaries (:func:`psis_summary`, :func:`subject_elpd`) holds.
+
+    ``reliable``: every Pareto k of both below its threshold and, for leave-one-subject-out,
+    every subject's importance-sampling ESS (``is_ess_loo``) at least :data:`LOSO_ESS_MIN`;
+    ``unreliable_because``: which failed. ``importance`` (leave-one-subject-out only): the
+    smallest ESS and the Monte Carlo SE of the difference, sqrt(Σ 1 / ESS) over both models'
+    subjects (independent proposal points per model).
+    """
+    why = []
+    if a["pareto_k"]["n_gt_threshold"] + b["pareto_k"]["n_gt_threshold"]:
+        why.append("Pareto k above the threshold")
+    out = {"importance": None}
+    if "is_ess_loo_by_subject" in a and "is_ess_loo_by_subject" in b:
+        ess = np.array([*a["is_ess_loo_by_subject"].values(), *b["is_ess_loo_by_subject"].values()], dtype=float)
+        out["importance"] = {"is_ess_loo_min": float(ess.min()), "threshold": LOSO_ESS_MIN,
+                             "mcse": float(np.sqrt(np.sum(1.0 / ess)))}
+        if ess.min() < LOSO_ESS_MIN:
+            why.append(f"importance-sampling ESS below {LOSO_ESS_MIN}")
+    return {"reliable": not why, "unreliable_because": why, **out}
+
+
+def reliability_words(d: dict) -> str:
+    """'reliable' or 'UNRELIABLE (...)' for a difference of :func:`elpd_difference` or the human models."""
+    if d["reliable"]:
+        return "reliable"
+    return f"UNRELIABLE ({'; '.join(d.get('unreliable_because') or ['Pareto k above the threshold'])})"
+
+
 def elpd_difference(out: dict, pointwise: dict) -> dict:
     """ELPD(condition) − ELPD(pooled) ± SE from the pointwise values, the preference and its reliability.
+
+    Reliability as :func:`comparison_reliability` says (the Pareto k; for leave-one-subject-out also
+    the importance sampling).
 
     Not ArviZ's ``compare``, although it gives the same difference
     (``tests/pipelines/fit/test_loo.py``): its SE is ``sqrt(n · var(d))`` with the variance
@@ -49,9 +89,9 @@ def elpd_difference(out: dict, pointwise: dict) -> dict:
     diff_i = pointwise["condition"] - pointwise["pooled"]
     n = diff_i.shape[0]
     diff, se = float(diff_i.sum()), float(np.sqrt(n * diff_i.var(ddof=1)))
-    bad = out["condition"]["pareto_k"]["n_gt_threshold"] + out["pooled"]["pareto_k"]["n_gt_threshold"]
     return {"elpd_diff": diff, "se": se, "z": diff / se if se > 0 else float("inf"),
-            "preferred": "condition" if diff > 0 else "pooled", "reliable": bad == 0,
+            "preferred": "condition" if diff > 0 else "pooled",
+            **comparison_reliability(out["condition"], out["pooled"]),
             "n_favouring_condition": int((diff_i > 0).sum()), "n": int(n)}
 
 
@@ -114,6 +154,8 @@ def subject_elpd(idata, batch, index, plant, rng: np.random.Generator, levels, *
     tree = xr.DataTree.from_dict({"posterior": keep[["mu_log_theta1"]], "log_likelihood": xr.Dataset({"y": ll})})
     summary, pointwise = psis_summary(tree, "y", "subject")
     summary.update(is_ess_min=float(res.is_ess.min()), is_ess_median=float(np.median(res.is_ess)),
+                   is_ess_loo_min=float(res.is_ess_loo.min()), is_ess_loo_median=float(np.median(res.is_ess_loo)),
+                   is_ess_loo_by_subject=dict(zip(order, map(float, res.is_ess_loo))),
                    draws=int(res.loglik.shape[0]), proposal_points_per_subject=LOSO_POINTS,
                    proposal_points_outside=int(res.n_outside.sum()))
     return summary, pointwise

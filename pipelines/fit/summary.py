@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from pipelines.adequacy import format_adequacy, not_checked
+from pipelines.fit.loo import reliability_words
 
 
 def _beta_lines(b: dict, r: dict, what: str) -> list:
@@ -52,7 +53,7 @@ def format_fit(out) -> str:
         ls = res["loo_subject"]["difference"]
         se = "n/a (one subject)" if ls.get("se") is None else f"{ls['se']:.1f}"
         lines.append(f"leave-one-subject-out: elpd(condition) - elpd(pooled) = {ls['elpd_diff']:.1f} ± {se} "
-                     f"({'reliable' if ls['reliable'] else 'Pareto k high: unreliable'})")
+                     f"({reliability_words(ls)})")
     truth = res.get("truth")
     if truth and "contrasts" in truth:
         lines += [_truth_line(c["beta"], f" ({level})") for level, c in truth["contrasts"].items()]

@@ -91,9 +91,11 @@ def section_loo(loo: dict, loso: dict | None = None, trials: bool = False) -> Ma
     if loso:
         loso_table = table(_loo_rows(loso, "ELPD (LOSO)", lambda m, k: {
             "max Pareto k": k["max"], "k > threshold": _k_over(k),
-            "IS ESS min / median": f"{m['is_ess_min']:.0f} / {m['is_ess_median']:.0f}"}),
+            **({"IS ESS (LOO) min / median": f"{m['is_ess_loo_min']:.0f} / {m['is_ess_loo_median']:.0f}"}
+               if "is_ess_loo_min" in m else {}),  # fits before it was computed
+            "IS ESS worst draw min / median": f"{m['is_ess_min']:.0f} / {m['is_ess_median']:.0f}"}),
             fmt={"ELPD (LOSO)": lambda v: f"{v:.1f}", "SE": _n_a},
-            left=("model", "k > threshold", "IS ESS min / median"))
+            left=("model", "k > threshold", "IS ESS (LOO) min / median", "IS ESS worst draw min / median"))
     return render("loo.html.j2", d=loo["difference"], trials=trials, loso=(loso or {}).get("difference"), loso_table=loso_table,
                   table=table(seg, fmt={"ELPD (LOO)": lambda v: f"{v:.1f}", "SE": _n_a, "p_loo": lambda v: f"{v:.1f}"},
                               left=("model", "k > threshold")))

@@ -9,7 +9,8 @@ with its 94 % HDI per contrast, and the leave-one-subject-out (LOSO) ELPD of its
 predicts better, and one conclusion (:func:`conclusion`).
 
 Which model the data support (:func:`supported`) takes both criteria: the model passes its
-adequacy checks, and a reliable LOSO comparison (every Pareto k below the threshold) does
+adequacy checks, and a reliable LOSO comparison (every Pareto k below the threshold, every
+subject's importance-sampling ESS at least ``pipelines.fit.loo.LOSO_ESS_MIN``) does
 not prefer the other model by :data:`LOSO_Z` standard errors or more. A cost conclusion is
 only ever that of a supported model, with its adequacy verdict beside it; with none, the
 section says that no conclusion about the costs is supported.
@@ -147,7 +148,8 @@ def _loso_words(hm: dict | None) -> str:
     what = (f"elpd(delayed) − elpd(max-ent) = {d['elpd_diff']:+.1f} ± {number(d.get('se'), '.1f')}, "
             f"z = {number(d.get('z'), '.2f')}")
     if not d.get("reliable"):
-        return f"leave-one-subject-out is unreliable (Pareto k above the threshold; {what})"
+        why = "; ".join(d.get("unreliable_because") or ["Pareto k above the threshold"])
+        return f"leave-one-subject-out is unreliable ({why}; {what})"
     pref = loso_preference(hm)
     if pref is None:
         return f"leave-one-subject-out does not separate the models ({what}; |z| < {LOSO_Z:g})"

@@ -144,9 +144,12 @@ def test_fit_compare_to_and_the_human_models_command_agree(tmp_path, capsys):
     assert "human models, leave-one-subject-out over 3 subjects:" in out
     for line in ("  maxent   adequacy at the posterior:", "  delayed  adequacy at the posterior:",
                  "elpd(delayed) - elpd(maxent) =", "(z = ", "subjects better predicted: delayed",
-                 f"human_models: {delayed}/human_models.json"):
+                 "importance sampling: smallest ESS", f"human_models: {delayed}/human_models.json"):
         assert line in out, line
     assert set(written["adequacy"]) == {"maxent", "delayed"}
+    d = written["difference"]
+    assert d["reliable"] == (not d["unreliable_because"]) and d["importance"]["threshold"] == 100
+    assert set(written["maxent"]["is_ess_loo_by_subject"]) == set(written["by_subject"])
     assert written["adequacy"]["delayed"]["verdict"] in ("pass", "fail")
     assert not [p for p in (tmp_path / "fit_delayed").iterdir() if p.name.startswith(".")]  # nothing half-written
     # The command reads the two folders and prints the same, writing nothing without --out.

@@ -168,7 +168,7 @@ def test_the_section_shows_the_table_the_loso_numbers_and_the_per_subject_prefer
                 "LOSO ELPD (sum over subjects ± SE)", "subjects better predicted (LOSO)"):
         assert row in html, row
     assert "elpd(delayed) − elpd(max-ent) = +20.0 ± 4.0 (z = 5.00), summed over 6 subjects" in html
-    assert "the PSIS estimates are reliable" in html
+    assert "the estimates are reliable" in html
     assert "delayed better: S01 (+3.0), S02 (+2.5), S04 (+1.0), S05 (+4.0), S06 (+10.0)" in html
     assert "max-ent better: S03 (-0.5)" in html
     assert "5 of 6" in html and "1 of 6" in html
@@ -230,3 +230,15 @@ def test_a_beta_from_a_sampler_that_did_not_converge_says_so_wherever_it_appears
     html = _text(section(root, STUDY, measured=True))
     assert "sampler convergence (fit)" in html and failed in html
     assert html.count("not a result to rely on") == 2  # the table's β and the conclusion's; max-ent's β unflagged
+
+
+def test_too_few_importance_points_make_the_loso_unreliable_and_the_section_says_why(tmp_path):
+    loso = _loso(z=5.0, reliable=False)
+    loso["difference"].update(unreliable_because=["importance-sampling ESS below 100"],
+                              importance={"is_ess_loo_min": 12.0, "threshold": 100, "mcse": 0.61})
+    assert loso_preference(loso) is None
+    root = write_run(tmp_path, loso=loso)
+    html = _text(section(root, STUDY, measured=True))
+    assert "the estimates are unreliable (importance-sampling ESS below 100)" in html
+    assert "smallest ESS is 12, the Monte Carlo SE of the difference 0.61" in html
+    assert "leave-one-subject-out is unreliable (importance-sampling ESS below 100;" in html

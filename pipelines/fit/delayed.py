@@ -133,7 +133,11 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
                                         params=prepared.settings.design.wheel,
                                         tau0=[[prepared.segments[i].warmup] for i in idx])
             profiles[(str(s), str(c))] = np.asarray(est.profile, dtype=float)
-            rows.append({"subject": s, "condition": c, "tau_nm": est.tau_nm, "se_tau_nm": est.se_tau_nm,
+            # The unit's ML point at its own best delay, as identify writes it: the start's targets
+            # (pipelines.fit.start), the cost's as well as the lag's and motor noise's.
+            rows.append({"subject": s, "condition": c, "theta1": est.theta1, "se_log_theta1": est.se_log_theta1,
+                         "R": est.theta[2], "se_log_R": est.se_log_R, "theta2": est.theta2,
+                         "se_theta2": est.se_theta2, "tau_nm": est.tau_nm, "se_tau_nm": est.se_tau_nm,
                          "sigma_m": est.sigma_m, "se_sigma_m": est.se_sigma_m})
         estimates = pd.DataFrame(rows)
         source = ("computed here: each subject's maximum of the summed profile log-likelihoods of its units over "

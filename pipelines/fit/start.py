@@ -26,8 +26,9 @@ two short chains stayed near that start, and leave-one-subject-out then preferre
 model to the delayed one, which that test catches (it passes from PyMC's own start and with the
 scales held). A start that the optimizer cannot improve on PyMC's own is not used
 (:func:`start_point` returns None), nor one with a coordinate at the optimizer's box
-(:data:`UNCONSTRAINED_BOUND`), nor one from estimates without the cost (θ1, R) targets (a fit
-without ``--estimates`` has only τ_nm and σ_m from its delay profile). Discrete variables (the
+(:data:`UNCONSTRAINED_BOUND`), nor one from estimates without the cost (θ1, R) targets (a
+delayed fit without ``--estimates`` takes them from its own delay profile's ML points,
+:func:`pipelines.fit.delayed.unit_delays`). Discrete variables (the
 sampled delays of ``--delay sampled``) stay at PyMC's initial point too.
 """
 

@@ -50,6 +50,7 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     root, _, prepared = delayed_study
     side = json.loads(open(delayed_fit["sidecar"]).read())
     assert side["human_model"] == "delayed"
+    assert side["start"].startswith("the chains start near the ML estimates")  # the fit's own profile's, no --estimates
     assert side["sampler"]["adaptation"] == "low_rank (nutpie)" == f"{side['nutpie_options']['adaptation']} (nutpie)"
     assert "posterior_pooled" not in delayed_fit
     est = pd.read_parquet(root / "identify" / "estimates.parquet")
@@ -82,6 +83,10 @@ def test_delays_without_estimates_are_the_profile_maxima(delayed_study):
     given = unit_delays(prepared, est, plant, "estimates.parquet")
     np.testing.assert_array_equal(own.samples, given.samples)
     assert "computed here" in own.source
+    # Its ML points are identify's, so the chains start from the same targets with or without --estimates.
+    cols = ["theta1", "se_log_theta1", "R", "se_log_R", "theta2", "se_theta2", "tau_nm", "se_tau_nm", "sigma_m"]
+    pd.testing.assert_frame_equal(own.estimates[["subject", "condition", *cols]].reset_index(drop=True),
+                                  est[["subject", "condition", *cols]].reset_index(drop=True), check_dtype=False)
 
 
 @pytest.mark.slow

@@ -221,3 +221,17 @@ def test_the_adequacy_of_a_finished_fit_is_checked_again_as_the_fit_checked_it(d
     assert cli.main(["adequacy", str(fit), "--out", str(fit / "contrasts.json")]) == 2
     assert (fit / "contrasts.json").read_bytes() == before
     assert cli.main(["adequacy", str(tmp_path)]) == 2  # not a fit folder: a usage error
+
+
+@pytest.mark.slow
+def test_same_seed_same_delayed_fit(delayed_study, delayed_fit, tmp_path):
+    """The delayed fit (nutpie's low-rank adaptation, the start, the jitter) repeats bit for bit with its seed."""
+    import arviz as az
+
+    _, sim, prepared = delayed_study
+    fit_to_dir(sim["study"], tmp_path / "again", settings=SETTINGS, prepared=prepared, **TINY)
+    a = az.from_netcdf(delayed_fit["posterior"])
+    b = az.from_netcdf(tmp_path / "again" / "posterior.nc")
+    for v in ("beta", "log_theta1", "log_R", "tau_nm", "sigma_m"):
+        np.testing.assert_array_equal(a["posterior"][v].values, b["posterior"][v].values)
+    np.testing.assert_array_equal(a["sample_stats"]["step_size"].values, b["sample_stats"]["step_size"].values)

@@ -9,7 +9,15 @@ adds them, as ``extra``:
 * to the Student-t block of the proposal, as (log τ_nm, log σ_m): logs rather than the
   values, so that a lag or motor noise far from 0 (a delayed human, σ_m ≈ 0.25 ± 0.02)
   and one the data leave near 0 (a max-ent human) are both covered by a t fitted to the
-  draws, with the log-Jacobians τ_nm σ_m in the weights;
+  draws, with the log-Jacobians τ_nm σ_m in the weights; and τ_nm, for half the points, drawn
+  from its population, HalfNormal(s) with s on a geometric grid of :data:`SCALE_GRID` points
+  spanning the posterior draws of s_τ (the defensive mixture of
+  :func:`models.bayes.subject_loo.subject_loglik`). Where the data leave τ_nm near 0
+  the likelihood is flat below a ceiling and the target under a population draw is its
+  half-normal, with a sharp upper cutoff at that draw's s_τ; the t, fitted to draws pooled over
+  all s_τ (spanning orders of magnitude), spends most of its points above the cutoffs of many
+  draws, and a few points that happen to sit below them carry the weight (README, "the paper's
+  study with a torque sensor", measures the importance sampling's ESS with and without it);
 * to the conditional prior: ``τ_nm ~ HalfNormal(s_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
   population draw (the model's, whatever form the sampler used), and, for a model whose
   baseline R has the ``policy_scale`` population (:class:`models.bayes.delayed_model.DelayedPriors`),
@@ -26,6 +34,7 @@ of the same observed torques (the delayed one includes the Jacobian of u -> c̃)
 from __future__ import annotations
 
 import numpy as np
+from scipy import special
 
 from models.bayes.delayed_op import pack_tau0, warmups_of
 from models.bayes.subject_loo import halfnorm_logpdf
@@ -35,6 +44,10 @@ from models.design import WheelParameters
 from models.delayed.likelihood import loglik_grad
 from models.plant import DiscretePlant
 from models.segment import SegmentBatch
+
+
+#: Points of the geometric grids of the population scales s_τ, s_m in the proposal's prior half.
+SCALE_GRID = 64
 
 
 class DelayedSubjectTerms:
@@ -67,6 +80,7 @@ class DelayedSubjectTerms:
         self.log_sig = np.log(np.asarray(post["sigma_m"], dtype=float))
         self.s_t = np.asarray(post["tau_nm_scale"], dtype=float)[:, None]
         self.s_m = np.asarray(post["sigma_m_scale"], dtype=float)[:, None]
+        self.grid = np.geomspace(self.s_t.min() + 1e-300, max(self.s_t.max(), self.s_t.min()) + 1e-300, SCALE_GRID)
         if "rho_scale" in post:  # R_population="policy_scale": ρ = R^(-1/2) ~ HalfNormal(s_ρ)
             self.s_rho = np.asarray(post["rho_scale"], dtype=float)[:, None]
             self.baseline_log_R_logpdf = self._policy_scale_logpdf
@@ -89,6 +103,18 @@ class DelayedSubjectTerms:
         """(M,) bool: τ_nm = exp(z[:, 0]) and σ_m = exp(z[:, 1]) are finite (elsewhere their prior is 0)."""
         with np.errstate(over="ignore"):
             return np.all(np.isfinite(np.exp(z)), axis=1)
+
+    #: The columns (of :meth:`columns`) the proposal also draws from their population: log τ_nm.
+    grid_columns = (0,)
+
+    def prior_grid_draw(self, rng: np.random.Generator, M: int) -> np.ndarray:
+        """(M, 1) points log τ_nm, τ_nm from HalfNormal(s) with s drawn from the grid of s_τ."""
+        return np.log(np.abs(self.grid[rng.integers(0, SCALE_GRID, M)] * rng.standard_normal(M)))[:, None]
+
+    def prior_grid_logpdf(self, z: np.ndarray) -> np.ndarray:
+        """(M,): the density of :meth:`prior_grid_draw` at z (M, 1), the Jacobian τ_nm included."""
+        tau = np.exp(z[:, 0])
+        return special.logsumexp(halfnorm_logpdf(tau[:, None], self.grid[None, :]), axis=1) - np.log(SCALE_GRID) + z[:, 0]
 
     def log_prior(self, z: np.ndarray) -> np.ndarray:
         """(S, M): log p(log τ_nm, log σ_m | ψ_s) at the M points z (M, 2), the Jacobians τ_nm σ_m included."""
@@ -130,4 +156,4 @@ class DelayedSubjectTerms:
         return out
 
 
-__all__ = ["DelayedSubjectTerms"]
+__all__ = ["DelayedSubjectTerms", "SCALE_GRID"]

@@ -170,7 +170,10 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         Further per-subject parameters of another human model and its likelihood
         (:class:`models.bayes.delayed_loo.DelayedSubjectTerms`): their posterior draws
         join the Student-t block, their conditional prior joins the weights, and the
-        segments' log-likelihood is theirs; an ``extra`` with a ``baseline_log_R_logpdf``
+        segments' log-likelihood is theirs; one with ``grid_columns`` (indices into its columns),
+        ``prior_grid_draw`` (rng, M) -> (M, len(grid_columns)) and ``prior_grid_logpdf`` (M,
+        len(grid_columns)) -> (M,) draws those parameters for half the points from that density
+        (their population on a grid of its scales: a defensive mixture); an ``extra`` with a ``baseline_log_R_logpdf``
         method (M,) -> (S, M) replaces the N(μ_R, σ_R) of the subjects' baseline log R
         (``mu_log_R``, ``sigma_log_R`` are then not needed); one with a ``representable`` method
         (M, k) -> (M,) bool marks its points at which a parameter overflows (weight 0,
@@ -220,6 +223,18 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         cov = np.cov(draws, rowvar=False) * INFLATE**2 + 1e-12 * np.eye(draws.shape[1])
         x, chol = _mvt_draw(rng, mean, cov, M)
         logq = _mvt_logpdf(x, mean, chol)
+        if hasattr(extra, "prior_grid_draw"):
+            # Defensive mixture for some extra parameters: half the points keep the t's other
+            # coordinates (their marginal is the t with those rows of the covariance) and draw these
+            # from their population on a grid of its scales, as θ2's prior half below.
+            g = n_cost + np.asarray(extra.grid_columns)
+            rest = np.setdiff1d(np.arange(x.shape[1]), g)
+            from_grid = rng.uniform(size=M) < 0.5
+            x[np.ix_(from_grid, g)] = extra.prior_grid_draw(rng, M)[from_grid]
+            chol_rest = np.linalg.cholesky(cov[np.ix_(rest, rest)])
+            logq = np.logaddexp(_mvt_logpdf(x, mean, chol),
+                                _mvt_logpdf(x[:, rest], mean[rest], chol_rest)
+                                + extra.prior_grid_logpdf(x[:, g])) - np.log(2.0)
         # θ2 >= 0, every level: defensive mixture of fitted half-t's and the prior on the τ grid.
         scales = INFLATE * np.sqrt(np.mean(t2_all[:, i, :] ** 2, axis=0)) + 1e-300
         from_fit = rng.uniform(size=M) < 0.5

@@ -35,13 +35,18 @@ from models.segment import prepare_batch
 from models.units import index_study
 from pipelines.experiment import experiment_hash, parse_experiment
 from pipelines.fit.artifacts import strict_json
-from pipelines.fit.loo import comparison_reliability, reliability_words, subject_elpd
+from pipelines.fit.loo import LOSO_POINTS, comparison_reliability, reliability_words, subject_elpd
 from pipelines.io import InputDataError, load_study
 from pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
 from pipelines.storage import write_text_atomic
 
 #: Human models compared, in the order of the difference (second minus first).
 HUMAN_MODELS_COMPARED = ("maxent", "delayed")
+#: Importance-sampling points per subject when the two human models are compared (both models alike):
+#: twice the condition-vs-pooled comparison's, as the delayed model's two further parameters per
+#: subject lower its ESS; at 2000 its smallest per-subject ESS on the full-size max-ent study was
+#: 81-100 over seeds 0 and 1 (README, "the paper's study with a torque sensor").
+HUMAN_MODELS_POINTS = 2 * LOSO_POINTS
 #: The comparison's file, in the delayed fit's folder (``scioc fit --compare-to``) or the run folder.
 HUMAN_MODELS_FILE = "human_models.json"
 #: What a fit folder must hold to be compared.
@@ -277,7 +282,8 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         extra = None if name == "maxent" else (
             lambda flat: DelayedSubjectTerms(flat, batch, plant, delay, warm, params=design.wheel,
                                              baseline_log_R_prior=base_R))
-        summaries[name], pointwise[name] = subject_elpd(idata, batch, index, plant, rng, levels, extra=extra)
+        summaries[name], pointwise[name] = subject_elpd(idata, batch, index, plant, rng, levels, extra=extra,
+                                                        points=HUMAN_MODELS_POINTS)
     diff_i = pointwise["delayed"] - pointwise["maxent"]
     n = diff_i.shape[0]
     se = float(np.sqrt(n * diff_i.var(ddof=1))) if n > 1 else float("nan")
@@ -348,5 +354,5 @@ def format_human_models(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "adequacy_brief", "check_maxent_fit", "compare_human_models",
+__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "HUMAN_MODELS_POINTS", "adequacy_brief", "check_maxent_fit", "compare_human_models",
            "fit_settings", "fit_sidecar", "fit_study", "format_human_models", "sidecar_delays", "write_human_models"]

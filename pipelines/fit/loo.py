@@ -133,8 +133,10 @@ def thinned_posterior(idata) -> tuple[dict, object]:
 
 
 def subject_elpd(idata, batch, index, plant, rng: np.random.Generator, levels, *, condition_effects: bool = True,
-                 extra=None) -> tuple[dict, np.ndarray]:
+                 extra=None, points: int = LOSO_POINTS) -> tuple[dict, np.ndarray]:
     """Leave-one-subject-out of one model by integrated PSIS: its summary and the ELPD of each subject.
+
+    ``points``: importance-sampling points per subject.
 
     ``index`` is :func:`models.units.index_study` of the fitted segments; ``extra`` the terms
     of another human model (:func:`models.bayes.subject_loo.subject_loglik`), built from
@@ -147,7 +149,7 @@ def subject_elpd(idata, batch, index, plant, rng: np.random.Generator, levels, *
     if [str(x) for x in keep["log_theta1"].coords["condition"].values] != [str(v) for v in levels]:
         raise ValueError("posterior condition levels are not the study's levels, baseline first")
     res = subject_loglik(flat, batch, index.subject_idx, index.condition_idx, plant, rng,
-                         condition_effects=condition_effects, M=LOSO_POINTS,
+                         condition_effects=condition_effects, M=int(points),
                          extra=None if extra is None else extra(flat))
     ll = xr.DataArray(res.loglik.reshape(keep.sizes["chain"], keep.sizes["draw"], -1),
                       dims=("chain", "draw", "subject"), coords={"subject": order})
@@ -156,7 +158,7 @@ def subject_elpd(idata, batch, index, plant, rng: np.random.Generator, levels, *
     summary.update(is_ess_min=float(res.is_ess.min()), is_ess_median=float(np.median(res.is_ess)),
                    is_ess_loo_min=float(res.is_ess_loo.min()), is_ess_loo_median=float(np.median(res.is_ess_loo)),
                    is_ess_loo_by_subject=dict(zip(order, map(float, res.is_ess_loo))),
-                   draws=int(res.loglik.shape[0]), proposal_points_per_subject=LOSO_POINTS,
+                   draws=int(res.loglik.shape[0]), proposal_points_per_subject=int(points),
                    proposal_points_outside=int(res.n_outside.sum()))
     return summary, pointwise
 

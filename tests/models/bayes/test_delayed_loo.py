@@ -2,7 +2,8 @@
 kernel's (τ_0 following the warm-up at each proposed lag), and the integrated log-likelihood is finite."""
 
 import numpy as np
-from scipy import stats
+import pytest
+from scipy import special, stats
 
 from models.bayes.delayed_loo import DelayedSubjectTerms
 from models.bayes.delayed_windows import delayed_windows
@@ -62,3 +63,56 @@ def test_integrated_log_likelihood_is_finite_with_the_delayed_terms(plant):
                          extra=DelayedSubjectTerms(post, batch, plant, w.delay))
     assert res.loglik.shape == (40, 2) and np.all(np.isfinite(res.loglik))
     assert np.all(res.is_ess > 1.0)
+
+
+def test_the_lag_population_half_of_the_proposal_is_a_density_and_keeps_the_integral(plant):
+    """prior_grid_logpdf is the density prior_grid_draw samples; with it the integral is still the integral.
+
+    Terms whose segment likelihood is the max-ent one (ignoring τ_nm, σ_m): their block then
+    integrates to exactly 1 under each population draw, so the leave-one-out density must equal the
+    max-ent model's (extra=None) within 4 combined Monte Carlo SEs (1/sqrt(is_ess_loo) each; false
+    alarm about 6e-5 per comparison if Gaussian), whatever the proposal, and a wrong density of the
+    population half (off by a factor e) must be caught. The setup is the max-ent test's (short
+    windows, prior draws as "posterior" draws), with s_τ over more than an order of magnitude.
+    """
+    from models.maxent import loglik_grad as maxent_loglik
+    from models.simulate import Population, simulate_windows
+    from tests.models.bayes.test_subject_loo import PSI, _prior_draws
+
+    rng = np.random.default_rng(12)
+    study = simulate_windows(2, rng, Population(), K=30, preview=20)
+    batch = prepare_batch(plant, study.segments)
+    S = 400
+    lt, lr, t2 = _prior_draws(rng, S, 2, True)
+    post = dict(log_theta1=lt, log_R=lr, theta2=t2, **{k: np.full(S, v) for k, v in PSI.items()})
+    post["tau_nm_scale"], post["sigma_m_scale"] = np.geomspace(0.01, 0.3, S), np.full(S, 0.3)
+    post["tau_nm"] = np.abs(post["tau_nm_scale"][:, None] * rng.standard_normal((S, 2)))
+    post["sigma_m"] = np.abs(0.3 * rng.standard_normal((S, 2)))
+
+    class MaxentLikelihood(DelayedSubjectTerms):
+        def segment_loglik(self, j, lt1, lR, t2, z):
+            theta = from_normalized(np.exp(lt1), t2, np.exp(lR))
+            return maxent_loglik(theta, self.batch.repeat(j, lt1.shape[0]), self.plant).loglik
+
+    class WrongDensity(MaxentLikelihood):
+        def prior_grid_logpdf(self, z):
+            return super().prior_grid_logpdf(z) + 1.0
+
+    terms = MaxentLikelihood(post, batch, plant, np.zeros(batch.n, dtype=np.int64))
+    u = np.linspace(-40.0, 3.0, 200_001)
+    dens = np.exp(terms.prior_grid_logpdf(u[:, None]))
+    assert np.trapezoid(dens, u) == pytest.approx(1.0, abs=1e-6)
+    draws = terms.prior_grid_draw(np.random.default_rng(8), 200_000)[:, 0]
+    mean = np.trapezoid(u * dens, u)
+    sd = np.sqrt(np.trapezoid(u * u * dens, u) - mean**2)
+    assert abs(draws.mean() - mean) < 4 * sd / np.sqrt(draws.size)
+
+    def loo(extra, seed):
+        r = subject_loglik(post, batch, np.repeat([0, 1], 2), np.tile([0, 1], 2), plant, np.random.default_rng(seed),
+                           M=4000, extra=extra)
+        return -special.logsumexp(-r.loglik, axis=0) + np.log(S), 1.0 / np.sqrt(r.is_ess_loo)
+
+    (plain, se_p), (mixed, se_m) = loo(None, 9), loo(terms, 10)
+    wrong, se_w = loo(WrongDensity(post, batch, plant, np.zeros(batch.n, dtype=np.int64)), 10)
+    assert np.all(np.abs(mixed - plain) < 4 * np.hypot(se_m, se_p)), (mixed, plain, se_m, se_p)
+    assert np.all(np.abs(wrong - plain) > 4 * np.hypot(se_w, se_p)), (wrong, plain, se_w, se_p)

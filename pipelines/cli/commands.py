@@ -284,7 +284,8 @@ def cmd_human_models(args) -> int:
     if args.out is not None:  # never onto one of the fits' own files
         refuse_inputs_inside(args.out, *(Path(f) / name for f in (args.maxent_fit, args.delayed_fit)
                                          for name in ("posterior.json", "posterior.nc", "contrasts.json")))
-    res = compare_human_models(args.maxent_fit, args.delayed_fit, seed=args.seed, study=args.study)
+    res = compare_human_models(args.maxent_fit, args.delayed_fit, seed=args.seed, study=args.study,
+                               **({"points": args.points} if args.points else {}))
     if args.format == "json":
         print(strict_json(res), end="")
     else:

@@ -262,6 +262,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the study file both fitted (default: the path their posterior.json records)")
     p.add_argument("--seed", type=_nonnegative_int, default=2018,
                    help="seed of the importance sampling (default 2018)")
+    p.add_argument("--points", type=_positive_int, default=None,
+                   help="importance-sampling points per subject, both models (default: HUMAN_MODELS_POINTS of "
+                        "pipelines/fit/human_models.py; time grows in proportion)")
     p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
     p.add_argument("--out", metavar="FILE", help="also write the result as JSON to FILE (atomically)")
     p.set_defaults(func=commands.cmd_human_models)

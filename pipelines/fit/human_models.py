@@ -214,7 +214,8 @@ def unpooled_log_R_prior(side: dict, folder: Path):
 
 
 def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings | None = None,
-                         prepared: PreparedStudy | None = None, seed: int = 2018, out=None, study=None) -> dict:
+                         prepared: PreparedStudy | None = None, seed: int = 2018, out=None, study=None,
+                         points: int = HUMAN_MODELS_POINTS) -> dict:
     """Leave-one-subject-out ELPD per subject under the max-ent and the delayed human, and their difference.
 
     Parameters
@@ -229,6 +230,8 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         ``settings``).
     seed : int
         Seeds the importance sampling (``SeedSequence(seed).spawn(2)``: max-ent, delayed).
+    points : int
+        Importance-sampling points per subject, for both models (:data:`HUMAN_MODELS_POINTS`).
     out : str or Path, optional
         Write the result as :data:`HUMAN_MODELS_FILE` in this folder (atomically).
     study : str or Path, optional
@@ -283,7 +286,7 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
             lambda flat: DelayedSubjectTerms(flat, batch, plant, delay, warm, params=design.wheel,
                                              baseline_log_R_prior=base_R))
         summaries[name], pointwise[name] = subject_elpd(idata, batch, index, plant, rng, levels, extra=extra,
-                                                        points=HUMAN_MODELS_POINTS)
+                                                        points=points)
     diff_i = pointwise["delayed"] - pointwise["maxent"]
     n = diff_i.shape[0]
     se = float(np.sqrt(n * diff_i.var(ddof=1))) if n > 1 else float("nan")

@@ -10,6 +10,7 @@ from models.design import STUDY
 from pipelines.cli import EXIT_BAD_DATA, EXIT_USAGE, main
 from pipelines.cli.parser import build_parser
 from pipelines.experiment import experiment_hash
+from pipelines.fit.human_models import HUMAN_MODELS_POINTS
 from pipelines.prepare import IdentifySettings
 from pipelines.run import default_human_models
 from pipelines.simulate import simulate_to_dir
@@ -101,6 +102,9 @@ def test_human_models_command_names_what_is_wrong(tmp_path, capsys):
     assert main(["human-models", str(tmp_path / "a"), str(tmp_path / "b"), "--out",
                  str(tmp_path / "a" / "contrasts.json")]) == EXIT_USAGE
     assert "holds the input" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["human-models", str(tmp_path / "a"), str(tmp_path / "b"), "--points", "0"])
+    assert exc.value.code == EXIT_USAGE and "--points: expected a positive integer" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("text", ["delayed", "maxent,kbl", "maxent,maxent", ""])
@@ -159,3 +163,7 @@ def test_fit_compare_to_and_the_human_models_command_agree(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
     assert main(["human-models", maxent, delayed, "--seed", "4", "--out", str(tmp_path / "hm.json")]) == 0
     assert json.loads((tmp_path / "hm.json").read_text()) == written
+    assert written["maxent"]["proposal_points_per_subject"] == HUMAN_MODELS_POINTS
+    assert main(["human-models", maxent, delayed, "--points", "300", "--format", "json"]) == 0
+    fewer = json.loads(capsys.readouterr().out)
+    assert fewer["maxent"]["proposal_points_per_subject"] == fewer["delayed"]["proposal_points_per_subject"] == 300

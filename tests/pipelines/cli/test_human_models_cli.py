@@ -164,6 +164,7 @@ def test_fit_compare_to_and_the_human_models_command_agree(tmp_path, capsys):
     assert main(["human-models", maxent, delayed, "--seed", "4", "--out", str(tmp_path / "hm.json")]) == 0
     assert json.loads((tmp_path / "hm.json").read_text()) == written
     assert written["maxent"]["proposal_points_per_subject"] == HUMAN_MODELS_POINTS
+    capsys.readouterr()
     assert main(["human-models", maxent, delayed, "--points", "300", "--format", "json"]) == 0
     fewer = json.loads(capsys.readouterr().out)
     assert fewer["maxent"]["proposal_points_per_subject"] == fewer["delayed"]["proposal_points_per_subject"] == 300

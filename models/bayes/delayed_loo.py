@@ -114,7 +114,8 @@ class DelayedSubjectTerms:
     def prior_grid_logpdf(self, z: np.ndarray) -> np.ndarray:
         """(M,): the density of :meth:`prior_grid_draw` at z (M, 1), the Jacobian τ_nm included."""
         tau = np.exp(z[:, 0])
-        return special.logsumexp(halfnorm_logpdf(tau[:, None], self.grid[None, :]), axis=1) - np.log(SCALE_GRID) + z[:, 0]
+        mix = special.logsumexp(halfnorm_logpdf(tau[:, None], self.grid[None, :]), axis=1) - np.log(SCALE_GRID)
+        return mix + z[:, 0]
 
     def log_prior(self, z: np.ndarray) -> np.ndarray:
         """(S, M): log p(log τ_nm, log σ_m | ψ_s) at the M points z (M, 2), the Jacobians τ_nm σ_m included."""

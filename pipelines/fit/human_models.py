@@ -45,7 +45,7 @@ HUMAN_MODELS_COMPARED = ("maxent", "delayed")
 #: Importance-sampling points per subject when the two human models are compared (both models alike):
 #: twice the condition-vs-pooled comparison's, as the delayed model's two further parameters per
 #: subject lower its ESS; at 2000 its smallest per-subject ESS on the full-size max-ent study was
-#: 81-100 over seeds 0 and 1 (README, "the paper's study with a torque sensor").
+#: 93 and 99 with seeds 0 and 1 (README, "the paper's study with a torque sensor").
 HUMAN_MODELS_POINTS = 2 * LOSO_POINTS
 #: The comparison's file, in the delayed fit's folder (``scioc fit --compare-to``) or the run folder.
 HUMAN_MODELS_FILE = "human_models.json"
@@ -333,8 +333,8 @@ def format_human_models(res: dict) -> str:
     """The comparison in a few lines, each model's adequacy verdict beside it.
 
     The total difference ± SE and z, how many subjects each model predicts better, whether
-    the estimates are reliable (Pareto k, importance sampling), and which model the ELPD prefers; a caveat when that
-    model fails its adequacy checks.
+    the estimates are reliable (Pareto k, importance sampling), and which model the ELPD
+    prefers; a caveat when that model fails its adequacy checks.
     """
     d = res["difference"]
     n, k = d["n"], d["n_preferring_delayed"]
@@ -343,9 +343,9 @@ def format_human_models(res: dict) -> str:
     adequacy = res.get("adequacy", {})
     lines = [f"human models, leave-one-subject-out over {n} subjects:",
              *(_adequacy_line(m, adequacy.get(m)) for m in HUMAN_MODELS_COMPARED),
-             f"  elpd(delayed) - elpd(maxent) = {d['elpd_diff']:.1f} ± {se} (z = {z}); "
-             + reliability_words(d) + (f"; importance sampling: smallest ESS {imp['is_ess_loo_min']:.0f}, Monte Carlo "
-                                       f"SE of the difference {imp['mcse']:.2f}" if (imp := d.get("importance")) else ""),
+             f"  elpd(delayed) - elpd(maxent) = {d['elpd_diff']:.1f} ± {se} (z = {z}); " + reliability_words(d)
+             + (f"; importance sampling: smallest ESS {imp['is_ess_loo_min']:.0f}, Monte Carlo SE of the difference "
+                f"{imp['mcse']:.2f}" if (imp := d.get("importance")) else ""),
              f"  subjects better predicted: delayed {k} of {n}, maxent {n - k} of {n}",
              f"  preferred by the ELPD: {d['preferred']}"]
     for m, v in (res.get("convergence") or {}).items():
@@ -357,5 +357,6 @@ def format_human_models(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "HUMAN_MODELS_POINTS", "adequacy_brief", "check_maxent_fit", "compare_human_models",
-           "fit_settings", "fit_sidecar", "fit_study", "format_human_models", "sidecar_delays", "write_human_models"]
+__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "HUMAN_MODELS_POINTS", "adequacy_brief", "check_maxent_fit",
+           "compare_human_models", "fit_settings", "fit_sidecar", "fit_study", "format_human_models", "sidecar_delays",
+           "write_human_models"]

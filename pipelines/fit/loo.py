@@ -39,9 +39,9 @@ def psis_summary(data, var_name: str, dim: str) -> tuple[dict, np.ndarray]:
 
 #: The smallest leave-one-out importance-sampling ESS (``is_ess_loo``, :mod:`models.bayes.subject_loo`)
 #: of any subject for a leave-one-subject-out comparison to count as reliable: a subject's log
-#: density then has a Monte Carlo SE of about 1 / sqrt(ESS) ≤ 0.1 nats (delta method), and
-#: Kong's ESS, itself estimated from the weights, is not yet the few-points regime where it
-#: overstates.
+#: density then has a Monte Carlo SE of about 1 / sqrt(ESS) ≤ 0.1 nats (delta method), and the
+#: weights are past the few-points regime in which Kong's ESS, estimated from the weights
+#: themselves, overstates (``tests/models/bayes/test_subject_loo.py``).
 LOSO_ESS_MIN = 100
 
 

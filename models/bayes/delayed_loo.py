@@ -16,8 +16,9 @@ adds them, as ``extra``:
   the likelihood is flat below a ceiling and the target under a population draw is its
   half-normal, with a sharp upper cutoff at that draw's s_τ; the t, fitted to draws pooled over
   all s_τ (spanning orders of magnitude), spends most of its points above the cutoffs of many
-  draws, and a few points that happen to sit below them carry the weight (README, "the paper's
-  study with a torque sensor", measures the importance sampling's ESS with and without it);
+  draws, and a few points that happen to sit below them carry the weight (found on the
+  12-subject max-ent study of the README's "the paper's study with a torque sensor", which gives
+  the ESS the comparison now reaches);
 * to the conditional prior: ``τ_nm ~ HalfNormal(s_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
   population draw (the model's, whatever form the sampler used), and, for a model whose
   baseline R has the ``policy_scale`` population (:class:`models.bayes.delayed_model.DelayedPriors`),
@@ -46,7 +47,7 @@ from models.plant import DiscretePlant
 from models.segment import SegmentBatch
 
 
-#: Points of the geometric grids of the population scales s_τ, s_m in the proposal's prior half.
+#: Points of the geometric grid of the population scale s_τ in the proposal's population half.
 SCALE_GRID = 64
 
 
@@ -80,7 +81,8 @@ class DelayedSubjectTerms:
         self.log_sig = np.log(np.asarray(post["sigma_m"], dtype=float))
         self.s_t = np.asarray(post["tau_nm_scale"], dtype=float)[:, None]
         self.s_m = np.asarray(post["sigma_m_scale"], dtype=float)[:, None]
-        self.grid = np.geomspace(self.s_t.min() + 1e-300, max(self.s_t.max(), self.s_t.min()) + 1e-300, SCALE_GRID)
+        lo = self.s_t.min() + 1e-300
+        self.grid = np.geomspace(lo, max(self.s_t.max() + 1e-300, lo), SCALE_GRID)
         if "rho_scale" in post:  # R_population="policy_scale": ρ = R^(-1/2) ~ HalfNormal(s_ρ)
             self.s_rho = np.asarray(post["rho_scale"], dtype=float)[:, None]
             self.baseline_log_R_logpdf = self._policy_scale_logpdf

@@ -173,8 +173,8 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         segments' log-likelihood is theirs; one with ``grid_columns`` (indices into its columns),
         ``prior_grid_draw`` (rng, M) -> (M, len(grid_columns)) and ``prior_grid_logpdf`` (M,
         len(grid_columns)) -> (M,) draws those parameters for half the points from that density
-        (their population on a grid of its scales: a defensive mixture); an ``extra`` with a ``baseline_log_R_logpdf``
-        method (M,) -> (S, M) replaces the N(μ_R, σ_R) of the subjects' baseline log R
+        (their population on a grid of its scales: a defensive mixture); an ``extra`` with a
+        ``baseline_log_R_logpdf`` method (M,) -> (S, M) replaces the N(μ_R, σ_R) of the subjects' baseline log R
         (``mu_log_R``, ``sigma_log_R`` are then not needed); one with a ``representable`` method
         (M, k) -> (M,) bool marks its points at which a parameter overflows (weight 0,
         :func:`representable`). None (default): the max-ent
@@ -277,9 +277,10 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         logw = lp + (ll - logq)[None, :]
         out[:, i] = special.logsumexp(logw, axis=1) - np.log(M)
         w = np.exp(logw - logw.max(axis=1, keepdims=True))
-        ess[i] = float(np.min(w.sum(axis=1) ** 2 / np.sum(w * w, axis=1)))
+        wsum = w.sum(axis=1, keepdims=True)
+        ess[i] = float(np.min(wsum[:, 0] ** 2 / np.sum(w * w, axis=1)))
         v = np.exp(out[:, i].min() - out[:, i])  # the leave-one-out weights 1 / p(y_i | ψ_s), unnormalized
-        pooled = (v / v.sum()) @ (w / w.sum(axis=1, keepdims=True))  # (M,), sums to 1
+        pooled = (v / v.sum()) @ (w / wsum)  # (M,), sums to 1
         ess_loo[i] = float(1.0 / np.sum(pooled * pooled))
     return SubjectLoglik(out, ess, outside, ess_loo)
 

@@ -278,14 +278,15 @@ def cmd_adequacy(args) -> int:
 
 def cmd_human_models(args) -> int:
     from pipelines.fit.artifacts import strict_json
-    from pipelines.fit.human_models import compare_human_models, format_human_models, write_human_models
+    from pipelines.fit.human_models import (HUMAN_MODELS_POINTS, compare_human_models, format_human_models,
+                                            write_human_models)
     from pipelines.storage import refuse_inputs_inside
 
     if args.out is not None:  # never onto one of the fits' own files
         refuse_inputs_inside(args.out, *(Path(f) / name for f in (args.maxent_fit, args.delayed_fit)
                                          for name in ("posterior.json", "posterior.nc", "contrasts.json")))
     res = compare_human_models(args.maxent_fit, args.delayed_fit, seed=args.seed, study=args.study,
-                               **({"points": args.points} if args.points else {}))
+                               points=args.points or HUMAN_MODELS_POINTS)
     if args.format == "json":
         print(strict_json(res), end="")
     else:

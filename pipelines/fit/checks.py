@@ -180,13 +180,14 @@ def motor_truth(idata, truth_dir) -> dict | None:
     truth = read_truth(Path(truth_dir) / "truth.parquet")
     if not {"tau_nm", "motor_sd"} <= set(truth.columns):
         return None
-    truth = truth.drop_duplicates("subject").set_index(truth.drop_duplicates("subject")["subject"].astype(str))
+    first = truth.drop_duplicates("subject")
+    truth = first.set_index(first["subject"].astype(str))
     post = idata["posterior"]
     out = {}
     for name, col in (("tau_nm", "tau_nm"), ("sigma_m", "motor_sd")):
         x = post[name]
-        rows = [(_interval(x.sel(subject=s).values.ravel(), float(truth.loc[str(s), col])),
-                 float(np.median(x.sel(subject=s).values))) for s in x["subject"].values]
+        draws = {s: x.sel(subject=s).values.ravel() for s in x["subject"].values}
+        rows = [(_interval(d, float(truth.loc[str(s), col])), float(np.median(d))) for s, d in draws.items()]
         out[name] = {"n": len(rows), "truth_in_interval": sum(r["in_interval"] for r, _ in rows),
                      "interval_kinds": sorted({r["interval_kind"] for r, _ in rows}),
                      "mean_error": float(np.mean([r["mean"] - r["truth"] for r, _ in rows])),

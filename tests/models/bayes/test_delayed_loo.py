@@ -76,15 +76,11 @@ def test_the_lag_population_half_of_the_proposal_is_a_density_and_keeps_the_inte
     windows, prior draws as "posterior" draws), with s_τ over more than an order of magnitude.
     """
     from models.maxent import loglik_grad as maxent_loglik
-    from models.simulate import Population, simulate_windows
-    from tests.models.bayes.test_subject_loo import PSI, _prior_draws
+    from tests.models.bayes.test_subject_loo import _prior_study
 
     rng = np.random.default_rng(12)
-    study = simulate_windows(2, rng, Population(), K=30, preview=20)
-    batch = prepare_batch(plant, study.segments)
     S = 400
-    lt, lr, t2 = _prior_draws(rng, S, 2, True)
-    post = dict(log_theta1=lt, log_R=lr, theta2=t2, **{k: np.full(S, v) for k, v in PSI.items()})
+    batch, post = _prior_study(plant, rng, S)
     post["tau_nm_scale"], post["sigma_m_scale"] = np.geomspace(0.01, 0.3, S), np.full(S, 0.3)
     post["tau_nm"] = np.abs(post["tau_nm_scale"][:, None] * rng.standard_normal((S, 2)))
     post["sigma_m"] = np.abs(0.3 * rng.standard_normal((S, 2)))

@@ -24,21 +24,25 @@ def _prior_draws(rng, n, n_subj, condition_effects):
     return np.stack([lt_mc, lt_sc], -1), np.stack([lr_mc, lr_sc], -1), t2
 
 
+def _prior_study(plant, rng, S, condition_effects=True, K=30, preview=20):
+    """Two subjects' max-ent windows and S prior draws given PSI as stand-in posterior draws: (batch, post)."""
+    study = simulate_windows(2, rng, Population(), K=K, preview=preview)
+    batch = prepare_batch(plant, study.segments)
+    lt, lr, t2 = _prior_draws(rng, S, 2, condition_effects)
+    return batch, dict(log_theta1=lt, log_R=lr, theta2=t2, **{k: np.full(S, v) for k, v in PSI.items()})
+
+
 @pytest.mark.parametrize("condition_effects", [True, False])
 def test_integral_matches_plain_monte_carlo_over_the_prior(plant, condition_effects):
     # Short windows (K = 30) keep the likelihood broad, so plain Monte Carlo over the
     # conditional prior (200 000 points) is accurate; the importance sampler with 2000
     # points around "posterior" draws must agree within 4 combined standard errors
     # (false-failure rate about 6e-5 per comparison if both errors are Gaussian).
-    rng = np.random.default_rng(5)
-    study = simulate_windows(2, rng, Population(), K=30, preview=20)
-    batch = prepare_batch(plant, study.segments)
     s_idx = np.repeat([0, 1], 2)
     c_idx = np.tile([0, 1], 2)
     # The proposal is built from the unit draws it is given: hand it 400 prior draws, all
     # with the same population values ψ.
-    lt, lr, t2 = _prior_draws(rng, 400, 2, condition_effects)
-    post = dict(log_theta1=lt, log_R=lr, theta2=t2, **{k: np.full(400, v) for k, v in PSI.items()})
+    batch, post = _prior_study(plant, np.random.default_rng(5), 400, condition_effects)
     res = subject_loglik(post, batch, s_idx, c_idx, plant, np.random.default_rng(6),
                          condition_effects=condition_effects, M=2000)
     assert res.loglik.shape == (400, 2)
@@ -64,11 +68,7 @@ def test_integral_matches_plain_monte_carlo_over_the_prior(plant, condition_effe
 def test_wrong_population_predicts_worse(plant):
     # Negative control: the integrated likelihood of the subjects must drop when ψ puts the
     # population's log θ1 far from where the data are.
-    rng = np.random.default_rng(8)
-    study = simulate_windows(2, rng, Population(), K=200, preview=50)
-    batch = prepare_batch(plant, study.segments)
-    lt, lr, t2 = _prior_draws(rng, 400, 2, True)
-    post = dict(log_theta1=lt, log_R=lr, theta2=t2, **{k: np.full(400, v) for k, v in PSI.items()})
+    batch, post = _prior_study(plant, np.random.default_rng(8), 400, K=200, preview=50)
     post["mu_log_theta1"] = np.where(np.arange(400) < 200, 3.0, 6.0)
     res = subject_loglik(post, batch, np.repeat([0, 1], 2), np.tile([0, 1], 2), plant, np.random.default_rng(9))
     assert np.all(res.loglik[:200].mean(axis=0) > res.loglik[200:].mean(axis=0) + 5.0)
@@ -85,11 +85,8 @@ def test_points_that_overflow_get_weight_zero_instead_of_stopping(plant):
     t2 = np.zeros((5, 2))
     assert representable(lt, lR, t2).tolist() == [True, False, False, True, False]
     rng = np.random.default_rng(10)
-    study = simulate_windows(2, rng, Population(), K=30, preview=20)
-    batch = prepare_batch(plant, study.segments)
-    lt, lr, t2 = _prior_draws(rng, 400, 2, True)
-    lt[:40, 0, :] = rng.normal(0.0, 300.0, (40, 2))  # a tenth of the draws far out
-    post = dict(log_theta1=lt, log_R=lr, theta2=t2, **{k: np.full(400, v) for k, v in PSI.items()})
+    batch, post = _prior_study(plant, rng, 400)
+    post["log_theta1"][:40, 0, :] = rng.normal(0.0, 300.0, (40, 2))  # a tenth of the draws far out
     res = subject_loglik(post, batch, np.repeat([0, 1], 2), np.tile([0, 1], 2), plant,
                          np.random.default_rng(11), M=2000)
     assert res.n_outside[0] > 0 and res.n_outside[1] == 0
@@ -111,12 +108,8 @@ def test_leave_one_out_ess_predicts_the_scatter_of_the_left_out_density(plant):
     """
     from pipelines.fit.loo import LOSO_ESS_MIN
 
-    rng = np.random.default_rng(12)
-    study = simulate_windows(2, rng, Population(), K=30, preview=20)
-    batch = prepare_batch(plant, study.segments)
     S = 200
-    lt, lr, t2 = _prior_draws(rng, S, 2, True)
-    post = dict(log_theta1=lt, log_R=lr, theta2=t2, **{k: np.full(S, v) for k, v in PSI.items()})
+    batch, post = _prior_study(plant, np.random.default_rng(12), S)
     post["sigma_beta"] = np.geomspace(0.002, 0.4, S)
     post["sigma_beta_log_R"] = np.geomspace(0.002, 0.2, S)[::-1]
 

@@ -159,3 +159,45 @@ def test_every_imported_third_party_package_is_declared():
     third_party = {m for m in imported - set(sys.stdlib_module_names) - {"models", "pipelines", "__future__"}}
     missing = {m for m in third_party if not {d.lower() for d in dists.get(m, [m])} & declared}
     assert not missing, f"imported but not declared in pyproject.toml: {sorted(missing)}"
+
+
+def _is_cached_jit(call) -> bool:
+    """``njit(..., cache=True, ...)`` or ``jit(...)`` / ``numba.njit(...)`` with ``cache=True``."""
+    f = call.func
+    name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
+    return name in ("njit", "jit") and any(k.arg == "cache" and getattr(k.value, "value", False) is True
+                                           for k in call.keywords)
+
+
+def _functions_cached_twice(source: str) -> list:
+    """Names of the functions of ``source`` that numba compiles with ``cache=True`` more than once
+    (decorated and wrapped, or wrapped twice as in ``njit(cache=True, parallel=True)(f)``)."""
+    count = {}
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.FunctionDef):
+            for dec in node.decorator_list:
+                if isinstance(dec, ast.Call) and _is_cached_jit(dec):
+                    count[node.name] = count.get(node.name, 0) + 1
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and _is_cached_jit(node.func)
+              and len(node.args) == 1 and isinstance(node.args[0], ast.Name)):
+            count[node.args[0].id] = count.get(node.args[0].id, 0) + 1
+    return sorted(name for name, n in count.items() if n > 1)
+
+
+def test_no_function_is_compiled_into_the_numba_cache_twice():
+    """numba's cache keys a function by its file, name and first line: two cached dispatchers of one
+    function share their entries, and one loads the other's code (the delayed batch kernel's parallel
+    version ran serially that way, models/delayed/kernel.py)."""
+    bad = {rel: names for rel, names in ((str(p.relative_to(ROOT)), _functions_cached_twice(p.read_text()))
+                                         for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))) if names}
+    assert not bad, bad
+
+
+def test_a_function_cached_twice_would_be_found():
+    source = ("from numba import njit\n"
+              "def _batch(x):\n    return x\n"
+              "batch = njit(cache=True, parallel=True)(_batch)\n"
+              "batch_serial = njit(cache=True)(_batch)\n"
+              "@njit(cache=True)\ndef once(x):\n    return x\n"
+              "uncached = njit(once.py_func)\n")
+    assert _functions_cached_twice(source) == ["_batch"]

@@ -260,8 +260,31 @@ def make_scratch(K, KM, dmax):
             (np.empty((3, 3)), np.empty(3), np.empty((3, 3, 4)), np.empty((3, 4)), np.empty((3, 4))))
 
 
-def _batch(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
-    """Every segment of a batch, each on its own, in ``nchunks`` chunks (compiled twice, see below).
+@njit(cache=True)
+def _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, c, nchunks, dmax, out, inn):
+    """Segments c, c + nchunks, c + 2 nchunks, ... of a batch (:func:`batch_kernel`), with their own scratch."""
+    n = u.shape[0]
+    sc = make_scratch(u.shape[1], ua.shape[1], dmax)
+    res = np.empty(8)
+    for i in range(c, n, nchunks):
+        segment_kernel(A, b, fb[i], th[0, i], th[1, i], th[2, i], lag[0, i], lag[1, i], lag[2, i], lag[3, i],
+                       sig[i], delay[i], tau0[i], dtau0[i, 0], dtau0[i, 1], x1[i], x2[i], r[i], u[i], ua[i],
+                       freeze, sc, res, inn[i])
+        for m in range(6):
+            out[m, i] = res[m]
+
+
+@njit(cache=True)
+def _max_delay(delay):
+    dmax = 0
+    for i in range(delay.shape[0]):
+        dmax = max(dmax, delay[i])
+    return dmax
+
+
+@njit(cache=True, parallel=True)
+def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
+    """Every segment of a batch, each on its own, in ``nchunks`` parallel chunks (``prange``).
 
     Arguments are C-contiguous float64 arrays (``delay`` int64): the wheel ``A`` (2, 2),
     ``b`` (2,); ``fb`` (n, 2); ``th`` (3, n) rows q11, q22, R; ``lag`` (4, n) rows a, α,
@@ -271,28 +294,26 @@ def _batch(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze,
     the gradient in q11, q22, R, τ_nm, σ_m; ``inn`` (n, K) receives the standardized
     innovations, or has shape (n, 0) to skip them.
     """
-    n = u.shape[0]
-    K = u.shape[1]
-    dmax = 0
-    for i in range(n):
-        dmax = max(dmax, delay[i])
+    dmax = _max_delay(delay)
     for c in prange(nchunks):
-        sc = make_scratch(K, ua.shape[1], dmax)
-        res = np.empty(8)
-        for i in range(c, n, nchunks):
-            segment_kernel(A, b, fb[i], th[0, i], th[1, i], th[2, i], lag[0, i], lag[1, i], lag[2, i], lag[3, i],
-                           sig[i], delay[i], tau0[i], dtau0[i, 0], dtau0[i, 1], x1[i], x2[i], r[i], u[i], ua[i],
-                           freeze, sc, res, inn[i])
-            for m in range(6):
-                out[m, i] = res[m]
+        _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, c, nchunks, dmax, out, inn)
 
 
-#: The batch in parallel chunks (``prange`` over the chunks).
-batch_kernel = njit(cache=True, parallel=True)(_batch)
-#: The same loop in the calling thread, for one chunk: a parallel region costs a wake-up of
-#: every thread and waits for the slowest, which on a busy machine measured 7 ms for a
-#: single 1500-step segment whose own work takes 0.15 ms (the optimizer calls it thousands of times).
-batch_kernel_serial = njit(cache=True)(_batch)
+@njit(cache=True)
+def batch_kernel_serial(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
+    """:func:`batch_kernel` in the calling thread. A parallel region costs a wake-up of every thread and
+    waits for the slowest, which on a busy machine measured 7 ms for a single 1500-step segment whose own
+    work takes 0.15 ms (the optimizer calls it thousands of times).
+
+    Two functions, not one function compiled twice: numba's cache keys a function by its file, name and
+    first line, so two dispatchers of one function (``njit(parallel=True)(f)`` and ``njit(f)``) shared
+    their cache entries, and the parallel kernel loaded the serial one's code: two threads ran the
+    default study batch in the time of one (measured 2026-12-04; ``tests/test_layout.py`` now requires
+    every cached kernel to have its own function).
+    """
+    dmax = _max_delay(delay)
+    for c in range(nchunks):
+        _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, c, nchunks, dmax, out, inn)
 
 
 __all__ = ["batch_kernel", "batch_kernel_serial", "make_scratch", "segment_kernel"]

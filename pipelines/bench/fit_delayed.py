@@ -166,8 +166,10 @@ def format_delay_profile(res: dict) -> str:
 
 
 def _tuning_text(sampler: dict) -> str:
-    t = sampler.get("tuning_mean_steps_per_draw")
-    return "warm-up: not counted" if t is None else f"warm-up: {t:.1f}"
+    t, tenths = sampler.get("tuning_mean_steps_per_draw"), sampler.get("tuning_steps_by_tenth")
+    if t is None:
+        return "warm-up: not counted"
+    return f"warm-up: {t:.1f}" + ("" if not tenths else ", by tenth " + " ".join(f"{x:.0f}" for x in tenths))
 
 
 def _goal_text(res: dict) -> str:

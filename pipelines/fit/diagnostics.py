@@ -74,6 +74,9 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
         # the warm-up's (nutpie: pipelines.fit.sampling.keep_tuning_steps), None where not counted
         "tuning_mean_steps_per_draw": (ss.attrs["tuning_leapfrog_steps"] / (ss.attrs["tuning_draws"] * n_steps.shape[0])
                                        if ss.attrs.get("tuning_draws") else None),
+        # ... and in each tenth of the warm-up, in order (which phase of the adaptation took them)
+        "tuning_steps_by_tenth": ([round(float(x), 1) for x in np.atleast_1d(ss.attrs["tuning_steps_by_tenth"])]
+                                  if "tuning_steps_by_tenth" in ss.attrs else None),
         "step_size": [float(x) for x in ss["step_size"].values[:, -1]],
     }
     worst_rhat = max(population.values(), key=lambda p: p["rhat"])

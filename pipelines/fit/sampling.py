@@ -94,14 +94,18 @@ def keep_tuning_steps(idata) -> None:
 
     ``tuning_leapfrog_steps`` (all chains) and ``tuning_draws`` (per chain), so that
     :func:`pipelines.fit.diagnostics.diagnostics` can say where the sampling time went: the
-    kept draws' steps alone do not (the delayed fit's warm-up took most of it). The warm-up
-    draws themselves are not kept (nutpie hands them back only so that this can be counted).
+    kept draws' steps alone do not (the delayed fit's warm-up took most of it). And
+    ``tuning_steps_by_tenth``: the mean steps per draw (all chains) in each tenth of the
+    warm-up, in order, which says which phase of nutpie's adaptation the steps went to. The
+    warm-up draws themselves are not kept (nutpie hands them back only so that this can be counted).
     """
     names = [g for g in list(idata.children) if g.startswith("warmup_")]
     if "warmup_sample_stats" in names:
         n = idata["warmup_sample_stats"]["n_steps"].values
         idata["sample_stats"].attrs["tuning_leapfrog_steps"] = int(n.sum())
         idata["sample_stats"].attrs["tuning_draws"] = int(n.shape[1])
+        idata["sample_stats"].attrs["tuning_steps_by_tenth"] = np.array(
+            [float(part.mean()) for part in np.array_split(n, 10, axis=1) if part.size])
     for g in names:
         del idata[g]
 

@@ -84,6 +84,10 @@ def test_the_warm_up_steps_are_counted_and_its_draws_dropped_without_changing_th
     sampler = diagnostics(idata, sec["sample"], ["mu_log_theta1"], [])["sampler"]
     assert sampler["tuning_mean_steps_per_draw"] >= 1.0
     assert idata["sample_stats"].attrs["tuning_draws"] == 30
+    # by tenth of the warm-up (3 draws each here): their mean over the tenths is the warm-up's mean
+    tenths = sampler["tuning_steps_by_tenth"]
+    assert len(tenths) == 10 and min(tenths) >= 1.0
+    assert np.mean(tenths) == pytest.approx(sampler["tuning_mean_steps_per_draw"], abs=0.06)
     plain = pm.sample(draws=40, tune=30, chains=2, cores=1, random_seed=3, nuts_sampler="nutpie", progressbar=False,
                       model=model)
     np.testing.assert_array_equal(idata["posterior"]["mu_log_theta1"].values, plain["posterior"]["mu_log_theta1"].values)

@@ -95,9 +95,10 @@ and the parameter)::
     log-normal C, half-normal C      NC / NC         low rank          29          4    25 (σ_R)   <- default
     log-normal C, half-normal C      NC / NC         low rank, cut 3   35          1    28 (σ_R)
 
-(C centred, NC non-centred; "low rank": nutpie's ``adaptation="low_rank"``, eigenvalue
-cutoff 100, or 3; log-normal C with log R C / C and a diagonal mass matrix had not
-finished after 40 min.) The non-centred population scale of strongly identified values
+(C centred, NC non-centred; "low rank": nutpie's ``adaptation="low_rank"`` with its
+eigenvalue cutoff, 2 (``nutpie._lib.PyNutsSettings.LowRank(0).as_dict()``; nutpie's
+docstring says 100, which is not what its settings hold), or 3; log-normal C with log R
+C / C and a diagonal mass matrix had not finished after 40 min.) The non-centred population scale of strongly identified values
 (first row) forms the ridge; centred τ_nm and σ_m remove it (ESS of their population
 parameters 500-1300). log R is best non-centred here, unlike in the max-ent model, because
 its per-unit SD (0.4) exceeds the population's (about 0.3); the low-rank mass matrix
@@ -146,6 +147,8 @@ DELAY_INDEX = "delay_index"
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
 #: nutpie's options for this model (module docstring, "Geometry"): a low-rank modified mass matrix.
 DELAYED_NUTS = {"adaptation": "low_rank"}
+#: The mass matrices a delayed fit may use instead (``scioc fit --adaptation``): nutpie's low-rank one and its diagonal one.
+ADAPTATIONS = ("low_rank", "diag")
 
 
 
@@ -280,5 +283,5 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
                            **kwargs)
 
 
-__all__ = ["DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm",
+__all__ = ["ADAPTATIONS", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm",
            "DelayedPriors", "R_POPULATIONS", "build_delayed_model", "delay_step"]

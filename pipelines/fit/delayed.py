@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_model import (DELAY_INDEX, DELAYED_NUTS, DELAYED_PARAMETERIZATION,
+from models.bayes.delayed_model import (ADAPTATIONS, DELAY_INDEX, DELAYED_NUTS, DELAYED_PARAMETERIZATION,
                                         DELAYED_POPULATION_PARAMETERS, DelayedForm, DelayedPriors, build_delayed_model,
                                         delay_step)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
@@ -232,7 +232,8 @@ def sampled_delays(idata, prepared, dt: float, grid: np.ndarray) -> Delays:
 def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
                          tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors = DelayedPriors(),
                          delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
-                         delay_mode: str = "profile", rho_form: str | None = None) -> DelayedFit:
+                         delay_mode: str = "profile", rho_form: str | None = None,
+                         adaptation: str | None = None) -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
@@ -242,10 +243,14 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     samples one delay per subject (``delays`` then only supplies the lag and noise estimates
     that choose the blocks' forms), and the returned fit's delays are the posterior modes.
     ``rho_form`` (:data:`models.bayes.delayed_blocks.RHO_FORMS`, with ``R_population="policy_scale"``)
-    replaces the ρ form of the chosen (or given) ``delayed_form``.
+    replaces the ρ form of the chosen (or given) ``delayed_form``. ``adaptation`` (``low_rank`` or
+    ``diag``, profile delays only) replaces the mass matrix of :data:`DELAYED_NUTS`.
     """
     if delay_mode not in DELAY_MODES:
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
+    if adaptation is not None and (adaptation not in ADAPTATIONS or delay_mode != "profile"):
+        raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
+    nuts = DELAYED_NUTS if adaptation is None else {**DELAYED_NUTS, "adaptation": adaptation}
     levels = prepared.settings.design.ordered_levels
     form = replace(form, R_mc=DELAYED_PARAMETERIZATION.R_mc, R_sc=DELAYED_PARAMETERIZATION.R_sc)
     if delayed_form is None:
@@ -271,7 +276,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     else:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
-                                  show_progress=show_progress, nuts=DELAYED_NUTS, initvals=start)
+                                  show_progress=show_progress, nuts=nuts, initvals=start)
     timing = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
     diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
     side = {"delay": {"mode": delay_mode, "source": delays.source, "by_unit": delays.by_unit,
@@ -285,7 +290,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
             "delayed_parameterization": asdict(form),
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled"} if sampled
-               else {"nutpie_options": dict(DELAYED_NUTS)}),
+               else {"nutpie_options": dict(nuts)}),
             "delayed_form": {**asdict(delayed_form), "reason": form_reason}}
     return DelayedFit(idata, diag, timing, delays, side)
 

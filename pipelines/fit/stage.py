@@ -117,13 +117,13 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
                                            for idx in prepared.units.values()]})
 
 
-def sampler_record(human_model: str, delay_mode: str) -> dict:
-    """Which sampler a fit used and its mass-matrix adaptation, for the sidecar."""
+def sampler_record(human_model: str, delay_mode: str, adaptation: str | None = None) -> dict:
+    """Which sampler a fit used and its mass-matrix adaptation (``adaptation``: the delayed fit's, if not the default), for the sidecar."""
     if human_model == "delayed" and delay_mode == "sampled":
         return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
                 "adaptation": "diag (PyMC's NUTS)"}
     return {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')",
-            "adaptation": f"{DELAYED_NUTS['adaptation']} (nutpie)" if human_model == "delayed" else
+            "adaptation": f"{adaptation or DELAYED_NUTS['adaptation']} (nutpie)" if human_model == "delayed" else
             "diag (nutpie default)"}
 
 
@@ -149,7 +149,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
                human_model: str | None = None, delay_mode: str = "profile",
                delayed_priors: DelayedPriors = DelayedPriors(), rho_form: str | None = None,
-               adequacy_at: str = "draw") -> dict:
+               adaptation: str | None = None, adequacy_at: str = "draw") -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -194,9 +194,10 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         delay from the estimates' ``delay_s`` or the ML profile (:mod:`pipelines.fit.delayed`;
         no ``posterior_pooled.nc``). ``posterior.json`` records it, and for ``delayed`` the
         delay of every unit and how it was chosen.
-    delay_mode, delayed_priors, rho_form
+    delay_mode, delayed_priors, rho_form, adaptation
         ``delayed`` only, as :func:`pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
-        at each subject's profile maximum or sampled, the priors (e.g. the population of R), the form of ρ.
+        at each subject's profile maximum or sampled, the priors (e.g. the population of R), the form of ρ,
+        nutpie's mass matrix (None: :data:`models.bayes.delayed_model.DELAYED_NUTS`).
     adequacy_at : {"draw", "means"}
         The posterior point of the adequacy check (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
 
@@ -271,7 +272,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         fit = sample_delayed_model(prepared, batch, plant, priors, form, delays, seed=seeds["condition"], chains=chains,
                                    draws=draws, tune=tune, cores=cores, show_progress=show_progress,
                                    estimates=estimates, delay_mode=delay_mode, delayed_priors=delayed_priors,
-                                   rho_form=rho_form)
+                                   rho_form=rho_form, adaptation=adaptation)
         delays = fit.delays  # sampled: each subject's posterior mode
         fits, diag, extra = {"condition": fit.idata}, {"condition": fit.diagnostics}, fit.sidecar
         timing["condition"] = fit.timing
@@ -323,7 +324,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
         "human_model": human_model, "seed": int(seed), "seeds": seeds,
-        "sampler": {**sampler_record(human_model, delay_mode), "chains": int(chains), "draws": int(draws),
+        "sampler": {**sampler_record(human_model, delay_mode, adaptation), "chains": int(chains), "draws": int(draws),
                     "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)), "target_accept": 0.8},
         "identify_settings": settings.as_dict(),
         "priors": asdict(priors),

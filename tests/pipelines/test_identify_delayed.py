@@ -12,11 +12,13 @@ from models.delayed import (DELAY_GRID_S, Warmup, forward_delayed, identify_unit
                             window_loglik, window_tau0)
 from models.maxent import forward_optimal_control
 from models.bayes.delayed_blocks import R_POPULATIONS, RHO_FORMS
+from models.bayes.delayed_model import ADAPTATIONS, DELAYED_NUTS
 from models.design import STUDY
 from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.cli import main
-from pipelines.cli.parser import HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES, RHO_FORM_NAMES
+from pipelines.cli.parser import (ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES,
+                                  RHO_FORM_NAMES)
 from pipelines.identify import identify_to_dir
 from pipelines.loglik import LIKELIHOODS
 from pipelines.io import load_study
@@ -44,6 +46,7 @@ def test_the_names_the_parser_spells_are_the_pipelines():
     assert HUMAN_MODEL_NAMES == HUMAN_MODELS
     assert LIKELIHOOD_NAMES == LIKELIHOODS
     assert R_POPULATION_NAMES == R_POPULATIONS and RHO_FORM_NAMES == RHO_FORMS
+    assert ADAPTATION_NAMES == ADAPTATIONS and DELAYED_NUTS["adaptation"] == ADAPTATIONS[0]
     assert MAX_DELAY_S == DELAY_GRID_S[-1]
 
 

@@ -178,13 +178,16 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
 
 @pytest.mark.slow
 def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
-    # scioc fit --R-population policy_scale --rho-form folded_centred: the sidecar records the population and the ρ
-    # form, the lag and noise forms are still the data's, the posterior has ρ and no log-normal μ_R.
+    # scioc fit --R-population policy_scale --rho-form folded_centred --adaptation diag: the sidecar records the
+    # population, the ρ form and the mass matrix, the lag and noise forms are still the data's, the posterior has ρ
+    # and no log-normal μ_R.
     root, sim, prepared = delayed_study
     small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
     paths = fit_to_dir(sim["study"], root / "fit_rho", settings=SETTINGS, prepared=prepared,
-                       delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="folded_centred", **small)
+                       delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="folded_centred",
+                       adaptation="diag", **small)
     side = json.loads(open(paths["sidecar"]).read())
+    assert side["sampler"]["adaptation"] == "diag (nutpie)" and side["nutpie_options"] == {"adaptation": "diag"}
     assert side["delayed_priors"]["R_population"] == "policy_scale"
     chosen, _ = choose_delayed_form(pd.read_parquet(root / "identify" / "estimates.parquet"))
     assert side["delayed_form"] == {**side["delayed_form"], "rho": "folded_centred", "tau_nm": chosen.tau_nm,

@@ -228,8 +228,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_human_model_option(p)
     p.add_argument("--delay", choices=("profile", "sampled"), default="profile",
                    help="with --human-model delayed: each subject's delay fixed at its profile-likelihood maximum "
-                        "(default profile; nutpie), or sampled beside the other parameters (sampled; PyMC's NUTS and a "
-                        "Metropolis step for the delay: delay-marginal posteriors, slower)")
+                        "(default profile; nutpie), or sampled beside the rest (PyMC's NUTS and a Metropolis step)")
     p.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal",
                    help="with --human-model delayed: population of the subjects' baseline R (default lognormal; "
                         "policy_scale: R^(-1/2) half-normal; unpooled: each subject's own normal prior on log R, no "
@@ -237,8 +236,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
-                   help="with --human-model delayed and profile delays: nutpie's mass matrix (default low_rank, "
-                        "models/bayes/delayed_model.py; diag: a diagonal one)")
+                   help="with --human-model delayed, profile delays: nutpie's mass matrix (default low_rank)")
     p.add_argument("--compare-to", metavar="MAXENT_FIT",
                    help="with --human-model delayed: a finished max-ent fit folder of the same study and settings; "
                         "after the fit, leave-one-subject-out between the two human models, beside each one's "
@@ -389,8 +387,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "half-normal; unpooled: none, each subject's own prior)")
     g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
-    g.add_argument("--adaptation", choices=ADAPTATION_NAMES, default="low_rank",
-                   help="nutpie's mass matrix (default low_rank, the delayed fit's)")
+    g.add_argument("--adaptation", choices=ADAPTATION_NAMES, default="low_rank", help="nutpie's mass matrix (default low_rank)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
     p.set_defaults(func=commands.cmd_bench_fit)
     return parser

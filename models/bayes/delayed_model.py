@@ -98,9 +98,9 @@ and the parameter)::
 (C centred, NC non-centred; "low rank": nutpie's ``adaptation="low_rank"`` with its
 eigenvalue cutoff, 2 (``nutpie._lib.PyNutsSettings.LowRank(0).as_dict()``; nutpie's
 docstring says 100, which is not what its settings hold), or 3; log-normal C with log R
-C / C and a diagonal mass matrix had not finished after 40 min.) The non-centred population scale of strongly identified values
-(first row) forms the ridge; centred τ_nm and σ_m remove it (ESS of their population
-parameters 500-1300). log R is best non-centred here, unlike in the max-ent model, because
+C / C and a diagonal mass matrix had not finished after 40 min.) The non-centred population
+scale of strongly identified values (first row) forms the ridge; centred τ_nm and σ_m remove
+it (ESS of their population parameters 500-1300). log R is best non-centred here, unlike in the max-ent model, because
 its per-unit SD (0.4) exceeds the population's (about 0.3); the low-rank mass matrix
 takes the within-subject correlations (steps 41 -> 29). σ_R, the between-subject SD of
 log R, stays slow in every form (ESS 15-28 of 600): R is the nuisance the data cannot
@@ -147,7 +147,8 @@ DELAY_INDEX = "delay_index"
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
 #: nutpie's options for this model (module docstring, "Geometry"): a low-rank modified mass matrix.
 DELAYED_NUTS = {"adaptation": "low_rank"}
-#: The mass matrices a delayed fit may use instead (``scioc fit --adaptation``): nutpie's low-rank one and its diagonal one.
+#: The mass matrices a delayed fit may use (``scioc fit --adaptation``): nutpie's low-rank one, the default, and its
+#: diagonal one.
 ADAPTATIONS = ("low_rank", "diag")
 
 
@@ -283,5 +284,5 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
                            **kwargs)
 
 
-__all__ = ["ADAPTATIONS", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm",
-           "DelayedPriors", "R_POPULATIONS", "build_delayed_model", "delay_step"]
+__all__ = ["ADAPTATIONS", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
+           "DelayedForm", "DelayedPriors", "R_POPULATIONS", "build_delayed_model", "delay_step"]

@@ -118,7 +118,7 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
 
 
 def sampler_record(human_model: str, delay_mode: str, adaptation: str | None = None) -> dict:
-    """Which sampler a fit used and its mass-matrix adaptation (``adaptation``: the delayed fit's, if not the default), for the sidecar."""
+    """Which sampler a fit used and its mass matrix, for the sidecar (``adaptation``: the delayed fit's, None: its default)."""
     if human_model == "delayed" and delay_mode == "sampled":
         return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
                 "adaptation": "diag (PyMC's NUTS)"}

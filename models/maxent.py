@@ -82,7 +82,7 @@ class LoglikGrad(NamedTuple):
 FREEZE_RTOL = 1e-15
 
 
-@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
     """Log-likelihood and θ-gradient of one segment (see the module docstring).
 

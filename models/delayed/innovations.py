@@ -57,8 +57,9 @@ from models.maxent import FREEZE_RTOL, HALF_LOG_2PI, PROD_HUGE, PROD_TINY
 #: this fraction of x.
 Y_RTOL = 1e-7
 
-#: numba options of the kernels here: contracted and reassociated sums (vectorized dot products).
-FASTMATH = {"contract", "reassoc"}
+#: numba options of the kernels here and in :mod:`models.delayed.kernel`: reassociated sums (vectorized), no
+#: "contract": with it, bits depended on numba's cache state (tests/models/test_numba_cache.py).
+FASTMATH = {"reassoc"}
 
 
 #: Unsigned index type of the inner loops (module docstring).

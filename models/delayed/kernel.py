@@ -25,9 +25,9 @@ not depend on the batch it is in.
 The kernel (this module, :mod:`models.delayed.riccati` and
 :mod:`models.delayed.innovations`) is written for numba: no array views in inner loops
 (each costs reference counting), unsigned indices where LLVM should vectorize. numba's
-on-disk cache of a function holds the compiled code of what it calls but is invalidated
-only by changes to its own file: after editing riccati.py, innovations.py or lag.py, delete the
-``*.nbi``/``*.nbc`` files of ``models/delayed/__pycache__`` (a fresh checkout has none).
+on-disk cache lives in a folder named by a hash of every source of ``models`` (:mod:`models`),
+so an edited callee is never served stale. The kernels' sums may be reassociated but not
+contracted into fused multiply-adds (:data:`models.delayed.innovations.FASTMATH` says why).
 """
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ def _layout(*sizes):
                                         3, 12, 4, 4, 4)
 
 
-@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, df, S_t, L_t, dS_t, dL_t, cst, adj, W):
     """Run the recursion backward over the plan's K + M steps; return (k_R, k_z).
 
@@ -267,7 +267,7 @@ def plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K_obs, freeze, f, d
     return k_R, k_z
 
 
-@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def plan_adjoint(bc, dbc, S, dS, r, ua, om, K_obs, k_z, adj, W, G):
     """Add ``sum_{k < k_z, k < K} om_k df_k / d(direction)`` to G (4,), by one forward adjoint sweep.
 

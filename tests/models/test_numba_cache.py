@@ -29,3 +29,77 @@ def test_numba_uses_the_folder_of_these_sources():
     assert warm_samples(0.5, 0.1) > 0
     cached = [p.name for p in Path(numba.config.CACHE_DIR).rglob("*.nbi")]
     assert any(name.startswith("delayed_op.warm_samples") for name in cached), cached
+
+
+#: Run in a fresh interpreter: the delayed and max-ent likelihoods with gradients, through the kernels and through
+#: their PyTensor Ops compiled by numba, and a few seeded nutpie draws of each unit model; prints a digest of every
+#: output's bits and the cache hits of the kernels it called.
+PROBE = """
+import hashlib, json, warnings
+import numba, numpy as np, pytensor, pytensor.tensor as pt
+from models import delayed, maxent
+from models.bayes.delayed_op import DelayedLoglikOp
+from models.bayes.delayed_windows import delayed_windows
+from models.bayes.op import MaxEntLoglikOp
+from models.delayed.kernel import batch_kernel, batch_kernel_serial
+from models.delayed.lag import Warmup
+from models.plant import discretize
+from models.segment import prepare_batch
+warnings.simplefilter("ignore")
+plant = discretize(0.01)
+w = delayed_windows(3, np.random.default_rng(2), K=300, preview=50, delay=(0, 25))
+batch = prepare_batch(plant, w.segments)
+warm = [Warmup(np.random.default_rng(i).normal(0, 0.3, 60), 0.1) for i in range(batch.n)]
+digest = lambda *xs: hashlib.sha256(b"".join(np.ascontiguousarray(x).tobytes() for x in xs)).hexdigest()
+out = {}
+for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):  # the serial kernel, then the parallel one
+    numba.set_num_threads(threads)
+    r = delayed.loglik_grad(w.theta, batch, plant, tau_nm=w.tau_nm, sigma_m=w.sigma_m, delay=w.delay, tau0=0.1)
+    out[f"delayed kernel, {threads} threads"] = digest(r.loglik, r.grad)
+r = maxent.loglik_grad(w.theta, batch, plant)
+out["max-ent kernel"] = digest(r.loglik, r.grad)
+th, tt, ss = pt.dmatrix(), pt.dvector(), pt.dvector()
+logp = DelayedLoglikOp(batch, plant, delay=w.delay, tau0=warm)(th, tt, ss)[0].sum()
+f = pytensor.function([th, tt, ss], [logp, *pytensor.grad(logp, [th, tt, ss])], mode="NUMBA")
+out["delayed Op"] = digest(*f(w.theta, w.tau_nm, w.sigma_m))
+logp = MaxEntLoglikOp(batch, plant)(th)[0].sum()
+f = pytensor.function([th], [logp, pytensor.grad(logp, th)], mode="NUMBA")
+out["max-ent Op"] = digest(*f(w.theta))
+# The fit's path: PyMC model, PyTensor's graph compiled by numba (nutpie), a few seeded draws.
+import nutpie
+from models.bayes.unit_delayed import build_unit_delayed_model
+from models.bayes.unit_model import build_unit_model
+one = prepare_batch(plant, w.segments[:1])
+for name, model in (("max-ent unit fit", build_unit_model(one, plant)),
+                    ("delayed unit fit", build_unit_delayed_model(one, plant, delay=int(w.delay[0])))):
+    trace = nutpie.sample(nutpie.compile_pymc_model(model, backend="numba"), chains=1, tune=30, draws=10, seed=1,
+                          cores=1, progress_bar=False)
+    post = trace["posterior"].to_dataset()
+    out[name] = digest(*[post[v].values for v in sorted(post.data_vars)])
+out["cache hits"] = sum(sum(k.stats.cache_hits.values()) for k in (batch_kernel, batch_kernel_serial, maxent.batch_kernel))
+print(json.dumps(out))
+"""
+
+
+def test_the_likelihoods_bits_do_not_depend_on_whether_numba_compiled_them_or_loaded_them(tmp_path):
+    # Same seed, same bits must hold in the first process on a new machine (empty caches) as in every later one.
+    # Negative controls (measured when this test was written): with the "contract" fast-math flag in the kernels
+    # (models.maxent, models.delayed), the first process's kernel outputs differed from the second's; with
+    # PyTensor's default fast-math (models.bayes sets it off), its Ops' and unit fits' did.
+    import json
+    import os
+    import subprocess
+    import sys
+
+    # Both caches start empty: numba's (the kernels) and PyTensor's (its compiled graph functions).
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "PYTHONHASHSEED": "0",
+           "PYTENSOR_FLAGS": f"base_compiledir={tmp_path / 'pytensor'}"}
+    runs = []
+    for _ in range(2):
+        done = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=1800)
+        assert done.returncode == 0, done.stderr[-3000:]
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    assert first.pop("cache hits") == 0  # the first process compiled every kernel
+    assert second.pop("cache hits") > 0  # the second loaded them
+    assert first == second

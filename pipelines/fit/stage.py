@@ -54,7 +54,6 @@ import numpy as np
 import pandas as pd
 
 from models.bayes.delayed_blocks import DelayedPriors
-from models.bayes.delayed_model import DELAYED_NUTS
 from models.bayes.hierarchical import Parameterization, Priors, build_model
 from models.identify import identify_unit
 from models.plant import discretize
@@ -117,13 +116,13 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
                                            for idx in prepared.units.values()]})
 
 
-def sampler_record(human_model: str, delay_mode: str, adaptation: str | None = None) -> dict:
-    """Which sampler a fit used and its mass matrix, for the sidecar (``adaptation``: the delayed fit's, None: its default)."""
+def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | None = None) -> dict:
+    """Which sampler a fit used and its mass matrix, for the sidecar (``nutpie_options``: those the delayed fit used)."""
     if human_model == "delayed" and delay_mode == "sampled":
         return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
                 "adaptation": "diag (PyMC's NUTS)"}
     return {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')",
-            "adaptation": f"{adaptation or DELAYED_NUTS['adaptation']} (nutpie)" if human_model == "delayed" else
+            "adaptation": f"{nutpie_options['adaptation']} (nutpie)" if human_model == "delayed" else
             "diag (nutpie default)"}
 
 
@@ -219,6 +218,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     if delay_mode not in DELAY_MODES or (delay_mode != "profile" and human_model != "delayed"):
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)} ('sampled' for the delayed human only); "
                          f"got {delay_mode!r} with {human_model!r}")
+    if adaptation is not None and human_model != "delayed":
+        raise ValueError(f"adaptation (nutpie's mass matrix) is the delayed fit's option; got {adaptation!r} with "
+                         f"{human_model!r}")
     if adequacy_at not in ADEQUACY_POINTS:
         raise ValueError(f"--adequacy-at must be one of {', '.join(ADEQUACY_POINTS)}; got {adequacy_at!r}")
     if human_model != settings.human_model and settings.human_model != "maxent":
@@ -324,7 +326,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
         "human_model": human_model, "seed": int(seed), "seeds": seeds,
-        "sampler": {**sampler_record(human_model, delay_mode, adaptation), "chains": int(chains), "draws": int(draws),
+        "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options")), "chains": int(chains), "draws": int(draws),
                     "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)), "target_accept": 0.8},
         "identify_settings": settings.as_dict(),
         "priors": asdict(priors),

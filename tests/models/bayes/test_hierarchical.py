@@ -155,8 +155,8 @@ def test_log_density_is_priors_plus_likelihood(plant, form, M):
                 point[value_name] = np.asarray(v[rv.name], dtype=float)
         assert set(point) == set(model.initial_point())
         expected = _by_hand(v, priors, form, index, batch, plant)
-        # PyTensor's numba backend compiles with fastmath (reassociation, approximate exp/log)
-        # and forms q11 = exp(log θ1 + log R) rather than θ1 R: a few 1e-12 relative.
+        # PyTensor forms q11 = exp(log θ1 + log R) rather than θ1 R and sums the terms in its own
+        # order (before 2026-12-04 also with fast-math, models.bayes): a few 1e-12 relative.
         assert logp_nojac(point) == pytest.approx(expected, rel=1e-10)
         assert logp_jac(point) == pytest.approx(expected + log_jac, rel=1e-10)
 
@@ -333,7 +333,7 @@ def test_pooled_model_is_priors_plus_likelihood_without_condition_effects(plant)
     R = np.exp(log_R)
     theta = np.array([np.exp(m[s]) * R, (v["tau_theta2"] * v["z_theta2"])[s, c] * R, R])
     lp += loglik_grad(theta, batch, plant).loglik.sum()
-    # fastmath reassociation in the numba backend: a few 1e-12 relative (as above).
+    # PyTensor's own order of operations: a few 1e-12 relative (as above).
     assert model.compile_logp(jacobian=False)(point) == pytest.approx(lp, rel=1e-10)
     lt1 = pm.draw(model["log_theta1"], random_seed=37)
     np.testing.assert_array_equal(lt1[:, 0], lt1[:, 1])

@@ -185,6 +185,8 @@ def test_fit_options_are_validated(tiny_study):
         fit_to_dir(root / "data" / "study.parquet", root / "x", chains=1, draws=20)
     with pytest.raises(ValueError, match="--subject 'S99' is not in the study"):
         fit_to_dir(root / "data" / "study.parquet", root / "x", subject="S99", draws=10)
+    with pytest.raises(ValueError, match="adaptation .* is the delayed fit's option; got 'diag' with 'maxent'"):
+        fit_to_dir(root / "data" / "study.parquet", root / "x", human_model="maxent", adaptation="diag")
     assert not (root / "x").exists()
 
 

@@ -92,8 +92,9 @@ leapfrog steps and μ_R gets ESS 97. The SC change of log θ1 is the delicate bl
 (C / C) it mixes best on the 15-s windows, whose data outweigh σ_β, but with less data per
 unit (3-s windows) every transition of every chain diverged in the σ_β funnel. The
 default keeps the change non-centred, which passes on all three data sets, at about half
-the ESS of C / C where that works; pass ``Parameterization(theta1_mc="centred",
-theta1_sc="centred")`` for long windows when speed matters. (Session 1 measured the same
+the ESS of C / C where that works; ``scioc fit`` passes ``Parameterization(theta1_mc="centred",
+theta1_sc="centred")`` when the data pin each unit's log θ1 down tightly enough
+(``pipelines.fit.stage.CENTRED_SE_LOG_THETA1``, where later measurements are). (Session 1 measured the same
 pattern on an earlier stand-in simulator, no longer in the repository.) The table is the
 two-level study's; with more levels every change gets the form ``theta1_sc`` / ``R_sc``
 says, a choice carried over from it, not measured again.

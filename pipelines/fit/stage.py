@@ -101,11 +101,14 @@ MIN_TOTAL_DRAWS = 25
 
 #: Units whose ML log θ1 the data pin down to this standard error (median over units) or better are
 #: fitted with centred log θ1 blocks (models/bayes/hierarchical.py, "Parameterization"): the data then
-#: outweigh the population spread of the changes and the non-centred default mixes slowly. Measured:
-#: the default study's units have a median SE of 0.062 (the default form: β's ESS 855, R-hat 1.006);
-#: the three-assistants example's 0.021, where the default form gave β an ESS of 280 and R-hat 1.017
-#: and the centred one an ESS above 4800 and R-hat 1.00 (4 chains × 1000 draws, seed 2018).
-CENTRED_SE_LOG_THETA1 = 0.03
+#: outweigh the population spread of the changes (σ_β ≈ 0.2) and the non-centred default mixes slowly.
+#: Measured (4 chains × 1000 draws; condition model; worst bulk ESS and R-hat of β): the three-assistants
+#: example (median SE 0.021), default 280 / 1.017, centred above 4800 / 1.00 (seed 2018); the default study
+#: (0.062), default 625 / 1.015, 658 / 1.002, 733 / 1.006 (seeds 2018, 1, 2: at the edge of R-hat ≤ 1.01),
+#: centred 5867 / 1.000, 4799 / 1.000, 4558 / 1.000, no divergences (README, "Hierarchical Bayesian
+#: model"). The same study cut to 3-s windows (0.30) diverges centred (hierarchical.py's table), so the
+#: threshold sits just above the largest SE measured to work, not between the two.
+CENTRED_SE_LOG_THETA1 = 0.08
 
 
 def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:

@@ -1,6 +1,8 @@
-"""numba's cache is keyed by the sources of the whole package, so a changed callee is never served stale."""
+"""numba's cache is keyed by the sources of the whole package, so a changed callee is never served stale; and what
+it serves computes the same bits as a fresh compile."""
 
 import numba
+import pytest
 
 from models import numba_cache_dir
 
@@ -81,6 +83,7 @@ print(json.dumps(out))
 """
 
 
+@pytest.mark.slow  # two fresh interpreters, the first compiling every kernel: about 2.5 minutes
 def test_the_likelihoods_bits_do_not_depend_on_whether_numba_compiled_them_or_loaded_them(tmp_path):
     # Same seed, same bits must hold in the first process on a new machine (empty caches) as in every later one.
     # Negative controls (measured when this test was written): with the "contract" fast-math flag in the kernels

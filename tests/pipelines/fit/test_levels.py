@@ -173,8 +173,10 @@ def test_the_log_theta1_form_follows_how_tightly_the_data_pin_each_unit():
     from pipelines.fit.stage import CENTRED_SE_LOG_THETA1, choose_parameterization
 
     assert choose_parameterization(None)[0] == Parameterization()
-    loose = pd.DataFrame({"se_log_theta1": [0.04, 0.06, 0.09]})  # like the default study's 15-s windows
-    tight = pd.DataFrame({"se_log_theta1": [0.015, 0.02, 0.06]})  # like the example's three 12-s trials
+    loose = pd.DataFrame({"se_log_theta1": [0.2, 0.3, 0.4]})  # like the default study cut to 3-s windows
     assert choose_parameterization(loose)[0] == Parameterization()
-    form, reason = choose_parameterization(tight)
-    assert (form.theta1_mc, form.theta1_sc) == ("centred", "centred") and str(CENTRED_SE_LOG_THETA1) in reason
+    for tight in ([0.015, 0.02, 0.06], [0.04, 0.062, 0.09]):  # the example's three 12-s trials; the default study
+        form, reason = choose_parameterization(pd.DataFrame({"se_log_theta1": tight}))
+        assert (form.theta1_mc, form.theta1_sc) == ("centred", "centred") and str(CENTRED_SE_LOG_THETA1) in reason
+    edge = pd.DataFrame({"se_log_theta1": [CENTRED_SE_LOG_THETA1 * 1.01] * 3})
+    assert choose_parameterization(edge)[0] == Parameterization()

@@ -105,9 +105,10 @@ MIN_TOTAL_DRAWS = 25
 #: Measured (4 chains × 1000 draws; condition model; worst bulk ESS and R-hat of β): the three-assistants
 #: example (median SE 0.021), default 280 / 1.017, centred above 4800 / 1.00 (seed 2018); the default study
 #: (0.062), default 625 / 1.015, 658 / 1.002, 733 / 1.006 (seeds 2018, 1, 2: at the edge of R-hat ≤ 1.01),
-#: centred 5867 / 1.000, 4799 / 1.000, 4558 / 1.000, no divergences (README, "Hierarchical Bayesian
-#: model"). The same study cut to 3-s windows (0.30) diverges centred (hierarchical.py's table), so the
-#: threshold sits just above the largest SE measured to work, not between the two.
+#: centred 5867 / 1.000, 4799 / 1.000, 4558 / 1.000, no divergences (the condition model of `scioc fit
+#: reports/default-study/data/study.parquet --out F --seed S` after `make run`; the default form at commit
+#: 1ccbd4b, before the threshold moved from 0.03). The same study cut to 3-s windows (0.30) diverges centred
+#: (hierarchical.py's table): the threshold sits just above the largest SE measured to work.
 CENTRED_SE_LOG_THETA1 = 0.08
 
 
@@ -120,7 +121,7 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
 
 
 def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | None = None) -> dict:
-    """Which sampler a fit used and its mass matrix, for the sidecar (``nutpie_options``: those the delayed fit used)."""
+    """Which sampler a fit used and its mass matrix, for the sidecar (``nutpie_options``: the delayed fit's)."""
     if human_model == "delayed" and delay_mode == "sampled":
         return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
                 "adaptation": "diag (PyMC's NUTS)"}
@@ -329,8 +330,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
         "human_model": human_model, "seed": int(seed), "seeds": seeds,
-        "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options")), "chains": int(chains), "draws": int(draws),
-                    "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)), "target_accept": 0.8},
+        "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options")), "chains": int(chains),
+                    "draws": int(draws), "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)), "target_accept": 0.8},
         "identify_settings": settings.as_dict(),
         "priors": asdict(priors),
         "parameterization": {**asdict(form), "reason": form_reason},

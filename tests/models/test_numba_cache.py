@@ -78,7 +78,8 @@ for name, model in (("max-ent unit fit", build_unit_model(one, plant)),
                           cores=1, progress_bar=False)
     post = trace["posterior"].to_dataset()
     out[name] = digest(*[post[v].values for v in sorted(post.data_vars)])
-out["cache hits"] = sum(sum(k.stats.cache_hits.values()) for k in (batch_kernel, batch_kernel_serial, maxent.batch_kernel))
+kernels = (batch_kernel, batch_kernel_serial, maxent.batch_kernel)
+out["cache hits"] = sum(sum(k.stats.cache_hits.values()) for k in kernels)
 print(json.dumps(out))
 """
 

@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 
 from models.bayes.delayed_model import (ADAPTATIONS, DELAY_INDEX, DELAYED_NUTS, DELAYED_PARAMETERIZATION,
-                                        DELAYED_POPULATION_PARAMETERS, DelayedForm, DelayedPriors, build_delayed_model,
-                                        delay_step)
+                                        DELAYED_POPULATION_PARAMETERS, DelayedForm, DelayedPriors, WHITENED,
+                                        build_delayed_model, delay_step)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
 from models.delayed.identify import delay_grid, identify_unit_delayed
 from models.delayed.lag import lag_coefficients, window_tau0
@@ -46,6 +46,7 @@ from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import sample_model
 from pipelines.fit.start import start_point
+from pipelines.fit.whiten import sample_whitened
 from pipelines.io import InputDataError
 
 #: Unit-level quantities of the delayed model whose diagnostics are reported.
@@ -250,7 +251,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
     if adaptation is not None and (adaptation not in ADAPTATIONS or delay_mode != "profile"):
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
-    nuts = DELAYED_NUTS if adaptation is None else {**DELAYED_NUTS, "adaptation": adaptation}
+    whiten = adaptation == WHITENED
+    nuts = DELAYED_NUTS if adaptation is None else {**DELAYED_NUTS, "adaptation": "diag" if whiten else adaptation}
     levels = prepared.settings.design.ordered_levels
     form = replace(form, R_mc=DELAYED_PARAMETERIZATION.R_mc, R_sc=DELAYED_PARAMETERIZATION.R_sc)
     if delayed_form is None:
@@ -274,6 +276,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                   show_progress=show_progress, steps=[delay_step(model, mode="NUMBA")],
                                   initvals=start)
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
+    elif whiten:
+        idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
+                                                cores=cores, show_progress=show_progress, nuts=nuts)
     else:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
                                   show_progress=show_progress, nuts=nuts, initvals=start)
@@ -291,7 +296,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
             "delayed_parameterization": asdict(form),
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled"} if sampled
                else {"nutpie_options": dict(nuts)}),
-            "delayed_form": {**asdict(delayed_form), "reason": form_reason}}
+            "delayed_form": {**asdict(delayed_form), "reason": form_reason},
+            **({"whitening": whitening} if whiten else {})}
     return DelayedFit(idata, diag, timing, delays, side)
 
 

@@ -75,18 +75,25 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     keep_tuning_steps(idata)
     t1 = time.perf_counter()
     if log_likelihood:
-        # PyMC cannot rebuild a model with initial values (the folded ρ's of delayed_blocks.py) for the
-        # log-likelihood; they only chose where the chains started, so they are left out for it and put back.
-        initvals = dict(model.rvs_to_initial_values)
-        model.rvs_to_initial_values.update(dict.fromkeys(initvals))
-        try:
-            pm.compute_log_likelihood(idata, model=model, progressbar=False)
-        finally:
-            model.rvs_to_initial_values.update(initvals)
+        add_log_likelihood(idata, model)
     t2 = time.perf_counter()
     attrs = idata["sample_stats" if steps else "posterior"].attrs  # PyMC's own sampler records it there
     return idata, {"compile_and_sample": t1 - t0, "sample": float(attrs.get("sampling_time", t1 - t0)),
                    "log_likelihood": t2 - t1}
+
+
+def add_log_likelihood(idata, model) -> None:
+    """Add the pointwise log-likelihood of ``model`` at ``idata``'s posterior draws (group ``log_likelihood``)."""
+    import pymc as pm
+
+    # PyMC cannot rebuild a model with initial values (the folded ρ's of delayed_blocks.py) for the
+    # log-likelihood; they only chose where the chains started, so they are left out for it and put back.
+    initvals = dict(model.rvs_to_initial_values)
+    model.rvs_to_initial_values.update(dict.fromkeys(initvals))
+    try:
+        pm.compute_log_likelihood(idata, model=model, progressbar=False)
+    finally:
+        model.rvs_to_initial_values.update(initvals)
 
 
 def keep_tuning_steps(idata) -> None:

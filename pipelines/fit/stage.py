@@ -120,13 +120,16 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
                                            for idx in prepared.units.values()]})
 
 
-def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | None = None) -> dict:
-    """Which sampler a fit used and its mass matrix, for the sidecar (``nutpie_options``: the delayed fit's)."""
+def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | None = None,
+                   whitened: bool = False) -> dict:
+    """Which sampler a fit used and its mass matrix, for the sidecar (``nutpie_options``: the delayed fit's;
+    ``whitened``: on each subject's whitened coordinates, :mod:`pipelines.fit.whiten`)."""
     if human_model == "delayed" and delay_mode == "sampled":
         return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
                 "adaptation": "diag (PyMC's NUTS)"}
     return {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')",
-            "adaptation": f"{nutpie_options['adaptation']} (nutpie)" if human_model == "delayed" else
+            "adaptation": f"{nutpie_options['adaptation']} (nutpie)" + (", per-subject whitened" if whitened else "")
+            if human_model == "delayed" else
             "diag (nutpie default)"}
 
 
@@ -330,9 +333,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
         "human_model": human_model, "seed": int(seed), "seeds": seeds,
-        "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options")), "chains": int(chains),
-                    "draws": int(draws), "tune": int(tune), "cores": int(min(chains, cores or os.cpu_count() or 1)),
-                    "target_accept": 0.8},
+        "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options"), "whitening" in extra),
+                    "chains": int(chains), "draws": int(draws), "tune": int(tune),
+                    "cores": int(min(chains, cores or os.cpu_count() or 1)), "target_accept": 0.8},
         "identify_settings": settings.as_dict(),
         "priors": asdict(priors),
         "parameterization": {**asdict(form), "reason": form_reason},

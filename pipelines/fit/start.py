@@ -103,6 +103,12 @@ def _held(model, rv) -> bool:
     return _is_population_scale(model, rv) or rv.dtype.startswith("int")
 
 
+def held_mask(model, point_map_info) -> np.ndarray:
+    """Which coordinates of the joined unconstrained vector (``point_map_info`` in ``model.free_RVs``' order) are
+    held: population scales and discrete variables (module docstring)."""
+    return np.concatenate([np.full(size, _held(model, rv)) for rv, (_, _, size, _) in zip(model.free_RVs, point_map_info)])
+
+
 def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) -> dict | None:
     """Initial values (RV name -> value, constrained scale) near the ML estimates; None without estimates.
 
@@ -139,8 +145,7 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
     f0 = float(fn(x0)[0])
     # Bounds on the unconstrained scale keep exp() of a log-transformed scale positive in floating point.
     # Population scales (module docstring) and discrete variables are held at PyMC's initial point (equal bounds).
-    held = np.concatenate([np.full(size, _held(model, rv))
-                           for rv, (_, _, size, _) in zip(model.free_RVs, raveled.point_map_info)])
+    held = held_mask(model, raveled.point_map_info)
     bounds = [(x, x) if h else (-UNCONSTRAINED_BOUND, UNCONSTRAINED_BOUND) for x, h in zip(x0, held)]
     res = minimize(lambda x: tuple(np.asarray(a, float) for a in fn(x)), x0, jac=True, method="L-BFGS-B",
                    bounds=bounds, options={"maxiter": int(max_iter)})
@@ -153,4 +158,4 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
     return {rv.name: np.asarray(val) for rv, val in zip(rvs, values)}
 
 
-__all__ = ["SE_FLOOR", "SUBJECT_TARGETS", "UNCONSTRAINED_BOUND", "UNIT_TARGETS", "start_point"]
+__all__ = ["SE_FLOOR", "held_mask", "SUBJECT_TARGETS", "UNCONSTRAINED_BOUND", "UNIT_TARGETS", "start_point"]

@@ -1,0 +1,124 @@
+"""Per-subject whitening of a hierarchical model's unconstrained space: a fixed affine reparametrization for NUTS.
+
+Why. In the ``delayed`` model each subject's baseline log R is tied to its log τ_nm and σ_m
+(correlations -0.86 and 0.6, :mod:`models.bayes.delayed_model`, "Geometry"), one such
+direction per subject. nutpie's diagonal mass matrix cannot hold those correlations, and its
+low-rank one learns them only after more warm-up draws than the model has dimensions (README,
+"Which part of the warm-up"). But the subjects are independent given the population: the
+posterior's precision, on the sampler's unconstrained scale x, is block diagonal over the
+subjects' coordinates, with a small dense block per subject, plus the population's few
+coordinates. That structure is known before sampling.
+
+What. With x̂ a point near the posterior's centre and H_i the Hessian of log p at x̂ in
+subject i's coordinates x_i (k per subject), sample w where::
+
+    x_i = x̂_i + L_i w_i,   L_i L_iᵀ = |H_i|⁻¹        (each subject's block)
+    x_p = x̂_p + w_p                                  (every other coordinate)
+
+|H_i| is -H_i with its eigenvalues replaced by their absolute values and floored at
+``EIGEN_FLOOR`` times the largest, so L_i exists where x̂ is not a maximum (the SoftAbs
+metric's idea, Betancourt 2013). The map is affine with a constant Jacobian, so the density
+of w is p(x(w)) times a constant: the posterior is exactly the model's, only its coordinates
+change. In w each subject's block is near the identity where the posterior is near Gaussian,
+and the diagonal mass matrix then has little left to learn.
+
+x̂ and H are computed by :mod:`pipelines.fit.whiten` (the conditional mode with the
+population's scales held, central differences of the exact gradient). H_i comes from one
+difference per column of a block, for all subjects at once (:func:`block_hessian`): subject
+j's gradient does not depend on subject i's coordinates, so 2k gradients give every block.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pymc as pm
+import pytensor.tensor as pt
+from pytensor.graph.replace import graph_replace
+
+#: Eigenvalues of |H_i| below this fraction of its largest are raised to it (a direction the data and
+#: prior leave flat at x̂ gets a finite scale; its own diagonal mass-matrix entry adapts it).
+EIGEN_FLOOR = 1e-6
+#: Name of the whitened coordinates w in the sampled model.
+WHITE = "w"
+
+
+def subject_blocks(point_map_info, dims: list, n_subjects: int) -> np.ndarray:
+    """Flat indices (n_subjects, k) of every coordinate with a leading ``subject`` dim.
+
+    ``point_map_info``: :class:`pymc.blocking.RaveledVars`'s (name, shape, size, dtype) per value
+    variable, in the flat vector's order; ``dims``: each value variable's dims (None or a tuple).
+    Row i holds subject i's coordinates, in the same order for every subject.
+    """
+    cols, start = [], 0
+    for (name, shape, size, _), d in zip(point_map_info, dims):
+        d = tuple(d or ())
+        if d and d[0] == "subject":
+            if shape[0] != n_subjects:
+                raise ValueError(f"{name}: {shape[0]} entries along 'subject', expected {n_subjects}")
+            cols.append(np.arange(start, start + size).reshape(n_subjects, -1))
+        elif "subject" in d:
+            raise ValueError(f"{name}: 'subject' must be its first dim to be whitened; dims {d}")
+        start += size
+    if not cols:
+        raise ValueError("no variable has a 'subject' dim: nothing to whiten")
+    return np.concatenate(cols, axis=1)
+
+
+def block_hessian(grad, x: np.ndarray, blocks: np.ndarray, step: float) -> np.ndarray:
+    """Hessian blocks (n, k, k) of log p in each subject's coordinates, by central differences of ``grad``.
+
+    Column c of every block comes from one pair of gradients with coordinate c of *every*
+    subject moved by ±``step`` (module docstring: the blocks do not interact). Symmetrized.
+    """
+    n, k = blocks.shape
+    H = np.empty((n, k, k))
+    for c in range(k):
+        e = np.zeros_like(x)
+        e[blocks[:, c]] = step
+        H[:, :, c] = (np.asarray(grad(x + e))[blocks] - np.asarray(grad(x - e))[blocks]) / (2.0 * step)
+    return 0.5 * (H + np.swapaxes(H, 1, 2))
+
+
+def whitening_factors(H: np.ndarray, floor: float = EIGEN_FLOOR) -> tuple[np.ndarray, np.ndarray]:
+    """(L, n_negative): L[i] L[i]ᵀ = |H[i]|⁻¹ (module docstring), and each block's count of non-negative-definite
+    directions of -H[i] (where x̂ is not a maximum)."""
+    L = np.empty_like(H)
+    n_neg = np.zeros(H.shape[0], dtype=int)
+    for i, Hi in enumerate(H):
+        lam, V = np.linalg.eigh(-Hi)
+        if not np.all(np.isfinite(lam)):
+            raise ValueError(f"subject block {i}: the Hessian is not finite")
+        n_neg[i] = int(np.sum(lam <= 0))
+        lam = np.maximum(np.abs(lam), floor * np.max(np.abs(lam)))
+        # L = V diag(lam^-1/2) is a square root of V diag(1/lam) Vᵀ; the Cholesky factor of it is the
+        # triangular one, which keeps each subject's first coordinate on its own axis.
+        L[i] = np.linalg.cholesky((V / lam) @ V.T)
+    return L, n_neg
+
+
+def to_unconstrained(w: np.ndarray, x_hat: np.ndarray, blocks: np.ndarray, L: np.ndarray) -> np.ndarray:
+    """x of the module docstring from w (..., D): the inverse of the reparametrization, on draws."""
+    x = np.asarray(w, dtype=float) + x_hat
+    x[..., blocks] = x_hat[blocks] + np.einsum("ijk,...ik->...ij", L, np.asarray(w, dtype=float)[..., blocks])
+    return x
+
+
+def whitened_model(logp, flat, x_hat: np.ndarray, blocks: np.ndarray, L: np.ndarray) -> pm.Model:
+    """A model in w alone whose log density is ``logp`` at x(w) (module docstring).
+
+    ``logp``: the original model's log density (with its transforms' Jacobians) as a graph of
+    ``flat``, its unconstrained coordinates joined into one vector
+    (:func:`pymc.pytensorf.join_nonshared_inputs`). w is a ``Flat`` of that size, so the
+    model's initial point, w = 0, is x̂.
+    """
+    with pm.Model() as model:
+        w = pm.Flat(WHITE, shape=x_hat.shape[0])
+        wb = w[blocks]
+        xb = pt.as_tensor(x_hat[blocks]) + pt.sum(pt.as_tensor(L) * wb[:, None, :], axis=-1)
+        x = pt.set_subtensor((pt.as_tensor(x_hat) + w)[blocks], xb)
+        pm.Potential("logp", graph_replace(logp, {flat: x}, strict=False))
+    return model
+
+
+__all__ = ["EIGEN_FLOOR", "WHITE", "block_hessian", "subject_blocks", "to_unconstrained", "whitened_model",
+           "whitening_factors"]

@@ -96,15 +96,21 @@ def whitening_factors(H: np.ndarray, floor: float = EIGEN_FLOOR) -> tuple[np.nda
     return L, n_neg
 
 
-def to_unconstrained(w: np.ndarray, x_hat: np.ndarray, blocks: np.ndarray, L: np.ndarray) -> np.ndarray:
-    """x of the module docstring from w (..., D): the inverse of the reparametrization, on draws."""
-    x = np.asarray(w, dtype=float) + x_hat
-    x[..., blocks] = x_hat[blocks] + np.einsum("ijk,...ik->...ij", L, np.asarray(w, dtype=float)[..., blocks])
+def to_unconstrained(w: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
+    """x of the module docstring from w (..., D): the inverse of the reparametrization, on draws.
+
+    ``groups``: (blocks (n, k), L (n, k, k)) pairs on disjoint coordinates; every other coordinate is x̂ + w.
+    """
+    w = np.asarray(w, dtype=float)
+    x = w + x_hat
+    for blocks, L in groups:
+        x[..., blocks] = x_hat[blocks] + np.einsum("ijk,...ik->...ij", L, w[..., blocks])
     return x
 
 
-def whitened_model(logp, flat, x_hat: np.ndarray, blocks: np.ndarray, L: np.ndarray) -> pm.Model:
-    """A model in w alone whose log density is ``logp`` at x(w) (module docstring).
+def whitened_model(logp, flat, x_hat: np.ndarray, groups) -> pm.Model:
+    """A model in w alone whose log density is ``logp`` at x(w) (module docstring; ``groups`` as
+    :func:`to_unconstrained`'s).
 
     ``logp``: the original model's log density (with its transforms' Jacobians) as a graph of
     ``flat``, its unconstrained coordinates joined into one vector
@@ -113,9 +119,10 @@ def whitened_model(logp, flat, x_hat: np.ndarray, blocks: np.ndarray, L: np.ndar
     """
     with pm.Model() as model:
         w = pm.Flat(WHITE, shape=x_hat.shape[0])
-        wb = w[blocks]
-        xb = pt.as_tensor(x_hat[blocks]) + pt.sum(pt.as_tensor(L) * wb[:, None, :], axis=-1)
-        x = pt.set_subtensor((pt.as_tensor(x_hat) + w)[blocks], xb)
+        x = pt.as_tensor(x_hat) + w
+        for blocks, L in groups:
+            wb = w[blocks]
+            x = pt.set_subtensor(x[blocks], pt.as_tensor(x_hat[blocks]) + pt.sum(pt.as_tensor(L) * wb[:, None, :], axis=-1))
         pm.Potential("logp", graph_replace(logp, {flat: x}, strict=False))
     return model
 

@@ -112,12 +112,12 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     """
     t0 = time.perf_counter()
     logp, flat, x_hat, blocks, L, info, record = whitening(model, start)
-    white = whitened_model(logp, flat, x_hat, blocks, L)
+    white = whitened_model(logp, flat, x_hat, [(blocks, L)])
     t1 = time.perf_counter()
     idata, sec = sample_model(white, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
                               show_progress=show_progress, log_likelihood=False, nuts=nuts)
     attrs = dict(idata["posterior"].attrs)
-    posterior = posterior_of(model, to_unconstrained(idata["posterior"][WHITE].values, x_hat, blocks, L), info)
+    posterior = posterior_of(model, to_unconstrained(idata["posterior"][WHITE].values, x_hat, [(blocks, L)]), info)
     posterior.attrs.update(attrs)
     idata["posterior"] = posterior
     t2 = time.perf_counter()

@@ -84,17 +84,18 @@ def test_the_whitened_density_is_the_models_at_x_of_w():
     x_hat = raveled.data + rng.normal(size=raveled.data.size)
     L = np.array([np.linalg.cholesky(M @ M.T + np.eye(3)) for M in rng.normal(size=(4, 3, 3))])
     [logp], flat = join_nonshared_inputs(point, [model.logp()], model.value_vars)
-    white = whitened_model(logp, flat, x_hat, blocks, L)
+    white = whitened_model(logp, flat, x_hat, [(blocks, L)])
     white_logp = white.compile_logp()
     model_logp = model.compile_logp()
     for _ in range(5):
         w = rng.normal(size=x_hat.size)
-        x = to_unconstrained(w, x_hat, blocks, L)
+        x = to_unconstrained(w, x_hat, [(blocks, L)])
         p = DictToArrayBijection.rmap(RaveledVars(x, raveled.point_map_info))
         np.testing.assert_allclose(white_logp({"w": w}), model_logp(p), rtol=1e-12)
     # x(w): subject blocks move by L w, the rest by w; w = 0 is x̂
-    np.testing.assert_array_equal(to_unconstrained(np.zeros(x_hat.size), x_hat, blocks, L), x_hat)
+    np.testing.assert_array_equal(to_unconstrained(np.zeros(x_hat.size), x_hat, [(blocks, L)]), x_hat)
     w = rng.normal(size=(2, 3, x_hat.size))  # draws (chain, draw, D)
-    x = to_unconstrained(w, x_hat, blocks, L)
+    x = to_unconstrained(w, x_hat, [(blocks, L)])
     np.testing.assert_allclose(x[1, 2, blocks[3]], x_hat[blocks[3]] + L[3] @ w[1, 2, blocks[3]], rtol=1e-14)
     np.testing.assert_allclose(x[0, 1, :2], x_hat[:2] + w[0, 1, :2], rtol=1e-14)
+

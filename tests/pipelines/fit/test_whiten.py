@@ -101,9 +101,9 @@ def test_the_check_fails_when_the_draws_are_mapped_back_without_the_subjects_fac
     model, idata, _, _ = whitened_run
     _, _, x_hat, blocks, L, info, _ = whitening(model, None)
     w = _w_draws(idata, x_hat, blocks, L)
-    np.testing.assert_allclose(posterior_of(model, to_unconstrained(w, x_hat, blocks, L), info)["a"].values,
+    np.testing.assert_allclose(posterior_of(model, to_unconstrained(w, x_hat, [(blocks, L)]), info)["a"].values,
                                idata["posterior"]["a"].values, rtol=1e-10, atol=1e-12)  # the recovery is right
-    wrong = to_unconstrained(w, x_hat, blocks, np.broadcast_to(np.eye(2), L.shape))
+    wrong = to_unconstrained(w, x_hat, [(blocks, np.broadcast_to(np.eye(2), L.shape))])
     assert _check(posterior_of(model, wrong, info)) != []
 
 

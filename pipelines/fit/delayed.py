@@ -291,7 +291,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
             "tau0": "each window's arm torque follows from the torques before it (PreparedSegment.warmup) "
                     "at every τ_nm",
             "start": ("the chains start near the ML estimates (pipelines/fit/start.py), jittered" if start else
-                      "the chains start at PyMC's initial point (no ML estimates), jittered"),
+                      "the chains start at PyMC's initial point (no ML estimates), jittered")
+            + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
+               "coordinates (pipelines/fit/whiten.py)" if whiten else ""),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
             "delayed_parameterization": asdict(form),
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled"} if sampled

@@ -27,32 +27,14 @@ population's scales held, central differences of the exact gradient). H_i comes 
 difference per column of a block, for all subjects at once (:func:`block_hessian`): subject
 j's gradient does not depend on subject i's coordinates, so 2k gradients give every block.
 
-Measured (2026-12-05; the 12-subject ``kbl`` study of the README's "Which part of the
-warm-up", ``scioc fit s12/study.parquet --out F --human-model delayed --estimates
-s12/delayed/estimates.parquet --R-population unpooled --chains 2 --draws 300 --tune 300
---adequacy-boot 19 --seed S --adaptation A``; one run per row, some beside other jobs, so
-leapfrog steps and ESS, not seconds; "gradients": warm-up and kept steps of both chains; ESS
-the smaller of bulk and tail, of 600 draws)::
-
-    A, seed          warm-up   kept   gradients  worst population (ESS, R-hat)   worst unit (ESS, R-hat)
-    low_rank, 1      130.6     34.0   98.8 k     σ_β 175, 1.005                  log R 53, 1.089
-    low_rank, 2      132.6     33.4   99.6 k     σ_βR 240, 1.012                 log R 11, 1.067
-    diag, 1           85.4     50.6   81.6 k     τ_θ2 270, 1.004                 τ_nm 134, 1.024
-    diag, 2           79.6     51.6   78.8 k     τ_θ2 248, 1.011                 log R 112, 1.022
-    whitened, 1       35.8     30.1   39.6 k     σ_βR 213, 1.013                 log R 29, 1.048
-    whitened, 2       46.4     30.8   46.3 k     σ_βR 172, 1.018                 log R 21, 1.084
-
-Whitened, the warm-up costs a third of the low-rank matrix's steps and the kept draws slightly
-fewer: less than half the gradients for about the same ESS of the population parameters. The
-subjects' baseline log R (the nuisance with a long tail towards R -> ∞, "Geometry" in
-:mod:`models.bayes.delayed_model`) mixes as poorly as with the low-rank matrix; the plain
-diagonal matrix mixes it best, at twice the gradients. A Gaussian whitening cannot straighten
-that tail: in w the subjects' coordinates had posterior SDs of 0.9 to 4.7 (the curvature at x̂
-understates the spread along the tail). Two variants did not do better: whitening only the
-centred coordinates (log R, log θ1's mean, log τ_nm, log σ_m; seeds 1 and 2: 34.9 k and 35.8 k
-gradients, worst population ESS 187 and 147, log R 31 and 16, R-hat up to 1.102), and a second
-stage whitened by the covariance of 100 + 100 pilot draws (seed 1: 47.9 k gradients with the
-pilot, σ_βR 179, log R 18, R-hat 1.097). Neither is in the code.
+Measured against nutpie's low-rank and diagonal matrices on 12 subjects: README, "Not yet",
+"On each subject's whitened coordinates" (less than half the gradients for the same ESS of the
+population parameters; the subjects' baseline log R, whose posterior has a long tail towards
+R -> ∞, mixes no better: a linear map cannot straighten a tail). Two variants, tried with ad
+hoc patches on the same study (their numbers are in issue 13's note of 2026-12-05, not
+reproducible from the repo), did not do better on these measures: whitening only the centred
+coordinates (log R, log θ1's mean, log τ_nm, log σ_m), and a second stage whitened by the
+covariance of 100 + 100 pilot draws. Neither is in the code.
 """
 
 from __future__ import annotations
@@ -149,7 +131,8 @@ def whitened_model(logp, flat, x_hat: np.ndarray, groups) -> pm.Model:
         x = pt.as_tensor(x_hat) + w
         for blocks, L in groups:
             wb = w[blocks]
-            x = pt.set_subtensor(x[blocks], pt.as_tensor(x_hat[blocks]) + pt.sum(pt.as_tensor(L) * wb[:, None, :], axis=-1))
+            moved = pt.as_tensor(x_hat[blocks]) + pt.sum(pt.as_tensor(L) * wb[:, None, :], axis=-1)
+            x = pt.set_subtensor(x[blocks], moved)
         pm.Potential("logp", graph_replace(logp, {flat: x}, strict=False))
     return model
 

@@ -106,7 +106,8 @@ def _held(model, rv) -> bool:
 def held_mask(model, point_map_info) -> np.ndarray:
     """Which coordinates of the joined unconstrained vector (``point_map_info`` in ``model.free_RVs``' order) are
     held: population scales and discrete variables (module docstring)."""
-    return np.concatenate([np.full(size, _held(model, rv)) for rv, (_, _, size, _) in zip(model.free_RVs, point_map_info)])
+    return np.concatenate([np.full(size, _held(model, rv))
+                           for rv, (_, _, size, _) in zip(model.free_RVs, point_map_info)])
 
 
 def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) -> dict | None:

@@ -22,7 +22,8 @@ import time
 
 import numpy as np
 
-from models.bayes.whiten import WHITE, block_hessian, subject_blocks, to_unconstrained, whitened_model, whitening_factors
+from models.bayes.whiten import (WHITE, block_hessian, subject_blocks, to_unconstrained, whitened_model,
+                                 whitening_factors)
 from pipelines.fit.sampling import add_log_likelihood, sample_model
 from pipelines.fit.start import held_mask
 
@@ -33,7 +34,8 @@ HESSIAN_STEP = 1e-4
 
 
 def whitening(model, start: dict | None):
-    """(logp graph, its flat input, x̂, blocks, L, point_map_info, record) of ``model`` (module docstring, steps 1-2)."""
+    """(logp graph, its flat input, x̂, blocks, L, point_map_info, record) of ``model`` (module docstring,
+    steps 1-2)."""
     from pymc.blocking import DictToArrayBijection
     from pymc.initial_point import make_initial_point_fn
     from pymc.pytensorf import compile as compile_pymc
@@ -78,7 +80,8 @@ def whitening(model, start: dict | None):
 
 
 def posterior_of(model, x: np.ndarray, point_map_info):
-    """The posterior Dataset of ``model`` (free variables and deterministics) at unconstrained draws x (chain, draw, D)."""
+    """The posterior Dataset of ``model`` (free variables and deterministics) at unconstrained draws x
+    (chain, draw, D)."""
     import pytensor
     import xarray as xr
     from pymc.blocking import DictToArrayBijection, RaveledVars

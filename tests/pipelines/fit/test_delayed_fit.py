@@ -255,7 +255,8 @@ def test_the_whitened_fit_has_the_models_variables_and_repeats_with_its_seed(del
     assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened"
     assert side["nutpie_options"] == {"adaptation": "diag"}
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
-    assert side["start"].startswith("the chains start near the ML estimates") and "whitened coordinates" in side["start"]
+    assert side["start"].startswith("the chains start near the ML estimates")
+    assert "whitened coordinates" in side["start"]
     assert side["seconds"]["condition"]["whitening_s"] > 0
     a, b = (az.from_netcdf(p["posterior"]) for p in paths)
     default = az.from_netcdf(delayed_fit["posterior"])

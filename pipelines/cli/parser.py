@@ -162,8 +162,7 @@ PARAMETERIZATION_BLOCKS = {"theta1_mc": "mean", "theta1_sc": "noncentred", "R_mc
 def build_parser() -> argparse.ArgumentParser:
     """The ``scioc`` parser with every command; each command's ``func`` is its :mod:`pipelines.cli.commands` function."""
     parser = argparse.ArgumentParser(
-        prog="scioc",
-        description="Shared-control inverse optimal control: identify human steering cost functions "
+        prog="scioc", description="Shared-control inverse optimal control: identify human steering cost functions "
         "in manual and shared control (Inga et al., SMC 2018).",
         epilog="exit status: 0 success, 1 a failing verdict or check, 2 a usage error, 3 bad input data, "
         "130 interrupted (README: Errors and exit codes)",
@@ -387,7 +386,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "half-normal; unpooled: none, each subject's own prior)")
     g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
-    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[:2], default="low_rank", help="nutpie's mass matrix")
+    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[:2], default="low_rank",
+                   help="nutpie's mass matrix (default low_rank; whitened needs a fit's ML start)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
     p.set_defaults(func=commands.cmd_bench_fit)
     return parser

@@ -147,11 +147,11 @@ DELAY_INDEX = "delay_index"
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
 #: nutpie's options for this model (module docstring, "Geometry"): a low-rank modified mass matrix.
 DELAYED_NUTS = {"adaptation": "low_rank"}
-#: The mass matrices a delayed fit may use (``scioc fit --adaptation``): nutpie's low-rank one, the default, its
-#: diagonal one, and its diagonal one on each subject's whitened coordinates (:mod:`models.bayes.whiten`).
-ADAPTATIONS = ("low_rank", "diag", "whitened")
 #: The name in :data:`ADAPTATIONS` of the whitened sampling.
 WHITENED = "whitened"
+#: The mass matrices a delayed fit may use (``scioc fit --adaptation``): nutpie's low-rank one, the default, its
+#: diagonal one, and its diagonal one on each subject's whitened coordinates (:mod:`models.bayes.whiten`).
+ADAPTATIONS = ("low_rank", "diag", WHITENED)
 
 
 
@@ -286,5 +286,5 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
                            **kwargs)
 
 
-__all__ = ["ADAPTATIONS", "WHITENED", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
-           "DelayedForm", "DelayedPriors", "R_POPULATIONS", "build_delayed_model", "delay_step"]
+__all__ = ["ADAPTATIONS", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
+           "DelayedForm", "DelayedPriors", "R_POPULATIONS", "WHITENED", "build_delayed_model", "delay_step"]

@@ -1,10 +1,11 @@
 """Sampling in whitened coordinates (pipelines/fit/whiten.py) gives the model's posterior, in the model's variables.
 
 The check: a linear Gaussian hierarchical model whose posterior is known exactly, with each subject's two values
-correlated at about -0.99 (the geometry the whitening is for). Its means and the within-subject correlations must
-match the exact ones within 5 Monte Carlo SEs (the means) and 0.02 (the correlations): a false alarm of the 24
-means' check needs a 5-SE error, rate about 24 × 6e-7 (tail of a normal, ESS estimated). The negative control maps
-the same draws back without the subjects' factors L; the check must fail on it.
+correlated at -0.991 (the geometry the whitening is for). Its 12 means and 6 within-subject correlations must match
+the exact ones within 5 Monte Carlo SEs (the means, ESS estimated) and 0.02 (the correlations). False alarms: a
+5-SE error of one of 12 means, about 12 × 5.7e-7 (two-sided normal tail); 0.02 is about 16 SEs of a correlation
+near -0.991 at an ESS of 200 (SE ≈ (1 - ρ²) / sqrt(ESS) = 0.0012), so negligible. The negative control maps the
+same draws back without the subjects' factors L; the check must fail on it.
 """
 
 import numpy as np

@@ -145,13 +145,24 @@ DELAY_INDEX = "delay_index"
 #: The cost blocks' forms for the delayed human (module docstring, "Geometry"): log R non-centred,
 #: the rest as the max-ent model's default.
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
-#: nutpie's options for this model (module docstring, "Geometry"): a low-rank modified mass matrix.
-DELAYED_NUTS = {"adaptation": "low_rank"}
+#: nutpie's own mass matrices for this model (module docstring, "Geometry"): low rank and diagonal.
+NUTPIE_ADAPTATIONS = ("low_rank", "diag")
+#: nutpie's options for this model on its own coordinates (``scioc bench-fit``, which has no ML start to whiten
+#: at): the low-rank mass matrix.
+DELAYED_NUTS = {"adaptation": NUTPIE_ADAPTATIONS[0]}
 #: The name in :data:`ADAPTATIONS` of the whitened sampling.
 WHITENED = "whitened"
-#: The mass matrices a delayed fit may use (``scioc fit --adaptation``): nutpie's low-rank one, the default, its
-#: diagonal one, and its diagonal one on each subject's whitened coordinates (:mod:`models.bayes.whiten`).
-ADAPTATIONS = ("low_rank", "diag", WHITENED)
+#: The mass matrices a delayed fit with profile delays may use (``scioc fit --adaptation``), the default first:
+#: nutpie's diagonal one on each subject's whitened coordinates (:mod:`models.bayes.whiten`; module docstring,
+#: "Whitened"), then nutpie's own.
+ADAPTATIONS = (WHITENED, *NUTPIE_ADAPTATIONS)
+
+
+def nutpie_options(adaptation: str) -> dict:
+    """nutpie's options for a delayed fit with this :data:`ADAPTATIONS` entry (whitened: its diagonal mass matrix)."""
+    if adaptation not in ADAPTATIONS:
+        raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}; got {adaptation!r}")
+    return {"adaptation": "diag" if adaptation == WHITENED else adaptation}
 
 
 
@@ -287,4 +298,5 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
 
 
 __all__ = ["ADAPTATIONS", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
-           "DelayedForm", "DelayedPriors", "R_POPULATIONS", "WHITENED", "build_delayed_model", "delay_step"]
+           "DelayedForm", "DelayedPriors", "NUTPIE_ADAPTATIONS", "R_POPULATIONS", "WHITENED", "build_delayed_model",
+           "delay_step", "nutpie_options"]

@@ -81,8 +81,8 @@ LIKELIHOOD_NAMES = ("torques", "angles")
 R_POPULATION_NAMES = ("lognormal", "policy_scale", "unpooled")
 #: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
 RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred")
-#: nutpie's mass matrices for the delayed fit (:data:`models.bayes.delayed_model.ADAPTATIONS`, tested equal).
-ADAPTATION_NAMES = ("low_rank", "diag", "whitened")
+#: The delayed fit's mass matrices, default first, then nutpie's own (:data:`models.bayes.delayed_model.ADAPTATIONS`).
+ADAPTATION_NAMES = ("whitened", "low_rank", "diag")
 #: Points of the adequacy check at the posterior (:data:`pipelines.fit.checks.ADEQUACY_POINTS`, tested equal).
 ADEQUACY_AT_NAMES = ("draw", "means")
 _ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one joint posterior draw picked by the "
@@ -235,7 +235,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
-                   help="delayed model, profile delays: nutpie's mass matrix (default low_rank; whitened: per subject)")
+                   help="delayed, profile delays: mass matrix (default whitened per subject; low_rank, diag)")
     p.add_argument("--compare-to", metavar="MAXENT_FIT",
                    help="with --human-model delayed: a finished max-ent fit folder of the same study and settings; "
                         "after the fit, leave-one-subject-out between the two human models, beside each one's "
@@ -386,7 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "half-normal; unpooled: none, each subject's own prior)")
     g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
-    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[:2], default="low_rank",
+    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[1:], default="low_rank",
                    help="nutpie's mass matrix (default low_rank; whitened needs a fit's ML start)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
     p.set_defaults(func=commands.cmd_bench_fit)

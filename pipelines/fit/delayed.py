@@ -31,9 +31,9 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_model import (ADAPTATIONS, DELAY_INDEX, DELAYED_NUTS, DELAYED_PARAMETERIZATION,
+from models.bayes.delayed_model import (ADAPTATIONS, DELAY_INDEX, DELAYED_PARAMETERIZATION,
                                         DELAYED_POPULATION_PARAMETERS, DelayedForm, DelayedPriors, WHITENED,
-                                        build_delayed_model, delay_step)
+                                        build_delayed_model, delay_step, nutpie_options)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
 from models.delayed.identify import delay_grid, identify_unit_delayed
 from models.delayed.lag import lag_coefficients, window_tau0
@@ -238,21 +238,23 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
-    chose them; the log R blocks take :data:`models.bayes.delayed_model.DELAYED_PARAMETERIZATION`'s,
-    and nutpie :data:`models.bayes.delayed_model.DELAYED_NUTS` (both measured there).
+    chose them; the log R blocks take :data:`models.bayes.delayed_model.DELAYED_PARAMETERIZATION`'s
+    (measured there).
     ``delay_mode`` (:data:`DELAY_MODES`): ``profile`` conditions on ``delays``; ``sampled``
     samples one delay per subject (``delays`` then only supplies the lag and noise estimates
     that choose the blocks' forms), and the returned fit's delays are the posterior modes.
     ``rho_form`` (:data:`models.bayes.delayed_blocks.RHO_FORMS`, with ``R_population="policy_scale"``)
-    replaces the ρ form of the chosen (or given) ``delayed_form``. ``adaptation`` (``low_rank`` or
-    ``diag``, profile delays only) replaces the mass matrix of :data:`DELAYED_NUTS`.
+    replaces the ρ form of the chosen (or given) ``delayed_form``. ``adaptation``
+    (:data:`models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None: the first, whitened)
+    chooses the coordinates and nutpie's mass matrix.
     """
     if delay_mode not in DELAY_MODES:
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
     if adaptation is not None and (adaptation not in ADAPTATIONS or delay_mode != "profile"):
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
-    whiten = adaptation == WHITENED
-    nuts = DELAYED_NUTS if adaptation is None else {**DELAYED_NUTS, "adaptation": "diag" if whiten else adaptation}
+    adaptation = ADAPTATIONS[0] if adaptation is None else adaptation
+    whiten = delay_mode == "profile" and adaptation == WHITENED
+    nuts = nutpie_options(adaptation)
     levels = prepared.settings.design.ordered_levels
     form = replace(form, R_mc=DELAYED_PARAMETERIZATION.R_mc, R_sc=DELAYED_PARAMETERIZATION.R_sc)
     if delayed_form is None:

@@ -203,7 +203,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     delay_mode, delayed_priors, rho_form, adaptation
         ``delayed`` only, as :func:`pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
         at each subject's profile maximum or sampled, the priors (e.g. the population of R), the form of ρ,
-        nutpie's mass matrix (None: :data:`models.bayes.delayed_model.DELAYED_NUTS`).
+        the coordinates and nutpie's mass matrix (None: the first of :data:`models.bayes.delayed_model.ADAPTATIONS`).
     adequacy_at : {"draw", "means"}
         The posterior point of the adequacy check (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
 

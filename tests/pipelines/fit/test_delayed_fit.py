@@ -51,7 +51,12 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     side = json.loads(open(delayed_fit["sidecar"]).read())
     assert side["human_model"] == "delayed"
     assert side["start"].startswith("the chains start near the ML estimates")  # the fit's own profile's, no --estimates
-    assert side["sampler"]["adaptation"] == "low_rank (nutpie)" == f"{side['nutpie_options']['adaptation']} (nutpie)"
+    # by default on each subject's whitened coordinates (scioc fit --adaptation whitened), with what the whitening found
+    assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened"
+    assert side["nutpie_options"] == {"adaptation": "diag"}
+    assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
+    assert "whitened coordinates" in side["start"]
+    assert side["seconds"]["condition"]["whitening_s"] > 0
     assert "posterior_pooled" not in delayed_fit
     est = pd.read_parquet(root / "identify" / "estimates.parquet")
     by_unit = side["delay"]["by_unit"]
@@ -228,7 +233,7 @@ def test_the_adequacy_of_a_finished_fit_is_checked_again_as_the_fit_checked_it(d
 
 @pytest.mark.slow
 def test_same_seed_same_delayed_fit(delayed_study, delayed_fit, tmp_path):
-    """The delayed fit (nutpie's low-rank adaptation, the start, the jitter) repeats bit for bit with its seed."""
+    """The delayed fit (the start, the whitening, the jitter, nutpie) repeats bit for bit with its seed."""
     import arviz as az
 
     _, sim, prepared = delayed_study
@@ -241,23 +246,21 @@ def test_same_seed_same_delayed_fit(delayed_study, delayed_fit, tmp_path):
 
 
 @pytest.mark.slow
-def test_the_whitened_fit_has_the_models_variables_and_repeats_with_its_seed(delayed_study, delayed_fit, tmp_path):
-    # scioc fit --adaptation whitened: the same posterior variables as the default fit's (the draws are mapped back
-    # from the whitened coordinates), the sidecar says how it sampled and what the whitening found, and the same
-    # seed gives the same draws.
+def test_nutpies_own_low_rank_fit_has_the_same_variables_and_repeats_with_its_seed(delayed_study, delayed_fit,
+                                                                                   tmp_path):
+    # scioc fit --adaptation low_rank: nutpie's own mass matrix on the model's coordinates, no whitening; the same
+    # posterior variables as the default (whitened) fit's, whose draws are mapped back from the whitened
+    # coordinates, and the same seed gives the same draws.
     import arviz as az
 
     _, sim, prepared = delayed_study
     small = {**TINY, "draws": 30, "tune": 30}
-    paths = [fit_to_dir(sim["study"], tmp_path / name, settings=SETTINGS, prepared=prepared, adaptation="whitened",
+    paths = [fit_to_dir(sim["study"], tmp_path / name, settings=SETTINGS, prepared=prepared, adaptation="low_rank",
                         **small) for name in ("a", "b")]
     side = json.loads(open(paths[0]["sidecar"]).read())
-    assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened"
-    assert side["nutpie_options"] == {"adaptation": "diag"}
-    assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
-    assert side["start"].startswith("the chains start near the ML estimates")
-    assert "whitened coordinates" in side["start"]
-    assert side["seconds"]["condition"]["whitening_s"] > 0
+    assert side["sampler"]["adaptation"] == "low_rank (nutpie)" and side["nutpie_options"] == {"adaptation": "low_rank"}
+    assert "whitening" not in side and "whitening_s" not in side["seconds"]["condition"]
+    assert side["start"].startswith("the chains start near the ML estimates") and "whitened" not in side["start"]
     a, b = (az.from_netcdf(p["posterior"]) for p in paths)
     default = az.from_netcdf(delayed_fit["posterior"])
     assert set(a["posterior"].data_vars) == set(default["posterior"].data_vars)

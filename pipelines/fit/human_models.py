@@ -213,6 +213,17 @@ def unpooled_log_R_prior(side: dict, folder: Path):
                              "'mu_log_R' and 'sigma_log_R' it was fitted with") from None
 
 
+def _shown_path(path, out) -> str:
+    """``path`` as a comparison written to ``out`` records it: relative to ``out`` when inside it (``scioc run``
+    stages its fits in a folder it renames at the end, so an absolute path there would point nowhere), else as given."""
+    if out is not None:
+        try:
+            return Path(path).resolve().relative_to(Path(out).resolve()).as_posix()
+        except ValueError:
+            pass
+    return str(path)
+
+
 def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings | None = None,
                          prepared: PreparedStudy | None = None, seed: int = 2018, out=None, study=None,
                          points: int = HUMAN_MODELS_POINTS) -> dict:
@@ -301,9 +312,9 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
                        "preferred": "delayed" if total > 0 else "maxent",
                        "n_preferring_delayed": int((diff_i > 0).sum()), "n": int(n),
                        **comparison_reliability(summaries["maxent"], summaries["delayed"])},
-        "seed": int(seed), "fits": {k: str(v) for k, v in folders.items()},
+        "seed": int(seed), "fits": {k: _shown_path(v, out) for k, v in folders.items()},
         "adequacy": {k: adequacy_brief(json.loads((v / "contrasts.json").read_text()).get("adequacy"),
-                                       f"at the posterior θ ({v / 'contrasts.json'})")
+                                       f"at the posterior θ ({_shown_path(v / 'contrasts.json', out)})")
                      for k, v in folders.items()},
         # Whether each fit's sampler converged (the model with condition effects): its draws feed the ELPD.
         "convergence": {k: (side.get("convergence_verdict") or {}).get("condition") for k, side in sides.items()},

@@ -187,7 +187,7 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
                        show_progress=True, prepared=delayed_prepared, experiment_file=source)
             log(f"{at('human models')} leave-one-subject-out: max-ent against delayed")
             log(format_human_models(compare_human_models(tmp / "fit", tmp / "fit_delayed", prepared=prepared,
-                                                         seed=seed, out=tmp)))
+                                                         seed=seed, out=tmp, relative_to=tmp)))
         log(f"{at('report')} writing the report")
         build_report(tmp, title=name)
     report = root / "index.html"

@@ -213,12 +213,11 @@ def unpooled_log_R_prior(side: dict, folder: Path):
                              "'mu_log_R' and 'sigma_log_R' it was fitted with") from None
 
 
-def _shown_path(path, out) -> str:
-    """``path`` as a comparison written to ``out`` records it: relative to ``out`` when inside it (``scioc run``
-    stages its fits in a folder it renames at the end, so an absolute path there would point nowhere), else as given."""
-    if out is not None:
+def _shown_path(path, relative_to) -> str:
+    """``path`` as a comparison records it: as given, or relative to ``relative_to`` when inside it."""
+    if relative_to is not None:
         try:
-            return Path(path).resolve().relative_to(Path(out).resolve()).as_posix()
+            return Path(path).resolve().relative_to(Path(relative_to).resolve()).as_posix()
         except ValueError:
             pass
     return str(path)
@@ -226,7 +225,7 @@ def _shown_path(path, out) -> str:
 
 def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings | None = None,
                          prepared: PreparedStudy | None = None, seed: int = 2018, out=None, study=None,
-                         points: int = HUMAN_MODELS_POINTS) -> dict:
+                         points: int = HUMAN_MODELS_POINTS, relative_to=None) -> dict:
     """Leave-one-subject-out ELPD per subject under the max-ent and the delayed human, and their difference.
 
     Parameters
@@ -245,6 +244,10 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         Importance-sampling points per subject, for both models (:data:`HUMAN_MODELS_POINTS`).
     out : str or Path, optional
         Write the result as :data:`HUMAN_MODELS_FILE` in this folder (atomically).
+    relative_to : str or Path, optional
+        Record the fit folders relative to this folder when they are inside it (``scioc run``: its run
+        folder, which it stages under another name and renames at the end, so that a path as given would
+        point nowhere); by default as given.
     study : str or Path, optional
         The study file (default: the path the sidecars record; a fit records it as it was
         given, relative to the folder the fit ran in).
@@ -312,9 +315,9 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
                        "preferred": "delayed" if total > 0 else "maxent",
                        "n_preferring_delayed": int((diff_i > 0).sum()), "n": int(n),
                        **comparison_reliability(summaries["maxent"], summaries["delayed"])},
-        "seed": int(seed), "fits": {k: _shown_path(v, out) for k, v in folders.items()},
+        "seed": int(seed), "fits": {k: _shown_path(v, relative_to) for k, v in folders.items()},
         "adequacy": {k: adequacy_brief(json.loads((v / "contrasts.json").read_text()).get("adequacy"),
-                                       f"at the posterior θ ({_shown_path(v / 'contrasts.json', out)})")
+                                       f"at the posterior θ ({_shown_path(v / 'contrasts.json', relative_to)})")
                      for k, v in folders.items()},
         # Whether each fit's sampler converged (the model with condition effects): its draws feed the ELPD.
         "convergence": {k: (side.get("convergence_verdict") or {}).get("condition") for k, side in sides.items()},

@@ -165,8 +165,10 @@ def test_a_run_with_a_torque_sensor_adds_the_delayed_model(tmp_path, monkeypatch
     def fake_fit(study_path, out, *, prepared=None, settings=None, **kwargs):  # stands in for minutes of sampling
         seen[Path(out).name] = (prepared, settings.human_model)
 
-    def fake_compare(maxent_dir, delayed_dir, *, prepared=None, seed=None, out=None):
-        seen["human_models"] = (Path(maxent_dir).name, Path(delayed_dir).name, Path(out) == Path(maxent_dir).parent)
+    def fake_compare(maxent_dir, delayed_dir, *, prepared=None, seed=None, out=None, relative_to=None):
+        # written into the run folder, naming the fits relative to it (the folder is staged and renamed)
+        seen["human_models"] = (Path(maxent_dir).name, Path(delayed_dir).name,
+                                Path(out) == Path(maxent_dir).parent == Path(relative_to))
         return {"difference": {"elpd_diff": 1.0, "se": 1.0, "z": 1.0, "reliable": True, "n": 2,
                                "n_preferring_delayed": 1, "preferred": "delayed"}}
 

@@ -102,8 +102,9 @@ def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit
     assert json.loads(open(mx["sidecar"]).read())["human_model"] == "maxent"
     with pytest.raises(ValueError, match="not a delayed fit"):
         compare_human_models(root / "fit_maxent", root / "fit_maxent", prepared=prepared)
-    res = compare_human_models(root / "fit_maxent", root / "fit_delayed", prepared=prepared, seed=3, out=root)
-    # written beside the fits, it names them relative to itself (scioc run renames the folder it staged them in)
+    res = compare_human_models(root / "fit_maxent", root / "fit_delayed", prepared=prepared, seed=3, out=root,
+                               relative_to=root)
+    # scioc run names its fits relative to its run folder, which it stages under another name and renames
     assert json.loads((root / "human_models.json").read_text())["fits"] == res["fits"] \
         == {"maxent": "fit_maxent", "delayed": "fit_delayed"}
     assert res["adequacy"]["delayed"]["where"] == "at the posterior θ (fit_delayed/contrasts.json)"

@@ -244,13 +244,13 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         Importance-sampling points per subject, for both models (:data:`HUMAN_MODELS_POINTS`).
     out : str or Path, optional
         Write the result as :data:`HUMAN_MODELS_FILE` in this folder (atomically).
+    study : str or Path, optional
+        The study file (default: the path the sidecars record; a fit records it as it was
+        given, relative to the folder the fit ran in).
     relative_to : str or Path, optional
         Record the fit folders relative to this folder when they are inside it (``scioc run``: its run
         folder, which it stages under another name and renames at the end, so that a path as given would
         point nowhere); by default as given.
-    study : str or Path, optional
-        The study file (default: the path the sidecars record; a fit records it as it was
-        given, relative to the folder the fit ran in).
 
     Returns
     -------

@@ -39,7 +39,7 @@ from numba import njit, prange
 
 from models.delayed.innovations import FASTMATH, U, banded_loglik
 from models.delayed.lag import arm_torque_recursion
-from models.delayed.riccati import plan_adjoint, plan_recursion
+from models.delayed.riccati import SEED, TAPE, plan_adjoint, plan_recursion, plan_reverse
 
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -52,8 +52,8 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
     (0 for a fixed τ_0). ``sc`` is the scratch tuple of :func:`make_scratch`. If ``inn`` has K entries it receives
     the standardized innovations ``y_k / sqrt(D_k)`` (iid N(0, 1) under the model).
     """
-    (f, df, S_t, L_t, dS_t, dL_t, cst, tau, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
-     Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar, tailP, W, adj) = sc
+    (f, Sbk, S_t, L_t, tape, seed, cst, tau, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
+     Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar, tailP, W, frozen) = sc
     K = u.shape[0]
     if not al < 1.0:
         # α = 1 (τ_nm so long that e^{-dt/τ_nm} rounds to 1; a sampler's wild proposal): the map from
@@ -79,8 +79,7 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
     dAb[1, 2, 3] = b[1]
     dbc[0, 3] = -b[0]
     dbc[1, 3] = -b[1]
-    k_R, k_z = plan_recursion(Ab, bc, ba, dAb, dbc, q11, q22, R, r, ua, K, freeze, f, df, S_t, L_t, dS_t, dL_t, cst,
-                              adj, W)
+    k_R, k_z = plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K, freeze, f, S_t, L_t, cst, frozen, W, tape)
     Sc = cst[0]
     # ---- data: arm torque, effective command, residual
     tau[0] = tau0
@@ -199,13 +198,10 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
     # ---- the residual's path: r̄ = -ω; chain to the tangents
     G = np.zeros(4)
     if k_z > 0:  # f_k of the stationary plan: one adjoint sweep
-        plan_adjoint(bc, dbc, Sc, cst[4:8], r, ua, om[d:d + K], K, k_z, adj, W, G)
+        plan_adjoint(bc, Sc, r, ua, om[d:d + K], K, k_z, frozen, W, seed)
     hom = 0.0  # sum_k S_k ∂/∂S_k
     for k in range(K):
         o = om[d + k]
-        if k >= k_z:
-            for p in range(4):
-                G[p] += o * df[k, p]
         G[2] -= o * dct[k, 0]
         G[3] -= o * dct[k, 1]
         if k <= k_R:
@@ -223,14 +219,14 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
             Sk = S_t[k]
             Sb = -0.5 * Sbar[k, 0] / (Sk * Sk)
             hom += Sb * Sk
-            for p in range(4):
-                G[p] += Sb * dS_t[k, p] + Lbt[k, 0] * dL_t[k, 0, p] + Lbt[k, 1] * dL_t[k, 1, p] \
-                    + Lbt[k, 2] * dL_t[k, 2, p]
+            Sbk[k] = Sb
+    Scb = 0.0
     if k_R >= 0:
-        Sb = -0.5 * vbar_s / (Sc * Sc)
-        hom += Sb * Sc
-        for p in range(4):
-            G[p] += Sb * cst[4 + p] + Lbs0 * cst[8 + p] + Lbs1 * cst[12 + p] + Lbs2 * cst[16 + p]
+        Scb = -0.5 * vbar_s / (Sc * Sc)
+        hom += Scb * Sc
+    Lbs = np.array([Lbs0, Lbs1, Lbs2])
+    # the plan in reverse: f_k, S_k, L_k of the recorded steps, and the held ones' constants
+    plan_reverse(Ab, bc, ba, dAb, dbc, r, ua, K, k_z, tape, om[d:d + K], Sbk, Lbt, Scb, Lbs, seed, G)
     for j in range(d):
         for p in range(2):
             G[2 + p] += gb[j, 0] * dg[j, p, 0] + gb[j, 1] * dg[j, p, 1] + gb[j, 2] * dg[j, p, 2]
@@ -250,14 +246,14 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
 def make_scratch(K, KM, dmax):
     """Scratch arrays for :func:`segment_kernel`: K observed steps, K + M planned, delays <= dmax."""
     dd = max(dmax, 1)
-    return (np.empty(K), np.empty((K, 4)), np.empty(K), np.empty((K, 3)), np.empty((K, 4)), np.empty((K, 3, 4)),
-            np.zeros(20), np.empty(K + 1), np.empty((K + 1, 2)), np.empty((K, 2)), np.empty(K),
+    return (np.empty(K), np.empty(K), np.empty(K), np.empty((K, 3)), np.empty((KM, TAPE)), np.zeros(SEED),
+            np.zeros(4), np.empty(K + 1), np.empty((K + 1, 2)), np.empty((K, 2)), np.empty(K),
             np.empty((dd, 3)), np.empty((dd, 2, 3)), np.empty(dmax + 1), np.empty((K, dmax + 1)),
             np.empty((K, dmax + 1)), np.empty((K, dd)), np.empty(K), np.empty(K + dmax), np.empty(K + dmax),
             np.empty(K + dmax), np.empty((K, dd)), np.empty(K), np.empty((K, dmax + 1)), np.empty(dd + 1), np.empty(dd + 1),
             np.empty((K, dmax + 1)), np.empty(dmax + 1), np.empty((dd, 3)), np.empty((K, 3)),
             np.empty((K + 1, 4, dmax + 1)), np.empty(dmax + 1), np.empty((K, dmax + 1)), np.empty((KM, 3)),
-            (np.empty((3, 3)), np.empty(3), np.empty((3, 3, 4)), np.empty((3, 4)), np.empty((3, 4))))
+            (np.empty((3, 3)), np.empty(3)))
 
 
 @njit(cache=True)

@@ -6,7 +6,8 @@ module                     what it holds
 :mod:`.likelihood`         the model, its derivation, :func:`loglik_grad`, :func:`innovations`
 :mod:`.lag`                τ_nm -> (a, α) with derivatives; the plant the human plans on; the
                            arm torque from observed torques (a window's τ_0 from its warm-up)
-:mod:`.riccati`            the plan: 3-state LQ recursion with tangents, its adjoint (numba)
+:mod:`.riccati`            the plan: 3-state LQ recursion, its tape and stationary adjoint (numba)
+:mod:`.reverse`            the plan's reverse sweep: its derivative in q11, q22 and the lag (numba)
 :mod:`.innovations`        log N(r; 0, Σ) for banded Σ: Schur algorithm, rows, reverse mode (numba)
 :mod:`.kernel`             one segment and the batch: assembly and chain rule (numba)
 :mod:`.sample`             the generative closed loop, :func:`sample_delayed` and :func:`forward_delayed`

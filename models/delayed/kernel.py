@@ -2,9 +2,8 @@
 
 One segment (see :mod:`models.delayed.likelihood` for the model and its derivation):
 
-1. the plan (:func:`models.delayed.riccati.plan_recursion`): S_k, L_k, f_k and their
-   tangents in q11, q22, a, α (those of f_k over the stationary plan later, by
-   :func:`models.delayed.riccati.plan_adjoint`);
+1. the plan (:func:`models.delayed.riccati.plan_recursion`): S_k, L_k, f_k, and the tape
+   of its non-stationary steps for the reverse sweep of step 5;
 2. the data: the arm torque τ_k and the effective command c̃_k from the observed
    torques (tangents in a and α, :func:`models.delayed.lag.arm_torque_recursion`, seeded
    with τ_0's own tangents), the residual ``r_k = c̃_k + L_k z_k - f_k``;
@@ -14,15 +13,18 @@ One segment (see :mod:`models.delayed.likelihood` for the model and its derivati
        Σ_{i, i-t} = [t = 0] / (2 S_i) + σ_m² sum_{j=t..d} c_{i,j} c_{i-t, j-t};
 
 4. log N(r; 0, Σ), ω = Σ⁻¹ r and ∂/∂Σ (:func:`models.delayed.innovations.banded_loglik`);
-5. the chain rule back to (q11, q22, R, τ_nm, σ_m); R by homogeneity (L and f do not
-   change when θ is scaled, S scales with it, so ``θ · ∇_θ log p = sum_k S_k ∂/∂S_k``).
+5. the chain rule back to (q11, q22, R, τ_nm, σ_m): F's adjoints of f_k, S_k and L_k go
+   back through the plan in reverse mode (:func:`models.delayed.riccati.plan_adjoint` over
+   the stationary steps, then :func:`models.delayed.reverse.plan_reverse` over the recorded
+   ones) to q11, q22 and the lag's (a, α); R by homogeneity (L and f do not change when θ is
+   scaled, S scales with it, so ``θ · ∇_θ log p = sum_k S_k ∂/∂S_k``).
 
 Rows k <= k_R share one S and L (the stationary plan), so their adjoints are summed
-before they meet the tangents. The batch runs its segments in parallel chunks
+before they enter the reverse sweep at the step whose values they hold. The batch runs its segments in parallel chunks
 (``prange``), each with its own scratch, and every segment on its own: its result does
 not depend on the batch it is in.
 
-The kernel (this module, :mod:`models.delayed.riccati` and
+The kernel (this module, :mod:`models.delayed.riccati`, :mod:`models.delayed.reverse` and
 :mod:`models.delayed.innovations`) is written for numba: no array views in inner loops
 (each costs reference counting), unsigned indices where LLVM should vectorize. numba's
 on-disk cache lives in a folder named by a hash of every source of ``models`` (:mod:`models`),
@@ -39,7 +41,8 @@ from numba import njit, prange
 
 from models.delayed.innovations import FASTMATH, U, banded_loglik
 from models.delayed.lag import arm_torque_recursion
-from models.delayed.riccati import SEED, TAPE, plan_adjoint, plan_recursion, plan_reverse
+from models.delayed.reverse import plan_reverse
+from models.delayed.riccati import SEED, TAPE, plan_adjoint, plan_recursion
 
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -195,7 +198,7 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
             for m in range(3):
                 Lbt[i, m] += cb * g[j, m]
                 gb[j, m] += cb * L_t[i, m]
-    # ---- the residual's path: r̄ = -ω; chain to the tangents
+    # ---- the residual's path: r̄ = -ω; chain to the lag's tangents and the plan's adjoints
     G = np.zeros(4)
     if k_z > 0:  # f_k of the stationary plan: one adjoint sweep
         plan_adjoint(bc, Sc, r, ua, om[d:d + K], K, k_z, frozen, W, seed)

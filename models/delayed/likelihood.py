@@ -64,11 +64,9 @@ Computation
 -----------
 Per segment, in O(K d) plus O(d²) for each row after the plan's stationary part:
 
-* the plan (:mod:`models.delayed.riccati`): the LQ recursion backward with forward
-  tangents in q11, q22, a, α until P and its tangents are stationary to
-  :data:`models.maxent.FREEZE_RTOL` (a few hundred steps from the plan's end); from there
-  on only the s-recursion runs, and the derivative of ``sum_k ω_k f_k`` over those
-  steps comes from one forward adjoint sweep once ω is known;
+* the plan (:mod:`models.delayed.riccati`): the LQ recursion backward, recording its steps
+  until P is stationary to :data:`models.maxent.FREEZE_RTOL` (a few hundred steps from the
+  plan's end); from there on only the s-recursion runs;
 * the data: τ_k and c̃_k by their recursions, with tangents in a and α;
 * log N(r; 0, Σ) in innovations form, ``Σ = L D Lᵀ`` (:mod:`models.delayed.innovations`;
   the innovations of a Kalman filter over the last d + 1 motor noises, without its
@@ -80,9 +78,10 @@ Per segment, in O(K d) plus O(d²) for each row after the plan's stationary part
   O(d²) each;
 * the gradient: reverse mode through the factorization (∂/∂Σ for those rows, ∂/∂γ for the
   Toeplitz ones, back through the Schur steps), then the chain rule through the MA
-  coefficients, the data recursion and the plan (:mod:`models.delayed.kernel`): one
-  backward sweep for all parameters, where forward tangents would cost five passes
-  through an O(d²) filter. R comes from homogeneity.
+  coefficients, the data recursion and the plan (:mod:`models.delayed.kernel`; the plan's
+  part in :mod:`models.delayed.riccati` and :mod:`models.delayed.reverse`): one reverse
+  sweep for all parameters, where forward tangents would cost five passes through an O(d²)
+  filter. R comes from homogeneity.
 
 With the stationary parts held the result equals the computation without holding them to
 rounding, and the gradient is the exact derivative of the held computation (equal to the

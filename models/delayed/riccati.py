@@ -14,28 +14,28 @@ reverse mode, once F's adjoints of those are known (:mod:`models.delayed.kernel`
    carries the reference and the known input), recording its w_k.
 2. :func:`plan_adjoint` sweeps the stationary steps forward with the adjoint of s and
    returns F's adjoints of the constants and of s_{k_z}.
-3. :func:`plan_reverse` sweeps the recorded steps forward, from k_z to the end, with the
-   adjoints of P and s, and contracts the adjoints of A and b_c it collects with their
-   derivatives in the :data:`DIRECTIONS`. The R-direction follows from homogeneity (L and f
-   do not change when θ is scaled, S scales with it), so it is not needed.
+3. :func:`models.delayed.reverse.plan_reverse` sweeps the recorded steps forward, from k_z
+   to the end, with the adjoints of P and s, and contracts the adjoints of A and b_c it
+   collects with their derivatives in the :data:`DIRECTIONS`. The R-direction follows from
+   homogeneity (L and f do not change when θ is scaled, S scales with it), so it is not needed.
 
 Reverse through P_k. By the envelope theorem (L minimizes the Joseph-form bracket for every
-state) the P-update's derivative in L is zero at the optimal L, so P_k's adjoint P̄ flows to
-P_{k+1} as ``M P̄ Mᵀ``, to M (at fixed L, so on to A and b_c but not to L) as ``P M (P̄ + P̄ᵀ)``
-and to Q as itself. Every other use of L (in M of the s-recursion, and F's own) goes
-through ``L = Aᵀ P b_c / S``. Per step this costs about a fifth of carrying forward tangents
-in four directions, which the plan did before (measured: README "Speed").
+state) the P-update's derivative in L is zero at the optimal L, so P_k's adjoint flows to
+P_{k+1}, to Q, and to A and b_c through M at fixed L; every other use of L goes through
+``L = Aᵀ P b_c / S`` (:mod:`models.delayed.reverse` has the step). Until 2026-12-05 the plan
+carried forward tangents in the four directions through every recorded step instead, about
+nine times the primal step's arithmetic; the reverse sweep costs about twice it, and the whole
+kernel took 30 % less time for it (``scioc bench --parts delayed``, README "Speed").
 
 Holding the stationary part is exact to rounding: P stops changing at the last bit
-(:data:`models.maxent.FREEZE_RTOL`) and the derivative is that of the held computation; its
-tangents, which converge at the same geometric rate, differ from their limits by about the
-number of recorded steps times the last bit, about 1e-13 relative (``freeze=False`` records
-every step; tested equal).
+(:data:`models.maxent.FREEZE_RTOL`), and the derivative is that of the held computation. The
+held P's tangents, which converge at the same geometric rate as P, differ from their limits by
+about the number of recorded steps times the last bit, some 1e-13 relative: ``freeze=False``
+records every step, and the two agree to that (tested).
 """
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from models.maxent import FREEZE_RTOL
@@ -86,18 +86,17 @@ def plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K_obs, freeze, f, S_t, L_t, c
     """
     M, pba = frozen
     K = ua.shape[0]
-    A = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            A[i, j] = Ab[i, j]
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = (Ab[0, 0], Ab[0, 1], Ab[0, 2], Ab[1, 0], Ab[1, 1], Ab[1, 2], Ab[2, 0],
+                                                   Ab[2, 1], Ab[2, 2])
     b0, b1, b2 = bc[0], bc[1], bc[2]
-    a0, a1 = ba[0], ba[1]
-    # P = P_{k+1} (symmetric), s = s_{k+1}
+    e0, e1 = ba[0], ba[1]
+    # P = P_{k+1} (symmetric), s = s_{k+1}; M and P b_a of the last step run
     p00, p01, p02, p11, p12, p22 = q11, 0.0, 0.0, q22, 0.0, 0.0
     s0, s1, s2 = q11 * r[K], 0.0, 0.0
     S = 0.0
     L0 = L1 = L2 = 0.0
-    PM = np.empty((3, 3))
+    m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = 0.0
+    g0 = g1 = g2 = 0.0
     k = K - 1
     stationary = False
     while k >= 0 and not stationary:
@@ -106,21 +105,25 @@ def plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K_obs, freeze, f, S_t, L_t, c
         pb2 = p02 * b0 + p12 * b1 + p22 * b2
         S = R + b0 * pb0 + b1 * pb1 + b2 * pb2
         iS = 1.0 / S
-        L0 = (pb0 * A[0, 0] + pb1 * A[1, 0] + pb2 * A[2, 0]) * iS
-        L1 = (pb0 * A[0, 1] + pb1 * A[1, 1] + pb2 * A[2, 1]) * iS
-        L2 = (pb0 * A[0, 2] + pb1 * A[1, 2] + pb2 * A[2, 2]) * iS
-        for j in range(3):
-            Lj = L0 if j == 0 else (L1 if j == 1 else L2)
-            M[0, j] = A[0, j] - b0 * Lj
-            M[1, j] = A[1, j] - b1 * Lj
-            M[2, j] = A[2, j] - b2 * Lj
-        pba[0] = p00 * a0 + p01 * a1
-        pba[1] = p01 * a0 + p11 * a1
-        pba[2] = p02 * a0 + p12 * a1
+        L0 = (pb0 * a00 + pb1 * a10 + pb2 * a20) * iS
+        L1 = (pb0 * a01 + pb1 * a11 + pb2 * a21) * iS
+        L2 = (pb0 * a02 + pb1 * a12 + pb2 * a22) * iS
+        m00 = a00 - b0 * L0
+        m01 = a01 - b0 * L1
+        m02 = a02 - b0 * L2
+        m10 = a10 - b1 * L0
+        m11 = a11 - b1 * L1
+        m12 = a12 - b1 * L2
+        m20 = a20 - b2 * L0
+        m21 = a21 - b2 * L1
+        m22 = a22 - b2 * L2
+        g0 = p00 * e0 + p01 * e1
+        g1 = p01 * e0 + p11 * e1
+        g2 = p02 * e0 + p12 * e1
         ak = ua[k]
-        w0 = s0 - pba[0] * ak
-        w1 = s1 - pba[1] * ak
-        w2 = s2 - pba[2] * ak
+        w0 = s0 - g0 * ak
+        w1 = s1 - g1 * ak
+        w2 = s2 - g2 * ak
         fk = (b0 * w0 + b1 * w1 + b2 * w2) * iS
         tape[k, 0] = p00
         tape[k, 1] = p01
@@ -139,20 +142,25 @@ def plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K_obs, freeze, f, S_t, L_t, c
         tape[k, 14] = w1
         tape[k, 15] = w2
         tape[k, 16] = fk
-        s0 = M[0, 0] * w0 + M[1, 0] * w1 + M[2, 0] * w2 + q11 * r[k]
-        s1 = M[0, 1] * w0 + M[1, 1] * w1 + M[2, 1] * w2
-        s2 = M[0, 2] * w0 + M[1, 2] * w1 + M[2, 2] * w2
+        s0 = m00 * w0 + m10 * w1 + m20 * w2 + q11 * r[k]
+        s1 = m01 * w0 + m11 * w1 + m21 * w2
+        s2 = m02 * w0 + m12 * w1 + m22 * w2
         # P_k = Q + R L Lᵀ + Mᵀ P M (Joseph form, symmetric)
-        for j in range(3):
-            PM[0, j] = p00 * M[0, j] + p01 * M[1, j] + p02 * M[2, j]
-            PM[1, j] = p01 * M[0, j] + p11 * M[1, j] + p12 * M[2, j]
-            PM[2, j] = p02 * M[0, j] + p12 * M[1, j] + p22 * M[2, j]
-        n00 = q11 + R * L0 * L0 + M[0, 0] * PM[0, 0] + M[1, 0] * PM[1, 0] + M[2, 0] * PM[2, 0]
-        n01 = R * L0 * L1 + M[0, 0] * PM[0, 1] + M[1, 0] * PM[1, 1] + M[2, 0] * PM[2, 1]
-        n02 = R * L0 * L2 + M[0, 0] * PM[0, 2] + M[1, 0] * PM[1, 2] + M[2, 0] * PM[2, 2]
-        n11 = q22 + R * L1 * L1 + M[0, 1] * PM[0, 1] + M[1, 1] * PM[1, 1] + M[2, 1] * PM[2, 1]
-        n12 = R * L1 * L2 + M[0, 1] * PM[0, 2] + M[1, 1] * PM[1, 2] + M[2, 1] * PM[2, 2]
-        n22 = R * L2 * L2 + M[0, 2] * PM[0, 2] + M[1, 2] * PM[1, 2] + M[2, 2] * PM[2, 2]
+        h00 = p00 * m00 + p01 * m10 + p02 * m20
+        h01 = p00 * m01 + p01 * m11 + p02 * m21
+        h02 = p00 * m02 + p01 * m12 + p02 * m22
+        h10 = p01 * m00 + p11 * m10 + p12 * m20
+        h11 = p01 * m01 + p11 * m11 + p12 * m21
+        h12 = p01 * m02 + p11 * m12 + p12 * m22
+        h20 = p02 * m00 + p12 * m10 + p22 * m20
+        h21 = p02 * m01 + p12 * m11 + p22 * m21
+        h22 = p02 * m02 + p12 * m12 + p22 * m22
+        n00 = R * L0 * L0 + m00 * h00 + m10 * h10 + m20 * h20 + q11
+        n01 = R * L0 * L1 + m00 * h01 + m10 * h11 + m20 * h21
+        n02 = R * L0 * L2 + m00 * h02 + m10 * h12 + m20 * h22
+        n11 = R * L1 * L1 + m01 * h01 + m11 * h11 + m21 * h21 + q22
+        n12 = R * L1 * L2 + m01 * h02 + m11 * h12 + m21 * h22
+        n22 = R * L2 * L2 + m02 * h02 + m12 * h12 + m22 * h22
         if freeze:
             num = (abs(n00 - p00) + abs(n01 - p01) + abs(n02 - p02) + abs(n11 - p11) + abs(n12 - p12)
                    + abs(n22 - p22))
@@ -172,17 +180,17 @@ def plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K_obs, freeze, f, S_t, L_t, c
     cst[1] = L0
     cst[2] = L1
     cst[3] = L2
+    M[0, 0], M[0, 1], M[0, 2], M[1, 0], M[1, 1], M[1, 2], M[2, 0], M[2, 1], M[2, 2] = (m00, m01, m02, m10, m11, m12,
+                                                                                      m20, m21, m22)
+    pba[0], pba[1], pba[2] = g0, g1, g2
     # ---- constant step quantities: the s-recursion only
     iS = 1.0 / S
     c0, c1, c2 = b0 * iS, b1 * iS, b2 * iS
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = (M[0, 0], M[0, 1], M[0, 2], M[1, 0], M[1, 1], M[1, 2], M[2, 0],
-                                                   M[2, 1], M[2, 2])
-    e0, e1, e2 = pba[0], pba[1], pba[2]
     while k >= 0:
         ak = ua[k]
-        w0 = s0 - e0 * ak
-        w1 = s1 - e1 * ak
-        w2 = s2 - e2 * ak
+        w0 = s0 - g0 * ak
+        w1 = s1 - g1 * ak
+        w2 = s2 - g2 * ak
         W[k, 0] = w0
         W[k, 1] = w1
         W[k, 2] = w2
@@ -250,146 +258,4 @@ def plan_adjoint(bc, S, r, ua, om, K_obs, k_z, frozen, W, seed):
     seed[16], seed[17], seed[18] = l0, l1, l2
 
 
-@njit(cache=True, error_model="numpy")
-def plan_reverse(Ab, bc, ba, dAb, dbc, r, ua, K_obs, k_z, tape, fbar, Sbar, Lbar, Sc_bar, Lc_bar, seed, G):
-    """Add F's derivative in the :data:`DIRECTIONS` through the recorded steps (module docstring, step 3) to G (4,).
-
-    ``fbar``, ``Sbar``, ``Lbar`` (K,), (K,), (K, 3): F's adjoints of f_k, S_k and L_k, read for the observed
-    steps k >= k_z. If k_z > 0, ``Sc_bar`` and ``Lc_bar`` (3,) are F's adjoints of the stationary S and L
-    (``cst`` of :func:`plan_recursion`, through the stationary observed rows) and ``seed`` those of
-    :func:`plan_adjoint`; they belong to step k_z, whose quantities the stationary steps hold.
-    ``dAb``, ``dbc``: the derivatives of Ab and bc in the directions (3, 3, 4), (3, 4).
-    """
-    N = ua.shape[0]
-    A = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            A[i, j] = Ab[i, j]
-    b = np.empty(3)
-    for i in range(3):
-        b[i] = bc[i]
-    Abar = np.zeros((3, 3))
-    bbar = np.zeros(3)
-    Pbar = np.zeros((3, 3))  # adjoint of P_k (none for P_{k_z}: the held steps use P_{k_z + 1})
-    Pn = np.zeros((3, 3))  # adjoint of P_{k+1}, being collected
-    P = np.empty((3, 3))
-    M = np.empty((3, 3))
-    Mbar = np.empty((3, 3))
-    MP = np.empty((3, 3))
-    X = np.empty((3, 3))
-    L = np.empty(3)
-    Lb = np.empty(3)
-    pb = np.empty(3)
-    pbb = np.empty(3)
-    w = np.empty(3)
-    wb = np.empty(3)
-    sb = np.zeros(3)
-    qb0 = 0.0
-    qb1 = 0.0
-    held = k_z > 0
-    if held:
-        for i in range(3):
-            sb[i] = seed[16 + i]
-        qb0 = seed[15]
-    for k in range(k_z, N):
-        P[0, 0] = tape[k, 0]
-        P[0, 1] = P[1, 0] = tape[k, 1]
-        P[0, 2] = P[2, 0] = tape[k, 2]
-        P[1, 1] = tape[k, 3]
-        P[1, 2] = P[2, 1] = tape[k, 4]
-        P[2, 2] = tape[k, 5]
-        S = tape[k, 9]
-        iS = 1.0 / S
-        fk = tape[k, 16]
-        for i in range(3):
-            pb[i] = tape[k, 6 + i]
-            L[i] = tape[k, 10 + i]
-            w[i] = tape[k, 13 + i]
-        for i in range(3):
-            for j in range(3):
-                M[i, j] = A[i, j] - b[i] * L[j]
-        obs = k < K_obs
-        fb_ = fbar[k] if obs else 0.0
-        Sb = Sbar[k] if obs else 0.0
-        for j in range(3):
-            Lb[j] = Lbar[k, j] if obs else 0.0
-        for i in range(3):
-            for j in range(3):
-                Mbar[i, j] = w[i] * sb[j]  # s_k = Mᵀ w + q11 r_k e_0
-        qb0 += r[k] * sb[0]
-        for i in range(3):
-            wb[i] = M[i, 0] * sb[0] + M[i, 1] * sb[1] + M[i, 2] * sb[2] + b[i] * fb_ * iS  # and f_k = b_cᵀ w / S
-            bbar[i] += w[i] * fb_ * iS
-        Sb -= fk * fb_ * iS
-        if held and k == k_z:  # the held steps' constants are this step's
-            for i in range(3):
-                Lb[i] += Lc_bar[i]
-                bbar[i] += seed[i] * iS  # β = b_c / S
-                Sb -= seed[i] * b[i] * iS * iS
-                for j in range(3):
-                    Mbar[i, j] += seed[3 + 3 * i + j]
-            Sb += Sc_bar
-        # P_k = Q + R L Lᵀ + Mᵀ P M at fixed L (envelope theorem): to Q, P_{k+1}, and A, b_c through M
-        qb0 += Pbar[0, 0]
-        qb1 += Pbar[1, 1]
-        for i in range(3):
-            for j in range(3):
-                X[i, j] = Pbar[i, j] + Pbar[j, i]
-                MP[i, j] = M[i, 0] * Pbar[0, j] + M[i, 1] * Pbar[1, j] + M[i, 2] * Pbar[2, j]
-        for i in range(3):
-            for j in range(3):
-                Pn[i, j] = MP[i, 0] * M[j, 0] + MP[i, 1] * M[j, 1] + MP[i, 2] * M[j, 2]
-        for i in range(3):
-            for j in range(3):  # P M (P̄ + P̄ᵀ), with P M in MP's place
-                MP[i, j] = P[i, 0] * M[0, j] + P[i, 1] * M[1, j] + P[i, 2] * M[2, j]
-        for i in range(3):
-            for j in range(3):
-                v = MP[i, 0] * X[0, j] + MP[i, 1] * X[1, j] + MP[i, 2] * X[2, j]
-                Abar[i, j] += v
-                bbar[i] -= v * L[j]
-        # w = s_{k+1} - P b_a a_k, P b_a from P_{k+1}
-        ak = ua[k]
-        if held and k == k_z:
-            for i in range(3):
-                for j in range(3):
-                    Pn[i, j] -= (ak * wb[i] - seed[12 + i]) * ba[j]
-        else:
-            for i in range(3):
-                for j in range(3):
-                    Pn[i, j] -= ak * wb[i] * ba[j]
-        # M = A - b_c Lᵀ (the s-recursion's M, and the held steps')
-        for i in range(3):
-            for j in range(3):
-                Abar[i, j] += Mbar[i, j]
-                bbar[i] -= Mbar[i, j] * L[j]
-                Lb[j] -= b[i] * Mbar[i, j]
-        # L = Aᵀ P b_c / S, S = R + b_cᵀ P b_c, P b_c from P_{k+1}
-        Sb -= (L[0] * Lb[0] + L[1] * Lb[1] + L[2] * Lb[2]) * iS
-        for i in range(3):
-            pbb[i] = (A[i, 0] * Lb[0] + A[i, 1] * Lb[1] + A[i, 2] * Lb[2]) * iS + b[i] * Sb
-            for j in range(3):
-                Abar[i, j] += pb[i] * Lb[j] * iS
-            bbar[i] += pb[i] * Sb
-        for i in range(3):
-            bbar[i] += P[i, 0] * pbb[0] + P[i, 1] * pbb[1] + P[i, 2] * pbb[2]
-            for j in range(3):
-                Pn[i, j] += pbb[i] * b[j]
-        for i in range(3):
-            sb[i] = wb[i]
-            for j in range(3):
-                Pbar[i, j] = Pn[i, j]
-    # P_N = Q, s_N = Q x_ref_N
-    qb0 += Pbar[0, 0] + r[N] * sb[0]
-    qb1 += Pbar[1, 1]
-    G[0] += qb0
-    G[1] += qb1
-    for p in range(4):
-        acc = 0.0
-        for i in range(3):
-            acc += bbar[i] * dbc[i, p]
-            for j in range(3):
-                acc += Abar[i, j] * dAb[i, j, p]
-        G[p] += acc
-
-
-__all__ = ["DIRECTIONS", "SEED", "TAPE", "plan_adjoint", "plan_recursion", "plan_reverse"]
+__all__ = ["DIRECTIONS", "SEED", "TAPE", "plan_adjoint", "plan_recursion"]

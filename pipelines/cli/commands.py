@@ -219,6 +219,8 @@ def cmd_fit(args) -> int:
         raise ValueError("--R-population is the delayed model's population of R: it needs --human-model delayed")
     if args.rho_form is not None and args.R_population != "policy_scale":
         raise ValueError("--rho-form is the form of R^(-1/2) under --R-population policy_scale: it needs that option")
+    if args.log_R_form is not None and args.human_model != "delayed":
+        raise ValueError("--log-R-form is the form of the delayed model's log R blocks: it needs --human-model delayed")
     if args.adaptation is not None and (args.human_model != "delayed" or args.delay != "profile"):
         raise ValueError("--adaptation is nutpie's mass matrix for the delayed model: it needs --human-model delayed "
                          "and profile delays (--delay sampled runs PyMC's NUTS)")
@@ -237,7 +239,7 @@ def cmd_fit(args) -> int:
                        truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
                        human_model=args.human_model, delay_mode=args.delay,
                        delayed_priors=DelayedPriors(R_population=args.R_population), rho_form=args.rho_form,
-                       adaptation=args.adaptation, adequacy_at=args.adequacy_at)
+                       adaptation=args.adaptation, log_R_form=args.log_R_form, adequacy_at=args.adequacy_at)
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")

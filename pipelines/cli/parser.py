@@ -230,8 +230,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default profile; nutpie), or sampled beside the rest (PyMC's NUTS and a Metropolis step)")
     p.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal",
                    help="with --human-model delayed: population of the subjects' baseline R (default lognormal; "
-                        "policy_scale: R^(-1/2) half-normal; unpooled: each subject's own normal prior on log R, no "
-                        "population; models/bayes/delayed_blocks.py)")
+                        "policy_scale: R^(-1/2) half-normal; unpooled: none; models/bayes/delayed_blocks.py)")
+    p.add_argument("--log-R-form", choices=RHO_FORM_NAMES[:2], default=None, help="delayed: form of the log R "
+                   "blocks (default: centred if the estimates find no motor noise; pipelines/fit/delayed_forms.py)")
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
@@ -375,8 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "were measured)")
     g.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent",
                    help="maxent (default): the forms above on the default study; delayed: one fit of a study drawn "
-                   "from the delayed human (pipelines/bench/fit_delayed.py; --seed seeds its study and its sampler, "
-                   "the options above are the maxent fit's)")
+                   "from the delayed human (pipelines/bench/fit_delayed.py; --seed seeds study and sampler)")
     g.add_argument("--subjects", type=_positive_int, default=42, help="subjects of the delayed study (default 42)")
     g.add_argument("--chains", type=_positive_int, default=4, help="chains (default 4)")
     g.add_argument("--draws", type=_positive_int, default=1000, help="draws per chain (default 1000)")

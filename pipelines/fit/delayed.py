@@ -31,9 +31,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_model import (ADAPTATIONS, DELAY_INDEX, DELAYED_PARAMETERIZATION,
-                                        DELAYED_POPULATION_PARAMETERS, DelayedForm, DelayedPriors, WHITENED,
-                                        build_delayed_model, delay_step, nutpie_options)
+from models.bayes.delayed_model import (ADAPTATIONS, DELAY_INDEX, DELAYED_POPULATION_PARAMETERS, DelayedForm,
+                                        DelayedPriors, WHITENED, build_delayed_model, delay_step, nutpie_options)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
 from models.delayed.identify import delay_grid, identify_unit_delayed
 from models.delayed.lag import lag_coefficients, window_tau0
@@ -41,6 +40,7 @@ from models.segment import prepare_batch
 from pipelines.adequacy import assess_study, not_checked
 from pipelines.fit.checks import mixedlm_check, motor_truth, posterior_point, truth_check, unit_theta
 from pipelines.fit.contrasts import contrasts
+from pipelines.fit.delayed_forms import LOG_R_FORMS, choose_delayed_form, log_R_form
 from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
@@ -156,33 +156,6 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
     return Delays(samples, by_unit, source, estimates)
 
 
-#: τ_nm's and σ_m's blocks are centred when the median over units of (ML estimate / its SE) is at
-#: least this: the data then pin each subject's value (models/bayes/delayed_model.py, "Geometry").
-CENTRED_Z = 3.0
-
-
-def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, str]:
-    """The forms of the lag and motor-noise blocks for these data, and why (recorded in the sidecar).
-
-    Per block, z = ML estimate / SE per unit (0 where the estimate is at its bound 0 or has
-    no SE); centred if the median z is at least :data:`CENTRED_Z` (a delayed human: the data
-    fix each subject's value, and a non-centred scale would form a ridge with them), else
-    non-centred (a human without lag or motor noise: the values sit at 0, where a centred
-    half-normal forms a funnel with its scale). Without estimates: non-centred.
-    """
-    if estimates is None or not {"tau_nm", "se_tau_nm", "sigma_m", "se_sigma_m"} <= set(estimates.columns):
-        return DelayedForm("noncentred", "noncentred"), "non-centred (no delayed estimates to measure the data by)"
-    forms, why = {}, []
-    for name in ("tau_nm", "sigma_m"):
-        v = pd.to_numeric(estimates[name], errors="coerce").to_numpy(dtype=float)
-        se = pd.to_numeric(estimates[f"se_{name}"], errors="coerce").to_numpy(dtype=float)
-        z = np.where(np.isfinite(v / se) & (se > 0), v / se, 0.0)
-        med = float(np.median(z))
-        forms[name] = "centred" if med >= CENTRED_Z else "noncentred"
-        why.append(f"{name} {forms[name]} (median estimate/SE {med:.3g}, threshold {CENTRED_Z:g})")
-    return DelayedForm(**forms), "; ".join(why)
-
-
 def tau0_function(prepared, plant):
     """(segment position, τ_nm) -> the arm torque at that window's start, N·m (from its warm-up; 0 at rest)."""
     warmups = [p.warmup for p in prepared.segments]
@@ -234,12 +207,12 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                          tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors = DelayedPriors(),
                          delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
                          delay_mode: str = "profile", rho_form: str | None = None,
-                         adaptation: str | None = None) -> DelayedFit:
+                         adaptation: str | None = None, log_R: str | None = None) -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
-    chose them; the log R blocks take :data:`models.bayes.delayed_model.DELAYED_PARAMETERIZATION`'s
-    (measured there).
+    chose them; the log R blocks take ``log_R`` (:data:`pipelines.fit.delayed_forms.LOG_R_FORMS`),
+    by default :func:`pipelines.fit.delayed_forms.log_R_form`'s choice by the data.
     ``delay_mode`` (:data:`DELAY_MODES`): ``profile`` conditions on ``delays``; ``sampled``
     samples one delay per subject (``delays`` then only supplies the lag and noise estimates
     that choose the blocks' forms), and the returned fit's delays are the posterior modes.
@@ -256,11 +229,14 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     whiten = delay_mode == "profile" and adaptation == WHITENED
     nuts = nutpie_options(adaptation)
     levels = prepared.settings.design.ordered_levels
-    form = replace(form, R_mc=DELAYED_PARAMETERIZATION.R_mc, R_sc=DELAYED_PARAMETERIZATION.R_sc)
+    if log_R is not None and log_R not in LOG_R_FORMS:
+        raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")
     if delayed_form is None:
         delayed_form, form_reason = choose_delayed_form(estimates if estimates is not None else delays.estimates)
     else:
         form_reason = "given"
+    log_R, R_reason = log_R_form(delayed_form) if log_R is None else (log_R, "given")
+    form = replace(form, R_mc=log_R, R_sc=log_R)
     if rho_form is not None:
         delayed_form = replace(delayed_form, rho=rho_form)
     t0 = time.perf_counter()
@@ -297,7 +273,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
                "coordinates (pipelines/fit/whiten.py)" if whiten else ""),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
-            "delayed_parameterization": asdict(form),
+            "delayed_parameterization": {**asdict(form), "log_R_reason": R_reason},
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled"} if sampled
                else {"nutpie_options": dict(nuts)}),
             "delayed_form": {**asdict(delayed_form), "reason": form_reason},
@@ -372,5 +348,5 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
     return res, ppc, ppc_draws
 
 
-__all__ = ["DELAY_MODES", "check_recorded_torques", "sampled_delays", "CENTRED_Z", "DELAYED_UNITS", "DelayedFit", "Delays", "choose_delayed_form", "delayed_adequacy",
+__all__ = ["DELAY_MODES", "check_recorded_torques", "sampled_delays", "DELAYED_UNITS", "DelayedFit", "Delays", "delayed_adequacy",
            "delayed_results", "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]

@@ -155,7 +155,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
                human_model: str | None = None, delay_mode: str = "profile",
                delayed_priors: DelayedPriors = DelayedPriors(), rho_form: str | None = None,
-               adaptation: str | None = None, adequacy_at: str = "draw") -> dict:
+               adaptation: str | None = None, log_R_form: str | None = None, adequacy_at: str = "draw") -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -200,10 +200,11 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         delay from the estimates' ``delay_s`` or the ML profile (:mod:`pipelines.fit.delayed`;
         no ``posterior_pooled.nc``). ``posterior.json`` records it, and for ``delayed`` the
         delay of every unit and how it was chosen.
-    delay_mode, delayed_priors, rho_form, adaptation
+    delay_mode, delayed_priors, rho_form, adaptation, log_R_form
         ``delayed`` only, as :func:`pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
         at each subject's profile maximum or sampled, the priors (e.g. the population of R), the form of ρ,
-        the coordinates and nutpie's mass matrix (None: the first of :data:`models.bayes.delayed_model.ADAPTATIONS`).
+        the coordinates and nutpie's mass matrix (None: the first of :data:`models.bayes.delayed_model.ADAPTATIONS`),
+        and the form of the log R blocks (its ``log_R``; None: chosen by the data).
     adequacy_at : {"draw", "means"}
         The posterior point of the adequacy check (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
 
@@ -225,6 +226,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     if delay_mode not in DELAY_MODES or (delay_mode != "profile" and human_model != "delayed"):
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)} ('sampled' for the delayed human only); "
                          f"got {delay_mode!r} with {human_model!r}")
+    if log_R_form is not None and human_model != "delayed":
+        raise ValueError(f"log_R_form is the delayed fit's option; got {log_R_form!r} with {human_model!r}")
     if adaptation is not None and human_model != "delayed":
         raise ValueError(f"adaptation (nutpie's mass matrix) is the delayed fit's option; got {adaptation!r} with "
                          f"{human_model!r}")
@@ -281,7 +284,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         fit = sample_delayed_model(prepared, batch, plant, priors, form, delays, seed=seeds["condition"], chains=chains,
                                    draws=draws, tune=tune, cores=cores, show_progress=show_progress,
                                    estimates=estimates, delay_mode=delay_mode, delayed_priors=delayed_priors,
-                                   rho_form=rho_form, adaptation=adaptation)
+                                   rho_form=rho_form, adaptation=adaptation, log_R=log_R_form)
         delays = fit.delays  # sampled: each subject's posterior mode
         fits, diag, extra = {"condition": fit.idata}, {"condition": fit.diagnostics}, fit.sidecar
         timing["condition"] = fit.timing

@@ -19,6 +19,7 @@ from models.segment import prepare_batch
 from pipelines.cli import main
 from pipelines.cli.parser import (ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES,
                                   RHO_FORM_NAMES)
+from pipelines.fit.delayed_forms import LOG_R_FORMS
 from pipelines.identify import identify_to_dir
 from pipelines.loglik import LIKELIHOODS
 from pipelines.io import load_study
@@ -46,6 +47,7 @@ def test_the_names_the_parser_spells_are_the_pipelines():
     assert HUMAN_MODEL_NAMES == HUMAN_MODELS
     assert LIKELIHOOD_NAMES == LIKELIHOODS
     assert R_POPULATION_NAMES == R_POPULATIONS and RHO_FORM_NAMES == RHO_FORMS
+    assert RHO_FORM_NAMES[:2] == LOG_R_FORMS  # scioc fit --log-R-form's choices
     assert ADAPTATION_NAMES == ADAPTATIONS and ADAPTATIONS[0] == WHITENED  # the default first
     assert ADAPTATION_NAMES[1:] == NUTPIE_ADAPTATIONS and DELAYED_NUTS["adaptation"] == NUTPIE_ADAPTATIONS[0]
     assert MAX_DELAY_S == DELAY_GRID_S[-1]

@@ -44,6 +44,7 @@ def test_compare_to_needs_the_delayed_human_model(tmp_path, capsys):
     (["--R-population", "policy_scale"], "--human-model delayed"),
     (["--human-model", "delayed", "--rho-form", "folded_centred"], "--R-population policy_scale"),
     (["--adaptation", "diag"], "--human-model delayed"),
+    (["--log-R-form", "centred"], "--human-model delayed"),
     (["--human-model", "delayed", "--delay", "sampled", "--adaptation", "diag"], "profile delays"),
 ])
 def test_the_population_of_R_and_its_form_are_the_delayed_models(tmp_path, capsys, options, needs):

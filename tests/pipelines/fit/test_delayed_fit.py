@@ -13,7 +13,8 @@ from models.bayes.delayed_model import DelayedForm, DelayedPriors
 from models.design import STUDY
 from models.plant import discretize
 from pipelines.fit import fit_to_dir, format_fit
-from pipelines.fit.delayed import CENTRED_Z, choose_delayed_form, unit_delays
+from pipelines.fit.delayed import unit_delays
+from pipelines.fit.delayed_forms import CENTRED_Z, choose_delayed_form, log_R_form
 from pipelines.fit.human_models import compare_human_models, format_human_models
 from pipelines.identify import identify_to_dir
 from pipelines.io import load_study
@@ -68,6 +69,11 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert "profile_loglik" in side["delay"]["source"] and "estimates" in side["delay"]["source"]
     assert {"tau_nm_scale", "sigma_m_scale", "beta"} <= set(
         side["diagnostics"]["condition"]["population"])
+    # the log R blocks' form follows the motor noise's, as the data chose it, and says why
+    chosen, _ = choose_delayed_form(est)
+    form, why = log_R_form(chosen)
+    par = side["delayed_parameterization"]
+    assert par["R_mc"] == par["R_sc"] == form and par["log_R_reason"] == why
     res = json.loads(open(delayed_fit["contrasts"]).read())
     assert res["human_model"] == "delayed" and "beta" in res and "delayed" in res["loo"]
     motor = res["truth"]["motor"]["tau_nm"]
@@ -155,6 +161,34 @@ def test_the_lag_and_noise_blocks_are_centred_only_where_the_data_pin_them():
     # A max-ent human: the lag at its bound (no SE), the motor noise small against its SE.
     at_zero = pinned.assign(tau_nm=[0.0, 0.0], se_tau_nm=[np.nan, np.nan], sigma_m=[0.05, 0.03])
     assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "noncentred")
+
+
+def test_the_log_R_blocks_are_centred_only_where_no_motor_noise_is_found():
+    # the max-ent human (no motor noise found): the policy noise alone fixes R per unit
+    form, reason = log_R_form(DelayedForm("noncentred", "noncentred"))
+    assert form == "centred" and "no motor noise" in reason
+    # the delayed human (motor noise found): R trades off against it, loose per unit
+    assert log_R_form(DelayedForm("centred", "centred"))[0] == "noncentred"
+    assert log_R_form(DelayedForm("noncentred", "centred"))[0] == "noncentred"
+
+
+@pytest.mark.slow
+def test_a_given_log_R_form_is_fitted_and_recorded(delayed_study):
+    # scioc fit --human-model delayed --log-R-form centred: the blocks take it whatever the data say, the sidecar
+    # says it was given, and the posterior has the units' log R without the non-centred z of the baseline level.
+    import arviz as az
+
+    root, sim, prepared = delayed_study
+    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
+    paths = fit_to_dir(sim["study"], root / "fit_log_R_centred", settings=SETTINGS, prepared=prepared,
+                       log_R_form="centred", **small)
+    par = json.loads(open(paths["sidecar"]).read())["delayed_parameterization"]
+    assert par["R_mc"] == par["R_sc"] == "centred" and par["log_R_reason"] == "given"
+    post = az.from_netcdf(paths["posterior"])["posterior"]
+    assert "log_R" in post and "z_log_R_MC" not in post and "z_log_R_SC" not in post
+    with pytest.raises(ValueError, match="log_R_form"):
+        fit_to_dir(sim["study"], root / "fit_bad_log_R", settings=IdentifySettings.for_design(SENSOR),
+                   prepared=prepared, human_model="maxent", log_R_form="centred", **small)
 
 
 @pytest.mark.slow

@@ -1,0 +1,92 @@
+"""The forms of the ``delayed`` model's blocks for the data at hand (``scioc fit --human-model delayed``).
+
+Centred or non-centred is a choice of coordinates, not of model: the posterior is the same,
+the sampler's geometry is not. Centred suits a block whose values the data fix more tightly
+than the population spreads them; non-centred one the data leave loose (Papaspiliopoulos,
+Roberts & Sköld 2007). Which holds differs between a human with lag and motor noise and one
+without, so the fit measures the data by their ML estimates (``scioc identify --human-model
+delayed``, or the fit's own delay profile) and records each choice and its reason in the
+sidecar (``delayed_form``).
+
+The baseline log R (both levels). Policy noise (variance 1/(2S), S ∝ R) and motor noise explain
+the same torque variability but for the motor noise's moving average. With motor noise in the
+data, R is barely fixed per unit (SD of log R about 0.4, against a population SD of about 0.3:
+:mod:`models.bayes.delayed_model`, "Geometry"), so non-centred. Without it, the policy noise
+carries the variability alone and fixes R as in the max-ent model, whose default is centred:
+in the full-size fit of the max-ent human (README "Measured: the paper's study with a torque
+sensor"), which was non-centred, each unit's posterior SD of log R was 0.05 (median) against
+σ_R 0.33, and μ_R and σ_R mixed worst (R-hat 1.059 and 1.016, ESS 78 and 127, 8 divergences).
+:func:`log_R_form` therefore follows the motor noise's block: centred where the estimates find
+no motor noise. Measured on 12 subjects of each human (``scioc fit S/study.parquet
+--human-model delayed --estimates S/delayed/estimates.parquet --chains 2 --draws 300 --tune
+300 --adequacy-boot 19 --seed N --log-R-form F``; the max-ent human of
+``data/examples/paper-torque-sensor/experiment.toml`` and the ``kbl`` human of README "Which part
+of the warm-up", each identified by ``scioc identify --human-model delayed``; whitened; steps
+per warm-up and kept draw, divergences, smallest ESS (of bulk and tail) and largest R-hat of
+the population parameters and of the units' log R, of 600 draws)::
+
+    human   log R, seed     steps        div   population            units' log R
+    maxent  noncentred, 1   50.5  32.9    9    μ_R 27, 1.067         21, 1.072
+    maxent  noncentred, 2   59.2  34.2    3    μ_R 14, 1.131         16, 1.111
+    maxent  centred, 1      47.6  30.4    3    s_m 99, 1.023         169, 1.017
+    maxent  centred, 2      40.7  30.2    5    s_m 63, 1.011         54, 1.025
+    kbl     noncentred, 1   56.4  46.7    3    σ_R 51, 1.054         91, 1.037
+    kbl     noncentred, 2   56.3  48.1    1    σ_R 87, 1.024         116, 1.029
+    kbl     centred, 1      27.7  27.3   26    μ_R 6, 1.282          9, 1.187
+    kbl     centred, 2      25.5  26.0   22    σ_βR 15, 1.134        26, 1.078
+
+(2026-12-05, with the kernel before its reverse-mode plan, other jobs beside them: steps and
+ESS, not seconds.) Centred, the max-ent human's log R and population mix several times better;
+the ``kbl`` human's do not mix at all and diverge (the funnel of a loose block under its scale).
+Divergences remain with either form on the max-ent human; 17 of its 20 divergent draws had the
+motor-noise scale s_m above its posterior median (σ_m non-centred, ``s_m z``, on data where σ_m is
+near 0: a funnel between s_m and z).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from models.bayes.delayed_blocks import DelayedForm
+
+#: τ_nm's and σ_m's blocks are centred when the median over units of (ML estimate / its SE) is at
+#: least this: the data then pin each subject's value (models/bayes/delayed_model.py, "Geometry").
+CENTRED_Z = 3.0
+#: The forms the baseline log R blocks may take (``scioc fit --log-R-form``; default: :func:`log_R_form`).
+LOG_R_FORMS = ("centred", "noncentred")
+
+
+def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, str]:
+    """The forms of the lag and motor-noise blocks for these data, and why (recorded in the sidecar).
+
+    Per block, z = ML estimate / SE per unit (0 where the estimate is at its bound 0 or has
+    no SE); centred if the median z is at least :data:`CENTRED_Z` (a delayed human: the data
+    fix each subject's value, and a non-centred scale would form a ridge with them), else
+    non-centred (a human without lag or motor noise: the values sit at 0, where a centred
+    half-normal forms a funnel with its scale). Without estimates: non-centred.
+    """
+    if estimates is None or not {"tau_nm", "se_tau_nm", "sigma_m", "se_sigma_m"} <= set(estimates.columns):
+        return DelayedForm("noncentred", "noncentred"), "non-centred (no delayed estimates to measure the data by)"
+    forms, why = {}, []
+    for name in ("tau_nm", "sigma_m"):
+        v = pd.to_numeric(estimates[name], errors="coerce").to_numpy(dtype=float)
+        se = pd.to_numeric(estimates[f"se_{name}"], errors="coerce").to_numpy(dtype=float)
+        z = np.where(np.isfinite(v / se) & (se > 0), v / se, 0.0)
+        med = float(np.median(z))
+        forms[name] = "centred" if med >= CENTRED_Z else "noncentred"
+        why.append(f"{name} {forms[name]} (median estimate/SE {med:.3g}, threshold {CENTRED_Z:g})")
+    return DelayedForm(**forms), "; ".join(why)
+
+
+def log_R_form(delayed_form: DelayedForm) -> tuple[str, str]:
+    """The form of the baseline log R blocks (both levels) and why: centred where the motor noise's block is
+    non-centred (the estimates find no motor noise), else non-centred (module docstring)."""
+    if delayed_form.sigma_m == "noncentred":
+        return "centred", ("log R centred: σ_m's block is non-centred (no motor noise found), so the policy noise "
+                           "alone fixes each unit's R")
+    return "noncentred", ("log R non-centred: σ_m's block is centred (motor noise found), which the policy noise "
+                          "trades off against, leaving R loose per unit")
+
+
+__all__ = ["CENTRED_Z", "LOG_R_FORMS", "choose_delayed_form", "log_R_form"]

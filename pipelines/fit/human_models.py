@@ -128,7 +128,7 @@ def check_maxent_fit(folder, study_path, settings: IdentifySettings) -> dict:
                          "(scioc fit without --human-model)")
     ours = {"study": str(study_path), "identify_settings": settings.as_dict(),
             "experiment_sha256": experiment_hash(settings.design)}
-    diff = _differences(side, ours)
+    diff = _differences({**side, "study": located_study(side, folder)}, ours)
     if diff:
         raise ValueError(f"{folder} is not a fit of the same data: {'; '.join(diff)}")
     return side
@@ -147,12 +147,21 @@ def fit_settings(side: dict, folder) -> IdentifySettings:
         raise InputDataError(f"{path}: identify_settings: {exc}") from None
 
 
-def fit_study(side: dict, folder, study=None) -> Path:
-    """The study file a fit read: ``study`` if given, else the path its sidecar records.
+def located_study(side: dict, folder) -> str:
+    """Where the study file a fit read is now (the path its sidecar records, which may not exist).
 
     A fit records the path as it was given (relative to the folder the fit ran in) and
     relative to its own folder (``study_relative``): a run's folder, staged elsewhere and
-    moved into place, still finds it.
+    moved into place, still finds it by the second.
+    """
+    study, relative = str(side["study"]), side.get("study_relative")
+    if not Path(study).is_file() and relative is not None and (Path(folder) / relative).is_file():
+        return str(Path(folder) / relative)
+    return study
+
+
+def fit_study(side: dict, folder, study=None) -> Path:
+    """The study file a fit read: ``study`` if given, else where its sidecar says (:func:`located_study`).
 
     Raises
     ------
@@ -161,10 +170,7 @@ def fit_study(side: dict, folder, study=None) -> Path:
     """
     folder = Path(folder)
     if study is None:
-        study = side["study"]
-        relative = side.get("study_relative")
-        if not Path(study).is_file() and relative is not None:
-            study = folder / relative
+        study = located_study(side, folder)
     if not Path(study).is_file():
         raise InputDataError(f"{folder / 'posterior.json'}: its study file {study} is not there "
                              "(moved, or the fit ran in another folder); give the study file")
@@ -275,7 +281,7 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
     for k, side in sides.items():
         if side.get("human_model", "maxent") != k:
             raise ValueError(f"{folders[k]} is a {side.get('human_model', 'maxent')} fit, not a {k} fit")
-    diff = _differences(sides["maxent"], sides["delayed"])
+    diff = _differences(*({**sides[k], "study": located_study(sides[k], folders[k])} for k in ("maxent", "delayed")))
     if diff:
         raise ValueError(f"the two fits are not of the same data: {'; '.join(diff)}")
     if prepared is None:
@@ -371,6 +377,6 @@ def format_human_models(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "HUMAN_MODELS_POINTS", "adequacy_brief", "check_maxent_fit",
+__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "HUMAN_MODELS_POINTS", "adequacy_brief", "check_maxent_fit", "located_study",
            "compare_human_models", "fit_settings", "fit_sidecar", "fit_study", "format_human_models", "sidecar_delays",
            "write_human_models"]

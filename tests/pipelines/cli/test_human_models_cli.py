@@ -90,6 +90,21 @@ def test_compare_to_accepts_another_adequacy_bootstrap(tmp_path):
     check_maxent_fit(tmp_path / "maxent", study, IdentifySettings(human_model="delayed"))
 
 
+def test_compare_to_finds_the_study_of_a_fit_made_by_scioc_run(tmp_path):
+    """A fit of ``scioc run`` recorded its study inside the run's staging folder, since renamed: the comparison
+    finds the study relative to the fit's folder (``study_relative``), as every other reader does."""
+    from pipelines.fit.human_models import check_maxent_fit
+
+    (tmp_path / "run" / "data").mkdir(parents=True)
+    study = tmp_path / "run" / "data" / "study.parquet"
+    study.write_bytes(b"")
+    fake_fit(tmp_path / "run" / "fit", study=tmp_path / ".run.staging" / "data" / "study.parquet",
+             study_relative="../data/study.parquet")
+    check_maxent_fit(tmp_path / "run" / "fit", study, IdentifySettings(human_model="delayed"))
+    with pytest.raises(ValueError, match="not a fit of the same data: study file"):
+        check_maxent_fit(tmp_path / "run" / "fit", tmp_path / "other.parquet", IdentifySettings(human_model="delayed"))
+
+
 def test_human_models_command_names_what_is_wrong(tmp_path, capsys):
     fake_fit(tmp_path / "a")
     assert main(["human-models", str(tmp_path / "a"), str(tmp_path / "nothing")]) == EXIT_USAGE

@@ -106,7 +106,9 @@ takes the within-subject correlations (steps 41 -> 29). σ_R, the between-subjec
 log R, stays slow in every form (ESS 15-28 of 600): R is the nuisance the data cannot
 separate from the motor noise, and β, θ1, τ_nm and σ_m mix well (ESS 500-1300). The
 population of τ_nm is now half-normal (above), with the same forms; on data without lag
-or motor noise they are non-centred (:func:`pipelines.fit.delayed.choose_delayed_form`).
+or motor noise they are non-centred (:func:`pipelines.fit.delayed_forms.choose_delayed_form`),
+and so is log R centred there (:func:`pipelines.fit.delayed_forms.log_R_form`: without motor noise
+the policy noise alone fixes each unit's R, measured in that module).
 
 At full size (42 subjects of the ``kbl`` human, 4 chains × 1000 draws; README "Human
 models", "The hierarchical fit") the same holds and is worse: σ_R reached R-hat 1.09-1.12
@@ -159,7 +161,8 @@ from models.units import index_study
 #: Name of the sampled delays' grid indices (dims ``subject``) in a model built with ``delay=None``.
 DELAY_INDEX = "delay_index"
 #: The cost blocks' forms for the delayed human (module docstring, "Geometry"): log R non-centred,
-#: the rest as the max-ent model's default.
+#: the rest as the max-ent model's default (``scioc fit`` chooses log R's by the data:
+#: :func:`pipelines.fit.delayed_forms.log_R_form`).
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
 #: nutpie's own mass matrices for this model (module docstring, "Geometry"): low rank and diagonal.
 NUTPIE_ADAPTATIONS = ("low_rank", "diag")

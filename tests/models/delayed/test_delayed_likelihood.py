@@ -84,6 +84,7 @@ GRAD_CASES = [
     dict(K=250, M=0, mode="SC feedback", delay=25, tau_nm=0.1, sigma_m=0.1),
     dict(K=200, M=30, mode="SC exogenous", delay=4, tau_nm=0.05, sigma_m=0.3),
     dict(K=900, M=200, mode="SC feedback", delay=10, tau_nm=0.06, sigma_m=0.25),  # a held steady state and a tail
+    dict(K=150, M=450, mode="MC", delay=8, tau_nm=0.08, sigma_m=0.2),  # steady within the preview: every row held
 ]
 
 

@@ -63,7 +63,7 @@ def default_human_models(design: Design, maxent_verdict: str | None) -> tuple[tu
     Chosen by the data: the max-ent model always; the ``delayed`` model too when the max-ent
     model does not pass its adequacy checks at identify (``maxent_verdict``,
     :func:`run_verdicts`' ``maxent``; a fail, or not checked). A max-ent model that fits
-    needs no second model, and the delayed model adds some 35-40 minutes at the paper's size
+    needs no second model, and the delayed model adds some 30-40 minutes at the paper's size
     (README "Human models"). Without a torque sensor the delayed model is identified from
     the angles, without a hierarchical fit (:data:`pipelines.report.human_models.ANGLE_ONLY`).
     """

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.bayes.delayed_model import DelayedForm, DelayedPriors
+from models.bayes.delayed_model import WHITENED_TARGET_ACCEPT, DelayedForm, DelayedPriors
 from models.design import STUDY
 from models.plant import discretize
 from pipelines.fit import fit_to_dir, format_fit
@@ -54,7 +54,8 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert side["start"].startswith("the chains start near the ML estimates")  # the fit's own profile's, no --estimates
     # by default on each subject's whitened coordinates (scioc fit --adaptation whitened), with what the whitening found
     assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened"
-    assert side["nutpie_options"] == {"adaptation": "diag"}
+    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
+    assert side["sampler"]["target_accept"] == WHITENED_TARGET_ACCEPT == 0.9
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
     assert "whitened coordinates" in side["start"]
     assert side["seconds"]["condition"]["whitening_s"] > 0
@@ -232,6 +233,7 @@ def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
                        adaptation="diag", **small)
     side = json.loads(open(paths["sidecar"]).read())
     assert side["sampler"]["adaptation"] == "diag (nutpie)" and side["nutpie_options"] == {"adaptation": "diag"}
+    assert side["sampler"]["target_accept"] == 0.8  # nutpie's own, off the whitened coordinates
     assert side["delayed_priors"]["R_population"] == "policy_scale"
     chosen, _ = choose_delayed_form(pd.read_parquet(root / "identify" / "estimates.parquet"))
     assert side["delayed_form"] == {**side["delayed_form"], "rho": "folded_centred", "tau_nm": chosen.tau_nm,

@@ -141,15 +141,15 @@ Measured on 12 subjects of each human (those of :mod:`pipelines.fit.delayed_form
 command without ``--log-R-form``, the kernel with its reverse-mode plan, alone on the machine; the
 rate set by patching ``nutpie_options`` in a wrapper script, as ``scioc fit`` has no option for it)::
 
-    human   rate, seed   steps (warm-up, kept)   div   worst population (ESS, R-hat)
-    maxent  0.8, 1       43.0  26.1               5    σ_log θ1 26, 1.051
-    maxent  0.8, 2       47.5  29.1               0    s_m 36, 1.079
-    maxent  0.9, 1       54.4  40.0               1    s_m 52, 1.020
-    maxent  0.9, 2       52.5  31.8               0    s_m 77, 1.010
-    kbl     0.8, 1       58.4  48.3               1    σ_R 24, 1.091
-    kbl     0.8, 2       58.5  43.6               2    μ_R 50, 1.027
-    kbl     0.9, 1       70.0  50.0               0    σ_R 39, 1.028
-    kbl     0.9, 2       71.2  52.9               0    μ_R 39, 1.088
+    human   rate, seed   steps (warm-up, kept)   div   population: smallest ESS; largest R-hat
+    maxent  0.8, 1       43.0  26.1               5    σ_log θ1 26; σ_log θ1 1.051
+    maxent  0.8, 2       47.5  29.1               0    s_m 36; s_m 1.079
+    maxent  0.9, 1       54.4  40.0               1    s_m 52; s_m 1.020
+    maxent  0.9, 2       52.5  31.8               0    s_m 77; σ_β 1.029
+    kbl     0.8, 1       58.4  48.3               1    σ_R 24; σ_R 1.091
+    kbl     0.8, 2       58.5  43.6               2    μ_R 50; σ_R 1.053
+    kbl     0.9, 1       70.0  50.0               0    σ_R 39; σ_R 1.028
+    kbl     0.9, 2       71.2  52.9               0    μ_R 39; μ_R 1.088
 
 One divergent transition in four runs against eight, for 10-30 % more leapfrog steps; the
 population's mixing is no worse (two seeds of 600 draws each: noisy). At full size: README,

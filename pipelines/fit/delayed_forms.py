@@ -19,21 +19,22 @@ sensor"), which was non-centred, each unit's posterior SD of log R was 0.05 (med
 :func:`log_R_form` therefore follows the motor noise's block: centred where the estimates find
 no motor noise. Measured on 12 subjects of each human (``scioc fit S/study.parquet
 --human-model delayed --estimates S/delayed/estimates.parquet --chains 2 --draws 300 --tune
-300 --adequacy-boot 19 --seed N --log-R-form F``; the max-ent human of
-``data/examples/paper-torque-sensor/experiment.toml`` and the ``kbl`` human of README "Which part
+300 --adequacy-boot 19 --seed N --log-R-form F``; the max-ent human of ``scioc simulate
+--experiment data/examples/paper-torque-sensor/experiment.toml --subjects 12`` and the ``kbl`` human of README "Which part
 of the warm-up", each identified by ``scioc identify --human-model delayed``; whitened; steps
-per warm-up and kept draw, divergences, smallest ESS (of bulk and tail) and largest R-hat of
-the population parameters and of the units' log R, of 600 draws)::
+per warm-up and kept draw, divergences; of the population parameters the smallest ESS (of bulk
+and tail) and the largest R-hat, each with its parameter; of the units' log R the smallest ESS and
+the largest R-hat; of 600 draws)::
 
-    human   log R, seed     steps        div   population            units' log R
-    maxent  noncentred, 1   50.5  32.9    9    μ_R 27, 1.067         21, 1.072
-    maxent  noncentred, 2   59.2  34.2    3    μ_R 14, 1.131         16, 1.111
-    maxent  centred, 1      47.6  30.4    3    s_m 99, 1.023         169, 1.017
-    maxent  centred, 2      40.7  30.2    5    s_m 63, 1.011         54, 1.025
-    kbl     noncentred, 1   56.4  46.7    3    σ_R 51, 1.054         91, 1.037
-    kbl     noncentred, 2   56.3  48.1    1    σ_R 87, 1.024         116, 1.029
-    kbl     centred, 1      27.7  27.3   26    μ_R 6, 1.282          9, 1.187
-    kbl     centred, 2      25.5  26.0   22    σ_βR 15, 1.134        26, 1.078
+    human   log R, seed     steps        div   population                    units' log R
+    maxent  noncentred, 1   50.5  32.9    9    μ_R 27; μ_R 1.067             21, 1.072
+    maxent  noncentred, 2   59.2  34.2    3    μ_R 14; μ_R 1.131             16, 1.111
+    maxent  centred, 1      47.6  30.4    3    s_m 99; μ_log θ1 1.033        169, 1.017
+    maxent  centred, 2      40.7  30.2    5    s_m 63; β_R 1.020             54, 1.025
+    kbl     noncentred, 1   56.4  46.7    3    σ_R 51; σ_R 1.054             91, 1.037
+    kbl     noncentred, 2   56.3  48.1    1    σ_R 87; μ_R 1.024             116, 1.029
+    kbl     centred, 1      27.7  27.3   26    μ_R 6; μ_R 1.282              9, 1.187
+    kbl     centred, 2      25.5  26.0   22    σ_βR 15; σ_βR 1.134           26, 1.078
 
 (2026-12-05, with the kernel before its reverse-mode plan, other jobs beside them: steps and
 ESS, not seconds.) Centred, the max-ent human's log R and population mix several times better;

@@ -33,12 +33,13 @@ from numba import njit
 
 @njit(cache=True, error_model="numpy")
 def plan_reverse(Ab, bc, ba, dAb, dbc, r, ua, K_obs, k_z, tape, fbar, Sbar, Lbar, Sc_bar, Lc_bar, seed, G):
-    """Add F's derivative in the :data:`DIRECTIONS` through the recorded steps (module docstring, step 3) to G (4,).
+    """Add F's derivative in :data:`models.delayed.riccati.DIRECTIONS` through the recorded steps to G (4,).
 
     ``fbar``, ``Sbar``, ``Lbar`` (K,), (K,), (K, 3): F's adjoints of f_k, S_k and L_k, read for the observed
     steps k >= k_z. If k_z > 0, ``Sc_bar`` and ``Lc_bar`` (3,) are F's adjoints of the stationary S and L
-    (``cst`` of :func:`plan_recursion`, through the stationary observed rows) and ``seed`` those of
-    :func:`plan_adjoint`; they belong to step k_z, whose quantities the stationary steps hold.
+    (``cst`` of :func:`models.delayed.riccati.plan_recursion`, through the stationary observed rows) and
+    ``seed`` those of :func:`models.delayed.riccati.plan_adjoint`; they belong to step k_z, whose quantities
+    the stationary steps hold.
     ``dAb``, ``dbc``: the derivatives of Ab and bc in the directions (3, 3, 4), (3, 4).
     """
     N = ua.shape[0]

@@ -377,6 +377,6 @@ def format_human_models(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "HUMAN_MODELS_POINTS", "adequacy_brief", "check_maxent_fit", "located_study",
-           "compare_human_models", "fit_settings", "fit_sidecar", "fit_study", "format_human_models", "sidecar_delays",
-           "write_human_models"]
+__all__ = ["HUMAN_MODELS_COMPARED", "HUMAN_MODELS_FILE", "HUMAN_MODELS_POINTS", "adequacy_brief", "check_maxent_fit",
+           "compare_human_models", "fit_settings", "fit_sidecar", "fit_study", "format_human_models", "located_study",
+           "sidecar_delays", "write_human_models"]

@@ -88,7 +88,7 @@ DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 #: The populations of the subjects' baseline R (:class:`DelayedPriors`).
 R_POPULATIONS = ("lognormal", "policy_scale", "unpooled")
 #: The forms of τ_nm and σ_m, and of ρ (:class:`DelayedForm`).
-MOTOR_FORMS = ("centred", "noncentred")
+MOTOR_FORMS = ("centred", "noncentred", "folded")
 RHO_FORMS = ("centred", "noncentred", "folded", "folded_centred")
 
 
@@ -101,7 +101,15 @@ class DelayedPriors:
     tau_nm_scale : float
         Scale of the HalfNormal prior on s_τ, the population scale of τ_nm, s.
     sigma_m_scale : float
-        Scale of the HalfNormal prior on s_m, the population scale of σ_m, N·m.
+        Scale of the HalfNormal prior on s_m, the population scale of σ_m, N·m, when
+        ``sigma_m_scale_gamma`` is None.
+    sigma_m_scale_gamma : (float, float) or None
+        Shape and rate of the Gamma prior on s_m (default (2, 8): mean 0.25 N·m, about the
+        half-normal's 0.24, and density 0 at s_m = 0); None gives HalfNormal(``sigma_m_scale``).
+        On a human without motor noise the data bound every σ_m from above only, and below
+        that bound s_m's posterior is its prior: the half-normal's, flat at 0, is an
+        exponential tail in log s_m that the sampler crossed slowly (module docstring, "The
+        motor-noise scale").
     sigma_log_R_gamma : (float, float) or None
         Shape and rate of a Gamma prior on σ_R, the between-subject SD of log R, in place
         of the cost blocks' HalfNormal(``Priors.sigma_log_R``); None (default) keeps the
@@ -127,14 +135,17 @@ class DelayedPriors:
 
     tau_nm_scale: float = 0.1
     sigma_m_scale: float = 0.3
+    sigma_m_scale_gamma: tuple[float, float] | None = (2.0, 8.0)
     sigma_log_R_gamma: tuple[float, float] | None = None
     R_population: str = "lognormal"
     rho_scale_factor: float = 2.0
 
     def __post_init__(self):
+        for name in ("sigma_log_R_gamma", "sigma_m_scale_gamma"):
+            g = getattr(self, name)
+            if g is not None and not (len(g) == 2 and all(np.isfinite(v) and v > 0 for v in g)):
+                raise ValueError(f"{name} must be (shape, rate), both > 0; got {g!r}")
         g = self.sigma_log_R_gamma
-        if g is not None and not (len(g) == 2 and all(np.isfinite(v) and v > 0 for v in g)):
-            raise ValueError(f"sigma_log_R_gamma must be (shape, rate), both > 0; got {g!r}")
         if self.R_population not in R_POPULATIONS:
             raise ValueError(f"R_population must be one of {R_POPULATIONS}; got {self.R_population!r}")
         if self.R_population != "lognormal" and g is not None:
@@ -239,14 +250,21 @@ def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: d
 
 
 def motor_blocks(priors: DelayedPriors, form: DelayedForm):
-    """τ_nm and σ_m per subject, each from a half-normal population (module docstring)."""
+    """τ_nm and σ_m per subject, each from a half-normal population, in the forms of ``form``; s_τ half-normal,
+    s_m Gamma (:class:`DelayedPriors`; module docstring)."""
     out = []
     for name, scale_name, f in (("tau_nm", "tau_nm_scale", form.tau_nm), ("sigma_m", "sigma_m_scale", form.sigma_m)):
-        scale = pm.HalfNormal(scale_name, getattr(priors, scale_name))
+        gamma = priors.sigma_m_scale_gamma if name == "sigma_m" else None
+        scale = (pm.HalfNormal(scale_name, getattr(priors, scale_name)) if gamma is None
+                 else pm.Gamma(scale_name, alpha=gamma[0], beta=gamma[1]))
         if f == "centred":
             out.append(pm.HalfNormal(name, scale, dims="subject"))
-        else:
+        elif f == "noncentred":
             out.append(pm.Deterministic(name, scale * pm.HalfNormal(f"z_{name}", 1.0, dims="subject"), dims="subject"))
+        else:  # folded: scale |z|, z ~ N(0, 1) unconstrained; starts at z = 1, off the symmetric point z = 0
+            n = len(pm.modelcontext(None).coords["subject"])
+            z = pm.Normal(f"z_{name}", 0.0, 1.0, dims="subject", initval=np.ones(n))
+            out.append(pm.Deterministic(name, scale * pt.abs(z), dims="subject"))
     return tuple(out)
 
 

@@ -54,6 +54,8 @@ from models.bayes.delayed_blocks import DelayedForm
 #: τ_nm's and σ_m's blocks are centred when the median over units of (ML estimate / its SE) is at
 #: least this: the data then pin each subject's value (models/bayes/delayed_model.py, "Geometry").
 CENTRED_Z = 3.0
+#: The form of τ_nm's and σ_m's blocks where the data do not pin them (module docstring, "Motor noise").
+LOOSE_FORM = {"tau_nm": "noncentred", "sigma_m": "folded"}
 #: The forms the baseline log R blocks may take (``scioc fit --log-R-form``; default: :func:`log_R_form`).
 LOG_R_FORMS = ("centred", "noncentred")
 
@@ -64,8 +66,9 @@ def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, st
     Per block, z = ML estimate / SE per unit (0 where the estimate is at its bound 0 or has
     no SE); centred if the median z is at least :data:`CENTRED_Z` (a delayed human: the data
     fix each subject's value, and a non-centred scale would form a ridge with them), else
-    non-centred (a human without lag or motor noise: the values sit at 0, where a centred
-    half-normal forms a funnel with its scale). Without estimates: non-centred.
+    :data:`LOOSE_FORM` (a human without lag or motor noise: the values sit at 0, where a centred
+    half-normal forms a funnel with its scale): τ_nm non-centred, σ_m folded (module docstring,
+    "Motor noise"). Without estimates: both non-centred.
     """
     if estimates is None or not {"tau_nm", "se_tau_nm", "sigma_m", "se_sigma_m"} <= set(estimates.columns):
         return DelayedForm("noncentred", "noncentred"), "non-centred (no delayed estimates to measure the data by)"
@@ -75,7 +78,7 @@ def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, st
         se = pd.to_numeric(estimates[f"se_{name}"], errors="coerce").to_numpy(dtype=float)
         z = np.where(np.isfinite(v / se) & (se > 0), v / se, 0.0)
         med = float(np.median(z))
-        forms[name] = "centred" if med >= CENTRED_Z else "noncentred"
+        forms[name] = "centred" if med >= CENTRED_Z else LOOSE_FORM[name]
         why.append(f"{name} {forms[name]} (median estimate/SE {med:.3g}, threshold {CENTRED_Z:g})")
     return DelayedForm(**forms), "; ".join(why)
 
@@ -83,11 +86,11 @@ def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, st
 def log_R_form(delayed_form: DelayedForm) -> tuple[str, str]:
     """The form of the baseline log R blocks (both levels) and why: centred where the motor noise's block is
     non-centred (the estimates find no motor noise), else non-centred (module docstring)."""
-    if delayed_form.sigma_m == "noncentred":
-        return "centred", ("log R centred: σ_m's block is non-centred (no motor noise found), so the policy noise "
-                           "alone fixes each unit's R")
+    if delayed_form.sigma_m != "centred":
+        return "centred", (f"log R centred: σ_m's block is {delayed_form.sigma_m} (no motor noise found), so the "
+                           "policy noise alone fixes each unit's R")
     return "noncentred", ("log R non-centred: σ_m's block is centred (motor noise found), which the policy noise "
                           "trades off against, leaving R loose per unit")
 
 
-__all__ = ["CENTRED_Z", "LOG_R_FORMS", "choose_delayed_form", "log_R_form"]
+__all__ = ["CENTRED_Z", "LOG_R_FORMS", "LOOSE_FORM", "choose_delayed_form", "log_R_form"]

@@ -96,6 +96,67 @@ def test_cost_blocks_are_the_max_ent_models(plant, study):
         DelayedForm("sometimes")
 
 
+def test_folded_motor_blocks(plant, study):
+    """DelayedForm(sigma_m="folded"): σ_m = s_m |z|, z ~ N(0, 1) unconstrained (so σ_m -> 0 is the interior point
+    z = 0, where the likelihood, a function of σ_m², is smooth), starting at z = 1; the law of σ_m is the centred
+    form's half-normal, and the model's density is the centred one's at the same σ_m up to z's density."""
+    from scipy import stats
+
+    w = study
+    folded = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                 delayed_form=DelayedForm("folded", "folded"))
+    centred = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                  delayed_form=DelayedForm("centred", "centred"))
+    names = {v.name for v in folded.free_RVs}
+    assert names - {v.name for v in centred.free_RVs} == {"z_tau_nm", "z_sigma_m"}
+    assert folded.rvs_to_transforms[folded["z_sigma_m"]] is None  # unconstrained: no log transform
+    start = folded.initial_point()
+    np.testing.assert_array_equal(start["z_sigma_m"], np.ones(3))
+    np.testing.assert_array_equal(start["z_tau_nm"], np.ones(3))
+    point = _point(folded, 4)
+    point["z_sigma_m"] = np.array([-0.4, 0.0, 1.3])
+    outs = folded.replace_rvs_by_values([folded[v] for v in ("sigma_m", "sigma_m_scale", "tau_nm", "tau_nm_scale")])
+    sig, s_m, tau, s_t = folded.compile_fn(outs, inputs=folded.value_vars, on_unused_input="ignore")(point)
+    np.testing.assert_allclose(sig, s_m * np.array([0.4, 0.0, 1.3]), rtol=1e-12)
+    np.testing.assert_allclose(tau, s_t * np.abs(point["z_tau_nm"]), rtol=1e-12)
+    # At the same σ_m and τ_nm (both > 0) the centred model's density differs only by the blocks' own priors.
+    point["z_tau_nm"], point["z_sigma_m"] = np.array([0.5, -0.8, 1.2]), np.array([-0.4, 0.01, 1.3])
+    tau, sig = s_t * np.abs(point["z_tau_nm"]), s_m * np.abs(point["z_sigma_m"])
+    cpoint = {k: v for k, v in point.items() if k not in ("z_tau_nm", "z_sigma_m")}
+    cpoint["tau_nm_log__"], cpoint["sigma_m_log__"] = np.log(tau), np.log(sig)
+    lf, lc = folded.compile_logp()(point), centred.compile_logp()(cpoint)
+    # folded: N(z; 0, 1) per subject; centred: HalfNormal(x; s) times the log transform's Jacobian x
+    diff = (stats.norm.logpdf(point["z_tau_nm"]).sum() + stats.norm.logpdf(point["z_sigma_m"]).sum()
+            - (stats.halfnorm(scale=s_t).logpdf(tau) + np.log(tau)).sum()
+            - (stats.halfnorm(scale=s_m).logpdf(sig) + np.log(sig)).sum())
+    assert lf - lc == pytest.approx(diff, rel=1e-9, abs=1e-8)
+    with pytest.raises(ValueError, match="folded"):
+        DelayedForm(sigma_m="folded_centred")
+
+
+def test_the_motor_noise_scale_has_a_gamma_prior_by_default(plant, study):
+    """s_m ~ Gamma(2, rate 8) (density 0 at 0); ``sigma_m_scale_gamma=None`` gives HalfNormal(sigma_m_scale)."""
+    from scipy import stats
+
+    from models.bayes.delayed_model import DelayedPriors
+
+    w = study
+    assert DelayedPriors().sigma_m_scale_gamma == (2.0, 8.0)
+    gamma = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
+    half = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                               delayed_priors=DelayedPriors(sigma_m_scale_gamma=None))
+    assert {v.name for v in gamma.free_RVs} == {v.name for v in half.free_RVs}
+    for x in (0.01, 0.2, 0.9):
+        assert float(pm.logp(gamma["sigma_m_scale"], x).eval()) == pytest.approx(
+            stats.gamma(2.0, scale=1 / 8.0).logpdf(x), rel=1e-6)
+        assert float(pm.logp(half["sigma_m_scale"], x).eval()) == pytest.approx(
+            stats.halfnorm(scale=0.3).logpdf(x), rel=1e-6)
+    assert float(pm.logp(gamma["sigma_m_scale"], 0.0).eval()) == -np.inf
+    for bad in ((2.0,), (2.0, -1.0)):
+        with pytest.raises(ValueError, match="sigma_m_scale_gamma"):
+            DelayedPriors(sigma_m_scale_gamma=bad)
+
+
 def test_sigma_R_can_have_a_boundary_avoiding_gamma_prior(plant, study):
     # DelayedPriors(sigma_log_R_gamma=(shape, rate)): σ_R's prior is that Gamma (density 0 at 0), the rest unchanged.
     from scipy import stats
@@ -185,7 +246,7 @@ def test_policy_scale_population_of_R(plant, study):
     assert float(pm.logp(fc["rho_signed"], np.array([-0.1, 0.3])).sum().eval({fc["rho_scale"]: 0.4})) == \
         pytest.approx(stats.norm(scale=0.4).logpdf([-0.1, 0.3]).sum(), rel=1e-10)
     with pytest.raises(ValueError, match="folded"):
-        DelayedForm(tau_nm="folded")
+        DelayedForm(tau_nm="folded_centred")
     with pytest.raises(ValueError, match="R_population"):
         DelayedPriors(R_population="flat")
     with pytest.raises(ValueError, match="policy_scale"):

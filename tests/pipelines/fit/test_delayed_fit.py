@@ -161,13 +161,15 @@ def test_the_lag_and_noise_blocks_are_centred_only_where_the_data_pin_them():
     assert form == DelayedForm("centred", "centred") and f"threshold {CENTRED_Z:g}" in reason
     # A max-ent human: the lag at its bound (no SE), the motor noise small against its SE.
     at_zero = pinned.assign(tau_nm=[0.0, 0.0], se_tau_nm=[np.nan, np.nan], sigma_m=[0.05, 0.03])
-    assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "noncentred")
+    assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "folded")
 
 
 def test_the_log_R_blocks_are_centred_only_where_no_motor_noise_is_found():
     # the max-ent human (no motor noise found): the policy noise alone fixes R per unit
     form, reason = log_R_form(DelayedForm("noncentred", "noncentred"))
     assert form == "centred" and "no motor noise" in reason
+    form, reason = log_R_form(DelayedForm("noncentred", "folded"))
+    assert form == "centred" and "σ_m's block is folded (no motor noise" in reason
     # the delayed human (motor noise found): R trades off against it, loose per unit
     assert log_R_form(DelayedForm("centred", "centred"))[0] == "noncentred"
     assert log_R_form(DelayedForm("noncentred", "centred"))[0] == "noncentred"

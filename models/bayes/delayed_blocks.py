@@ -70,6 +70,16 @@ population). One run, one seed. At full size (the README's ``kbl0`` fit) it conv
 passes the adequacy check at a posterior draw (it failed the innovation variance at the posterior
 means, a fault of that rule: README, "At the posterior"); not the default until the study with a
 change of cost has been fitted with it at full size.
+
+The motor-noise scale. s_m ~ Gamma(2, rate 8) by default (``DelayedPriors.sigma_m_scale_gamma``;
+before 2026-12-05 HalfNormal(0.3), whose mean 0.24 N·m the Gamma's 0.25 keeps). On a human without
+motor noise the data bound each σ_m from above only, and below that bound s_m's posterior is its
+prior: the half-normal's density is flat at 0, an exponential tail in log s_m that the sampler
+crossed slowly (the convergence verdict's slowest quantity on the max-ent human at full size);
+the Gamma's vanishes at 0 like s_m, which halves that tail's length in log s_m. On 12 subjects of
+the max-ent human, four seeds, it about doubled the ESS of s_m and of the units' σ_m, with β and
+the σ_m intervals unchanged (table in :mod:`pipelines.fit.delayed_forms`, "Motor noise"). Where
+the data find motor noise (the ``kbl`` human, σ_m about 0.25 N·m) s_m is fixed by the data.
 """
 
 from __future__ import annotations
@@ -175,7 +185,9 @@ class DelayedForm:
     """Centred or non-centred form of the lag and motor-noise blocks.
 
     ``centred`` samples the subject's value, τ_nm[i] ~ HalfNormal(s_τ) (σ_m[i] ~
-    HalfNormal(s_m)); ``noncentred`` samples z[i] ~ HalfNormal(1) and sets s_τ z[i] (s_m z[i]).
+    HalfNormal(s_m)); ``noncentred`` samples z[i] ~ HalfNormal(1) and sets s_τ z[i] (s_m z[i]);
+    ``folded`` samples z[i] ~ N(0, 1), unconstrained, and sets s_m |z[i]| (the same law; for σ_m
+    where the data find no motor noise, :mod:`pipelines.fit.delayed_forms`, "Motor noise").
     ``rho`` is the form of ρ = R^(-1/2) with ``DelayedPriors(R_population="policy_scale")``
     (unused otherwise): ``centred``, ``noncentred``, ``folded`` (default), z[i] ~ N(0, 1) and
     ρ[i] = s_ρ |z[i]| (the same half-normal law, with z unconstrained where the log transform of

@@ -42,6 +42,37 @@ the ``kbl`` human's do not mix at all and diverge (the funnel of a loose block u
 Divergences remain with either form on the max-ent human; 17 of its 20 divergent draws had the
 motor-noise scale s_m above its posterior median (σ_m non-centred, ``s_m z``, on data where σ_m is
 near 0: a funnel between s_m and z).
+
+Motor noise. Where the estimates find none, every σ_m sits near 0 and the data bound it from
+above only. The likelihood depends on σ_m through σ_m² (the covariance diag(1/(2S)) + σ_m² C Cᵀ,
+:mod:`models.delayed.kernel`), about -κ σ_m² near 0. Non-centred, the sampler moves log z
+(PyMC's log transform of z ~ HalfNormal(1)), where that bound is the doubly exponential wall
+exp(-κ s_m² e^(2 log z)); folded (σ_m = s_m |z|, z ~ N(0, 1) unconstrained; the law of σ_m is
+the same half-normal) it is the Gaussian exp(-κ s_m² z²) around the interior point z = 0. So
+:data:`LOOSE_FORM` folds σ_m. τ_nm stays non-centred: near 0 the likelihood is linear in τ_nm
+(α ≈ τ_nm (Φ b_w)_1 / b_1, :mod:`models.bayes.delayed_lag`), so folded it has a kink at z = 0;
+one run with both blocks folded took 265.7 leapfrog steps per kept draw with 74 divergent
+transitions. Measured on the 12-subject max-ent study above, target acceptance 0.9 (the
+default), log R centred, seeds 1-4; the forms by a wrapper that replaces
+:func:`choose_delayed_form`'s σ_m (and with it, the s_m prior of
+:class:`models.bayes.delayed_blocks.DelayedPriors`), as ``scioc fit`` has no option for them;
+divergent transitions per run, leapfrog steps per kept draw, ESS (smaller of bulk and tail, of
+600 draws) of s_m and the smallest of the units' σ_m::
+
+    σ_m block, s_m prior       divergent   kept steps            s_m ESS          units' σ_m ESS
+    non-centred, half-normal   1 0 1 1     40.0 31.8 31.1 31.7   52 77 80 13      53 90 71 19
+    folded, half-normal        0 0 0 0     31.1 31.2 31.6 31.0   59 29 26 91      71 29 37 90
+    folded, Gamma(2, rate 8)   0 0 0 0     31.2 31.1 31.0 31.6   108 46 109 76    117 74 192 138
+
+(2026-12-05; seeds 1-2 of the first row are the "Whitened" table's 0.9 rows of
+:mod:`models.bayes.delayed_model`.) Folding removed the divergences; s_m itself mixed no better, as below its data's upper
+bound s_m's posterior is its prior, and the half-normal's (flat at 0) is an exponential tail in
+log s_m (log s_m from -7.7 to -2.9, 1 % to 99 %, seed 2). The Gamma prior (the default since,
+:class:`models.bayes.delayed_blocks.DelayedPriors`) shortens that tail (-6.4 to -2.5) and about
+doubled the ESS of s_m and the units' σ_m; β, the units' σ_m upper ends and the steps did not
+change. Holding s_m, for the whitening and the start, at the half-normal ML scale of the subjects'
+σ_m estimates (0.068 here) instead of PyMC's initial point (0.3) did not help (two runs: 0 and
+3 divergent, s_m ESS 22 and 49) and is not done.
 """
 
 from __future__ import annotations

@@ -65,9 +65,9 @@ divergent transitions per run, leapfrog steps per kept draw, ESS (smaller of bul
     folded, Gamma(2, rate 8)   0 0 0 0     31.2 31.1 31.0 31.6   108 46 109 76    117 74 192 138
 
 (2026-12-05; seeds 1-2 of the first row are the "Whitened" table's 0.9 rows of
-:mod:`models.bayes.delayed_model`.) Folding removed the divergences; s_m itself mixed no better, as below its data's upper
-bound s_m's posterior is its prior, and the half-normal's (flat at 0) is an exponential tail in
-log s_m (log s_m from -7.7 to -2.9, 1 % to 99 %, seed 2). The Gamma prior (the default since,
+:mod:`models.bayes.delayed_model`.) Folding removed the divergences; s_m itself mixed no
+better, as below its data's upper bound s_m's posterior is its prior, and the half-normal's
+(flat at 0) is an exponential tail in log s_m (log s_m from -7.7 to -2.9, 1 % to 99 %, seed 2). The Gamma prior (the default since,
 :class:`models.bayes.delayed_blocks.DelayedPriors`) shortens that tail (-6.4 to -2.5) and about
 doubled the ESS of s_m and the units' σ_m; β, the units' σ_m upper ends and the steps did not
 change. Holding s_m, for the whitening and the start, at the half-normal ML scale of the subjects'
@@ -116,7 +116,7 @@ def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, st
 
 def log_R_form(delayed_form: DelayedForm) -> tuple[str, str]:
     """The form of the baseline log R blocks (both levels) and why: centred where the motor noise's block is
-    non-centred (the estimates find no motor noise), else non-centred (module docstring)."""
+    not centred (non-centred or folded: the estimates find no motor noise), else non-centred (module docstring)."""
     if delayed_form.sigma_m != "centred":
         return "centred", (f"log R centred: σ_m's block is {delayed_form.sigma_m} (no motor noise found), so the "
                            "policy noise alone fixes each unit's R")

@@ -195,6 +195,28 @@ def test_a_given_log_R_form_is_fitted_and_recorded(delayed_study):
 
 
 @pytest.mark.slow
+def test_estimates_without_motor_noise_fold_its_block_end_to_end(delayed_study, tmp_path):
+    # Estimates that find no motor noise (every σ_m at its bound 0, no SE, as for the max-ent human): the fit folds
+    # σ_m's block (σ_m = s_m |z|, z unconstrained) and centres log R, records why, and its draws of σ_m are s_m |z|.
+    import arviz as az
+
+    root, sim, prepared = delayed_study
+    est = pd.read_parquet(root / "identify" / "estimates.parquet").assign(sigma_m=0.0, se_sigma_m=np.nan)
+    est.to_parquet(tmp_path / "estimates.parquet")
+    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
+    paths = fit_to_dir(sim["study"], root / "fit_folded", settings=SETTINGS, prepared=prepared,
+                       estimates_path=tmp_path / "estimates.parquet", **small)
+    side = json.loads(open(paths["sidecar"]).read())
+    assert side["delayed_form"]["sigma_m"] == "folded" and "sigma_m folded" in side["delayed_form"]["reason"]
+    assert side["delayed_parameterization"]["R_mc"] == "centred"
+    assert side["delayed_priors"]["sigma_m_scale_gamma"] == [2.0, 8.0]
+    post = az.from_netcdf(paths["posterior"])["posterior"]
+    z = post["z_sigma_m"].values
+    np.testing.assert_allclose(post["sigma_m"].values, post["sigma_m_scale"].values[..., None] * np.abs(z),
+                               rtol=1e-12)
+
+
+@pytest.mark.slow
 def test_sampled_delays_fit_end_to_end(delayed_study):
     # --delay sampled: PyMC's NUTS beside DelayMetropolis; the sidecar records each subject's delay posterior, and
     # every artifact of the profile fit is written. Same seed, same draws.

@@ -182,12 +182,13 @@ class DelayedPriors:
 
 @dataclass(frozen=True)
 class DelayedForm:
-    """Centred or non-centred form of the lag and motor-noise blocks.
+    """Centred, non-centred or folded form of the lag and motor-noise blocks.
 
     ``centred`` samples the subject's value, τ_nm[i] ~ HalfNormal(s_τ) (σ_m[i] ~
     HalfNormal(s_m)); ``noncentred`` samples z[i] ~ HalfNormal(1) and sets s_τ z[i] (s_m z[i]);
-    ``folded`` samples z[i] ~ N(0, 1), unconstrained, and sets s_m |z[i]| (the same law; for σ_m
-    where the data find no motor noise, :mod:`pipelines.fit.delayed_forms`, "Motor noise").
+    ``folded`` samples z[i] ~ N(0, 1), unconstrained, and sets s_τ |z[i]| (s_m |z[i]|): the same
+    law, chosen for σ_m where the data find no motor noise (:mod:`pipelines.fit.delayed_forms`,
+    "Motor noise").
     ``rho`` is the form of ρ = R^(-1/2) with ``DelayedPriors(R_population="policy_scale")``
     (unused otherwise): ``centred``, ``noncentred``, ``folded`` (default), z[i] ~ N(0, 1) and
     ρ[i] = s_ρ |z[i]| (the same half-normal law, with z unconstrained where the log transform of

@@ -210,16 +210,10 @@ class DelayedForm:
 def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedForm):
     """The subjects' baseline log R as -2 log ρ, ρ = R^(-1/2) ~ HalfNormal(s_ρ) (``R_population="policy_scale"``)."""
     scale = pm.HalfNormal("rho_scale", delayed_priors.rho_prior_scale(priors))
-    n = len(pm.modelcontext(None).coords["subject"])
-    if form.rho == "centred":
-        rho = pm.HalfNormal("rho", scale, dims="subject")
-    elif form.rho == "noncentred":
-        rho = pm.Deterministic("rho", scale * pm.HalfNormal("z_rho", 1.0, dims="subject"), dims="subject")
-    elif form.rho == "folded":  # ρ = s_ρ |z|, z ~ N(0, 1) unconstrained, so ρ -> 0 is a finite step, not
-        # log ρ -> -∞; the initial point z = 1, not the prior's centre z = 0 (R = ∞, a human without policy noise).
-        z = pm.Normal("z_rho", 0.0, 1.0, dims="subject", initval=np.ones(n))
-        rho = pm.Deterministic("rho", scale * pt.abs(z), dims="subject")
+    if form.rho in MOTOR_FORMS:  # folded: ρ -> 0 is a finite step, not log ρ -> -∞; z = 1 is not R = ∞
+        rho = half_normal_block("rho", scale, form.rho)
     else:  # folded_centred: ρ = |ρ̃|, ρ̃ ~ N(0, s_ρ) unconstrained; starts at ρ = exp(-μ/2), R at the prior's centre.
+        n = len(pm.modelcontext(None).coords["subject"])
         signed = pm.Normal("rho_signed", 0.0, scale, dims="subject",
                            initval=np.full(n, np.exp(-0.5 * priors.mu_log_R[0])))
         rho = pm.Deterministic("rho", pt.abs(signed), dims="subject")
@@ -270,16 +264,22 @@ def motor_blocks(priors: DelayedPriors, form: DelayedForm):
         gamma = priors.sigma_m_scale_gamma if name == "sigma_m" else None
         scale = (pm.HalfNormal(scale_name, getattr(priors, scale_name)) if gamma is None
                  else pm.Gamma(scale_name, alpha=gamma[0], beta=gamma[1]))
-        if f == "centred":
-            out.append(pm.HalfNormal(name, scale, dims="subject"))
-        elif f == "noncentred":
-            out.append(pm.Deterministic(name, scale * pm.HalfNormal(f"z_{name}", 1.0, dims="subject"), dims="subject"))
-        else:  # folded: scale |z|, z ~ N(0, 1) unconstrained; starts at z = 1, off the symmetric point z = 0
-            n = len(pm.modelcontext(None).coords["subject"])
-            z = pm.Normal(f"z_{name}", 0.0, 1.0, dims="subject", initval=np.ones(n))
-            out.append(pm.Deterministic(name, scale * pt.abs(z), dims="subject"))
+        out.append(half_normal_block(name, scale, f))
     return tuple(out)
 
 
+def half_normal_block(name: str, scale, form: str):
+    """Per subject, ``name`` ~ HalfNormal(``scale``) in one of :data:`MOTOR_FORMS`: centred; non-centred
+    (scale · z, z ~ HalfNormal(1), named ``z_<name>``); folded (scale · |z|, z ~ N(0, 1) unconstrained,
+    starting at z = 1, off the symmetric point z = 0)."""
+    if form == "centred":
+        return pm.HalfNormal(name, scale, dims="subject")
+    if form == "noncentred":
+        return pm.Deterministic(name, scale * pm.HalfNormal(f"z_{name}", 1.0, dims="subject"), dims="subject")
+    n = len(pm.modelcontext(None).coords["subject"])
+    z = pm.Normal(f"z_{name}", 0.0, 1.0, dims="subject", initval=np.ones(n))
+    return pm.Deterministic(name, scale * pt.abs(z), dims="subject")
+
+
 __all__ = ["DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors", "MOTOR_FORMS", "RHO_FORMS",
-           "R_POPULATIONS", "baseline_log_R", "cost_blocks", "motor_blocks"]
+           "R_POPULATIONS", "baseline_log_R", "cost_blocks", "half_normal_block", "motor_blocks"]

@@ -20,9 +20,11 @@ def psis_summary(data, var_name: str, dim: str) -> tuple[dict, np.ndarray]:
     cannot be estimated (NaN: degenerate tail, e.g. repeated draws of a stuck chain)
     counts as above the threshold.
     """
+    reff = relative_ess(data)
+    log_weights, pareto_k = psis_weights(data["log_likelihood"][var_name], dim, reff)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the k warning is reported with numbers instead
-        res = az.loo(data, pointwise=True, var_name=var_name)
+        res = az.loo(data, pointwise=True, var_name=var_name, reff=reff, log_weights=log_weights, pareto_k=pareto_k)
     k = np.asarray(res.pareto_k, dtype=float).ravel()
     good = float(res.good_k)
     finite = np.isfinite(k).any()
@@ -35,6 +37,42 @@ def psis_summary(data, var_name: str, dim: str) -> tuple[dict, np.ndarray]:
                      f"by_{dim}": {str(u): float(v) for u, v in zip(res.pareto_k[dim].values, k)}},
     }
     return summary, np.asarray(res.elpd_i).ravel()
+
+
+def relative_ess(data) -> float:
+    """The relative ESS of the posterior ArviZ's ``loo`` uses by default: 1 for one chain, else the
+    mean ESS (method "mean") over every posterior variable and element divided by the draws."""
+    post = data["posterior"]
+    n = post.sizes["chain"] * post.sizes["draw"]
+    if post.sizes["chain"] == 1:
+        return 1.0
+    ess = post.to_dataset().azstats.ess(method="mean")
+    return float(np.hstack([np.ravel(ess[v].values) for v in ess.data_vars]).mean() / n)
+
+
+def psis_weights(log_lik: xr.DataArray, dim: str, reff: float) -> tuple[xr.DataArray, xr.DataArray]:
+    """Pareto-smoothed log weights and k of each observation along ``dim`` (ArviZ's ``psislw``).
+
+    An observation whose largest importance ratios are all equal (the draws of a stuck chain
+    repeat one value) has no tail to fit, and ArviZ raises for the whole data set; here that
+    observation keeps its raw self-normalized weights and a NaN k, which :func:`psis_summary`
+    counts as above the threshold, so the comparison says it is unreliable instead of the
+    fit failing after its sampling.
+    """
+    weights, ks = [], []
+    for i in range(log_lik.sizes[dim]):
+        one = log_lik.isel({dim: slice(i, i + 1)})
+        try:
+            w, k = one.azstats.psislw(r_eff=reff, dim=["chain", "draw"])
+        except ValueError as err:
+            if "tail" not in str(err):
+                raise
+            raw = -one.transpose(dim, "chain", "draw")
+            w = raw - np.logaddexp.reduce(raw.values.ravel())
+            k = xr.full_like(one.isel(chain=0, draw=0, drop=True), np.nan, dtype=float)
+        weights.append(w)
+        ks.append(k)
+    return xr.concat(weights, dim), xr.concat(ks, dim)
 
 
 #: The smallest leave-one-out importance-sampling ESS (``is_ess_loo``, :mod:`models.bayes.subject_loo`)

@@ -46,3 +46,42 @@ def test_a_comparison_is_reliable_only_with_low_k_and_enough_importance_points()
     both = comparison_reliability(summary(1, [400.0, 99.0]), summary(0, [400.0, 400.0]))
     assert reliability_words(both) == "UNRELIABLE (Pareto k above the threshold; importance-sampling ESS below 100)"
     assert reliability_words(ok) == "reliable"
+
+
+def _tree_of(ll, rng):
+    chains, draws = ll.shape[:2]
+    return xr.DataTree.from_dict({
+        "posterior": xr.Dataset({"a": (("chain", "draw"), rng.normal(size=(chains, draws))),
+                                 "b": (("chain", "draw", "s"), rng.normal(size=(chains, draws, 3)))}),
+        "log_likelihood": xr.Dataset({"y": (("chain", "draw", "segment"), ll)})})
+
+
+@pytest.mark.parametrize("chains", [1, 2, 4])
+def test_psis_summary_is_arviz_loo_bit_for_bit(chains):
+    import arviz as az
+
+    rng = np.random.default_rng(chains)
+    tree = _tree_of(rng.normal(size=(chains, 40, 5)) * rng.uniform(0.5, 3.0, size=5), rng)
+    summary, pointwise = psis_summary(tree, "y", "segment")
+    ref = az.loo(tree, pointwise=True, var_name="y")
+    assert summary["elpd_loo"] == float(ref.elpd) and summary["se"] == float(ref.se)
+    np.testing.assert_array_equal(pointwise, np.asarray(ref.elpd_i))
+    np.testing.assert_array_equal(list(summary["pareto_k"]["by_segment"].values()), np.asarray(ref.pareto_k))
+
+
+def test_a_stuck_chain_makes_the_psis_summary_unreliable_not_a_crash():
+    # One chain repeats one value for a segment (a stuck chain): its largest ratios are all equal and ArviZ's loo
+    # raises for the whole data set. The summary gives that segment a NaN k, counted above the threshold.
+    import arviz as az
+
+    rng = np.random.default_rng(3)
+    ll = rng.normal(size=(1, 30, 4))
+    ll[0, :, 1] = -3.0
+    tree = _tree_of(ll, rng)
+    with pytest.raises(ValueError, match="tail"):
+        az.loo(tree, pointwise=True, var_name="y")
+    summary, pointwise = psis_summary(tree, "y", "segment")
+    k = summary["pareto_k"]
+    assert np.isnan(k["by_segment"]["1"]) and k["n_nan"] == 1 and k["n_gt_threshold"] >= 1
+    assert np.all(np.isfinite(pointwise)) and pointwise[1] == pytest.approx(-3.0)  # raw weights: the constant
+    assert all(np.isfinite(k["by_segment"][s]) for s in ("0", "2", "3"))

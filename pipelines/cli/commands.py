@@ -239,7 +239,8 @@ def cmd_fit(args) -> int:
                        truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
                        human_model=args.human_model, delay_mode=args.delay,
                        delayed_priors=DelayedPriors(R_population=args.R_population), rho_form=args.rho_form,
-                       adaptation=args.adaptation, log_R_form=args.log_R_form, adequacy_at=args.adequacy_at)
+                       adaptation=args.adaptation, log_R_form=args.log_R_form, adequacy_at=args.adequacy_at,
+                       target_accept=args.target_accept)
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")

@@ -41,6 +41,7 @@ _nonnegative_seconds = _number(float, lambda v: math.isfinite(v) and v >= 0, "a 
 _level = _number(float, lambda v: 0 < v < 1, "a significance level between 0 and 1")
 _finite_float = _number(float, math.isfinite, "a finite number")
 _nonnegative_float = _number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0")
+_acceptance = _number(float, lambda v: 0 < v < 1, "a target acceptance rate between 0 and 1")
 
 
 def _window_spec(text: str) -> str:
@@ -237,10 +238,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
                    help="delayed, profile delays: mass matrix (default whitened per subject; low_rank, diag)")
-    p.add_argument("--compare-to", metavar="MAXENT_FIT",
-                   help="with --human-model delayed: a finished max-ent fit folder of the same study and settings; "
-                        "after the fit, leave-one-subject-out between the two human models, beside each one's "
-                        "adequacy verdict (OUT/human_models.json)")
+    p.add_argument("--target-accept", type=_acceptance, help="the sampler's target acceptance rate (default 0.9 for "
+                   "the delayed model's whitened fit, else nutpie's 0.8); raise it where transitions diverge")
+    p.add_argument("--compare-to", metavar="MAXENT_FIT", help="with --human-model delayed: a finished max-ent fit of "
+                   "the same study and settings; then leave-one-subject-out between the two human models, beside "
+                   "each one's adequacy verdict (OUT/human_models.json)")
     p.add_argument("--adequacy-at", choices=ADEQUACY_AT_NAMES, default="draw", help=_ADEQUACY_AT_HELP)
     _add_force_option(p)
     p.set_defaults(func=commands.cmd_fit)
@@ -356,10 +358,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="measured speed of the kernels, the identification, the full fit and SBC")
     p.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
-    p.add_argument("--parts", default="likelihood,delayed,identify,fit,sbc,example", metavar="LIST",
-                   help="comma-separated subset of likelihood, delayed (the delayed human model's likelihood), "
-                   "identify, fit (the full default-study fit, about 3 min), sbc and example (the second example's "
-                   "identify and fit; default: all)")
+    p.add_argument("--parts", default="likelihood,delayed,identify,fit,sbc,example", metavar="LIST", help="subset "
+                   "of likelihood, delayed (its likelihood), identify, fit (the default study's, about 3 min), sbc "
+                   "and example (the second example's identify and fit; default: all)")
     p.set_defaults(func=commands.cmd_bench)
 
     p = sub.add_parser("bench-fit", help="one fit of the default simulated study in a chosen parameterization (how "
@@ -381,9 +382,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--chains", type=_positive_int, default=4, help="chains (default 4)")
     g.add_argument("--draws", type=_positive_int, default=1000, help="draws per chain (default 1000)")
     g.add_argument("--tune", type=_positive_int, default=1000, help="tuning draws per chain (default 1000)")
-    g.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal",
-                   help="population of the subjects' baseline R (default lognormal; policy_scale: R^(-1/2) "
-                   "half-normal; unpooled: none, each subject's own prior)")
+    g.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal", help="the "
+                   "baseline R's population (default lognormal; policy_scale: R^(-1/2) half-normal; unpooled: none)")
     g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
     g.add_argument("--adaptation", choices=ADAPTATION_NAMES[1:], default="low_rank",

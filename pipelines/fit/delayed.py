@@ -207,7 +207,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                          tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors = DelayedPriors(),
                          delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
                          delay_mode: str = "profile", rho_form: str | None = None,
-                         adaptation: str | None = None, log_R: str | None = None) -> DelayedFit:
+                         adaptation: str | None = None, log_R: str | None = None,
+                         target_accept: float | None = None) -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
@@ -219,7 +220,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     ``rho_form`` (:data:`models.bayes.delayed_blocks.RHO_FORMS`, with ``R_population="policy_scale"``)
     replaces the ρ form of the chosen (or given) ``delayed_form``. ``adaptation``
     (:data:`models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None: the first, whitened)
-    chooses the coordinates and nutpie's mass matrix.
+    chooses the coordinates and nutpie's mass matrix; ``target_accept`` (None: the adaptation's, e.g.
+    :data:`models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`) the sampler's target acceptance rate.
     """
     if delay_mode not in DELAY_MODES:
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
@@ -227,7 +229,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
     adaptation = ADAPTATIONS[0] if adaptation is None else adaptation
     whiten = delay_mode == "profile" and adaptation == WHITENED
-    nuts = nutpie_options(adaptation)
+    nuts = nutpie_options(adaptation) | ({} if target_accept is None else {"target_accept": float(target_accept)})
     levels = prepared.settings.design.ordered_levels
     if log_R is not None and log_R not in LOG_R_FORMS:
         raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")
@@ -252,7 +254,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     if sampled:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
                                   show_progress=show_progress, steps=[delay_step(model, mode="NUMBA")],
-                                  initvals=start)
+                                  initvals=start, target_accept=target_accept)
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     elif whiten:
         idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
@@ -274,8 +276,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                "coordinates (pipelines/fit/whiten.py)" if whiten else ""),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
             "delayed_parameterization": {**asdict(form), "log_R_reason": R_reason},
-            **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled"} if sampled
-               else {"nutpie_options": dict(nuts)}),
+            **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled",
+                "pymc_nuts_options": {} if target_accept is None else {"target_accept": float(target_accept)}}
+               if sampled else {"nutpie_options": dict(nuts)}),
             "delayed_form": {**asdict(delayed_form), "reason": form_reason},
             **({"whitening": whitening} if whiten else {})}
     return DelayedFit(idata, diag, timing, delays, side)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import arviz as az
 import numpy as np
 
@@ -100,3 +102,53 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
         "convergence_verdict": "pass" if not failed else "fail: " + ", ".join(failed),
         "passed": not failed,
     }
+
+
+#: nutpie's target acceptance rate where a fit sets none (the max-ent fits; nutpie's default).
+NUTPIE_TARGET_ACCEPT = 0.8
+
+
+def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None) -> list[str]:
+    """What to try when a fit's sampler-convergence verdict fails, from the fit's own numbers; [] when it passes.
+
+    * Divergent transitions: refit with a higher target acceptance rate, halving the distance
+      to 1 (0.8 -> 0.9 -> 0.95): a smaller step size, so deeper trees (more gradients per
+      draw). Divergences that persist mark a region the sampler cannot enter; the draws are
+      then biased away from it, and the remedy is another form of the model, not more draws.
+    * Bulk or tail ESS below :data:`ESS_MIN`: the draws per chain at which the slowest such
+      parameter would reach it, if its ESS grows in proportion to the draws (as it does for a
+      chain at stationarity; a projection, rounded up to 100, not a promise).
+    * R-hat above :data:`RHAT_MAX`: the chains disagree; a longer warm-up and more draws, then
+      the verdict again. An R-hat that stays high means chains in different modes or regions.
+    """
+    if diag.get("passed", False):
+        return []
+    out = []
+    n_div = diag["sampler"]["divergences"]
+    if n_div:
+        ta = NUTPIE_TARGET_ACCEPT if target_accept is None else float(target_accept)
+        higher = round(1.0 - (1.0 - ta) / 2.0, 4)
+        out.append(f"{n_div} divergent transition{'s' * (n_div != 1)}: refit with --target-accept {higher:g} "
+                   f"(this fit: {ta:g}; smaller steps, deeper trees); divergences that persist mark a region the "
+                   "sampler cannot enter, and the model's form must change there, not the number of draws")
+    pop = diag["population"]
+    low = {k: min(p["ess_bulk"], p["ess_tail"]) for k, p in pop.items()
+           if min(p["ess_bulk"], p["ess_tail"]) < ESS_MIN}
+    if low:
+        worst = min(low, key=low.get)
+        ess = low[worst]
+        if ess > 0:
+            need = int(math.ceil(ESS_MIN / ess * draws / 100.0) * 100)
+            out.append(f"ESS of {worst} {ess:.0f} of {ESS_MIN} ({len(low)} parameter{'s' * (len(low) != 1)} short): "
+                       f"at this fit's ESS per draw about --draws {need} per chain (now {draws}, {chains} chains) "
+                       "would reach it, if the ESS grows in proportion to the draws")
+        else:
+            out.append(f"ESS of {worst} is 0: the chains do not move in it; more draws will not help")
+    high = [k for k, p in pop.items() if p["rhat"] > RHAT_MAX]
+    if high:
+        worst = max(high, key=lambda k: pop[k]["rhat"])
+        out.append(f"R-hat of {worst} {pop[worst]['rhat']:.3f} > {RHAT_MAX} ({len(high)} parameter"
+                   f"{'s' * (len(high) != 1)}): the chains disagree; refit with a longer --tune and more --draws, "
+                   "then judge again; an R-hat that stays high means chains in different regions")
+    return out
+

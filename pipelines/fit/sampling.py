@@ -22,7 +22,7 @@ def child_seeds(seed: int) -> dict:
 
 def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores: int | None = None,
                  show_progress: bool = False, log_likelihood: bool = True, nuts: dict | None = None, steps=None,
-                 initvals: dict | None = None):
+                 initvals: dict | None = None, target_accept: float | None = None):
     """Sample ``model`` with nutpie (through ``pm.sample``) and add the pointwise log-likelihood.
 
     ``log_likelihood=False`` skips the pointwise log-likelihood (for timing the fit alone).
@@ -40,6 +40,9 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     With nutpie the warm-up's leapfrog steps are counted and its draws dropped
     (:func:`keep_tuning_steps`).
 
+    ``target_accept``: the NUTS target acceptance rate (nutpie's, or PyMC's NUTS's beside ``steps``),
+    over any in ``nuts``; None leaves the sampler's own (nutpie's 0.8, or ``nuts``'s).
+
     ``initvals``: where the chains start (RV name -> value; :func:`pipelines.fit.start.start_point`),
     jittered per chain as PyMC's own start is; passed on only when given.
 
@@ -52,14 +55,16 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     """
     import pymc as pm  # lazy: PyMC takes seconds to import
 
+    if target_accept is not None:
+        nuts = {**(nuts or {}), "target_accept": float(target_accept)}
     t0 = time.perf_counter()
     # On a terminal the sampler's own table; in a log file (not a terminal) a line a minute instead, as the
     # table would appear only when the fit has ended.
     lines = show_progress and not steps and not sys.stderr.isatty()
     with stdout_to_stderr(), interrupt_guard() as interrupted, progress_lines(lines):
         sampler = ({"step": list(steps), "compute_convergence_checks": False, "compile_kwargs": {"mode": "NUMBA"}}
-                   if steps else {"nuts_sampler": "nutpie", "discard_tuned_samples": False,
-                                  **({"nuts": dict(nuts)} if nuts else {})})
+                   if steps else {"nuts_sampler": "nutpie", "discard_tuned_samples": False})
+        sampler.update({"nuts": dict(nuts)} if nuts else {})
         try:
             idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
                               random_seed=seed, progressbar=show_progress and not lines,

@@ -63,7 +63,7 @@ from pipelines.fit.artifacts import require_netcdf, strict_json, write_netcdf
 from pipelines.fit.checks import ADEQUACY_POINTS, mixedlm_check, posterior_adequacy, truth_check
 from pipelines.fit.contrasts import contrasts
 from pipelines.fit.delayed import DELAY_MODES, delayed_adequacy, delayed_results, sample_delayed_model, unit_delays
-from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, RHAT_MAX, diagnostics
+from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, NUTPIE_TARGET_ACCEPT, RHAT_MAX, diagnostics
 from pipelines.fit.loo import loo_comparison, subject_loo_comparison
 from pipelines.fit.ppc import PPC_DRAWS, constant_data, posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import child_seeds, sample_model
@@ -155,7 +155,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
                human_model: str | None = None, delay_mode: str = "profile",
                delayed_priors: DelayedPriors = DelayedPriors(), rho_form: str | None = None,
-               adaptation: str | None = None, log_R_form: str | None = None, adequacy_at: str = "draw") -> dict:
+               adaptation: str | None = None, log_R_form: str | None = None, adequacy_at: str = "draw",
+               target_accept: float | None = None) -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
 
     Parameters
@@ -207,6 +208,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         and the form of the log R blocks (its ``log_R``; None: chosen by the data).
     adequacy_at : {"draw", "means"}
         The posterior point of the adequacy check (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
+    target_accept : float, optional
+        The sampler's target acceptance rate, in (0, 1) (None: the fit's own, recorded in the
+        sidecar: nutpie's 0.8, the delayed model's whitened fit 0.9).
 
     Returns
     -------
@@ -231,6 +235,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     if adaptation is not None and human_model != "delayed":
         raise ValueError(f"adaptation (nutpie's mass matrix) is the delayed fit's option; got {adaptation!r} with "
                          f"{human_model!r}")
+    if target_accept is not None and not 0.0 < target_accept < 1.0:
+        raise ValueError(f"--target-accept must lie between 0 and 1; got {target_accept!r}")
     if adequacy_at not in ADEQUACY_POINTS:
         raise ValueError(f"--adequacy-at must be one of {', '.join(ADEQUACY_POINTS)}; got {adequacy_at!r}")
     if human_model != settings.human_model and settings.human_model != "maxent":
@@ -284,7 +290,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         fit = sample_delayed_model(prepared, batch, plant, priors, form, delays, seed=seeds["condition"], chains=chains,
                                    draws=draws, tune=tune, cores=cores, show_progress=show_progress,
                                    estimates=estimates, delay_mode=delay_mode, delayed_priors=delayed_priors,
-                                   rho_form=rho_form, adaptation=adaptation, log_R=log_R_form)
+                                   rho_form=rho_form, adaptation=adaptation, log_R=log_R_form,
+                                   target_accept=target_accept)
         delays = fit.delays  # sampled: each subject's posterior mode
         fits, diag, extra = {"condition": fit.idata}, {"condition": fit.diagnostics}, fit.sidecar
         timing["condition"] = fit.timing
@@ -302,7 +309,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                                 condition_effects=effects, priors=priors, levels=levels, parameterization=form)
             t1 = time.perf_counter()
             idata, sec = sample_model(model, seed=seeds[name], chains=chains, draws=draws, tune=tune, cores=cores,
-                                      show_progress=show_progress)
+                                      show_progress=show_progress, target_accept=target_accept)
             fits[name] = idata
             timing[name] = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
         diag = {name: diagnostics(d, timing[name]["sample_s"]) for name, d in fits.items()}
@@ -339,7 +346,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options"), "whitening" in extra),
                     "chains": int(chains), "draws": int(draws), "tune": int(tune),
                     "cores": int(min(chains, cores or os.cpu_count() or 1)),
-                    "target_accept": (extra.get("nutpie_options") or {}).get("target_accept", 0.8)},
+                    "target_accept": (target_accept if target_accept is not None else
+                                      (extra.get("nutpie_options") or {}).get("target_accept", NUTPIE_TARGET_ACCEPT))},
         "identify_settings": settings.as_dict(),
         "priors": asdict(priors),
         "parameterization": {**asdict(form), "reason": form_reason},

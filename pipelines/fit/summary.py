@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from pipelines.adequacy import format_adequacy, not_checked
+from pipelines.fit.diagnostics import remedies
 from pipelines.fit.loo import reliability_words
 
 
@@ -18,6 +19,14 @@ def _beta_lines(b: dict, r: dict, what: str) -> list:
 def _truth_line(t: dict, level: str = "") -> str:
     return (f"true beta{level} {t['truth']:g}: {'inside' if t['in_hdi'] else 'outside'} the HDI "
             f"(posterior mean - truth = {t['discrepancy']:+.3f})")
+
+
+def fit_remedies(side: dict) -> list[tuple[str, str]]:
+    """``(model, remedy)`` for each fitted model of a sidecar whose convergence verdict fails
+    (:func:`pipelines.fit.diagnostics.remedies`, at the fit's own chains, draws and target acceptance)."""
+    s = side["sampler"]
+    return [(name, text) for name, d in side["diagnostics"].items()
+            for text in remedies(d, chains=s["chains"], draws=s["draws"], target_accept=s.get("target_accept"))]
 
 
 def format_fit(out) -> str:
@@ -39,6 +48,7 @@ def format_fit(out) -> str:
         lines.append(f"human model: {side['human_model']} (delays: {side['delay']['source']})")
     lines.append(f"sampler convergence: condition model {conv['condition']}"
                  + (f"; pooled model {conv['pooled']}" if "pooled" in conv else ""))
+    lines += [f"  to try ({name} model): {text}" for name, text in fit_remedies(side)]
     if "contrasts" in res:
         for level, c in res["contrasts"].items():
             lines += _beta_lines(c["beta"], c["ratio"], f"mean change of log theta1, {level} against {res['baseline']}")
@@ -68,4 +78,4 @@ def format_fit(out) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["format_fit"]
+__all__ = ["fit_remedies", "format_fit"]

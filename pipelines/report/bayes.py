@@ -16,6 +16,7 @@ import pandas as pd
 from markupsafe import Markup
 
 from models.design import STUDY, Design
+from pipelines.fit.summary import fit_remedies
 from pipelines.report import figures
 from pipelines.report.contrasts import blocks, label, section_forest, section_methods, section_truth_check
 from pipelines.report.levels import assisted, joined, window_noun
@@ -56,7 +57,7 @@ def section_diagnostics(side: dict, design: Design = STUDY) -> Markup:
     units = pd.DataFrame(urow).rename(columns={"rhat_max": "max R-hat", "ess_bulk_min": "min bulk ESS",
                                                "ess_tail_min": "min tail ESS"})
     return render("diagnostics.html.j2", s=side["sampler"], seed=side["seed"], crit=crit,
-                  verdicts=list(side["diagnostics"].items()),
+                  verdicts=list(side["diagnostics"].items()), remedies=fit_remedies(side),
                   models=table(pd.DataFrame(rows), left=("model", "min ESS (parameter)")),
                   population=table(pd.DataFrame(prow), fmt={"bulk ESS": lambda v: f"{v:.0f}",
                                                             "tail ESS": lambda v: f"{v:.0f}"}, left=("parameter",)),

@@ -121,3 +121,15 @@ def test_the_adequacy_points_are_the_checks():
     assert ADEQUACY_AT_NAMES == ADEQUACY_POINTS
     assert build_parser().parse_args(["fit", "S", "--out", "D"]).adequacy_at == "draw"
     assert build_parser().parse_args(["adequacy", "F"]).at == "draw"
+
+
+@pytest.mark.parametrize("text", ["0", "1", "1.2", "-0.5", "nan", "x"])
+def test_fit_target_accept_is_a_rate_between_0_and_1(text, capsys):
+    from pipelines.cli.parser import build_parser
+
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(["fit", "s.parquet", "--out", "o", "--target-accept", text])
+    assert exc.value.code == 2 and "--target-accept: expected a target acceptance rate between 0 and 1" in \
+        capsys.readouterr().err
+    assert build_parser().parse_args(["fit", "s.parquet", "--out", "o", "--target-accept", "0.95"]).target_accept == 0.95
+    assert build_parser().parse_args(["fit", "s.parquet", "--out", "o"]).target_accept is None

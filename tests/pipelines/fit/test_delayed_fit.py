@@ -83,6 +83,12 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert res["adequacy"]["verdict"] in ("pass", "fail")
     text = format_fit(root / "fit_delayed")
     assert "human model: delayed" in text and "pooled" not in text and "tau_nm: truth" in text
+    # A tiny fit's verdict fails; its advice comes from its own numbers (tests/pipelines/fit/test_diagnostics.py).
+    side = json.loads(open(delayed_fit["sidecar"]).read())
+    assert side["convergence_verdict"]["condition"] != "pass"
+    advice = [line for line in text.splitlines() if line.startswith("  to try (condition model): ")]
+    assert advice and (side["diagnostics"]["condition"]["sampler"]["divergences"] == 0) == (
+        "divergent" not in advice[0])
 
 
 @pytest.mark.slow

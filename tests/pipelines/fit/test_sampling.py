@@ -91,3 +91,23 @@ def test_the_warm_up_steps_are_counted_and_its_draws_dropped_without_changing_th
     plain = pm.sample(draws=40, tune=30, chains=2, cores=1, random_seed=3, nuts_sampler="nutpie", progressbar=False,
                       model=model)
     np.testing.assert_array_equal(idata["posterior"]["mu_log_theta1"].values, plain["posterior"]["mu_log_theta1"].values)
+
+
+def test_target_accept_reaches_the_sampler_and_changes_its_step_size():
+    """``target_accept`` is nutpie's: a higher rate adapts a smaller step size (the same seed otherwise);
+    merged over the other nutpie options given."""
+    import numpy as np
+    import pymc as pm
+
+    from pipelines.fit.sampling import sample_model
+
+    with pm.Model() as model:
+        mu = pm.Normal("mu", 0.0, 1.0)
+        pm.Normal("y", mu, pm.HalfNormal("s", 1.0), observed=np.array([0.1, 0.3, -0.5]))
+    step = {}
+    for ta in (None, 0.8, 0.99):
+        idata, _ = sample_model(model, seed=3, chains=1, draws=30, tune=200, cores=1, target_accept=ta,
+                                nuts={"adaptation": "diag"})
+        step[ta] = float(idata["sample_stats"]["step_size"].values[0, -1])
+    assert step[None] == step[0.8]  # nutpie's default is 0.8
+    assert step[0.99] < 0.7 * step[0.8]

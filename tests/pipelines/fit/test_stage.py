@@ -187,6 +187,9 @@ def test_fit_options_are_validated(tiny_study):
         fit_to_dir(root / "data" / "study.parquet", root / "x", subject="S99", draws=10)
     with pytest.raises(ValueError, match="adaptation .* is the delayed fit's option; got 'diag' with 'maxent'"):
         fit_to_dir(root / "data" / "study.parquet", root / "x", human_model="maxent", adaptation="diag")
+    for bad in (0.0, 1.0, 1.5):
+        with pytest.raises(ValueError, match="--target-accept must lie between 0 and 1"):
+            fit_to_dir(root / "data" / "study.parquet", root / "x", target_accept=bad)
     assert not (root / "x").exists()
 
 

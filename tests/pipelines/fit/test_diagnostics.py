@@ -1,0 +1,42 @@
+"""What ``scioc fit`` advises when its sampler-convergence verdict fails (:func:`pipelines.fit.diagnostics.remedies`)."""
+
+import pytest
+
+from pipelines.fit.diagnostics import ESS_MIN, RHAT_MAX, remedies
+
+
+def _diag(divergences=0, population=None):
+    population = population or {"beta": {"rhat": 1.001, "ess_bulk": 2000.0, "ess_tail": 1800.0}}
+    failed = divergences or any(p["rhat"] > RHAT_MAX or min(p["ess_bulk"], p["ess_tail"]) < ESS_MIN
+                                for p in population.values())
+    return {"sampler": {"divergences": divergences}, "population": population, "passed": not failed}
+
+
+def test_a_passing_fit_gets_no_advice():
+    assert remedies(_diag(), chains=4, draws=1000, target_accept=0.9) == []
+
+
+@pytest.mark.parametrize("ta, higher", [(None, "0.9"), (0.8, "0.9"), (0.9, "0.95"), (0.95, "0.975")])
+def test_divergences_ask_for_a_higher_target_acceptance_halving_the_distance_to_1(ta, higher):
+    (text,) = remedies(_diag(divergences=3), chains=4, draws=1000, target_accept=ta)
+    assert text.startswith("3 divergent transitions: refit with --target-accept " + higher + " ")
+    assert f"(this fit: {0.8 if ta is None else ta:g};" in text and "form must change" in text
+
+
+def test_short_ess_projects_the_draws_that_would_reach_the_threshold_from_the_slowest_parameter():
+    pop = {"beta": {"rhat": 1.002, "ess_bulk": 900.0, "ess_tail": 800.0},
+           "sigma_m_scale": {"rhat": 1.008, "ess_bulk": 299.0, "ess_tail": 419.0},
+           "mu_log_R": {"rhat": 1.004, "ess_bulk": 390.0, "ess_tail": 500.0}}
+    (text,) = remedies(_diag(population=pop), chains=4, draws=1000, target_accept=0.9)
+    # 400 / 299 × 1000 = 1337.8 draws per chain, rounded up to 1400
+    assert text.startswith("ESS of sigma_m_scale 299 of 400 (2 parameters short): ")
+    assert "--draws 1400 per chain (now 1000, 4 chains)" in text
+
+
+def test_high_rhat_and_divergences_are_both_advised_and_a_stuck_parameter_is_not_sent_for_more_draws():
+    pop = {"mu_log_R": {"rhat": 1.059, "ess_bulk": 0.0, "ess_tail": 0.0},
+           "beta": {"rhat": 1.02, "ess_bulk": 700.0, "ess_tail": 650.0}}
+    out = remedies(_diag(divergences=1, population=pop), chains=4, draws=1000, target_accept=0.9)
+    assert out[0].startswith("1 divergent transition: refit with --target-accept 0.95")
+    assert out[1] == "ESS of mu_log_R is 0: the chains do not move in it; more draws will not help"
+    assert out[2].startswith("R-hat of mu_log_R 1.059 > 1.01 (2 parameters): the chains disagree")

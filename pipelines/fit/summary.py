@@ -24,7 +24,9 @@ def _truth_line(t: dict, level: str = "") -> str:
 def fit_remedies(side: dict) -> list[tuple[str, str]]:
     """``(model, remedy)`` for each fitted model of a sidecar whose convergence verdict fails
     (:func:`pipelines.fit.diagnostics.remedies`, at the fit's own chains, draws and target acceptance)."""
-    s = side["sampler"]
+    s = side.get("sampler")
+    if s is None or "diagnostics" not in side:
+        return []
     return [(name, text) for name, d in side["diagnostics"].items()
             for text in remedies(d, chains=s["chains"], draws=s["draws"], target_accept=s.get("target_accept"))]
 

@@ -30,6 +30,7 @@ import pandas as pd
 from markupsafe import Markup
 
 from models.design import STUDY, Design
+from pipelines.fit.summary import fit_remedies
 from pipelines.report.contrasts import blocks
 from pipelines.report.identify import tests_by_level
 from pipelines.report.levels import contrast_label, joined
@@ -61,6 +62,7 @@ class ModelRun(NamedTuple):
     tests: dict | None  # compare.json
     fit: dict | None  # contrasts.json
     convergence: str | None = None  # the sampler-convergence verdict of the fit with condition effects (posterior.json)
+    remedies: tuple = ()  # what to try where that verdict fails (pipelines.fit.summary.fit_remedies)
 
 
 def read_models(root) -> dict[str, ModelRun]:
@@ -75,7 +77,8 @@ def read_models(root) -> dict[str, ModelRun]:
         side = read_artifact(root / fit / "posterior.json")
         out[name] = ModelRun(name, meta.get("adequacy"), None if res is None else res.get("adequacy") or {},
                              read_artifact(root / tests), res,
-                             None if side is None else (side.get("convergence_verdict") or {}).get("condition"))
+                             None if side is None else (side.get("convergence_verdict") or {}).get("condition"),
+                             () if side is None else tuple(t for m, t in fit_remedies(side) if m == "condition"))
     return out
 
 
@@ -195,6 +198,8 @@ def _table(models: dict[str, ModelRun], hm: dict | None, design: Design) -> Mark
             ("adequacy at the posterior θ (fit)",
              {k: "no fit" if m.posterior is None else verdict_words(m.posterior) for k, m in models.items()}),
             ("sampler convergence (fit)", {k: m.convergence or "no fit" for k, m in models.items()})]
+    if any(m.remedies for m in models.values()):
+        rows.append(("what to try (fit's sampler)", {k: "; ".join(m.remedies) or "—" for k, m in models.items()}))
     for v in design.contrasts:
         label = contrast_label(design, v)
         rows.append((f"Wilcoxon on θ1, {label}",

@@ -230,6 +230,17 @@ def test_a_beta_from_a_sampler_that_did_not_converge_says_so_wherever_it_appears
     html = _text(section(root, STUDY, measured=True))
     assert "sampler convergence (fit)" in html and failed in html
     assert html.count("not a result to rely on") == 2  # the table's β and the conclusion's; max-ent's β unflagged
+    assert "what to try" not in html  # no diagnostics recorded, no advice
+    # With the fit's diagnostics the table says what to try, from its own numbers (pipelines.fit.diagnostics.remedies)
+    side = json.loads((root / "fit_delayed" / "posterior.json").read_text())
+    side.update(sampler={"chains": 4, "draws": 1000, "target_accept": 0.9}, diagnostics={"condition": {
+        "sampler": {"divergences": 2}, "passed": False,
+        "population": {"sigma_m_scale": {"rhat": 1.03, "ess_bulk": 128.0, "ess_tail": 192.0}}}})
+    (root / "fit_delayed" / "posterior.json").write_text(json.dumps(side))
+    assert len(read_models(root)["delayed"].remedies) == 3
+    html = _text(section(root, STUDY, measured=True))
+    assert "what to try (fit's sampler)" in html and "refit with --target-accept 0.95" in html
+    assert "about --draws 3200 per chain" in html and "R-hat of sigma_m_scale 1.030" in html
 
 
 def test_too_few_importance_points_make_the_loso_unreliable_and_the_section_says_why(tmp_path):

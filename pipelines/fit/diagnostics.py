@@ -132,10 +132,11 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
                    f"(this fit: {ta:g}; smaller steps, deeper trees); divergences that persist mark a region the "
                    "sampler cannot enter, and the model's form must change there, not the number of draws")
     pop = diag["population"]
+    # NaN (a parameter that never moved) fails the verdict's checks, so it is advised on here too
     low = {k: min(p["ess_bulk"], p["ess_tail"]) for k, p in pop.items()
-           if min(p["ess_bulk"], p["ess_tail"]) < ESS_MIN}
+           if not min(p["ess_bulk"], p["ess_tail"]) >= ESS_MIN}
     if low:
-        worst = min(low, key=low.get)
+        worst = min(low, key=lambda k: -1.0 if math.isnan(low[k]) else low[k])
         ess = low[worst]
         if ess > 0:
             need = int(math.ceil(ESS_MIN / ess * draws / 100.0) * 100)
@@ -143,10 +144,10 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
                        f"at this fit's ESS per draw about --draws {need} per chain (now {draws}, {chains} chains) "
                        "would reach it, if the ESS grows in proportion to the draws")
         else:
-            out.append(f"ESS of {worst} is 0: the chains do not move in it; more draws will not help")
-    high = [k for k, p in pop.items() if p["rhat"] > RHAT_MAX]
+            out.append(f"ESS of {worst} is {ess:.0f}: the chains do not move in it; more draws will not help")
+    high = [k for k, p in pop.items() if not p["rhat"] <= RHAT_MAX]
     if high:
-        worst = max(high, key=lambda k: pop[k]["rhat"])
+        worst = max(high, key=lambda k: math.inf if math.isnan(pop[k]["rhat"]) else pop[k]["rhat"])
         out.append(f"R-hat of {worst} {pop[worst]['rhat']:.3f} > {RHAT_MAX} ({len(high)} parameter"
                    f"{'s' * (len(high) != 1)}): the chains disagree; refit with a longer --tune and more --draws, "
                    "then judge again; an R-hat that stays high means chains in different regions")

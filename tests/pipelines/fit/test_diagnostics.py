@@ -40,3 +40,15 @@ def test_high_rhat_and_divergences_are_both_advised_and_a_stuck_parameter_is_not
     assert out[0].startswith("1 divergent transition: refit with --target-accept 0.95")
     assert out[1] == "ESS of mu_log_R is 0: the chains do not move in it; more draws will not help"
     assert out[2].startswith("R-hat of mu_log_R 1.059 > 1.01 (2 parameters): the chains disagree")
+
+
+def test_a_parameter_that_never_moved_fails_the_verdict_and_is_advised_on():
+    # NaN R-hat and ESS (a constant parameter): the verdict's checks fail on NaN, so the advice must say something.
+    nan = float("nan")
+    pop = {"s_m": {"rhat": nan, "ess_bulk": nan, "ess_tail": nan},
+           "beta": {"rhat": 1.02, "ess_bulk": 700.0, "ess_tail": 650.0}}
+    diag = {"sampler": {"divergences": 0}, "population": pop, "passed": False}
+    out = remedies(diag, chains=4, draws=1000, target_accept=0.9)
+    assert out == ["ESS of s_m is nan: the chains do not move in it; more draws will not help",
+                   out[1]] and out[1].startswith("R-hat of s_m nan > 1.01 (2 parameters)")
+

@@ -64,7 +64,8 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     with stdout_to_stderr(), interrupt_guard() as interrupted, progress_lines(lines):
         sampler = ({"step": list(steps), "compute_convergence_checks": False, "compile_kwargs": {"mode": "NUMBA"}}
                    if steps else {"nuts_sampler": "nutpie", "discard_tuned_samples": False})
-        sampler.update({"nuts": dict(nuts)} if nuts else {})
+        if nuts:
+            sampler["nuts"] = dict(nuts)
         try:
             idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores or os.cpu_count() or 1,
                               random_seed=seed, progressbar=show_progress and not lines,

@@ -45,7 +45,7 @@ from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import sample_model
-from pipelines.fit.start import start_point
+from pipelines.fit.start import SCALE_TARGETS, start_point
 from pipelines.fit.whiten import sample_whitened
 from pipelines.io import InputDataError
 
@@ -270,10 +270,12 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                "models/bayes/delayed_model.py says what that costs")},
             "tau0": "each window's arm torque follows from the torques before it (PreparedSegment.warmup) "
                     "at every τ_nm",
-            "start": ("the chains start near the ML estimates (pipelines/fit/start.py), jittered" if start else
+            "start": ("the chains start near the ML estimates (pipelines/fit/start.py), the population scales held at "
+                      "their units' spread (start_scales), jittered" if start else
                       "the chains start at PyMC's initial point (no ML estimates), jittered")
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
                "coordinates (pipelines/fit/whiten.py)" if whiten else ""),
+            "start_scales": {k: np.asarray(start[k]).tolist() for k in SCALE_TARGETS if k in (start or {})},
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
             "delayed_parameterization": {**asdict(form), "log_R_reason": R_reason},
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled",

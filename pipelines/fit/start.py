@@ -18,7 +18,8 @@ evaluation of the likelihood (milliseconds per gradient, whatever the forms of t
 The result is a starting point only: the chains are jittered around it as around PyMC's own
 (U(-1, 1) on the unconstrained scale), tuning still runs, and the posterior is the model's.
 The population scales (every positive free variable without a subject dimension: σ_log θ1,
-σ_β, τ_θ2, s_τ, s_m, ...) are held at PyMC's initial point, not optimized. A hierarchical prior's
+σ_β, τ_θ2, s_τ, s_m, ...) are held, not optimized: at the spread of their units' targets where
+:data:`SCALE_TARGETS` names them (:func:`scale_estimate`), else at PyMC's initial point. A hierarchical prior's
 density grows without bound as a population scale goes to 0 with its units on their centre, so
 where the targets agree within their SEs the optimum is a funnel's neck. On the 3-subject ``kbl``
 study of ``tests/pipelines/fit/test_delayed_fit.py`` the optimizer put σ_log θ1 at 0; one of the
@@ -30,6 +31,13 @@ scales held). A start that the optimizer cannot improve on PyMC's own is not use
 delayed fit without ``--estimates`` takes them from its own delay profile's ML points,
 :func:`pipelines.fit.delayed.unit_delays`). Discrete variables (the
 sampled delays of ``--delay sampled``) stay at PyMC's initial point too.
+
+Why the held scales start at their targets' spread: PyMC's initial point is the prior's scale
+(0.1 s for s_τ), and the posterior of a human without lag has s_τ near 5e-5 s: 8 units of log s_τ,
+seven posterior SDs, away (s_m, τ_θ2, σ_log R and σ_β,log R two to seven). On 12 subjects of the
+max-ent human the chains spent their first 30 warm-up draws travelling there, at trees of 127-1023
+leapfrog steps (the warm-up draws of ``scioc fit ... --chains 2 --tune 300``, read ad hoc); that
+first tenth of the warm-up cost 206-336 steps per draw against 30-45 after it.
 """
 
 from __future__ import annotations
@@ -48,6 +56,73 @@ SUBJECT_TARGETS = {"tau_nm": ("tau_nm", "se_tau_nm"), "sigma_m": ("sigma_m", "se
 SE_FLOOR = {"log_theta1": 0.05, "log_R": 0.1, "theta2": 0.02, "tau_nm": 0.002, "sigma_m": 0.005}
 #: The optimizer's box on every unconstrained coordinate (exp(-50) is still a positive scale).
 UNCONSTRAINED_BOUND = 50.0
+#: Population scales held at their units' spread (:func:`scale_estimate`): scale -> (unit target, which values):
+#: "baseline" the first condition's values (a normal population about a centre), "shift" each later condition's
+#: change from the first (per level), "zero" every value (a half-normal population: the spread about 0).
+SCALE_TARGETS = {"sigma_log_theta1": ("log_theta1", "baseline"), "sigma_beta": ("log_theta1", "shift"),
+                 "sigma_log_R": ("log_R", "baseline"), "sigma_beta_log_R": ("log_R", "shift"),
+                 "tau_theta2": ("theta2", "zero"), "tau_nm_scale": ("tau_nm", "zero"),
+                 "sigma_m_scale": ("sigma_m", "zero")}
+
+
+def scale_estimate(values, se, *, centred: bool, upper: float) -> float | None:
+    """The spread s of a population from its units' estimates v_i and SEs se_i (None with too few).
+
+    The maximum over t = log s of  t + Σ_i log N(v_i; c, s² + se_i²), with c fitted too
+    (``centred``) or 0 (a half-normal population), and s <= ``upper``: type-II maximum likelihood
+    with the start's Gaussian stand-in for each unit's likelihood, on the log scale the sampler
+    moves s on (the t is its Jacobian, as under a flat prior on s). Without the SEs the
+    maximum is s² = Σ(v - c)²/(n - 1); where the values agree within their SEs it is about
+    se/√(n - 1), not the funnel's neck s = 0 that a maximum over s itself would give.
+    """
+    from scipy.optimize import minimize
+
+    v, e = np.asarray(values, dtype=float).ravel(), np.asarray(se, dtype=float).ravel()
+    ok = np.isfinite(v) & np.isfinite(e)
+    v, e2 = v[ok], e[ok] ** 2
+    if v.size < 2 or not np.isfinite(upper) or upper <= 0:
+        return None
+
+    def negative(p):
+        t, c = p[0], (p[1] if centred else 0.0)
+        V = np.exp(2 * t) + e2
+        return -t + 0.5 * float(np.sum(np.log(V) + (v - c) ** 2 / V))
+
+    t_max = float(np.log(upper))
+    x0, bounds = [min(t_max, float(np.log(np.std(v) + np.sqrt(np.mean(e2)))))], [(-UNCONSTRAINED_BOUND, t_max)]
+    if centred:
+        x0, bounds = x0 + [float(np.mean(v))], bounds + [(None, None)]
+    res = minimize(negative, x0, method="L-BFGS-B", bounds=bounds)
+    return float(np.exp(res.x[0])) if np.isfinite(res.fun) else None
+
+
+def _held_scale_values(model, targets: dict) -> dict:
+    """RV name -> its start (constrained) for the held scales of :data:`SCALE_TARGETS` that ``targets`` inform
+    (log-transformed ones), never above PyMC's initial point (the prior's scale)."""
+    from pymc.logprob.transforms import LogTransform
+
+    ip = model.initial_point()
+    out = {}
+    for name, (target, which) in SCALE_TARGETS.items():
+        rv = model.named_vars.get(name)
+        if (rv is None or rv not in model.free_RVs or target not in targets
+                or not isinstance(model.rvs_to_transforms.get(rv), LogTransform)):
+            continue
+        value, se = targets[target]
+        se = np.maximum(np.nan_to_num(se, nan=np.inf), SE_FLOOR[target])  # as the stand-in's penalty floors them
+        if which == "zero":
+            groups = [(value, se, False)]
+        elif which == "baseline":
+            groups = [(value[:, 0], se[:, 0], True)]
+        else:
+            groups = [(value[:, j] - value[:, 0], np.hypot(se[:, j], se[:, 0]), True)
+                      for j in range(1, value.shape[1])]
+        t0 = np.asarray(ip[model.rvs_to_values[rv].name], dtype=float)
+        uppers = np.broadcast_to(np.exp(t0), (len(groups),))
+        est = [scale_estimate(v, e, centred=c, upper=float(u)) for (v, e, c), u in zip(groups, uppers)]
+        if t0.size == len(est) and all(x is not None for x in est):
+            out[name] = np.asarray(est, dtype=float).reshape(t0.shape)
+    return out
 
 
 def _se_at_bound(value, se) -> np.ndarray:
@@ -138,6 +213,8 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
         penalty = penalty + 0.5 * pt.sum(pt.where(ok, z, 0.0) ** 2)
     objective = -model.varlogp + model.replace_rvs_by_values([penalty])[0]
     ip = model.initial_point()
+    for name, value in _held_scale_values(model, targets).items():
+        ip[model.rvs_to_values[model.named_vars[name]].name] = np.log(value)
     [obj], flat = join_nonshared_inputs(ip, [objective], model.value_vars)
     # PyMC's compile turns a parameter check (sigma > 0, ...) into an objective of +inf, not an exception.
     fn = compile_pymc([flat], [obj, pt.grad(obj, flat)])
@@ -145,7 +222,7 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
     x0 = raveled.data.astype(float)
     f0 = float(fn(x0)[0])
     # Bounds on the unconstrained scale keep exp() of a log-transformed scale positive in floating point.
-    # Population scales (module docstring) and discrete variables are held at PyMC's initial point (equal bounds).
+    # Population scales (module docstring) and discrete variables are held (equal bounds).
     held = held_mask(model, raveled.point_map_info)
     bounds = [(x, x) if h else (-UNCONSTRAINED_BOUND, UNCONSTRAINED_BOUND) for x, h in zip(x0, held)]
     res = minimize(lambda x: tuple(np.asarray(a, float) for a in fn(x)), x0, jac=True, method="L-BFGS-B",
@@ -159,4 +236,5 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
     return {rv.name: np.asarray(val) for rv, val in zip(rvs, values)}
 
 
-__all__ = ["SE_FLOOR", "held_mask", "SUBJECT_TARGETS", "UNCONSTRAINED_BOUND", "UNIT_TARGETS", "start_point"]
+__all__ = ["SCALE_TARGETS", "SE_FLOOR", "held_mask", "scale_estimate", "start_point", "SUBJECT_TARGETS",
+           "UNCONSTRAINED_BOUND", "UNIT_TARGETS"]

@@ -52,6 +52,10 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     side = json.loads(open(delayed_fit["sidecar"]).read())
     assert side["human_model"] == "delayed"
     assert side["start"].startswith("the chains start near the ML estimates")  # the fit's own profile's, no --estimates
+    # the population scales held at their units' spread, each below its prior's scale (PyMC's initial point)
+    assert set(side["start_scales"]) == {"sigma_log_theta1", "sigma_beta", "sigma_log_R", "sigma_beta_log_R",
+                                         "tau_theta2", "tau_nm_scale", "sigma_m_scale"}
+    assert all(0 < np.max(v) for v in side["start_scales"].values())
     # by default on each subject's whitened coordinates (scioc fit --adaptation whitened), with what the whitening found
     assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened"
     assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}

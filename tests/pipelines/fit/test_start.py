@@ -6,7 +6,7 @@ import pymc as pm
 import pytensor
 import pytest
 
-from pipelines.fit.start import start_point
+from pipelines.fit.start import scale_estimate, start_point
 
 SUBJECTS = ["S1", "S2", "S3", "S4"]
 LEVELS = ["MC", "SC"]
@@ -73,12 +73,44 @@ def test_no_start_without_cost_targets():
 
 
 def test_population_scales_are_held_where_the_targets_agree():
-    """Centred units whose targets agree: the optimum over σ would be its funnel's neck (σ -> 0); σ is held."""
+    """Centred units whose targets agree: the optimum over σ would be its funnel's neck (σ -> 0); σ is held at
+    the targets' spread, SE/√(n - 1) of the baseline level's four values, not at 0 and not optimized."""
     model = toy_model(noncentred=False)
     start = start_point(model, estimates(np.full((4, 2), 4.0), np.full(4, 0.06)))
-    sigma0 = model.initial_point()["sigma_log_theta1_log__"]
-    assert np.log(start["sigma_log_theta1"]) == pytest.approx(sigma0, abs=1e-12)
+    assert start["sigma_log_theta1"] == pytest.approx(0.05 / np.sqrt(3), rel=1e-5)
     assert np.max(np.abs(start["log_theta1"] - 4.0)) < 0.05
+
+
+def test_population_scales_start_at_their_units_spread_capped_at_pymcs_point():
+    """Spread targets: σ starts at their sample SD (the SEs are small beside it), where PyMC's point is σ's prior
+    scale 1; a spread above that stays at 1. A scale without targets (no SCALE_TARGETS entry) keeps PyMC's point."""
+    rng = np.random.default_rng(3)
+    target = 3.0 + 0.3 * rng.standard_normal((4, 2))
+    model = toy_model(noncentred=True)
+    start = start_point(model, estimates(target, np.full(4, 0.06)))
+    v, se = target[:, 0], 0.05
+    expected = scale_estimate(v, np.full(4, se), centred=True, upper=1.0)
+    assert start["sigma_log_theta1"] == pytest.approx(expected, rel=1e-9)
+    assert abs(expected - np.std(v, ddof=1)) < 0.1 * np.std(v, ddof=1)
+    wide = start_point(model, estimates(3.0 + 5.0 * rng.standard_normal((4, 2)), np.full(4, 0.06)))
+    assert wide["sigma_log_theta1"] == pytest.approx(1.0, rel=1e-9)
+
+
+def test_scale_estimate():
+    rng = np.random.default_rng(0)
+    v = rng.normal(2.0, 0.5, 40)
+    # no SEs: the unbiased SD about the fitted centre, and about 0 for a half-normal population
+    assert scale_estimate(v, np.full(40, 1e-9), centred=True, upper=10.0) == pytest.approx(np.std(v, ddof=1), rel=1e-5)
+    a = np.abs(v - 2.0)
+    assert scale_estimate(a, np.full(40, 1e-9), centred=False, upper=10.0) == pytest.approx(
+        np.sqrt(np.sum(a**2) / 39), rel=1e-5)
+    # values that agree within their SEs: about se/sqrt(n - 1), positive (not the neck)
+    assert scale_estimate(np.zeros(42), np.full(42, 0.002), centred=False, upper=0.1) == pytest.approx(
+        0.002 / np.sqrt(41), rel=1e-5)
+    assert scale_estimate(v, np.full(40, 1e-9), centred=True, upper=0.3) == pytest.approx(0.3)
+    # too few values, or none finite: no estimate
+    assert scale_estimate([1.0], [0.1], centred=False, upper=1.0) is None
+    assert scale_estimate([np.nan, 1.0], [0.1, np.nan], centred=True, upper=1.0) is None
 
 
 def test_an_estimate_at_its_bound_without_se_still_pulls():

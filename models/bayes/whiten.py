@@ -13,7 +13,7 @@ What. With x̂ a point near the posterior's centre and H_i the Hessian of log p 
 subject i's coordinates x_i (k per subject), sample w where::
 
     x_i = x̂_i + L_i w_i,   L_i L_iᵀ = |H_i|⁻¹        (each subject's block)
-    x_p = x̂_p + w_p                                  (every other coordinate)
+    x_p = x̂_p + s_p w_p                              (every other coordinate)
 
 |H_i| is -H_i with its eigenvalues replaced by their absolute values and floored at
 ``EIGEN_FLOOR`` times the largest, so L_i exists where x̂ is not a maximum (the SoftAbs
@@ -21,6 +21,12 @@ metric's idea, Betancourt 2013). The map is affine with a constant Jacobian, so 
 of w is p(x(w)) times a constant: the posterior is exactly the model's, only its coordinates
 change. In w each subject's block is near the identity where the posterior is near Gaussian,
 and the diagonal mass matrix then has little left to learn.
+
+s_p is the population coordinate's own scale at x̂, |∂² log p / ∂x_p²|^(-1/2), capped at 1
+(:func:`coordinate_scales`). Without it the chains' start, jittered by U(-1, 1) in w as PyMC
+jitters its own, put the population's centres 8-22 posterior SDs from x̂ (β's SD is 0.036 on
+the default study, μ_log θ1's 0.085), and the first 20 warm-up draws of the full-size ``delayed``
+fit took trees of 127-1023 leapfrog steps to walk back (README, "Not yet").
 
 x̂ and H are computed by :mod:`pipelines.fit.whiten` (the conditional mode with the
 population's scales held, central differences of the exact gradient). H_i comes from one
@@ -88,6 +94,27 @@ def block_hessian(grad, x: np.ndarray, blocks: np.ndarray, step: float) -> np.nd
     return 0.5 * (H + np.swapaxes(H, 1, 2))
 
 
+def coordinate_scales(grad, x: np.ndarray, coords: np.ndarray, step: float) -> np.ndarray:
+    """Scales (m, 1, 1) of the single coordinates ``coords`` (m,): each |∂² log p / ∂x_c²|^(-1/2) at x, by
+    central differences of ``grad`` (one pair of gradients per coordinate: these coordinates may interact), and
+    never above 1.
+
+    For the coordinates outside the subjects' blocks (the population's), as one-coordinate blocks of
+    :func:`to_unconstrained`'s ``groups``. Capped at 1, so that a flat direction (or a held scale with
+    little curvature at x̂) keeps the unit scale it would have without them.
+    """
+    S = np.ones((len(coords), 1, 1))
+    for j, c in enumerate(np.asarray(coords, dtype=int)):
+        e = np.zeros_like(x)
+        e[c] = step
+        h = (np.asarray(grad(x + e))[c] - np.asarray(grad(x - e))[c]) / (2.0 * step)
+        if not np.isfinite(h):
+            raise ValueError(f"coordinate {c}: the second derivative is not finite")
+        if abs(h) > 1.0:
+            S[j, 0, 0] = abs(h) ** -0.5
+    return S
+
+
 def whitening_factors(H: np.ndarray, floor: float = EIGEN_FLOOR) -> tuple[np.ndarray, np.ndarray]:
     """(L, n_negative): L[i] L[i]ᵀ = |H[i]|⁻¹ (module docstring), and each block's count of non-negative-definite
     directions of -H[i] (where x̂ is not a maximum)."""
@@ -137,5 +164,5 @@ def whitened_model(logp, flat, x_hat: np.ndarray, groups) -> pm.Model:
     return model
 
 
-__all__ = ["EIGEN_FLOOR", "WHITE", "block_hessian", "subject_blocks", "to_unconstrained", "whitened_model",
-           "whitening_factors"]
+__all__ = ["EIGEN_FLOOR", "WHITE", "block_hessian", "coordinate_scales", "subject_blocks", "to_unconstrained",
+           "whitened_model", "whitening_factors"]

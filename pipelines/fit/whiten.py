@@ -8,7 +8,8 @@ The steps, all deterministic (the seed enters only the sampler, as in :func:`pip
    funnel's neck), by L-BFGS with the exact gradient, at most :data:`MODE_MAX_ITER` iterations;
    kept only if it improves on the start.
 2. H_i: each subject's Hessian block at x̂ (:func:`models.bayes.whiten.block_hessian`,
-   central differences of step :data:`HESSIAN_STEP` on the unconstrained scale).
+   central differences of step :data:`HESSIAN_STEP` on the unconstrained scale); and each other
+   coordinate's own scale there (:func:`models.bayes.whiten.coordinate_scales`).
 3. The model in w (:func:`models.bayes.whiten.whitened_model`) sampled by nutpie with its
    diagonal mass matrix, the chains jittered around w = 0 (x̂) as PyMC jitters its own start.
 4. The draws mapped back: x(w), then every free variable and deterministic of the original
@@ -22,8 +23,8 @@ import time
 
 import numpy as np
 
-from models.bayes.whiten import (WHITE, block_hessian, subject_blocks, to_unconstrained, whitened_model,
-                                 whitening_factors)
+from models.bayes.whiten import (WHITE, block_hessian, coordinate_scales, subject_blocks, to_unconstrained,
+                                 whitened_model, whitening_factors)
 from pipelines.fit.sampling import add_log_likelihood, sample_model
 from pipelines.fit.start import held_mask
 
@@ -34,8 +35,9 @@ HESSIAN_STEP = 1e-4
 
 
 def whitening(model, start: dict | None):
-    """(logp graph, its flat input, x̂, blocks, L, point_map_info, record) of ``model`` (module docstring,
-    steps 1-2)."""
+    """(logp graph, its flat input, x̂, groups, point_map_info, record) of ``model`` (module docstring,
+    steps 1-2); ``groups``: [(subject blocks, L)] and, where there are any, (the other coordinates (m, 1), their
+    scales (m, 1, 1)), as :func:`models.bayes.whiten.to_unconstrained` takes them."""
     from pymc.blocking import DictToArrayBijection
     from pymc.initial_point import make_initial_point_fn
     from pymc.pytensorf import compile as compile_pymc
@@ -69,14 +71,18 @@ def whitening(model, start: dict | None):
     t1 = time.perf_counter()
     H = block_hessian(lambda x: fn(x)[1], x_hat, blocks, HESSIAN_STEP)
     L, n_neg = whitening_factors(H)
+    others = np.setdiff1d(np.arange(x_hat.size), blocks.ravel())[:, None]
+    S = coordinate_scales(lambda x: fn(x)[1], x_hat, others[:, 0], HESSIAN_STEP)
     sd = np.sqrt(np.einsum("ijk,ijk->ij", L, L))  # each coordinate's scale, sqrt(diag(L Lᵀ))
     record = {"method": "per-subject affine whitening (models/bayes/whiten.py), nutpie's diagonal mass matrix",
               "coordinates_per_subject": int(blocks.shape[1]), "mode_iterations": int(res.nit),
               "mode_log_density_gain": float(f0 - res.fun) if moved else 0.0, "mode_used": moved,
               "subjects_not_at_a_maximum": int(np.sum(n_neg > 0)),
-              "scale_range": [float(sd.min()), float(sd.max())],
+              "scale_range": [float(sd.min()), float(sd.max())], "other_coordinates": int(others.shape[0]),
+              "other_scale_range": [float(S.min()), float(S.max())] if others.size else [],
               "mode_s": t1 - t0, "hessian_s": time.perf_counter() - t1}
-    return logp, flat, x_hat, blocks, L, raveled.point_map_info, record
+    groups = [(blocks, L)] + ([(others, S)] if others.size else [])
+    return logp, flat, x_hat, groups, raveled.point_map_info, record
 
 
 def posterior_of(model, x: np.ndarray, point_map_info):
@@ -114,13 +120,13 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     ``record`` says what the whitening found (for the sidecar).
     """
     t0 = time.perf_counter()
-    logp, flat, x_hat, blocks, L, info, record = whitening(model, start)
-    white = whitened_model(logp, flat, x_hat, [(blocks, L)])
+    logp, flat, x_hat, groups, info, record = whitening(model, start)
+    white = whitened_model(logp, flat, x_hat, groups)
     t1 = time.perf_counter()
     idata, sec = sample_model(white, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
                               show_progress=show_progress, log_likelihood=False, nuts=nuts)
     attrs = dict(idata["posterior"].attrs)
-    posterior = posterior_of(model, to_unconstrained(idata["posterior"][WHITE].values, x_hat, [(blocks, L)]), info)
+    posterior = posterior_of(model, to_unconstrained(idata["posterior"][WHITE].values, x_hat, groups), info)
     posterior.attrs.update(attrs)
     idata["posterior"] = posterior
     t2 = time.perf_counter()

@@ -8,7 +8,8 @@ import pytest
 from pymc.blocking import DictToArrayBijection, RaveledVars
 from pymc.pytensorf import join_nonshared_inputs
 
-from models.bayes.whiten import block_hessian, subject_blocks, to_unconstrained, whitened_model, whitening_factors
+from models.bayes.whiten import (block_hessian, coordinate_scales, subject_blocks, to_unconstrained, whitened_model,
+                                 whitening_factors)
 
 
 def _model(n=4):
@@ -99,3 +100,29 @@ def test_the_whitened_density_is_the_models_at_x_of_w():
     np.testing.assert_allclose(x[1, 2, blocks[3]], x_hat[blocks[3]] + L[3] @ w[1, 2, blocks[3]], rtol=1e-14)
     np.testing.assert_allclose(x[0, 1, :2], x_hat[:2] + w[0, 1, :2], rtol=1e-14)
 
+
+
+def test_coordinate_scales_are_each_coordinates_curvature_capped_at_one():
+    # log p = -½ (x - x0)ᵀ P (x - x0) with off-diagonal terms: each scale is P_cc^(-1/2) (the conditional scale,
+    # not the marginal one), and a coordinate with P_cc < 1 keeps the unit scale
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(4, 4))
+    P = A @ A.T + np.diag([400.0, 25.0, 0.0, 0.0])
+    P[3, :] = P[:, 3] = 0.0
+    P[3, 3] = 0.25
+    x0 = rng.normal(size=4)
+    S = coordinate_scales(lambda x: -P @ (x - x0), rng.normal(size=4), np.array([0, 1, 3]), 1e-4)
+    assert S.shape == (3, 1, 1)
+    np.testing.assert_allclose(S[:2, 0, 0], np.diag(P)[:2] ** -0.5, rtol=1e-9)
+    assert S[2, 0, 0] == 1.0
+    # a negative curvature (not a maximum there) is scaled by its absolute value
+    np.testing.assert_allclose(coordinate_scales(lambda x: 9.0 * x, np.zeros(1), np.array([0]), 1e-4)[0, 0, 0],
+                               1 / 3, rtol=1e-9)
+    with pytest.raises(ValueError, match="coordinate 0: the second derivative is not finite"):
+        coordinate_scales(lambda x: np.full_like(x, np.nan), np.zeros(1), np.array([0]), 1e-4)
+
+
+def test_one_coordinate_groups_scale_their_coordinates():
+    x_hat = np.array([1.0, 2.0, 3.0])
+    groups = [(np.array([[0], [2]]), np.array([[[0.5]], [[0.1]]]))]
+    np.testing.assert_allclose(to_unconstrained(np.array([2.0, 2.0, 2.0]), x_hat, groups), [2.0, 4.0, 3.2])

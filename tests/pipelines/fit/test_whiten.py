@@ -91,6 +91,9 @@ def test_the_whitened_draws_are_the_models_posterior(whitened_run):
     assert idata["log_likelihood"]["y"].shape == (2, 1000, N)
     assert record["coordinates_per_subject"] == 2 and record["subjects_not_at_a_maximum"] == 0
     assert record["mode_used"] and sec["whitening"] > 0
+    # mu, the one coordinate outside the blocks, on its own scale: its prior and the N subjects' give curvature 1 + N
+    assert record["other_coordinates"] == 1
+    np.testing.assert_allclose(record["other_scale_range"], [(1 + N) ** -0.5] * 2, rtol=1e-6)
     # the exact posterior's within-subject correlation is what the whitening removes
     mean, cov = _exact()
     assert cov[1, 1 + N] / np.sqrt(cov[1, 1] * cov[1 + N, 1 + N]) < -0.95
@@ -100,20 +103,23 @@ def test_the_check_fails_when_the_draws_are_mapped_back_without_the_subjects_fac
     # negative control: the same w draws, with L replaced by the identity (what sampling in w without mapping
     # the whitening back would report)
     model, idata, _, _ = whitened_run
-    _, _, x_hat, blocks, L, info, _ = whitening(model, None)
-    w = _w_draws(idata, x_hat, blocks, L)
-    np.testing.assert_allclose(posterior_of(model, to_unconstrained(w, x_hat, [(blocks, L)]), info)["a"].values,
+    _, _, x_hat, groups, info, _ = whitening(model, None)
+    (blocks, L), (others, S) = groups
+    w = _w_draws(idata, x_hat, blocks, L, others, S)
+    np.testing.assert_allclose(posterior_of(model, to_unconstrained(w, x_hat, groups), info)["a"].values,
                                idata["posterior"]["a"].values, rtol=1e-10, atol=1e-12)  # the recovery is right
-    wrong = to_unconstrained(w, x_hat, [(blocks, np.broadcast_to(np.eye(2), L.shape))])
+    wrong = to_unconstrained(w, x_hat, [(blocks, np.broadcast_to(np.eye(2), L.shape)), (others, S)])
     assert _check(posterior_of(model, wrong, info)) != []
 
 
-def _w_draws(idata, x_hat, blocks, L):
-    """The sampler's w draws, recovered from the posterior's unconstrained values (x = x̂ + L w per subject)."""
+def _w_draws(idata, x_hat, blocks, L, others, S):
+    """The sampler's w draws, recovered from the posterior's unconstrained values (x = x̂ + L w per subject,
+    x̂ + s w for the others)."""
     post = idata["posterior"]
     x = np.concatenate([post["mu"].values[..., None], post["a"].values, post["b"].values], axis=-1)
     w = x - x_hat  # the model's value order: mu, a, b
     w[..., blocks] = np.einsum("ijk,...ik->...ij", np.linalg.inv(L), w[..., blocks])
+    w[..., others[:, 0]] /= S[:, 0, 0]
     return w
 
 

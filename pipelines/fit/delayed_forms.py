@@ -71,8 +71,11 @@ better, as below its data's upper bound s_m's posterior is its prior, and the ha
 :class:`models.bayes.delayed_blocks.DelayedPriors`) shortens that tail (-6.4 to -2.5) and about
 doubled the ESS of s_m and the units' σ_m; β, the units' σ_m upper ends and the steps did not
 change. Holding s_m, for the whitening and the start, at the half-normal ML scale of the subjects'
-σ_m estimates (0.068 here) instead of PyMC's initial point (0.3) did not help (two runs: 0 and
-3 divergent, s_m ESS 22 and 49) and is not done.
+σ_m estimates (0.068 here) instead of PyMC's initial point (0.3) did not help s_m's mixing (two
+runs: 0 and 3 divergent, s_m ESS 22 and 49). Since a6bd517 every population scale is held at its
+units' spread all the same (:func:`pipelines.fit.start.scale_estimate`), for the warm-up's first
+draws, which no longer travel down to it; s_m's ESS was no better at full size (README, "The
+start of the population").
 """
 
 from __future__ import annotations

@@ -25,8 +25,8 @@ where the targets agree within their SEs the optimum is a funnel's neck. On the 
 study of ``tests/pipelines/fit/test_delayed_fit.py`` the optimizer put σ_log θ1 at 0; one of the
 two short chains stayed near that start, and leave-one-subject-out then preferred the max-ent
 model to the delayed one, which that test catches (it passes from PyMC's own start and with the
-scales held). A start that the optimizer cannot improve on PyMC's own is not used
-(:func:`start_point` returns None), nor one with a coordinate at the optimizer's box
+scales held). A start that the optimizer cannot improve on its initial point (PyMC's, with the
+held scales as above) is not used (:func:`start_point` returns None), nor one with a coordinate at the optimizer's box
 (:data:`UNCONSTRAINED_BOUND`), nor one from estimates without the cost (θ1, R) targets (a
 delayed fit without ``--estimates`` takes them from its own delay profile's ML points,
 :func:`pipelines.fit.delayed.unit_delays`). Discrete variables (the

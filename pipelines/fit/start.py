@@ -109,7 +109,6 @@ def _held_scale_values(model, targets: dict) -> dict:
                 or not isinstance(model.rvs_to_transforms.get(rv), LogTransform)):
             continue
         value, se = targets[target]
-        se = np.maximum(np.nan_to_num(se, nan=np.inf), SE_FLOOR[target])  # as the stand-in's penalty floors them
         if which == "zero":
             groups = [(value, se, False)]
         elif which == "baseline":
@@ -139,7 +138,8 @@ def _se_at_bound(value, se) -> np.ndarray:
 
 
 def _targets(model, estimates: pd.DataFrame) -> dict:
-    """name -> (target array, SE array) in the model's dims (subject, condition) or (subject,)."""
+    """name -> (target array, SE array) in the model's dims (subject, condition) or (subject,); every SE floored at
+    :data:`SE_FLOOR` (NaN where there is none), a subject's both before and after combining its units."""
     subjects = [str(s) for s in model.coords["subject"]]
     levels = [str(c) for c in model.coords.get("condition", ())]
     est = estimates.assign(subject=estimates["subject"].astype(str), condition=estimates["condition"].astype(str))
@@ -151,6 +151,7 @@ def _targets(model, estimates: pd.DataFrame) -> dict:
         idx = pd.MultiIndex.from_product([subjects, levels])
         value = by_unit[col].reindex(idx).to_numpy(float).reshape(len(subjects), len(levels))
         se = _se_at_bound(value, by_unit[se_col].reindex(idx).to_numpy(float).reshape(len(subjects), len(levels)))
+        se = np.maximum(se, SE_FLOOR[name])  # NaN stays NaN
         out[name] = (f(value) if f is not None else value, se)
     for name, (col, se_col) in SUBJECT_TARGETS.items():
         if name not in model.named_vars or col not in est or se_col not in est:
@@ -164,7 +165,7 @@ def _targets(model, estimates: pd.DataFrame) -> dict:
             w = 1.0 / e[ok] ** 2
             value.append(float(np.sum(w * v[ok]) / np.sum(w)) if ok.any() else np.nan)
             se.append(float(np.sqrt(1.0 / np.sum(w))) if ok.any() else np.nan)
-        out[name] = (np.array(value), np.array(se))
+        out[name] = (np.array(value), np.maximum(np.array(se), SE_FLOOR[name]))  # the subject's SE floored too
     return out
 
 
@@ -208,7 +209,7 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
     penalty = pt.constant(0.0)
     for name, (value, se) in targets.items():
         ok = np.isfinite(value) & np.isfinite(se)
-        scale = np.where(ok, np.maximum(np.nan_to_num(se, nan=1.0), SE_FLOOR[name]), 1.0)
+        scale = np.where(ok, np.nan_to_num(se, nan=1.0), 1.0)
         z = (model.named_vars[name] - np.nan_to_num(value)) / scale
         penalty = penalty + 0.5 * pt.sum(pt.where(ok, z, 0.0) ** 2)
     objective = -model.varlogp + model.replace_rvs_by_values([penalty])[0]

@@ -83,7 +83,7 @@ def test_population_scales_are_held_where_the_targets_agree():
 
 def test_population_scales_start_at_their_units_spread_capped_at_pymcs_point():
     """Spread targets: σ starts at their sample SD (the SEs are small beside it), where PyMC's point is σ's prior
-    scale 1; a spread above that stays at 1. A scale without targets (no SCALE_TARGETS entry) keeps PyMC's point."""
+    scale 1; a spread above that stays at 1."""
     rng = np.random.default_rng(3)
     target = 3.0 + 0.3 * rng.standard_normal((4, 2))
     model = toy_model(noncentred=True)

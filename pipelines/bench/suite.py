@@ -18,7 +18,7 @@ from pipelines.storage import write_text_atomic
 PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "sbc", "example")
 
 
-def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
+def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None) -> dict:
     """Run the benchmarks; print tables; optionally write JSON (atomically).
 
     Parameters
@@ -29,6 +29,10 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
         fits and SBC, which have no small version worth timing.
     parts : sequence of str
         Any of :data:`PARTS`. The fit's dense comparison needs the likelihood part.
+    humans : sequence of str, optional
+        The simulated humans of the ``fit_delayed`` part's fits as ``scioc fit`` runs them
+        (default :data:`pipelines.bench.delayed_workflow.WORKFLOW_HUMANS`; each fit takes
+        15-30 minutes at full size).
     """
     unknown = set(parts) - set(PARTS)
     if unknown:
@@ -59,12 +63,14 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS) -> dict:
                                   linear_s_per_batch=lik.get("batch_preview", {}).get("linear_s"))
         print(format_fit(result["fit"]), flush=True)
     if "fit_delayed" in parts and not quick:
-        from pipelines.bench.fit_delayed import (bench_delay_profile, bench_fit_delayed, format_delay_profile,
-                                                 format_fit_delayed)  # lazy: PyMC takes seconds to import
+        from pipelines.bench.delayed_workflow import WORKFLOW_HUMANS, bench_delayed_workflow, format_delayed_workflow
+        from pipelines.bench.fit_delayed import bench_delay_profile, format_delay_profile
 
-        result["fit_delayed"] = {"profile": bench_delay_profile(), "fit": bench_fit_delayed()}
+        result["fit_delayed"] = {"profile": bench_delay_profile(), "workflow": {}}
         print(format_delay_profile(result["fit_delayed"]["profile"]), flush=True)
-        print(format_fit_delayed(result["fit_delayed"]["fit"]), flush=True)
+        for human in WORKFLOW_HUMANS if humans is None else humans:
+            result["fit_delayed"]["workflow"][human] = bench_delayed_workflow(human=human)
+            print(format_delayed_workflow(result["fit_delayed"]["workflow"][human]), flush=True)
     if "sbc" in parts and not quick:
         from pipelines.bench.sbc import bench_sbc, format_sbc  # lazy: Dask and PyMC take seconds to import
 

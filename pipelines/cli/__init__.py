@@ -1,5 +1,6 @@
-"""The ``scioc`` command line: :func:`main`, the parser (:mod:`pipelines.cli.parser`, all options) and the
-commands (:mod:`pipelines.cli.commands`, one pipeline function each). ``python -m pipelines.cli`` runs it too.
+"""The ``scioc`` command line: :func:`main`, the parser (:mod:`pipelines.cli.parser`, all options; their
+values' checks and names in :mod:`pipelines.cli.values`) and the commands (:mod:`pipelines.cli.commands`, one
+pipeline function each). ``python -m pipelines.cli`` runs it too.
 """
 
 from __future__ import annotations
@@ -7,7 +8,8 @@ from __future__ import annotations
 import os
 import sys
 
-from pipelines.cli.parser import HUMAN_NAMES, MIN_WINDOW_SECONDS, PARAMETERIZATION_BLOCKS, build_parser
+from pipelines.cli.parser import build_parser
+from pipelines.cli.values import HUMAN_NAMES, MIN_WINDOW_SECONDS, PARAMETERIZATION_BLOCKS
 
 #: Exit statuses (README "Errors and exit codes"). Usage errors found by argparse exit 2 too.
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_USAGE, EXIT_BAD_DATA, EXIT_INTERRUPTED = 0, 1, 2, 3, 130

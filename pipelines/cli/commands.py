@@ -54,7 +54,8 @@ def cmd_power(args) -> int:
 def cmd_bench(args) -> int:
     from pipelines.bench import run_bench
 
-    run_bench(args.json, quick=args.quick, parts=[p.strip() for p in args.parts.split(",") if p.strip()])
+    run_bench(args.json, quick=args.quick, parts=[p.strip() for p in args.parts.split(",") if p.strip()],
+              humans=args.humans)
     if args.json:
         print(f"wrote {args.json}")
     return 0

@@ -1,63 +1,18 @@
-"""The ``scioc`` argument parser: every command's options, their checks and their defaults (all argparse lives here)."""
+"""The ``scioc`` argument parser: every command's options and their defaults (the values' checks and names:
+:mod:`pipelines.cli.values`)."""
 
 from __future__ import annotations
 
 import argparse
-import math
 from importlib.metadata import PackageNotFoundError, version
 
 import pipelines.cli.commands as commands
-
-#: Shortest analysis window, s. Shorter windows leave θ unidentified: measured on a simulated
-#: study, 0.02 s drives the optimizer to θ = ∞ and 0.05 s gives θ1 ≈ 1800 where longer
-#: windows give 10-30.
-MIN_WINDOW_SECONDS = 0.1
-#: The study design's defaults (models.design.STUDY), spelled out so that parsing imports no model
-#: code (tests/pipelines/cli/test_parser.py holds them equal): sample time, analysis window
-#: (start, length), preview and run length, s.
-SAMPLE_TIME, WINDOW, PREVIEW, RUN_SECONDS = 0.01, (210, 15), 2.0, 240.0
-_WINDOW_TEXT = f"{WINDOW[0]:g},{WINDOW[1]:g}"
-
-
-def _number(kind, accept, wanted: str):
-    """An argparse ``type`` that parses with ``kind`` and rejects values ``accept`` refuses (exit 2)."""
-
-    def parse(text):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {wanted}; got {text!r}") from None
-        if not accept(value):
-            raise argparse.ArgumentTypeError(f"expected {wanted}; got {text!r}")
-        return value
-
-    return parse
-
-
-_positive_int = _number(int, lambda v: v >= 1, "a positive integer")
-_nonnegative_int = _number(int, lambda v: v >= 0, "an integer >= 0")
-_seconds = _number(float, lambda v: math.isfinite(v) and v > 0, "a finite number of seconds > 0")
-_nonnegative_seconds = _number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number of seconds >= 0")
-_level = _number(float, lambda v: 0 < v < 1, "a significance level between 0 and 1")
-_finite_float = _number(float, math.isfinite, "a finite number")
-_nonnegative_float = _number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0")
-_acceptance = _number(float, lambda v: 0 < v < 1, "a target acceptance rate between 0 and 1")
-
-
-def _window_spec(text: str) -> str:
-    """Check ``--window START,SECONDS`` at parse time; ``commands.window_settings`` splits it later."""
-    usage = f"expected START,SECONDS in s (e.g. {_WINDOW_TEXT}); got {text!r}"
-    try:
-        start, seconds = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(usage) from None
-    if not (math.isfinite(start) and math.isfinite(seconds)):
-        raise argparse.ArgumentTypeError(f"start and length must be finite numbers of seconds; got {text!r}")
-    if seconds < MIN_WINDOW_SECONDS:
-        raise argparse.ArgumentTypeError(
-            f"a {seconds:g}-s window is too short to identify θ: it needs at least {MIN_WINDOW_SECONDS:g} s "
-            f"({round(MIN_WINDOW_SECONDS / SAMPLE_TIME)} samples of {SAMPLE_TIME:g} s); got {text!r}")
-    return text
+from pipelines.cli.values import (ADAPTATION_NAMES, ADEQUACY_AT_HELP, ADEQUACY_AT_NAMES, HUMAN_MODEL_NAMES,
+                                  HUMAN_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, PARAMETERIZATION_BLOCKS, PREVIEW,
+                                  RHO_FORM_NAMES, RUN_SECONDS, R_POPULATION_NAMES, WINDOW_TEXT, acceptance,
+                                  finite_float, human_models_list, humans_list, nonnegative_float, nonnegative_int,
+                                  nonnegative_seconds, positive_int, positive_seconds, significance_level,
+                                  window_spec)
 
 
 def _add_force_option(p):
@@ -70,39 +25,6 @@ def _add_assistant_model_option(p):
     p.add_argument("--assistant-model", choices=("feedback", "exogenous"), default="feedback",
                    help="in SC the human plans with the assistant's feedback law (default) or takes the recorded "
                    "u_A as a known input sequence (exogenous: the paper's Eq. 15-16)")
-
-
-# The names of pipelines.prepare.HUMAN_MODELS, spelled out so parsing imports no model code (a test holds them
-# equal), and the last delay of models.delayed.DELAY_GRID_S, s.
-HUMAN_MODEL_NAMES = ("maxent", "delayed")
-MAX_DELAY_S = 0.3
-#: What ``scioc loglik`` evaluates the likelihood of (:data:`pipelines.loglik.LIKELIHOODS`, tested equal).
-LIKELIHOOD_NAMES = ("torques", "angles")
-#: The delayed model's baseline-R populations (:data:`models.bayes.delayed_model.R_POPULATIONS`, tested equal).
-R_POPULATION_NAMES = ("lognormal", "policy_scale", "unpooled")
-#: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
-RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred")
-#: The delayed fit's mass matrices, default first, then nutpie's own (:data:`models.bayes.delayed_model.ADAPTATIONS`).
-ADAPTATION_NAMES = ("whitened", "low_rank", "diag")
-#: Points of the adequacy check at the posterior (:data:`pipelines.fit.checks.ADEQUACY_POINTS`, tested equal).
-ADEQUACY_AT_NAMES = ("draw", "means")
-_ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one joint posterior draw picked by the "
-                     "adequacy seed; means: each parameter's posterior mean, the rule before 2026-12-03)")
-
-
-def _human_models_list(text: str) -> tuple:
-    """``--human-models maxent,delayed``: known names, none twice, maxent among them; in the order of the names."""
-    names = [v.strip() for v in text.split(",") if v.strip()]
-    unknown = [v for v in names if v not in HUMAN_MODEL_NAMES]
-    if not names or unknown:
-        raise argparse.ArgumentTypeError(f"expected a comma-separated list of {', '.join(HUMAN_MODEL_NAMES)}; "
-                                         f"got {text!r}")
-    if len(set(names)) != len(names):
-        raise argparse.ArgumentTypeError(f"a human model is named twice in {text!r}")
-    if "maxent" not in names:
-        raise argparse.ArgumentTypeError(f"the list must include maxent (the run's identify, compare and fit are the "
-                                         f"paper's model; delayed is run beside it); got {text!r}")
-    return tuple(v for v in HUMAN_MODEL_NAMES if v in names)
 
 
 def _add_human_model_option(p):
@@ -120,23 +42,20 @@ def _add_experiment_option(p):
 
 def _add_window_options(p):
     _add_experiment_option(p)
-    p.add_argument("--window", type=_window_spec, default=None, metavar="START,SECONDS",
+    p.add_argument("--window", type=window_spec, default=None, metavar="START,SECONDS",
                    help=f"analysis window on each trial's time axis, s (default: the experiment's [analysis], "
-                        f"without one the paper's {_WINDOW_TEXT})")
+                        f"without one the paper's {WINDOW_TEXT})")
     p.add_argument("--whole-run", action="store_true", help="analyse each segment whole")
-    p.add_argument("--preview", type=_nonnegative_seconds, default=None,
+    p.add_argument("--preview", type=nonnegative_seconds, default=None,
                    help=f"seconds the human's plan looks past the window (default: the experiment's; without one "
                         f"{PREVIEW:g}; 0 = the paper's horizon)")
     _add_assistant_model_option(p)
     p.add_argument("--reconstruct", choices=("auto", "always"), default="auto",
                    help="reconstruct velocity and u_H from the angle when missing (auto, the default) or always")
-    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=49, metavar="B",
+    p.add_argument("--adequacy-boot", type=nonnegative_int, default=49, metavar="B",
                    help="bootstrap data sets per segment for the model-adequacy checks (default 49; 0 skips them)")
-    p.add_argument("--adequacy-seed", type=_nonnegative_int, default=2018, help="seed of the adequacy bootstrap (default 2018)")
+    p.add_argument("--adequacy-seed", type=nonnegative_int, default=2018, help="seed of the adequacy bootstrap (default 2018)")
 
-
-# The names of models.humans.HUMANS, spelled out so parsing imports no model code (a test holds them equal).
-HUMAN_NAMES = ("maxent", "delay", "lag", "coloured", "combined", "kbl", "crossover")
 
 
 def _add_human_options(p, *, by_model: bool = False):
@@ -149,15 +68,10 @@ def _add_human_options(p, *, by_model: bool = False):
                            help="simulate the human a human model describes: maxent (as --human maxent) or delayed "
                                 "(as --human kbl: each subject's delay 0.10-0.20 s and lag 0.05-0.10 s, white motor "
                                 "noise before the lag)")
-    p.add_argument("--beta", type=_finite_float, default=None,
+    p.add_argument("--beta", type=finite_float, default=None,
                    help="mean shift of log θ1 from the baseline to every other level in the simulated population "
                         "(default: the experiment's [simulation] beta, -0.7 for the paper's; 0: no change)")
 
-
-# The blocks of models.bayes.hierarchical.Parameterization and their defaults, spelled out so parsing imports
-# no PyMC (a test holds them equal).
-PARAMETERIZATION_BLOCKS = {"theta1_mc": "mean", "theta1_sc": "noncentred", "R_mc": "centred", "R_sc": "centred",
-                           "theta2": "noncentred"}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -176,11 +90,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
     _add_assistant_model_option(p)
     _add_human_model_option(p)
-    p.add_argument("--delay-s", type=_nonnegative_seconds, default=None, metavar="S",
+    p.add_argument("--delay-s", type=nonnegative_seconds, default=None, metavar="S",
                    help=f"delayed human: perceptual delay, s, a whole number of samples up to {MAX_DELAY_S:g}")
-    p.add_argument("--tau-nm", type=_nonnegative_seconds, default=None, metavar="T",
+    p.add_argument("--tau-nm", type=nonnegative_seconds, default=None, metavar="T",
                    help="delayed human: neuromuscular time constant, s (0 to 1)")
-    p.add_argument("--sigma-m", type=_nonnegative_float, default=None, metavar="M",
+    p.add_argument("--sigma-m", type=nonnegative_float, default=None, metavar="M",
                    help="delayed human: motor-noise SD per sample, N·m")
     p.add_argument("--likelihood", choices=LIKELIHOOD_NAMES, default="torques",
                    help="the likelihood of the human torques u_H (default), or the delayed human's of the encoder's "
@@ -192,10 +106,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="simulate the experiment: study table (angles only) + ground truth")
     p.add_argument("--experiment", metavar="PATH",
                    help="the experiment to simulate (default: the paper's study); written beside the study")
-    p.add_argument("--subjects", type=_positive_int, default=None,
+    p.add_argument("--subjects", type=positive_int, default=None,
                    help="simulated subjects (default: the experiment's [simulation] subjects, 42 for the paper's)")
-    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="root seed (default 2018)")
-    p.add_argument("--seconds", type=_seconds, default=None,
+    p.add_argument("--seed", type=nonnegative_int, default=2018, help="root seed (default 2018)")
+    p.add_argument("--seconds", type=positive_seconds, default=None,
                    help=f"length of each run, s (default: the experiment's [simulation] run_s, {RUN_SECONDS:g} for "
                         "the paper's)")
     _add_human_options(p, by_model=True)
@@ -214,12 +128,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("fit", help="hierarchical Bayesian fit (nutpie): β with HDI, diagnostics, LOO")
     p.add_argument("study", help="study file in the data convention")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (required)")
-    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="sampler seed (default 2018)")
-    p.add_argument("--chains", type=_positive_int, default=4, help="Markov chains (default 4)")
-    p.add_argument("--draws", type=_positive_int, default=1000, help="draws kept per chain (default 1000)")
-    p.add_argument("--tune", type=_nonnegative_int, default=1000, help="warm-up draws per chain (default 1000)")
+    p.add_argument("--seed", type=nonnegative_int, default=2018, help="sampler seed (default 2018)")
+    p.add_argument("--chains", type=positive_int, default=4, help="Markov chains (default 4)")
+    p.add_argument("--draws", type=positive_int, default=1000, help="draws kept per chain (default 1000)")
+    p.add_argument("--tune", type=nonnegative_int, default=1000, help="warm-up draws per chain (default 1000)")
     p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
-    p.add_argument("--cores", type=_positive_int, help="chains sampled in parallel (default: all CPUs)")
+    p.add_argument("--cores", type=positive_int, help="chains sampled in parallel (default: all CPUs)")
     p.add_argument("--estimates", metavar="PATH",
                    help="estimates.parquet for the mixed-model check (default: ../identify/ beside the study's folder)")
     p.add_argument("--truth", metavar="DIR",
@@ -238,20 +152,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
                    help="delayed, profile delays: mass matrix (default whitened per subject; low_rank, diag)")
-    p.add_argument("--target-accept", type=_acceptance, help="the sampler's target acceptance rate (default 0.9 for "
+    p.add_argument("--target-accept", type=acceptance, help="the sampler's target acceptance rate (default 0.9 for "
                    "the delayed model's whitened fit, else nutpie's 0.8); raise it where transitions diverge")
     p.add_argument("--compare-to", metavar="MAXENT_FIT", help="with --human-model delayed: a finished max-ent fit of "
                    "the same study and settings; then leave-one-subject-out between the two human models, beside "
                    "each one's adequacy verdict (OUT/human_models.json)")
-    p.add_argument("--adequacy-at", choices=ADEQUACY_AT_NAMES, default="draw", help=_ADEQUACY_AT_HELP)
+    p.add_argument("--adequacy-at", choices=ADEQUACY_AT_NAMES, default="draw", help=ADEQUACY_AT_HELP)
     _add_force_option(p)
     p.set_defaults(func=commands.cmd_fit)
 
     p = sub.add_parser("adequacy", help="the adequacy check of a finished fit again, at another posterior point or "
                                         "seed, without refitting (writes nothing without --out)")
     p.add_argument("fit", metavar="FIT", help="folder of `scioc fit` (either human model)")
-    p.add_argument("--at", choices=ADEQUACY_AT_NAMES, default="draw", help=_ADEQUACY_AT_HELP)
-    p.add_argument("--seed", type=_nonnegative_int, default=None,
+    p.add_argument("--at", choices=ADEQUACY_AT_NAMES, default="draw", help=ADEQUACY_AT_HELP)
+    p.add_argument("--seed", type=nonnegative_int, default=None,
                    help="adequacy seed: the draw and the bootstrap (default: the one the fit used)")
     p.add_argument("--study", metavar="PATH", help="the study file the fit read (default: the path its "
                                                    "posterior.json records)")
@@ -265,9 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("delayed_fit", metavar="DELAYED_FIT", help="folder of `scioc fit --human-model delayed`")
     p.add_argument("--study", metavar="PATH",
                    help="the study file both fitted (default: the path their posterior.json records)")
-    p.add_argument("--seed", type=_nonnegative_int, default=2018,
+    p.add_argument("--seed", type=nonnegative_int, default=2018,
                    help="seed of the importance sampling (default 2018)")
-    p.add_argument("--points", type=_positive_int, default=None,
+    p.add_argument("--points", type=positive_int, default=None,
                    help="importance-sampling points per subject, both models (default: HUMAN_MODELS_POINTS of "
                         "pipelines/fit/human_models.py; time grows in proportion)")
     p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
@@ -276,7 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="Wilcoxon matched-pairs signed-rank test of θ1 and θ2, MC vs SC")
     p.add_argument("estimates", help="estimates.parquet written by `scioc identify`")
-    p.add_argument("--alpha", type=_level, default=0.001, help="two-sided significance level (default 0.001)")
+    p.add_argument("--alpha", type=significance_level, default=0.001, help="two-sided significance level (default 0.001)")
     p.add_argument("--out", help="JSON path (default: compare.json beside ESTIMATES); never ESTIMATES itself")
     p.add_argument("--include-nonconverged", action="store_true",
                    help="test units whose identification did not converge too (default: leave them out, listed)")
@@ -299,11 +213,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--experiment", metavar="PATH",
                    help="simulate and analyse this experiment instead of the paper's (e.g. "
                         "data/examples/three-assistants/experiment.toml)")
-    p.add_argument("--subjects", type=_positive_int, default=None,
+    p.add_argument("--subjects", type=positive_int, default=None,
                    help="simulated subjects (default: the experiment's, 42 for the paper's)")
-    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the whole workflow (default 2018)")
+    p.add_argument("--seed", type=nonnegative_int, default=2018, help="seed of the whole workflow (default 2018)")
     p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fits (minutes)")
-    p.add_argument("--human-models", type=_human_models_list, default=None, metavar="LIST",
+    p.add_argument("--human-models", type=human_models_list, default=None, metavar="LIST",
                    help="comma-separated human models to analyse the study with, maxent among them (default: "
                         "chosen by the data: maxent, and delayed too when the experiment records the human torque, "
                         "[simulation] torque_sensor, and maxent fails its adequacy checks; README 'Human models')")
@@ -316,18 +230,18 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("calibrate", help="simulation-based calibration (unit or study level), locally or on Dask")
     p.add_argument("--level", choices=("unit", "study"), default="unit",
                    help="one subject × condition per replication, or a whole study (default unit)")
-    p.add_argument("--replications", type=_positive_int, help="replications (default 1000 unit, 200 study)")
-    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="seed of the replications (default 2018)")
+    p.add_argument("--replications", type=positive_int, help="replications (default 1000 unit, 200 study)")
+    p.add_argument("--seed", type=nonnegative_int, default=2018, help="seed of the replications (default 2018)")
     p.add_argument("--out", default="reports/calibration", metavar="DIR",
                    help="results go to DIR/LEVEL and DIR/LEVEL-negative (default reports/calibration)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=_positive_int, default=2, help="workers of the local cluster (default 2)")
-    p.add_argument("--batch-size", type=_positive_int, help="replications per Dask task (default 10 unit, 3 study)")
+    p.add_argument("--workers", type=positive_int, default=2, help="workers of the local cluster (default 2)")
+    p.add_argument("--batch-size", type=positive_int, help="replications per Dask task (default 10 unit, 3 study)")
     p.add_argument("--negative-control", choices=("inertia", "ignore-uA", "no-delay", "none"),
                    help="also run this wrong fit at the same size (default: inertia at the unit level, ignore-uA "
                         "at the study level, no-delay for --human-model delayed; 'none' to skip)")
-    p.add_argument("--subjects", type=_positive_int, help="subjects per simulated study (study level; default 6)")
-    p.add_argument("--seconds", type=_seconds,
+    p.add_argument("--subjects", type=positive_int, help="subjects per simulated study (study level; default 6)")
+    p.add_argument("--seconds", type=positive_seconds,
                    help="window length in s (default 15 unit, 2 study; with --experiment, the unit level takes its "
                         "analysis window, or its run when analysed whole)")
     p.add_argument("--experiment", metavar="PATH",
@@ -344,14 +258,14 @@ def build_parser() -> argparse.ArgumentParser:
                        "maxent, power on the others), beside the paper's Wilcoxon test; resumable")
     p.add_argument("--humans", default=",".join(HUMAN_NAMES),
                    help=f"comma-separated simulated humans (default: all, {','.join(HUMAN_NAMES)})")
-    p.add_argument("--studies", type=_positive_int, default=20, help="simulated studies per human (default 20)")
-    p.add_argument("--subjects", type=_positive_int, default=42, help="subjects per study (default 42)")
-    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="root seed (default 2018)")
-    p.add_argument("--beta", type=_finite_float, default=0.0,
+    p.add_argument("--studies", type=positive_int, default=20, help="simulated studies per human (default 20)")
+    p.add_argument("--subjects", type=positive_int, default=42, help="subjects per study (default 42)")
+    p.add_argument("--seed", type=nonnegative_int, default=2018, help="root seed (default 2018)")
+    p.add_argument("--beta", type=finite_float, default=0.0,
                    help="true mean SC shift of log θ1 (default 0: the cost does not change)")
-    p.add_argument("--adequacy-boot", type=_nonnegative_int, default=49, metavar="B",
+    p.add_argument("--adequacy-boot", type=nonnegative_int, default=49, metavar="B",
                    help="bootstrap data sets per segment (default 49)")
-    p.add_argument("--workers", type=_positive_int, default=1, help="studies run in parallel processes (default 1)")
+    p.add_argument("--workers", type=positive_int, default=1, help="studies run in parallel processes (default 1)")
     p.add_argument("--out", default="reports/power", metavar="DIR", help="results folder (default reports/power)")
     p.set_defaults(func=commands.cmd_power)
 
@@ -360,15 +274,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
     p.add_argument("--parts", default="likelihood,delayed,identify,fit,sbc,example", metavar="LIST", help="subset "
                    "of likelihood, delayed (its likelihood), identify, fit (the default study's, about 3 min), sbc "
-                   "and example (the second example's identify and fit; default: all)")
+                   "and example (the second example's identify and fit; default: all but fit_delayed); fit_delayed: "
+                   "the delay's profile, and the delayed human's fit as scioc fit runs it, timed against issue 13's "
+                   "15 minutes (pipelines/bench/delayed_workflow.py; 15-30 minutes per human)")
+    p.add_argument("--humans", type=humans_list, default=None, metavar="LIST",
+                   help="simulated humans of the fit_delayed part (default: pipelines/bench/delayed_workflow.py's "
+                   "WORKFLOW_HUMANS, the paper's agent maxent and Kleinman-Baron-Levison's kbl)")
     p.set_defaults(func=commands.cmd_bench)
 
     p = sub.add_parser("bench-fit", help="one fit of the default simulated study in a chosen parameterization (how "
                        "the table in models/bayes/hierarchical.py was measured)")
-    p.add_argument("--study-seed", type=_nonnegative_int, default=2018,
+    p.add_argument("--study-seed", type=nonnegative_int, default=2018,
                    help="seed of the simulated study (default 2018, scioc run's)")
-    p.add_argument("--seed", type=_nonnegative_int, default=2018, help="sampler seed (default 2018)")
-    p.add_argument("--window-seconds", type=_seconds, default=15.0,
+    p.add_argument("--seed", type=nonnegative_int, default=2018, help="sampler seed (default 2018)")
+    p.add_argument("--window-seconds", type=positive_seconds, default=15.0,
                    help="analysis window, s (default the paper's 15; shorter gives less data per unit)")
     for name, default in PARAMETERIZATION_BLOCKS.items():
         p.add_argument(f"--{name.replace('_', '-')}", choices=["centred", "noncentred", "mean"], default=default,
@@ -378,10 +297,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent",
                    help="maxent (default): the forms above on the default study; delayed: one fit of a study drawn "
                    "from the delayed human (pipelines/bench/fit_delayed.py; --seed seeds study and sampler)")
-    g.add_argument("--subjects", type=_positive_int, default=42, help="subjects of the delayed study (default 42)")
-    g.add_argument("--chains", type=_positive_int, default=4, help="chains (default 4)")
-    g.add_argument("--draws", type=_positive_int, default=1000, help="draws per chain (default 1000)")
-    g.add_argument("--tune", type=_positive_int, default=1000, help="tuning draws per chain (default 1000)")
+    g.add_argument("--subjects", type=positive_int, default=42, help="subjects of the delayed study (default 42)")
+    g.add_argument("--chains", type=positive_int, default=4, help="chains (default 4)")
+    g.add_argument("--draws", type=positive_int, default=1000, help="draws per chain (default 1000)")
+    g.add_argument("--tune", type=positive_int, default=1000, help="tuning draws per chain (default 1000)")
     g.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal", help="the "
                    "baseline R's population (default lognormal; policy_scale: R^(-1/2) half-normal; unpooled: none)")
     g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",

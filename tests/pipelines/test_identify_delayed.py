@@ -17,7 +17,7 @@ from models.design import STUDY
 from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.cli import main
-from pipelines.cli.parser import (ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES,
+from pipelines.cli.values import (ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES,
                                   RHO_FORM_NAMES)
 from pipelines.fit.delayed_forms import LOG_R_FORMS
 from pipelines.identify import identify_to_dir

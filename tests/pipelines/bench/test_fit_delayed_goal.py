@@ -1,6 +1,11 @@
-"""The delayed fit's speed goal is judged only at the size it is for."""
+"""The delayed fit's speed goal (``scioc bench --parts fit_delayed``): judged only at the size it is for, and measured
+on the path ``scioc fit --human-model delayed`` runs (ML start, whitening), not on ``scioc bench-fit``'s own study."""
 
-from pipelines.bench.fit_delayed import FIT_DELAYED_GOAL_S, _goal_text, within_goal
+import pytest
+
+from pipelines.bench.delayed_workflow import (FIT_DELAYED_GOAL_S, bench_delayed_workflow, format_delayed_workflow,
+                                              goal_text, within_goal)
+from pipelines.cli import main
 
 
 def test_the_goal_applies_to_the_full_size_fit_only():
@@ -9,6 +14,33 @@ def test_the_goal_applies_to_the_full_size_fit_only():
     # 12 subjects, or fewer chains or draws, fast or slow: no verdict either way.
     for size in ((24, 4, 1000), (84, 2, 1000), (84, 4, 300)):
         assert within_goal(*size, 10.0) is None and within_goal(*size, 1e6) is None
-    text = _goal_text({"goal_s": FIT_DELAYED_GOAL_S, "within_goal": None})
+    text = goal_text({"goal_s": FIT_DELAYED_GOAL_S, "within_goal": None})
     assert "not this size" in text and "met" not in text
-    assert _goal_text({"goal_s": FIT_DELAYED_GOAL_S, "within_goal": False}).endswith("NOT met")
+    assert goal_text({"goal_s": FIT_DELAYED_GOAL_S, "within_goal": False}).endswith("NOT met")
+
+
+@pytest.mark.slow
+def test_the_workflow_benchmark_times_scioc_fits_own_path():
+    """Two subjects of the kbl human: the fit is scioc fit's default (whitened, started at the ML estimates), its
+    time is the sidecar's, and the numbers derived from it are consistent with the sampler's own."""
+    res = bench_delayed_workflow(human="kbl", seed=3, chains=2, draws=30, tune=40, n_subjects=2, adequacy_boot=4)
+    st, s, smp = res["settings"], res["seconds"], res["sampler"]
+    assert (st["human"], st["segments"], st["subjects"], st["chains"], st["draws"], st["tune"]) == \
+        ("kbl", 4, 2, 2, 30, 40)
+    assert st["adaptation"] == "diag (nutpie), per-subject whitened"
+    assert st["experiment"] == "data/examples/paper-torque-sensor/experiment.toml"
+    assert 0 < st["delays"][0] <= st["delays"][1] <= 30  # the kbl human's delays are found, within the grid
+    assert 0 < s["sample"] < s["fit"] and s["identify"] > 0
+    assert smp["gradients"] == pytest.approx(2 * (40 * smp["warmup_steps_per_draw"] + 30 * smp["steps_per_draw"]))
+    assert smp["ms_per_gradient_on_a_core"] == pytest.approx(1e3 * s["sample"] * st["cores"] / smp["gradients"])
+    assert res["within_goal"] is None  # not the goal's size
+    assert res["truth"]["beta"]["truth"] == -0.7 and set(res["truth"]["motor"]) == {"tau_nm", "sigma_m"}
+    assert res["adequacy"]["segments"] == 4 and res["adequacy"]["verdict"] in ("pass", "fail")
+    text = format_delayed_workflow(res)
+    assert "kbl human" in text and "not this size" in text and "per-subject whitened" in text
+
+
+def test_bench_refuses_an_unknown_human(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["bench", "--parts", "fit_delayed", "--humans", "maxent,robot"])
+    assert e.value.code == 2 and "robot" in capsys.readouterr().err

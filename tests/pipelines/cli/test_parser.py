@@ -9,7 +9,7 @@ from models.design import STUDY
 from pipelines.calibrate import DEFAULTS
 from pipelines.cli import build_parser, main
 from pipelines.cli.commands import window_settings
-from pipelines.cli.parser import PARAMETERIZATION_BLOCKS, PREVIEW, RUN_SECONDS, SAMPLE_TIME, WINDOW
+from pipelines.cli.values import PARAMETERIZATION_BLOCKS, PREVIEW, RUN_SECONDS, SAMPLE_TIME, WINDOW
 
 
 def _exit_code(argv, capsys):
@@ -115,7 +115,7 @@ def test_the_parameterization_options_are_the_models():
 
 
 def test_the_adequacy_points_are_the_checks():
-    from pipelines.cli.parser import ADEQUACY_AT_NAMES
+    from pipelines.cli.values import ADEQUACY_AT_NAMES
     from pipelines.fit.checks import ADEQUACY_POINTS
 
     assert ADEQUACY_AT_NAMES == ADEQUACY_POINTS

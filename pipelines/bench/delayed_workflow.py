@@ -1,0 +1,171 @@
+"""The speed goal of the ``delayed`` hierarchical fit, measured on the path a user runs (``scioc bench --parts fit_delayed``).
+
+Issue 13's goal: the full hierarchical fit of the ``delayed`` human on a default-size study
+(84 segments × 1500 samples, 4 chains × 1000 draws) in at most 15 minutes on this 2-core
+machine. :func:`bench_delayed_workflow` measures it as a user meets it, by the same
+functions and defaults as::
+
+    scioc simulate --experiment data/examples/paper-torque-sensor/experiment.toml --human H --out D
+    scioc identify D/study.parquet --out D/identify_delayed --human-model delayed
+    scioc fit D/study.parquet --out D/fit_delayed --human-model delayed \\
+        --estimates D/identify_delayed/estimates.parquet
+
+that is, the paper's study with a torque sensor (the hierarchical delayed model is that of
+recorded torques), each subject's delay at its profile maximum, the chains started at the
+ML estimates and sampled on the subjects' whitened coordinates (:mod:`pipelines.fit.start`,
+:mod:`pipelines.fit.whiten`). The time judged is the fit's own (``posterior.json``,
+``seconds.total_s``: preparing, the start and whitening, compiling, sampling, the
+log-likelihood, predictive draws and the adequacy check at the posterior); the
+identification is reported beside it.
+
+Humans (:data:`models.humans.HUMANS`): ``maxent``, the paper's agent (the default study; its
+ML delays, lags and motor noise sit near 0), and ``kbl``, Kleinman-Baron-Levison's operator
+with delays of 10-20 samples, a neuromuscular lag and motor noise (the kernel's cost grows with
+the delay, :mod:`pipelines.bench.delayed`). ``scioc bench-fit --human-model delayed``
+(:mod:`pipelines.bench.fit_delayed`) is the other measurement: a study drawn from the delayed
+model itself with true delays, no ML start and so no whitening, for comparing
+parameterizations; its times are not the goal's.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from pipelines.experiment import load_experiment
+from pipelines.identify import identify_to_dir
+from pipelines.io import load_study
+from pipelines.prepare import IdentifySettings, prepare_study
+from pipelines.simulate import simulate_to_dir
+
+#: The issue's goal for the full delayed fit (``scioc fit``'s ``seconds.total_s``), s.
+FIT_DELAYED_GOAL_S = 900.0
+#: The size the goal is for: the default study's segments, chains and draws per chain.
+FIT_DELAYED_GOAL_SIZE = {"segments": 84, "chains": 4, "draws": 1000}
+#: The study the goal is measured on: the paper's, with a torque sensor.
+EXPERIMENT = Path(__file__).resolve().parents[2] / "data" / "examples" / "paper-torque-sensor" / "experiment.toml"
+#: The humans ``scioc bench --parts fit_delayed`` fits by default.
+WORKFLOW_HUMANS = ("maxent", "kbl")
+
+
+def within_goal(segments: int, chains: int, draws: int, fit_s: float) -> bool | None:
+    """Whether a fit of this size met :data:`FIT_DELAYED_GOAL_S`; None for a fit smaller than the goal's size."""
+    size = {"segments": segments, "chains": chains, "draws": draws}
+    if any(size[k] < v for k, v in FIT_DELAYED_GOAL_SIZE.items()):
+        return None
+    return fit_s <= FIT_DELAYED_GOAL_S
+
+
+def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: int = 4, draws: int = 1000,
+                           tune: int = 1000, n_subjects: int | None = None, adequacy_boot: int | None = None) -> dict:
+    """Simulate, identify and fit the ``delayed`` human as ``scioc`` does (module docstring) and time it.
+
+    ``n_subjects`` (default the experiment's 42) and ``adequacy_boot`` (default the
+    experiment's) exist to test this function at small size; a smaller fit gets no verdict
+    on the goal (:func:`within_goal`).
+
+    Returns
+    -------
+    dict
+        ``settings``; ``seconds``: ``identify`` (``scioc identify --human-model delayed``),
+        ``fit`` (the fit's ``seconds.total_s``), ``sample`` (nutpie's sampling of the
+        condition model); ``sampler``: leapfrog steps per warm-up and kept draw (and per
+        tenth of the warm-up), divergences, gradients and seconds per gradient on a core
+        (sampling time × cores used / gradients); ``convergence_verdict`` and ``worst``
+        (population parameters); ``adequacy`` (verdict, segments flagged); ``truth``: β and
+        the units' τ_nm and σ_m against the simulated truth; ``goal_s`` and ``within_goal``.
+    """
+    design = load_experiment(EXPERIMENT)
+    settings = IdentifySettings.for_design(design, human_model="delayed")
+    if adequacy_boot is not None:
+        settings = replace(settings, adequacy_boot=adequacy_boot)
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        sim = simulate_to_dir(root / "data", design=design, seed=seed, human=human, n_subjects=n_subjects)
+        t0 = time.perf_counter()
+        prepared = prepare_study(load_study(sim["study"], design), settings)
+        identify_to_dir(sim["study"], root / "identify_delayed", settings, show_progress=False, prepared=prepared,
+                        experiment_file=sim["experiment"])
+        identify_s = time.perf_counter() - t0
+        from pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
+
+        paths = fit_to_dir(sim["study"], root / "fit_delayed", seed=seed, chains=chains, draws=draws, tune=tune,
+                           settings=settings, prepared=prepared, experiment_file=sim["experiment"],
+                           truth_dir=root / "data", estimates_path=root / "identify_delayed" / "estimates.parquet")
+        side = json.loads(Path(paths["sidecar"]).read_text())
+        res = json.loads(Path(paths["contrasts"]).read_text())
+    return summarize(side, res, human=human, identify_s=identify_s)
+
+
+def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:
+    """:func:`bench_delayed_workflow`'s result from a delayed fit's ``posterior.json`` and ``contrasts.json``."""
+    diag, sec = side["diagnostics"]["condition"], side["seconds"]
+    st, smp = side["sampler"], diag["sampler"]
+    chains, draws, tune = st["chains"], st["draws"], st["tune"]
+    cores = min(int(st["cores"]), chains)
+    gradients = chains * (tune * smp["tuning_mean_steps_per_draw"] + draws * smp["mean_steps_per_draw"])
+    delays = [u["delay_samples"] for u in side["delay"]["by_unit"].values()]
+    truth = res.get("truth") or {}
+    fit_s = float(sec["total_s"])
+    return {
+        "settings": {"human": human, "experiment": str(EXPERIMENT.relative_to(EXPERIMENT.parents[3])),
+                     "segments": side["n_segments"], "subjects": side["n_subjects"], "K": side["K"],
+                     "chains": chains, "draws": draws, "tune": tune, "seed": side["seed"], "cores": cores,
+                     "cpus": os.cpu_count(), "delays": [min(delays), max(delays)],
+                     "adaptation": st["adaptation"], "delayed_form": side["delayed_form"]},
+        "seconds": {"identify": identify_s, "fit": fit_s, "sample": float(sec["condition"]["sample_s"])},
+        "sampler": {"warmup_steps_per_draw": smp["tuning_mean_steps_per_draw"],
+                    "warmup_steps_by_tenth": smp["tuning_steps_by_tenth"],
+                    "steps_per_draw": smp["mean_steps_per_draw"], "divergences": smp["divergences"],
+                    "gradients": gradients, "ms_per_gradient_on_a_core": 1e3 * sec["condition"]["sample_s"] * cores
+                    / gradients},
+        "convergence_verdict": diag["convergence_verdict"],
+        "worst": {**diag["worst"], "rhat_parameter": max(diag["population"], key=lambda k: diag["population"][k]["rhat"])},
+        "adequacy": {k: res["adequacy"][k] for k in ("verdict", "segments", "segments_flagged")},
+        "truth": {"beta": truth.get("beta"), "motor": truth.get("motor")},
+        "goal_s": FIT_DELAYED_GOAL_S, "within_goal": within_goal(side["n_segments"], chains, draws, fit_s),
+    }
+
+
+def goal_text(res: dict) -> str:
+    """Whether the goal was met, or why it does not apply."""
+    if res["within_goal"] is None:
+        g = FIT_DELAYED_GOAL_SIZE
+        return (f"the goal ≤ {res['goal_s']:.0f} s is for {g['segments']} segments, {g['chains']} chains × "
+                f"{g['draws']} draws: not this size")
+    return f"goal ≤ {res['goal_s']:.0f} s: {'met' if res['within_goal'] else 'NOT met'}"
+
+
+def format_delayed_workflow(res: dict) -> str:
+    """One workflow fit as plain text."""
+    st, s, smp, w = res["settings"], res["seconds"], res["sampler"], res["worst"]
+    beta, motor = res["truth"]["beta"], res["truth"]["motor"] or {}
+    lines = [
+        "",
+        f"Delayed fit as scioc runs it, {st['human']} human ({st['experiment']}: {st['segments']} segments × K = "
+        f"{st['K']}, delays {st['delays'][0]}-{st['delays'][1]} samples at the profile maxima; {st['chains']} chains × "
+        f"{st['draws']} draws after {st['tune']} warm-up; {st['adaptation']})",
+        f"  scioc fit: {s['fit']:.0f} s ({goal_text(res)}); sampling {s['sample']:.0f} s; scioc identify before it "
+        f"{s['identify']:.0f} s",
+        f"  sampler: {smp['steps_per_draw']:.1f} leapfrog steps per kept draw, {smp['warmup_steps_per_draw']:.1f} per "
+        f"warm-up draw (by tenth " + " ".join(f"{x:.0f}" for x in smp["warmup_steps_by_tenth"]) + f"); "
+        f"{smp['gradients'] / 1e3:.0f} k gradients, {smp['ms_per_gradient_on_a_core']:.1f} ms each on a core; "
+        f"{smp['divergences']} divergent",
+        f"  sampler convergence: {res['convergence_verdict']} (worst R-hat {w['rhat']:.3f}, {w['rhat_parameter']}; smallest ESS "
+        f"{w['ess']:.0f}, {w['ess_parameter']}); adequacy {res['adequacy']['verdict']} "
+        f"({res['adequacy']['segments_flagged']} of {res['adequacy']['segments']} segments flagged)",
+    ]
+    if beta:
+        lines.append(f"  β = {beta['posterior_mean']:.3f}, 94 % HDI [{beta['hdi'][0]:.3f}, {beta['hdi'][1]:.3f}] "
+                     f"(truth {beta['truth']:g}: {'inside' if beta['in_hdi'] else 'OUTSIDE'})"
+                     + "".join(f"; {k}: truth in its interval for {m['truth_in_interval']} of {m['n']}"
+                               for k, m in motor.items()))
+    return "\n".join(lines)
+
+
+__all__ = ["EXPERIMENT", "FIT_DELAYED_GOAL_S", "FIT_DELAYED_GOAL_SIZE", "WORKFLOW_HUMANS", "bench_delayed_workflow",
+           "format_delayed_workflow", "goal_text", "summarize", "within_goal"]

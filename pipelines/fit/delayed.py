@@ -45,7 +45,7 @@ from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import sample_model
-from pipelines.fit.start import SCALE_TARGETS, start_point
+from pipelines.fit.start import SCALE_TARGETS, scale_sources, start_point
 from pipelines.fit.whiten import sample_whitened
 from pipelines.io import InputDataError
 
@@ -233,8 +233,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     levels = prepared.settings.design.ordered_levels
     if log_R is not None and log_R not in LOG_R_FORMS:
         raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")
+    ml = estimates if estimates is not None else delays.estimates  # the ML estimates: given, or the fit's own profile's
     if delayed_form is None:
-        delayed_form, form_reason = choose_delayed_form(estimates if estimates is not None else delays.estimates)
+        delayed_form, form_reason = choose_delayed_form(ml)
     else:
         form_reason = "given"
     log_R, R_reason = log_R_form(delayed_form) if log_R is None else (log_R, "given")
@@ -249,7 +250,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                 tau0=[p.warmup for p in prepared.segments], priors=priors,
                                 delayed_priors=delayed_priors, parameterization=form, delayed_form=delayed_form,
                                 segment_ids=prepared.labels, levels=levels, params=prepared.settings.design.wheel)
-    start = start_point(model, estimates if estimates is not None else delays.estimates)
+    start = start_point(model, ml)
     t1 = time.perf_counter()
     if sampled:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
@@ -276,6 +277,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
                "coordinates (pipelines/fit/whiten.py)" if whiten else ""),
             "start_scales": {k: np.asarray(start[k]).tolist() for k in SCALE_TARGETS if k in (start or {})},
+            **({"start_scales_from": scale_sources(model, ml)} if start else {}),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
             "delayed_parameterization": {**asdict(form), "log_R_reason": R_reason},
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled",

@@ -124,6 +124,15 @@ def _held_scale_values(model, targets: dict) -> dict:
     return out
 
 
+def scale_sources(model, estimates: pd.DataFrame | None) -> dict:
+    """Where each held scale of :data:`SCALE_TARGETS` in ``model`` starts: ``"units' spread"`` where the estimates'
+    targets inform it (:func:`scale_estimate`), else ``"PyMC's initial point"`` (the prior's scale)."""
+    informed = set() if estimates is None or estimates.empty else set(_held_scale_values(model, _targets(model,
+                                                                                                         estimates)))
+    return {name: "units' spread" if name in informed else "PyMC's initial point"
+            for name in SCALE_TARGETS if model.named_vars.get(name) in model.free_RVs}
+
+
 def _se_at_bound(value, se) -> np.ndarray:
     """The SE, 0 (so the floor) where the estimate sits at its bound 0 and ``scioc identify`` reports no SE (NaN).
 
@@ -237,5 +246,5 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
     return {rv.name: np.asarray(val) for rv, val in zip(rvs, values)}
 
 
-__all__ = ["SCALE_TARGETS", "SE_FLOOR", "held_mask", "scale_estimate", "start_point", "SUBJECT_TARGETS",
+__all__ = ["SCALE_TARGETS", "SE_FLOOR", "held_mask", "scale_estimate", "scale_sources", "start_point", "SUBJECT_TARGETS",
            "UNCONSTRAINED_BOUND", "UNIT_TARGETS"]

@@ -56,6 +56,8 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert set(side["start_scales"]) == {"sigma_log_theta1", "sigma_beta", "sigma_log_R", "sigma_beta_log_R",
                                          "tau_theta2", "tau_nm_scale", "sigma_m_scale"}
     assert all(0 < np.max(v) for v in side["start_scales"].values())
+    # which of them the units' ML targets informed: every one here (the kbl human's units have all seven targets)
+    assert side["start_scales_from"] == {k: "units' spread" for k in side["start_scales"]}
     # by default on each subject's whitened coordinates (scioc fit --adaptation whitened), with what the whitening found
     assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened"
     assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}

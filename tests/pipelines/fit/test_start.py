@@ -6,7 +6,7 @@ import pymc as pm
 import pytensor
 import pytest
 
-from pipelines.fit.start import scale_estimate, start_point
+from pipelines.fit.start import scale_estimate, scale_sources, start_point
 
 SUBJECTS = ["S1", "S2", "S3", "S4"]
 LEVELS = ["MC", "SC"]
@@ -94,6 +94,21 @@ def test_population_scales_start_at_their_units_spread_capped_at_pymcs_point():
     assert abs(expected - np.std(v, ddof=1)) < 0.1 * np.std(v, ddof=1)
     wide = start_point(model, estimates(3.0 + 5.0 * rng.standard_normal((4, 2)), np.full(4, 0.06)))
     assert wide["sigma_log_theta1"] == pytest.approx(1.0, rel=1e-9)
+
+
+def test_scale_sources_say_which_scales_the_targets_informed():
+    """σ_log θ1 has the units' log θ1 as targets; a motor-noise scale whose units have no σ_m estimates does not, and
+    starts at PyMC's point; without estimates every scale does. Scales absent from the model are not listed."""
+    model = toy_model(noncentred=True)
+    with model:
+        pm.HalfNormal("sigma_m", pm.HalfNormal("sigma_m_scale", 0.3), dims="subject")
+    est = estimates(np.full((4, 2), 4.0), np.full(4, 0.06))
+    assert scale_sources(model, est) == {"sigma_log_theta1": "units' spread", "sigma_m_scale": "PyMC's initial point"}
+    assert scale_sources(model, None) == {"sigma_log_theta1": "PyMC's initial point",
+                                          "sigma_m_scale": "PyMC's initial point"}
+    start = start_point(model, est)
+    assert start["sigma_m_scale"] == pytest.approx(np.exp(model.initial_point()["sigma_m_scale_log__"]))
+    assert start["sigma_log_theta1"] != pytest.approx(1.0)  # the informed scale moved off PyMC's point
 
 
 def test_scale_estimate():

@@ -71,15 +71,20 @@ passes the adequacy check at a posterior draw (it failed the innovation variance
 means, a fault of that rule: README, "At the posterior"); not the default until the study with a
 change of cost has been fitted with it at full size.
 
-The motor-noise scale. s_m ~ Gamma(2, rate 8) by default (``DelayedPriors.sigma_m_scale_gamma``;
-before 2026-12-05 HalfNormal(0.3), whose mean 0.24 N·m the Gamma's 0.25 keeps). On a human without
-motor noise the data bound each σ_m from above only, and below that bound s_m's posterior is its
-prior: the half-normal's density is flat at 0, an exponential tail in log s_m that the sampler
-crossed slowly (the convergence verdict's slowest quantity on the max-ent human at full size);
-the Gamma's vanishes at 0 like s_m, which halves that tail's length in log s_m. On 12 subjects of
-the max-ent human, four seeds, it about doubled the ESS of s_m and of the units' σ_m, with β and
-the σ_m intervals unchanged (table in :mod:`pipelines.fit.delayed_forms`, "Motor noise"). Where
-the data find motor noise (the ``kbl`` human, σ_m about 0.25 N·m) s_m is fixed by the data.
+The motor-noise scale. s_m² ~ InverseGamma(1, 0.03) by default (``DelayedPriors.
+sigma_m_variance_inverse_gamma``, since the last change of 2026-12-05; s_m's median 0.21 N·m).
+Before it, s_m ~ Gamma(2, rate 8) (``sigma_m_scale_gamma``; before that, HalfNormal(0.3), whose
+mean 0.24 N·m the Gamma's 0.25 keeps). On a human without motor noise the data bound each σ_m
+from above only, and below that bound s_m's posterior is its prior: the half-normal's density is
+flat at 0, an exponential tail in log s_m that the sampler crossed slowly (the convergence
+verdict's slowest quantity on the max-ent human at full size); the Gamma's vanishes at 0 like
+s_m, which halved that tail's length in log s_m and about doubled s_m's ESS, still short of the
+verdict's 400 at full size. The inverse gamma's density vanishes at 0 faster than any power, so
+s_m stays where the subjects' σ_m put it, and with σ_m's block then centred (folded centred,
+:func:`half_normal_block`) s_m mixes freely: ESS 1110 and 1667 of 600 draws on 12 subjects
+against 30 and 37 with the Gamma, at the same leapfrog steps (table and reasons in
+:mod:`pipelines.fit.delayed_forms`, "The motor-noise scale's prior"). Where the data find
+motor noise (the ``kbl`` human, σ_m about 0.25 N·m) s_m is fixed by the data under any of them.
 """
 
 from __future__ import annotations
@@ -98,8 +103,8 @@ DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 #: The populations of the subjects' baseline R (:class:`DelayedPriors`).
 R_POPULATIONS = ("lognormal", "policy_scale", "unpooled")
 #: The forms of τ_nm and σ_m, and of ρ (:class:`DelayedForm`).
-MOTOR_FORMS = ("centred", "noncentred", "folded")
-RHO_FORMS = ("centred", "noncentred", "folded", "folded_centred")
+MOTOR_FORMS = ("centred", "noncentred", "folded", "folded_centred")
+RHO_FORMS = MOTOR_FORMS
 
 
 @dataclass(frozen=True)
@@ -112,14 +117,19 @@ class DelayedPriors:
         Scale of the HalfNormal prior on s_τ, the population scale of τ_nm, s.
     sigma_m_scale : float
         Scale of the HalfNormal prior on s_m, the population scale of σ_m, N·m, when
-        ``sigma_m_scale_gamma`` is None.
+        ``sigma_m_variance_inverse_gamma`` and ``sigma_m_scale_gamma`` are None.
+    sigma_m_variance_inverse_gamma : (float, float) or None
+        Shape α and scale β of the inverse-gamma prior on s_m², the variance of the σ_m
+        population (default (1, 0.03): s_m's median 0.21 N·m, the Gamma's, and 90 % of its mass
+        on 0.10-0.77 N·m, against the Gamma's 0.04-0.59; its density vanishes at 0 faster than any
+        power). Sampled as ``sigma_m_scale_sq``, with s_m the deterministic ``sigma_m_scale``.
+        Set to None for the Gamma (or the half-normal). The module docstring, "The motor-noise
+        scale", says why.
     sigma_m_scale_gamma : (float, float) or None
-        Shape and rate of the Gamma prior on s_m (default (2, 8): mean 0.25 N·m, about the
-        half-normal's 0.24, and density 0 at s_m = 0); None gives HalfNormal(``sigma_m_scale``).
-        On a human without motor noise the data bound every σ_m from above only, and below
-        that bound s_m's posterior is its prior: the half-normal's, flat at 0, is an
-        exponential tail in log s_m that the sampler crossed slowly (module docstring, "The
-        motor-noise scale").
+        Shape and rate of a Gamma prior on s_m ((2, 8): mean 0.25 N·m, about the half-normal's
+        0.24, and density 0 at s_m = 0; the default from 2026-12-05 until the inverse gamma),
+        used where ``sigma_m_variance_inverse_gamma`` is None; both None give
+        HalfNormal(``sigma_m_scale``).
     sigma_log_R_gamma : (float, float) or None
         Shape and rate of a Gamma prior on σ_R, the between-subject SD of log R, in place
         of the cost blocks' HalfNormal(``Priors.sigma_log_R``); None (default) keeps the
@@ -145,16 +155,21 @@ class DelayedPriors:
 
     tau_nm_scale: float = 0.1
     sigma_m_scale: float = 0.3
-    sigma_m_scale_gamma: tuple[float, float] | None = (2.0, 8.0)
+    sigma_m_variance_inverse_gamma: tuple[float, float] | None = (1.0, 0.03)
+    sigma_m_scale_gamma: tuple[float, float] | None = None
     sigma_log_R_gamma: tuple[float, float] | None = None
     R_population: str = "lognormal"
     rho_scale_factor: float = 2.0
 
     def __post_init__(self):
-        for name in ("sigma_log_R_gamma", "sigma_m_scale_gamma"):
+        for name in ("sigma_log_R_gamma", "sigma_m_scale_gamma", "sigma_m_variance_inverse_gamma"):
             g = getattr(self, name)
             if g is not None and not (len(g) == 2 and all(np.isfinite(v) and v > 0 for v in g)):
-                raise ValueError(f"{name} must be (shape, rate), both > 0; got {g!r}")
+                what = "(shape, scale)" if name == "sigma_m_variance_inverse_gamma" else "(shape, rate)"
+                raise ValueError(f"{name} must be {what}, both > 0; got {g!r}")
+        if self.sigma_m_variance_inverse_gamma is not None and self.sigma_m_scale_gamma is not None:
+            raise ValueError("s_m has one prior: give sigma_m_variance_inverse_gamma or sigma_m_scale_gamma, not both "
+                             "(sigma_m_variance_inverse_gamma=None for the Gamma)")
         g = self.sigma_log_R_gamma
         if self.R_population not in R_POPULATIONS:
             raise ValueError(f"R_population must be one of {R_POPULATIONS}; got {self.R_population!r}")
@@ -187,8 +202,9 @@ class DelayedForm:
     ``centred`` samples the subject's value, τ_nm[i] ~ HalfNormal(s_τ) (σ_m[i] ~
     HalfNormal(s_m)); ``noncentred`` samples z[i] ~ HalfNormal(1) and sets s_τ z[i] (s_m z[i]);
     ``folded`` samples z[i] ~ N(0, 1), unconstrained, and sets s_τ |z[i]| (s_m |z[i]|): the same
-    law, chosen for σ_m where the data find no motor noise (:mod:`pipelines.fit.delayed_forms`,
-    "Motor noise").
+    law; ``folded_centred`` samples v[i] ~ N(0, s_τ) (N(0, s_m)), unconstrained, and sets |v[i]|:
+    the same law again, centred, chosen for σ_m where the data find no motor noise
+    (:mod:`pipelines.fit.delayed_forms`, "Motor noise" and "The motor-noise scale's prior").
     ``rho`` is the form of ρ = R^(-1/2) with ``DelayedPriors(R_population="policy_scale")``
     (unused otherwise): ``centred``, ``noncentred``, ``folded`` (default), z[i] ~ N(0, 1) and
     ρ[i] = s_ρ |z[i]| (the same half-normal law, with z unconstrained where the log transform of
@@ -208,15 +224,12 @@ class DelayedForm:
 
 
 def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedForm):
-    """The subjects' baseline log R as -2 log ρ, ρ = R^(-1/2) ~ HalfNormal(s_ρ) (``R_population="policy_scale"``)."""
+    """The subjects' baseline log R as -2 log ρ, ρ = R^(-1/2) ~ HalfNormal(s_ρ) (``R_population="policy_scale"``).
+
+    Folded: ρ -> 0 is a finite step, not log ρ -> -∞, and z = 1 is not R = ∞; folded centred starts at
+    ρ = exp(-μ/2), R at the prior's centre."""
     scale = pm.HalfNormal("rho_scale", delayed_priors.rho_prior_scale(priors))
-    if form.rho in MOTOR_FORMS:  # folded: ρ -> 0 is a finite step, not log ρ -> -∞; z = 1 is not R = ∞
-        rho = half_normal_block("rho", scale, form.rho)
-    else:  # folded_centred: ρ = |ρ̃|, ρ̃ ~ N(0, s_ρ) unconstrained; starts at ρ = exp(-μ/2), R at the prior's centre.
-        n = len(pm.modelcontext(None).coords["subject"])
-        signed = pm.Normal("rho_signed", 0.0, scale, dims="subject",
-                           initval=np.full(n, np.exp(-0.5 * priors.mu_log_R[0])))
-        rho = pm.Deterministic("rho", pt.abs(signed), dims="subject")
+    rho = half_normal_block("rho", scale, form.rho, start=float(np.exp(-0.5 * priors.mu_log_R[0])))
     return -2.0 * pt.log(rho)
 
 
@@ -256,30 +269,42 @@ def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: d
     return log_theta1, log_R, theta2, R
 
 
+#: Where a ``folded_centred`` block's signed values start without ML estimates (off the symmetric point 0):
+#: τ_nm 0.05 s, σ_m 0.05 N·m, a modest lag and motor noise.
+FOLDED_CENTRED_START = {"tau_nm": 0.05, "sigma_m": 0.05}
+
+
 def motor_blocks(priors: DelayedPriors, form: DelayedForm):
     """τ_nm and σ_m per subject, each from a half-normal population, in the forms of ``form``; s_τ half-normal,
-    s_m Gamma (:class:`DelayedPriors`; module docstring)."""
-    out = []
-    for name, scale_name, f in (("tau_nm", "tau_nm_scale", form.tau_nm), ("sigma_m", "sigma_m_scale", form.sigma_m)):
-        gamma = priors.sigma_m_scale_gamma if name == "sigma_m" else None
-        scale = (pm.HalfNormal(scale_name, getattr(priors, scale_name)) if gamma is None
-                 else pm.Gamma(scale_name, alpha=gamma[0], beta=gamma[1]))
-        out.append(half_normal_block(name, scale, f))
-    return tuple(out)
+    s_m² inverse gamma by default (:class:`DelayedPriors`; module docstring)."""
+    s_tau = pm.HalfNormal("tau_nm_scale", priors.tau_nm_scale)
+    if priors.sigma_m_variance_inverse_gamma is not None:
+        a, b = priors.sigma_m_variance_inverse_gamma
+        s_m = pm.Deterministic("sigma_m_scale", pt.sqrt(pm.InverseGamma("sigma_m_scale_sq", alpha=a, beta=b)))
+    elif priors.sigma_m_scale_gamma is not None:
+        s_m = pm.Gamma("sigma_m_scale", alpha=priors.sigma_m_scale_gamma[0], beta=priors.sigma_m_scale_gamma[1])
+    else:
+        s_m = pm.HalfNormal("sigma_m_scale", priors.sigma_m_scale)
+    return half_normal_block("tau_nm", s_tau, form.tau_nm), half_normal_block("sigma_m", s_m, form.sigma_m)
 
 
-def half_normal_block(name: str, scale, form: str):
+def half_normal_block(name: str, scale, form: str, *, start: float | None = None):
     """Per subject, ``name`` ~ HalfNormal(``scale``) in one of :data:`MOTOR_FORMS`: centred; non-centred
     (scale · z, z ~ HalfNormal(1), named ``z_<name>``); folded (scale · |z|, z ~ N(0, 1) unconstrained,
-    starting at z = 1, off the symmetric point z = 0)."""
+    starting at z = 1, off the symmetric point z = 0); folded centred (|v|, v ~ N(0, scale) unconstrained,
+    named ``<name>_signed``, starting at ``start``, default :data:`FOLDED_CENTRED_START`: the same law, centred)."""
     if form == "centred":
         return pm.HalfNormal(name, scale, dims="subject")
     if form == "noncentred":
         return pm.Deterministic(name, scale * pm.HalfNormal(f"z_{name}", 1.0, dims="subject"), dims="subject")
     n = len(pm.modelcontext(None).coords["subject"])
+    if form == "folded_centred":
+        signed = pm.Normal(f"{name}_signed", 0.0, scale, dims="subject",
+                           initval=np.full(n, FOLDED_CENTRED_START[name] if start is None else start))
+        return pm.Deterministic(name, pt.abs(signed), dims="subject")
     z = pm.Normal(f"z_{name}", 0.0, 1.0, dims="subject", initval=np.ones(n))
     return pm.Deterministic(name, scale * pt.abs(z), dims="subject")
 
 
-__all__ = ["DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors", "MOTOR_FORMS", "RHO_FORMS",
-           "R_POPULATIONS", "baseline_log_R", "cost_blocks", "half_normal_block", "motor_blocks"]
+__all__ = ["DELAYED_POPULATION_PARAMETERS", "FOLDED_CENTRED_START", "DelayedForm", "DelayedPriors", "MOTOR_FORMS",
+           "RHO_FORMS", "R_POPULATIONS", "baseline_log_R", "cost_blocks", "half_normal_block", "motor_blocks"]

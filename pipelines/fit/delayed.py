@@ -45,7 +45,7 @@ from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import sample_model
-from pipelines.fit.start import SCALE_TARGETS, scale_sources, start_point
+from pipelines.fit.start import scale_sources, start_point
 from pipelines.fit.whiten import sample_whitened
 from pipelines.io import InputDataError
 
@@ -251,6 +251,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                 delayed_priors=delayed_priors, parameterization=form, delayed_form=delayed_form,
                                 segment_ids=prepared.labels, levels=levels, params=prepared.settings.design.wheel)
     start = start_point(model, ml)
+    sources = scale_sources(model, ml) if start else {}  # where each held population scale starts
     t1 = time.perf_counter()
     if sampled:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
@@ -276,8 +277,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                       "the chains start at PyMC's initial point (no ML estimates), jittered")
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
                "coordinates (pipelines/fit/whiten.py)" if whiten else ""),
-            "start_scales": {k: np.asarray(start[k]).tolist() for k in SCALE_TARGETS if k in (start or {})},
-            **({"start_scales_from": scale_sources(model, ml)} if start else {}),
+            "start_scales": {k: np.asarray(start[k]).tolist() for k in sources},
+            **({"start_scales_from": sources} if start else {}),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
             "delayed_parameterization": {**asdict(form), "log_R_reason": R_reason},
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled",

@@ -18,8 +18,10 @@ evaluation of the likelihood (milliseconds per gradient, whatever the forms of t
 The result is a starting point only: the chains are jittered around it as around PyMC's own
 (U(-1, 1) on the unconstrained scale), tuning still runs, and the posterior is the model's.
 The population scales (every positive free variable without a subject dimension: σ_log θ1,
-σ_β, τ_θ2, s_τ, s_m, ...) are held, not optimized: at the spread of their units' targets where
-:data:`SCALE_TARGETS` names them (:func:`scale_estimate`), else at PyMC's initial point. A hierarchical prior's
+σ_β, τ_θ2, s_τ, s_m² under its inverse gamma, ...) are held, not optimized: at the spread of their units'
+targets where :data:`SCALE_TARGETS` names them (:func:`scale_estimate`), else at PyMC's initial point
+(s_m², whose prior keeps it off the units' spread on a human without motor noise; the sidecar's
+``start_scales_from`` says which, :func:`scale_sources`). A hierarchical prior's
 density grows without bound as a population scale goes to 0 with its units on their centre, so
 where the targets agree within their SEs the optimum is a funnel's neck. On the 3-subject ``kbl``
 study of ``tests/pipelines/fit/test_delayed_fit.py`` the optimizer put σ_log θ1 at 0; one of the
@@ -125,12 +127,13 @@ def _held_scale_values(model, targets: dict) -> dict:
 
 
 def scale_sources(model, estimates: pd.DataFrame | None) -> dict:
-    """Where each held scale of :data:`SCALE_TARGETS` in ``model`` starts: ``"units' spread"`` where the estimates'
-    targets inform it (:func:`scale_estimate`), else ``"PyMC's initial point"`` (the prior's scale)."""
+    """Where each held population scale of ``model`` starts (every one, in ``model.free_RVs``' order):
+    ``"units' spread"`` where the estimates' targets inform it (:data:`SCALE_TARGETS`, :func:`scale_estimate`), else
+    ``"PyMC's initial point"`` (the prior's: a scale without targets, such as s_m² under its inverse gamma)."""
     informed = set() if estimates is None or estimates.empty else set(_held_scale_values(model, _targets(model,
                                                                                                          estimates)))
-    return {name: "units' spread" if name in informed else "PyMC's initial point"
-            for name in SCALE_TARGETS if model.named_vars.get(name) in model.free_RVs}
+    return {rv.name: "units' spread" if rv.name in informed else "PyMC's initial point"
+            for rv in model.free_RVs if _is_population_scale(model, rv)}
 
 
 def _se_at_bound(value, se) -> np.ndarray:

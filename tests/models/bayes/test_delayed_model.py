@@ -82,7 +82,7 @@ def test_cost_blocks_are_the_max_ent_models(plant, study):
     maxent = build_model(w.subjects, w.conditions, w.segments, plant)
     names = {v.name for v in maxent.free_RVs}
     assert names <= {v.name for v in delayed.free_RVs}
-    assert {v.name for v in delayed.free_RVs} - names == {"tau_nm_scale", "sigma_m_scale", "tau_nm", "sigma_m"}
+    assert {v.name for v in delayed.free_RVs} - names == {"tau_nm_scale", "sigma_m_scale_sq", "tau_nm", "sigma_m"}
     for n in names:
         assert delayed.named_vars_to_dims.get(n) == maxent.named_vars_to_dims.get(n)
     draws_d = pm.draw([delayed[n] for n in sorted(names)], draws=200, random_seed=5)
@@ -131,30 +131,76 @@ def test_folded_motor_blocks(plant, study):
             - (stats.halfnorm(scale=s_m).logpdf(sig) + np.log(sig)).sum())
     assert lf - lc == pytest.approx(diff, rel=1e-9, abs=1e-8)
     with pytest.raises(ValueError, match="folded"):
-        DelayedForm(sigma_m="folded_centred")
+        DelayedForm(sigma_m="partial")
 
 
-def test_the_motor_noise_scale_has_a_gamma_prior_by_default(plant, study):
-    """s_m ~ Gamma(2, rate 8) (density 0 at 0); ``sigma_m_scale_gamma=None`` gives HalfNormal(sigma_m_scale)."""
+def test_folded_centred_motor_block(plant, study):
+    """DelayedForm(sigma_m="folded_centred"): σ_m = |v|, v ~ N(0, s_m) unconstrained, starting off 0 at
+    FOLDED_CENTRED_START; the model's density is the centred one's at the same σ_m less the log transform's
+    Jacobian log σ_m and log 2 per subject (N(v; 0, s) = HalfNormal(|v|; s) / 2)."""
+    from models.bayes.delayed_blocks import FOLDED_CENTRED_START
+
+    w = study
+    fc = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                             delayed_form=DelayedForm("centred", "folded_centred"))
+    centred = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                  delayed_form=DelayedForm("centred", "centred"))
+    assert {v.name for v in fc.free_RVs} - {v.name for v in centred.free_RVs} == {"sigma_m_signed"}
+    assert fc.rvs_to_transforms[fc["sigma_m_signed"]] is None  # unconstrained
+    np.testing.assert_array_equal(fc.initial_point()["sigma_m_signed"], np.full(3, FOLDED_CENTRED_START["sigma_m"]))
+    point = _point(fc, 4)
+    point["sigma_m_signed"] = np.array([-0.4, 0.01, 0.13])
+    sig = fc.compile_fn(fc.replace_rvs_by_values([fc["sigma_m"]])[0], inputs=fc.value_vars,
+                        on_unused_input="ignore")(point)
+    np.testing.assert_allclose(sig, [0.4, 0.01, 0.13], rtol=1e-15)
+    cpoint = {k: v for k, v in point.items() if k != "sigma_m_signed"}
+    cpoint["sigma_m_log__"] = np.log(sig)
+    lf, lc = fc.compile_logp()(point), centred.compile_logp()(cpoint)
+    assert lf - lc == pytest.approx(-np.sum(np.log(2.0) + np.log(sig)), rel=1e-9, abs=1e-8)
+
+
+def test_the_motor_noise_variance_has_an_inverse_gamma_prior_by_default(plant, study):
+    """s_m² ~ IG(1, 0.03) (sampled as sigma_m_scale_sq, s_m its square root); without it s_m ~ Gamma(2, rate 8)
+    (the default before) or HalfNormal(sigma_m_scale); one prior at a time, each checked."""
     from scipy import stats
 
     from models.bayes.delayed_model import DelayedPriors
 
     w = study
-    assert DelayedPriors().sigma_m_scale_gamma == (2.0, 8.0)
-    gamma = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
+    assert DelayedPriors().sigma_m_variance_inverse_gamma == (1.0, 0.03)
+    assert DelayedPriors().sigma_m_scale_gamma is None
+    ig = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
+    gamma = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                delayed_priors=DelayedPriors(sigma_m_variance_inverse_gamma=None,
+                                                             sigma_m_scale_gamma=(2.0, 8.0)))
     half = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
-                               delayed_priors=DelayedPriors(sigma_m_scale_gamma=None))
+                               delayed_priors=DelayedPriors(sigma_m_variance_inverse_gamma=None))
     assert {v.name for v in gamma.free_RVs} == {v.name for v in half.free_RVs}
+    assert {v.name for v in ig.free_RVs} - {v.name for v in gamma.free_RVs} == {"sigma_m_scale_sq"}
+    s_of = ig.compile_fn(ig.replace_rvs_by_values([ig["sigma_m_scale"]])[0], inputs=ig.value_vars,
+                         on_unused_input="ignore")
+    point = _point(ig, 4)
     for x in (0.01, 0.2, 0.9):
+        assert float(pm.logp(ig["sigma_m_scale_sq"], x ** 2).eval()) == pytest.approx(
+            stats.invgamma(1.0, scale=0.03).logpdf(x ** 2), rel=1e-6)
+        point["sigma_m_scale_sq_log__"] = np.log(x ** 2)
+        assert float(s_of(point)) == pytest.approx(x, rel=1e-12)
         assert float(pm.logp(gamma["sigma_m_scale"], x).eval()) == pytest.approx(
             stats.gamma(2.0, scale=1 / 8.0).logpdf(x), rel=1e-6)
         assert float(pm.logp(half["sigma_m_scale"], x).eval()) == pytest.approx(
             stats.halfnorm(scale=0.3).logpdf(x), rel=1e-6)
     assert float(pm.logp(gamma["sigma_m_scale"], 0.0).eval()) == -np.inf
+    # the quantiles the docstrings quote: median 0.21 N·m, 90 % on 0.10-0.77, below 0.05 at odds of 1 in 160 000
+    s_q = np.sqrt(stats.invgamma(1.0, scale=0.03).ppf([0.05, 0.5, 0.95]))
+    np.testing.assert_allclose(s_q, [0.100, 0.208, 0.765], atol=1e-3)
+    assert 1 / stats.invgamma(1.0, scale=0.03).cdf(0.05 ** 2) == pytest.approx(162_755, rel=1e-3)
     for bad in ((2.0,), (2.0, -1.0)):
         with pytest.raises(ValueError, match="sigma_m_scale_gamma"):
-            DelayedPriors(sigma_m_scale_gamma=bad)
+            DelayedPriors(sigma_m_variance_inverse_gamma=None, sigma_m_scale_gamma=bad)
+        with pytest.raises(ValueError, match="sigma_m_variance_inverse_gamma"):
+            DelayedPriors(sigma_m_variance_inverse_gamma=bad)
+    with pytest.raises(ValueError, match="one prior"):
+        DelayedPriors(sigma_m_scale_gamma=(2.0, 8.0))
 
 
 def test_sigma_R_can_have_a_boundary_avoiding_gamma_prior(plant, study):
@@ -246,7 +292,7 @@ def test_policy_scale_population_of_R(plant, study):
     assert float(pm.logp(fc["rho_signed"], np.array([-0.1, 0.3])).sum().eval({fc["rho_scale"]: 0.4})) == \
         pytest.approx(stats.norm(scale=0.4).logpdf([-0.1, 0.3]).sum(), rel=1e-10)
     with pytest.raises(ValueError, match="folded"):
-        DelayedForm(tau_nm="folded_centred")
+        DelayedForm(rho="partial")
     with pytest.raises(ValueError, match="R_population"):
         DelayedPriors(R_population="flat")
     with pytest.raises(ValueError, match="policy_scale"):

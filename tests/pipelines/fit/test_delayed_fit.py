@@ -54,10 +54,11 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert side["start"].startswith("the chains start near the ML estimates")  # the fit's own profile's, no --estimates
     # the population scales held at their units' spread, each below its prior's scale (PyMC's initial point)
     assert set(side["start_scales"]) == {"sigma_log_theta1", "sigma_beta", "sigma_log_R", "sigma_beta_log_R",
-                                         "tau_theta2", "tau_nm_scale", "sigma_m_scale"}
+                                         "tau_theta2", "tau_nm_scale", "sigma_m_scale_sq"}
     assert all(0 < np.max(v) for v in side["start_scales"].values())
-    # which of them the units' ML targets informed: every one here (the kbl human's units have all seven targets)
-    assert side["start_scales_from"] == {k: "units' spread" for k in side["start_scales"]}
+    # which of them the units' ML targets informed: all but s_m², which starts at its inverse gamma's point
+    assert side["start_scales_from"] == {**{k: "units' spread" for k in side["start_scales"]},
+                                         "sigma_m_scale_sq": "PyMC's initial point"}
     # by default on each subject's whitened coordinates (scioc fit --adaptation whitened), with what the whitening found
     assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened"
     assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
@@ -173,15 +174,15 @@ def test_the_lag_and_noise_blocks_are_centred_only_where_the_data_pin_them():
     assert form == DelayedForm("centred", "centred") and f"threshold {CENTRED_Z:g}" in reason
     # A max-ent human: the lag at its bound (no SE), the motor noise small against its SE.
     at_zero = pinned.assign(tau_nm=[0.0, 0.0], se_tau_nm=[np.nan, np.nan], sigma_m=[0.05, 0.03])
-    assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "folded")
+    assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "folded_centred")
 
 
 def test_the_log_R_blocks_are_centred_only_where_no_motor_noise_is_found():
     # the max-ent human (no motor noise found): the policy noise alone fixes R per unit
     form, reason = log_R_form(DelayedForm("noncentred", "noncentred"))
     assert form == "centred" and "no motor noise" in reason
-    form, reason = log_R_form(DelayedForm("noncentred", "folded"))
-    assert form == "centred" and "σ_m's block is folded (no motor noise" in reason
+    form, reason = log_R_form(DelayedForm("noncentred", "folded_centred"))
+    assert form == "centred" and "σ_m's block is folded_centred (no motor noise" in reason
     # the delayed human (motor noise found): R trades off against it, loose per unit
     assert log_R_form(DelayedForm("centred", "centred"))[0] == "noncentred"
     assert log_R_form(DelayedForm("noncentred", "centred"))[0] == "noncentred"
@@ -209,7 +210,8 @@ def test_a_given_log_R_form_is_fitted_and_recorded(delayed_study):
 @pytest.mark.slow
 def test_estimates_without_motor_noise_fold_its_block_end_to_end(delayed_study, tmp_path):
     # Estimates that find no motor noise (every σ_m at its bound 0, no SE, as for the max-ent human): the fit folds
-    # σ_m's block (σ_m = s_m |z|, z unconstrained) and centres log R, records why, and its draws of σ_m are s_m |z|.
+    # σ_m's block, centred (σ_m = |v|, v ~ N(0, s_m) unconstrained), under the inverse gamma on s_m², and centres
+    # log R, records why, and its draws of σ_m are |v|, of s_m the square root of s_m².
     import arviz as az
 
     root, sim, prepared = delayed_study
@@ -219,13 +221,14 @@ def test_estimates_without_motor_noise_fold_its_block_end_to_end(delayed_study, 
     paths = fit_to_dir(sim["study"], root / "fit_folded", settings=SETTINGS, prepared=prepared,
                        estimates_path=tmp_path / "estimates.parquet", **small)
     side = json.loads(open(paths["sidecar"]).read())
-    assert side["delayed_form"]["sigma_m"] == "folded" and "sigma_m folded" in side["delayed_form"]["reason"]
+    assert side["delayed_form"]["sigma_m"] == "folded_centred"
+    assert "sigma_m folded_centred" in side["delayed_form"]["reason"]
     assert side["delayed_parameterization"]["R_mc"] == "centred"
-    assert side["delayed_priors"]["sigma_m_scale_gamma"] == [2.0, 8.0]
+    assert side["delayed_priors"]["sigma_m_variance_inverse_gamma"] == [1.0, 0.03]
+    assert side["delayed_priors"]["sigma_m_scale_gamma"] is None
     post = az.from_netcdf(paths["posterior"])["posterior"]
-    z = post["z_sigma_m"].values
-    np.testing.assert_allclose(post["sigma_m"].values, post["sigma_m_scale"].values[..., None] * np.abs(z),
-                               rtol=1e-12)
+    np.testing.assert_array_equal(post["sigma_m"].values, np.abs(post["sigma_m_signed"].values))
+    np.testing.assert_allclose(post["sigma_m_scale"].values, np.sqrt(post["sigma_m_scale_sq"].values), rtol=1e-15)
 
 
 @pytest.mark.slow

@@ -98,7 +98,7 @@ def test_population_scales_start_at_their_units_spread_capped_at_pymcs_point():
 
 def test_scale_sources_say_which_scales_the_targets_informed():
     """σ_log θ1 has the units' log θ1 as targets; a motor-noise scale whose units have no σ_m estimates does not, and
-    starts at PyMC's point; without estimates every scale does. Scales absent from the model are not listed."""
+    starts at PyMC's point; without estimates every scale does. Every population scale of the model is listed."""
     model = toy_model(noncentred=True)
     with model:
         pm.HalfNormal("sigma_m", pm.HalfNormal("sigma_m_scale", 0.3), dims="subject")

@@ -33,6 +33,7 @@ import json
 import os
 import tempfile
 import time
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -61,12 +62,16 @@ def within_goal(segments: int, chains: int, draws: int, fit_s: float) -> bool | 
 
 
 def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: int = 4, draws: int = 1000,
-                           tune: int = 1000, n_subjects: int | None = None, adequacy_boot: int | None = None) -> dict:
+                           tune: int = 1000, n_subjects: int | None = None, adequacy_boot: int | None = None,
+                           keep=None) -> dict:
     """Simulate, identify and fit the ``delayed`` human as ``scioc`` does (module docstring) and time it.
 
     ``n_subjects`` (default the experiment's 42) and ``adequacy_boot`` (default the
     experiment's) exist to test this function at small size; a smaller fit gets no verdict
-    on the goal (:func:`within_goal`).
+    on the goal (:func:`within_goal`). ``keep``: a folder (created; refused if it exists and is
+    not empty) that keeps the study (``data/``), the estimates (``identify_delayed/``) and the
+    fit (``fit_delayed/``) for a closer look, e.g. ``scioc human-models`` against a max-ent fit;
+    by default they are written to a temporary folder and removed.
 
     Returns
     -------
@@ -83,8 +88,7 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
     settings = IdentifySettings.for_design(design, human_model="delayed")
     if adequacy_boot is not None:
         settings = replace(settings, adequacy_boot=adequacy_boot)
-    with tempfile.TemporaryDirectory() as tmp:
-        root = Path(tmp)
+    with _workspace(keep) as root:
         sim = simulate_to_dir(root / "data", design=design, seed=seed, human=human, n_subjects=n_subjects)
         t0 = time.perf_counter()
         prepared = prepare_study(load_study(sim["study"], design), settings)
@@ -99,6 +103,21 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
         side = json.loads(Path(paths["sidecar"]).read_text())
         res = json.loads(Path(paths["contrasts"]).read_text())
     return summarize(side, res, human=human, identify_s=identify_s)
+
+
+@contextmanager
+def _workspace(keep):
+    """The folder the benchmark writes into: ``keep`` (kept; must not hold anything yet), else a temporary one."""
+    if keep is None:
+        with tempfile.TemporaryDirectory() as tmp:
+            yield Path(tmp)
+        return
+    keep = Path(keep)
+    if keep.exists() and any(keep.iterdir()):
+        raise ValueError(f"{keep} exists and is not empty: the benchmark keeps its study, estimates and fit in a new "
+                         "folder")
+    keep.mkdir(parents=True, exist_ok=True)
+    yield keep
 
 
 def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:

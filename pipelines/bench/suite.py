@@ -8,6 +8,7 @@ second built-in example's identification and fit (:mod:`pipelines.bench.example`
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from pipelines.bench.common import default_study_segments, machine_info
 from pipelines.bench.identify import bench_identify, format_identify
@@ -18,7 +19,7 @@ from pipelines.storage import write_text_atomic
 PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "sbc", "example")
 
 
-def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None) -> dict:
+def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, keep=None) -> dict:
     """Run the benchmarks; print tables; optionally write JSON (atomically).
 
     Parameters
@@ -33,10 +34,18 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None) 
         The simulated humans of the ``fit_delayed`` part's fits as ``scioc fit`` runs them
         (default :data:`pipelines.bench.delayed_workflow.WORKFLOW_HUMANS`; each fit takes
         15-30 minutes at full size).
+    keep : str or Path, optional
+        Keep each of those fits' study, estimates and fit in ``keep/<human>/`` (default: removed).
     """
     unknown = set(parts) - set(PARTS)
     if unknown:
         raise ValueError(f"unknown benchmark part(s) {sorted(unknown)}; choose from {', '.join(PARTS)}")
+    if keep is not None and "fit_delayed" in parts:  # refused now, not after an hour of the parts before
+        from pipelines.bench.delayed_workflow import WORKFLOW_HUMANS
+
+        for human in WORKFLOW_HUMANS if humans is None else humans:
+            if (Path(keep) / human).exists() and any((Path(keep) / human).iterdir()):
+                raise ValueError(f"{Path(keep) / human} exists and is not empty: --keep needs new folders")
     kw = {"dense_k": (50, 100), "long_k": 2000} if quick else {}
     study = default_study_segments(n_subjects=2 if quick else 42)
     result = {"machine": machine_info(), "quick": quick}
@@ -69,7 +78,8 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None) 
         result["fit_delayed"] = {"profile": bench_delay_profile(), "workflow": {}}
         print(format_delay_profile(result["fit_delayed"]["profile"]), flush=True)
         for human in WORKFLOW_HUMANS if humans is None else humans:
-            result["fit_delayed"]["workflow"][human] = bench_delayed_workflow(human=human)
+            result["fit_delayed"]["workflow"][human] = bench_delayed_workflow(
+                human=human, keep=None if keep is None else Path(keep) / human)
             print(format_delayed_workflow(result["fit_delayed"]["workflow"][human]), flush=True)
     if "sbc" in parts and not quick:
         from pipelines.bench.sbc import bench_sbc, format_sbc  # lazy: Dask and PyMC take seconds to import

@@ -55,7 +55,7 @@ def cmd_bench(args) -> int:
     from pipelines.bench import run_bench
 
     run_bench(args.json, quick=args.quick, parts=[p.strip() for p in args.parts.split(",") if p.strip()],
-              humans=args.humans)
+              humans=args.humans, keep=args.keep)
     if args.json:
         print(f"wrote {args.json}")
     return 0

@@ -280,6 +280,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--humans", type=humans_list, default=None, metavar="LIST",
                    help="simulated humans of the fit_delayed part (default: pipelines/bench/delayed_workflow.py's "
                    "WORKFLOW_HUMANS, the paper's agent maxent and Kleinman-Baron-Levison's kbl)")
+    p.add_argument("--keep", metavar="DIR", default=None, help="keep the fit_delayed part's study, estimates and "
+                   "fit of each human in DIR/<human>/ (default: removed)")
     p.set_defaults(func=commands.cmd_bench)
 
     p = sub.add_parser("bench-fit", help="one fit of the default simulated study in a chosen parameterization (how "

@@ -20,10 +20,17 @@ def test_the_goal_applies_to_the_full_size_fit_only():
 
 
 @pytest.mark.slow
-def test_the_workflow_benchmark_times_scioc_fits_own_path():
+def test_the_workflow_benchmark_times_scioc_fits_own_path(tmp_path):
     """Two subjects of the kbl human: the fit is scioc fit's default (whitened, started at the ML estimates), its
-    time is the sidecar's, and the numbers derived from it are consistent with the sampler's own."""
-    res = bench_delayed_workflow(human="kbl", seed=3, chains=2, draws=30, tune=40, n_subjects=2, adequacy_boot=4)
+    time is the sidecar's, and the numbers derived from it are consistent with the sampler's own. ``keep`` keeps
+    the study, estimates and fit, and is not written into twice."""
+    keep = tmp_path / "kept"
+    res = bench_delayed_workflow(human="kbl", seed=3, chains=2, draws=30, tune=40, n_subjects=2, adequacy_boot=4,
+                                 keep=keep)
+    assert {p.name for p in keep.iterdir()} == {"data", "identify_delayed", "fit_delayed"}
+    assert (keep / "fit_delayed" / "posterior.nc").is_file()
+    with pytest.raises(ValueError, match="not empty"):
+        bench_delayed_workflow(human="kbl", n_subjects=2, keep=keep)
     st, s, smp = res["settings"], res["seconds"], res["sampler"]
     assert (st["human"], st["segments"], st["subjects"], st["chains"], st["draws"], st["tune"]) == \
         ("kbl", 4, 2, 2, 30, 40)
@@ -40,7 +47,14 @@ def test_the_workflow_benchmark_times_scioc_fits_own_path():
     assert "kbl human" in text and "not this size" in text and "per-subject whitened" in text
 
 
-def test_bench_refuses_an_unknown_human(capsys):
+def test_bench_refuses_an_unknown_human_and_a_kept_folder_in_use_before_any_work(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["bench", "--parts", "fit_delayed", "--humans", "maxent,robot"])
     assert e.value.code == 2 and "robot" in capsys.readouterr().err
+    (tmp_path / "kbl").mkdir()
+    (tmp_path / "kbl" / "old.txt").write_text("earlier run")
+    argv = ["bench", "--parts", "fit_delayed", "--humans", "kbl", "--keep", str(tmp_path), "--json",
+            str(tmp_path / "b.json")]
+    assert main(argv) == 2
+    assert "not empty" in capsys.readouterr().err and not (tmp_path / "b.json").exists()
+    assert (tmp_path / "kbl" / "old.txt").read_text() == "earlier run"

@@ -8,11 +8,11 @@ Added, per subject i (kept in every level: the lag and the motor noise are the p
 as the simulated ``kbl`` human's are)::
 
     τ_nm[i] ~ HalfNormal(s_τ)      neuromuscular lag, s              s_τ ~ HalfN(0.1)
-    σ_m[i]  ~ HalfNormal(s_m)      motor-noise SD, N·m per sample    s_m ~ Gamma(2, rate 8)
+    σ_m[i]  ~ HalfNormal(s_m)      motor-noise SD, N·m per sample    s_m² ~ InvGamma(1, 0.03)
     u_H[segment] ~ delayed(θ, τ_nm[i], σ_m[i], d[segment] | x0, angle_ref, assistant, τ_0)
 
-(:class:`DelayedPriors`, where s_m's Gamma prior is explained; each block centred, non-centred
-or, σ_m's, folded, :class:`DelayedForm`). Half-normal
+(:class:`DelayedPriors`, where s_m's prior is explained; each block centred, non-centred
+or folded, :class:`DelayedForm`). Half-normal
 populations, not log-normal ones, because the model must contain the paper's human: on
 data without lag or motor noise the ML τ_nm is 0 (<= 0.7 ms in every unit of the max-ent
 human with a torque sensor, README "Human models") and σ_m near it, which a log-normal
@@ -23,23 +23,27 @@ A half-normal puts mass at 0 and, with the data of a delayed human (SE of τ_nm 
 0.006 s at 0.06 s, of σ_m 0.02-0.03 N·m at 0.25), shrinks its values negligibly.
 
 Prior predictive check (:func:`models.bayes.prior_predictive.delayed_prior_predictive_summary`,
-as the max-ent model's: the default study's 84 segments, every one with delay 12 samples and
-its warm-up, 200 joint prior draws, ``default_rng(1)``)::
+as the max-ent model's: the default study's 84 segments (:func:`pipelines.bench.common.default_study_segments`,
+2-s preview), every one with delay 12 samples and its warm-up, 200 joint prior draws,
+``default_rng(1)``), with the default priors (s_m² ~ InvGamma(1, 0.03), since the last change of
+2026-12-05)::
 
                         5 %    25 %   50 %   75 %   95 %
-    MC torque (N·m)    0.221  0.261  0.277  0.296  0.422    observed 0.271-0.318
-    SC torque (N·m)    0.056  0.099  0.123  0.163  0.339    observed 0.118-0.193
-    MC error (rad)     0.007  0.015  0.025  0.040  0.080    observed 0.009-0.035
-    SC error (rad)     0.005  0.011  0.020  0.033  0.050    observed 0.011-0.032
+    MC torque (N·m)    0.223  0.262  0.279  0.308  0.474    observed 0.271-0.318
+    SC torque (N·m)    0.059  0.102  0.128  0.184  0.395    observed 0.118-0.193
+    MC error (rad)     0.008  0.018  0.028  0.043  0.087    observed 0.009-0.035
+    SC error (rad)     0.006  0.013  0.022  0.034  0.054    observed 0.011-0.032
     τ_nm (s)           0.002  0.012  0.036  0.084  0.217
-    σ_m (N·m)          0.006  0.035  0.102  0.234  0.617
+    σ_m (N·m)          0.012  0.064  0.145  0.288  0.782
 
 The observations sit in the central part of every distribution, as for the max-ent model;
-τ_nm covers no lag to twice McRuer & Jex's 0.1 s, σ_m 0 to 2.5 times KBL's 0.25 N·m. The table
-was drawn with s_m ~ HalfNormal(0.3), the prior before 2026-12-05. Its Gamma(2, rate 8) since gives
-σ_m = s_m |z| almost the same law (Monte Carlo, 2·10⁶ draws of each: 5/25/50/75/95 % 0.008 0.048
-0.122 0.265 0.651 N·m, against the half-normal's 0.004 0.036 0.109 0.258 0.655), so the torque rows
-were not drawn again.
+τ_nm covers no lag to twice McRuer & Jex's 0.1 s, σ_m near 0 to 3 times KBL's 0.25 N·m. With
+s_m ~ HalfNormal(0.3), the prior before 2026-12-05, the same draws gave the table of before
+(torque MC 0.221 0.261 0.277 0.296 0.422, SC 0.056 0.099 0.123 0.163 0.339; error MC 0.007 0.015
+0.025 0.040 0.080, SC 0.005 0.011 0.020 0.033 0.050; σ_m 0.006 0.035 0.102 0.234 0.617 N·m): the
+inverse gamma widens the upper quarter of σ_m and of the torques a little and moves σ_m's 5 %
+from 0.006 to 0.012 N·m. (The Gamma(2, rate 8) between them gave σ_m almost the half-normal's
+law: 0.008 0.048 0.122 0.265 0.651 N·m in 2·10⁶ Monte Carlo draws.)
 
 The delay d is *data*: fixed per subject at the maximum of its profile likelihood
 (:func:`build_delayed_model` takes a delay per segment; ``scioc fit`` chooses it,

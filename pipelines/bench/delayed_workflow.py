@@ -105,6 +105,16 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
     return summarize(side, res, human=human, identify_s=identify_s)
 
 
+def refuse_used_folder(keep) -> Path:
+    """``keep`` as a Path; ValueError if it exists and is not an empty folder (a benchmark keeps its files in a new
+    one, never beside or over another run's)."""
+    keep = Path(keep)
+    if keep.exists() and (not keep.is_dir() or any(keep.iterdir())):
+        raise ValueError(f"{keep} exists and is not empty: the benchmark keeps its study, estimates and fit in a new "
+                         "folder")
+    return keep
+
+
 @contextmanager
 def _workspace(keep):
     """The folder the benchmark writes into: ``keep`` (kept; must not hold anything yet), else a temporary one."""
@@ -112,10 +122,7 @@ def _workspace(keep):
         with tempfile.TemporaryDirectory() as tmp:
             yield Path(tmp)
         return
-    keep = Path(keep)
-    if keep.exists() and any(keep.iterdir()):
-        raise ValueError(f"{keep} exists and is not empty: the benchmark keeps its study, estimates and fit in a new "
-                         "folder")
+    keep = refuse_used_folder(keep)
     keep.mkdir(parents=True, exist_ok=True)
     yield keep
 
@@ -187,4 +194,4 @@ def format_delayed_workflow(res: dict) -> str:
 
 
 __all__ = ["EXPERIMENT", "FIT_DELAYED_GOAL_S", "FIT_DELAYED_GOAL_SIZE", "WORKFLOW_HUMANS", "bench_delayed_workflow",
-           "format_delayed_workflow", "goal_text", "summarize", "within_goal"]
+           "format_delayed_workflow", "goal_text", "refuse_used_folder", "summarize", "within_goal"]

@@ -41,11 +41,10 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
     if unknown:
         raise ValueError(f"unknown benchmark part(s) {sorted(unknown)}; choose from {', '.join(PARTS)}")
     if keep is not None and "fit_delayed" in parts:  # refused now, not after an hour of the parts before
-        from pipelines.bench.delayed_workflow import WORKFLOW_HUMANS
+        from pipelines.bench.delayed_workflow import WORKFLOW_HUMANS, refuse_used_folder
 
         for human in WORKFLOW_HUMANS if humans is None else humans:
-            if (Path(keep) / human).exists() and any((Path(keep) / human).iterdir()):
-                raise ValueError(f"{Path(keep) / human} exists and is not empty: --keep needs new folders")
+            refuse_used_folder(Path(keep) / human)
     kw = {"dense_k": (50, 100), "long_k": 2000} if quick else {}
     study = default_study_segments(n_subjects=2 if quick else 42)
     result = {"machine": machine_info(), "quick": quick}

@@ -33,7 +33,7 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
     humans : sequence of str, optional
         The simulated humans of the ``fit_delayed`` part's fits as ``scioc fit`` runs them
         (default :data:`pipelines.bench.delayed_workflow.WORKFLOW_HUMANS`; each fit takes
-        15-30 minutes at full size).
+        15-35 minutes at full size).
     keep : str or Path, optional
         Keep each of those fits' study, estimates and fit in ``keep/<human>/`` (default: removed).
     """

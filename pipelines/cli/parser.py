@@ -276,7 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "of likelihood, delayed (its likelihood), identify, fit (the default study's, about 3 min), sbc "
                    "and example (the second example's identify and fit; default: all but fit_delayed); fit_delayed: "
                    "the delay's profile, and the delayed human's fit as scioc fit runs it, timed against issue 13's "
-                   "15 minutes (pipelines/bench/delayed_workflow.py; 15-30 minutes per human)")
+                   "15 minutes (pipelines/bench/delayed_workflow.py; 15-35 minutes per human)")
     p.add_argument("--humans", type=humans_list, default=None, metavar="LIST",
                    help="simulated humans of the fit_delayed part (default: pipelines/bench/delayed_workflow.py's "
                    "WORKFLOW_HUMANS, the paper's agent maxent and Kleinman-Baron-Levison's kbl)")

@@ -79,7 +79,7 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
         ``settings``; ``seconds``: ``identify`` (``scioc identify --human-model delayed``),
         ``fit`` (the fit's ``seconds.total_s``), ``sample`` (nutpie's sampling of the
         condition model); ``sampler``: leapfrog steps per warm-up and kept draw (and per
-        tenth of the warm-up), divergences, gradients and seconds per gradient on a core
+        tenth of the warm-up), divergences, gradients and milliseconds per gradient on a core
         (sampling time × cores used / gradients); ``convergence_verdict`` and ``worst``
         (population parameters); ``adequacy`` (verdict, segments flagged); ``truth``: β and
         the units' τ_nm and σ_m against the simulated truth; ``goal_s`` and ``within_goal``.

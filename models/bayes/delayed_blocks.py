@@ -288,6 +288,15 @@ def motor_blocks(priors: DelayedPriors, form: DelayedForm):
     return half_normal_block("tau_nm", s_tau, form.tau_nm), half_normal_block("sigma_m", s_m, form.sigma_m)
 
 
+def motor_coordinate(name: str, form: str) -> str:
+    """The free variable that holds each subject's ``name`` in ``form`` of :data:`MOTOR_FORMS` (as
+    :func:`half_normal_block` names it): the coordinate a whitened fit curves each subject's ridge along
+    (:func:`models.bayes.whiten.ridge_curvature`)."""
+    if form not in MOTOR_FORMS:
+        raise ValueError(f"unknown form {form!r}; one of {MOTOR_FORMS}")
+    return {"centred": name, "noncentred": f"z_{name}", "folded": f"z_{name}", "folded_centred": f"{name}_signed"}[form]
+
+
 def half_normal_block(name: str, scale, form: str, *, start: float | None = None):
     """Per subject, ``name`` ~ HalfNormal(``scale``) in one of :data:`MOTOR_FORMS`: centred; non-centred
     (scale · z, z ~ HalfNormal(1), named ``z_<name>``); folded (scale · |z|, z ~ N(0, 1) unconstrained,
@@ -307,4 +316,5 @@ def half_normal_block(name: str, scale, form: str, *, start: float | None = None
 
 
 __all__ = ["DELAYED_POPULATION_PARAMETERS", "FOLDED_CENTRED_START", "DelayedForm", "DelayedPriors", "MOTOR_FORMS",
-           "RHO_FORMS", "R_POPULATIONS", "baseline_log_R", "cost_blocks", "half_normal_block", "motor_blocks"]
+           "RHO_FORMS", "R_POPULATIONS", "baseline_log_R", "cost_blocks", "half_normal_block", "motor_blocks",
+           "motor_coordinate"]

@@ -200,10 +200,13 @@ NUTPIE_ADAPTATIONS = ("low_rank", "diag")
 DELAYED_NUTS = {"adaptation": NUTPIE_ADAPTATIONS[0]}
 #: The name in :data:`ADAPTATIONS` of the whitened sampling.
 WHITENED = "whitened"
+#: The name in :data:`ADAPTATIONS` of the whitened sampling with each subject's ridge along σ_m curved (module
+#: docstring, "Curved").
+CURVED = "curved"
 #: The mass matrices a delayed fit with profile delays may use (``scioc fit --adaptation``), the default first:
-#: nutpie's diagonal one on each subject's whitened coordinates (:mod:`models.bayes.whiten`; module docstring,
-#: "Whitened"), then nutpie's own.
-ADAPTATIONS = (WHITENED, *NUTPIE_ADAPTATIONS)
+#: nutpie's diagonal one on each subject's whitened coordinates curved along σ_m's ridge, then on the affine
+#: whitened ones (:mod:`models.bayes.whiten`; module docstring, "Whitened", "Curved"), then nutpie's own.
+ADAPTATIONS = (CURVED, WHITENED, *NUTPIE_ADAPTATIONS)
 
 
 #: nutpie's target acceptance rate on the whitened coordinates (module docstring, "Whitened"; nutpie's default 0.8).
@@ -211,11 +214,11 @@ WHITENED_TARGET_ACCEPT = 0.9
 
 
 def nutpie_options(adaptation: str) -> dict:
-    """nutpie's options for a delayed fit with this :data:`ADAPTATIONS` entry (whitened: its diagonal mass matrix and
-    :data:`WHITENED_TARGET_ACCEPT`)."""
+    """nutpie's options for a delayed fit with this :data:`ADAPTATIONS` entry (whitened, curved or not: its diagonal
+    mass matrix and :data:`WHITENED_TARGET_ACCEPT`)."""
     if adaptation not in ADAPTATIONS:
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}; got {adaptation!r}")
-    if adaptation == WHITENED:
+    if adaptation in (CURVED, WHITENED):
         return {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
     return {"adaptation": adaptation}
 
@@ -352,6 +355,6 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
                            **kwargs)
 
 
-__all__ = ["ADAPTATIONS", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
+__all__ = ["ADAPTATIONS", "CURVED", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
            "DelayedForm", "DelayedPriors", "NUTPIE_ADAPTATIONS", "R_POPULATIONS", "WHITENED", "WHITENED_TARGET_ACCEPT",
            "build_delayed_model", "delay_step", "nutpie_options"]

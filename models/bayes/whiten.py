@@ -28,6 +28,27 @@ jitters its own, put the population's centres 8-22 posterior SDs from x̂ (β's 
 the default study, μ_log θ1's 0.085), and the first 20 warm-up draws of the full-size ``delayed``
 fit took trees of 127-1023 leapfrog steps to walk back (README, "Not yet").
 
+Curved
+------
+An affine map cannot straighten a curved ridge. In the ``delayed`` model each subject's R trades
+off against its motor noise σ_m along a parabola: the residual's variance at lag 0 is about the
+policy noise's, which falls as R grows, plus σ_m²'s share, so the data hold log R ≈ c + k σ_m²
+(on the full-size fit of the default study's max-ent human kept by ``scioc bench --parts
+fit_delayed --keep``, measured ad hoc: the posterior's slope of log R on σ_m² 2.2-2.7 R on every
+third subject; the correlation of baseline log R and σ_m per subject 0.21-0.90, median 0.80).
+Where σ_m's coordinate is v (σ_m = |v|, the folded centred form), the mode is at v = 0 and that
+parabola is symmetric about it: no linear map of v removes it, and each tree of NUTS has to turn
+along it. So, given a ``pivot`` coordinate p in each block (σ_m's), the map is::
+
+    x_i = x̂_i + L_i w_i + a_i δ_i²,   δ_i = (L_i w_i)_p,   a_ip = 0
+
+with a_i the secant curvature of subject i's ridge (:func:`ridge_curvature`: the conditional
+modes of the other coordinates with the pivot at x̂_p and ± one of its scales). The Jacobian of
+w -> x is (I + 2 δ a eₚᵀ) L, whose determinant is det L (a_p = 0): constant, so the density of
+w is still p(x(w)) times a constant. The map is one-to-one: δ is read off x_p, then w from
+x - x̂ - a δ². On a banana whose ridge is exactly quadratic it is exact (the density of w is a
+standard normal). Measured on the full-size study: README, "Speed".
+
 x̂ and H are computed by :mod:`pipelines.fit.whiten` (the conditional mode with the
 population's scales held, central differences of the exact gradient). H_i comes from one
 difference per column of a block, for all subjects at once (:func:`block_hessian`): subject
@@ -53,6 +74,10 @@ from pytensor.graph.replace import graph_replace
 #: Eigenvalues of |H_i| below this fraction of its largest are raised to it (a direction the data and
 #: prior leave flat at x̂ gets a finite scale; its own diagonal mass-matrix entry adapts it).
 EIGEN_FLOOR = 1e-6
+#: Most chord iterations of each conditional mode of :func:`ridge_curvature`.
+RIDGE_MAX_ITER = 100
+#: :func:`ridge_curvature`'s iteration has settled when every step is below this fraction of its coordinate's scale.
+RIDGE_TOL = 1e-6
 #: Name of the whitened coordinates w in the sampled model.
 WHITE = "w"
 
@@ -77,6 +102,20 @@ def subject_blocks(point_map_info, dims: list, n_subjects: int) -> np.ndarray:
     if not cols:
         raise ValueError("no variable has a 'subject' dim: nothing to whiten")
     return np.concatenate(cols, axis=1)
+
+
+def block_column(point_map_info, dims: list, n_subjects: int, name: str) -> int:
+    """The column of value variable ``name`` in :func:`subject_blocks`' rows (one coordinate per subject)."""
+    col = 0
+    for (var, shape, size, _), d in zip(point_map_info, dims):
+        d = tuple(d or ())
+        if var == name:
+            if not d or d[0] != "subject" or size != n_subjects:
+                raise ValueError(f"{name}: needs exactly one coordinate per subject to be a block's pivot; dims {d}")
+            return col
+        if d and d[0] == "subject":
+            col += size // n_subjects
+    raise ValueError(f"{name} is not a value variable of the model")
 
 
 def block_hessian(grad, x: np.ndarray, blocks: np.ndarray, step: float) -> np.ndarray:
@@ -132,15 +171,70 @@ def whitening_factors(H: np.ndarray, floor: float = EIGEN_FLOOR) -> tuple[np.nda
     return L, n_neg
 
 
+def ridge_curvature(grad, x: np.ndarray, blocks: np.ndarray, L: np.ndarray, pivot: int, span: float = 1.0,
+                    max_iter: int = RIDGE_MAX_ITER, tol: float = RIDGE_TOL) -> tuple[np.ndarray, dict]:
+    """(a (n, k), record): each subject's ridge's curvature along its coordinate ``pivot`` (module docstring,
+    "Curved"), a[:, pivot] = 0; zero for a subject whose conditional modes are not found.
+
+    With P_i = (L_i L_iᵀ)⁻¹ (the SoftAbs precision), r the block's other coordinates and h_i = ``span`` ·
+    sqrt((L_i L_iᵀ)_pp) the pivot's scale: y_i(t), the maximum of log p over r with the pivot at x_p + t, for
+    t = -h, 0, h, by the chord iteration y <- y + P_rr⁻¹ ∇_r log p (every subject at once: the blocks do not
+    interact; from the linear ridge y(0) - P_rr⁻¹ P_rp t), until every step is below ``tol`` of its coordinate's
+    scale; then a_r = (y(h) + y(-h) - 2 y(0)) / (2 h²), the secant of the ridge. A subject whose iteration does not
+    settle within ``max_iter`` steps, or is not finite, keeps the affine map.
+    """
+    n, k = blocks.shape
+    if not 0 <= pivot < k:
+        raise ValueError(f"pivot {pivot} is not one of a block's {k} coordinates")
+    rest = np.array([c for c in range(k) if c != pivot], dtype=int)
+    cov = L @ np.swapaxes(L, 1, 2)
+    P = np.linalg.inv(cov)
+    P_rr = P[:, rest][:, :, rest]
+    h = span * np.sqrt(cov[:, pivot, pivot])
+    b = -np.linalg.solve(P_rr, P[:, rest, pivot][:, :, None])[:, :, 0]
+    sd = np.sqrt(np.einsum("ijj->ij", cov))[:, rest]
+    cols = blocks[:, rest]
+    modes, settled, iterations = [], np.ones(n, dtype=bool), []
+    for t in (-h, np.zeros(n), h):
+        y = np.array(x, dtype=float)
+        y[blocks[:, pivot]] += t
+        y[cols] += b * t[:, None]
+        done, broken = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        for it in range(max_iter):
+            with np.errstate(invalid="ignore", over="ignore"):
+                step = np.linalg.solve(P_rr, np.asarray(grad(y), dtype=float)[cols][:, :, None])[:, :, 0]
+            broken |= ~np.all(np.isfinite(step), axis=1)
+            step[done | broken] = 0.0
+            y[cols] += step
+            done |= ~broken & (np.max(np.abs(step) / sd, axis=1) < tol)
+            if np.all(done | broken):
+                break
+        iterations.append(it + 1)
+        settled &= done & ~broken
+        modes.append(y[cols])
+    a = np.zeros((n, k))
+    with np.errstate(invalid="ignore"):
+        a[:, rest] = (modes[0] + modes[2] - 2.0 * modes[1]) / (2.0 * h[:, None] ** 2)
+    a[~settled] = 0.0
+    return a, {"pivot_scale_range": [float(h.min()), float(h.max())],
+               "subjects_without_curvature": int(np.sum(~settled)), "ridge_iterations": iterations,
+               "largest_shift_in_scales": float(np.max(np.abs(a[:, rest]) * h[:, None] ** 2 / sd))}
+
+
 def to_unconstrained(w: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
     """x of the module docstring from w (..., D): the inverse of the reparametrization, on draws.
 
-    ``groups``: (blocks (n, k), L (n, k, k)) pairs on disjoint coordinates; every other coordinate is x̂ + w.
+    ``groups``: (blocks (n, k), L (n, k, k)) pairs on disjoint coordinates, or (blocks, L, (pivot, a (n, k)))
+    with each subject's ridge curvature (:func:`ridge_curvature`); every other coordinate is x̂ + w.
     """
     w = np.asarray(w, dtype=float)
     x = w + x_hat
-    for blocks, L in groups:
-        x[..., blocks] = x_hat[blocks] + np.einsum("ijk,...ik->...ij", L, w[..., blocks])
+    for blocks, L, *curve in groups:
+        moved = np.einsum("ijk,...ik->...ij", L, w[..., blocks])
+        if curve:
+            pivot, a = curve[0]
+            moved = moved + a * moved[..., pivot:pivot + 1] ** 2
+        x[..., blocks] = x_hat[blocks] + moved
     return x
 
 
@@ -156,13 +250,16 @@ def whitened_model(logp, flat, x_hat: np.ndarray, groups) -> pm.Model:
     with pm.Model() as model:
         w = pm.Flat(WHITE, shape=x_hat.shape[0])
         x = pt.as_tensor(x_hat) + w
-        for blocks, L in groups:
+        for blocks, L, *curve in groups:
             wb = w[blocks]
-            moved = pt.as_tensor(x_hat[blocks]) + pt.sum(pt.as_tensor(L) * wb[:, None, :], axis=-1)
-            x = pt.set_subtensor(x[blocks], moved)
+            moved = pt.sum(pt.as_tensor(L) * wb[:, None, :], axis=-1)
+            if curve:
+                pivot, a = curve[0]
+                moved = moved + pt.as_tensor(a) * moved[:, pivot:pivot + 1] ** 2
+            x = pt.set_subtensor(x[blocks], pt.as_tensor(x_hat[blocks]) + moved)
         pm.Potential("logp", graph_replace(logp, {flat: x}, strict=False))
     return model
 
 
-__all__ = ["EIGEN_FLOOR", "WHITE", "block_hessian", "coordinate_scales", "subject_blocks", "to_unconstrained",
-           "whitened_model", "whitening_factors"]
+__all__ = ["EIGEN_FLOOR", "WHITE", "block_column", "block_hessian", "coordinate_scales", "ridge_curvature", "subject_blocks",
+           "to_unconstrained", "whitened_model", "whitening_factors"]

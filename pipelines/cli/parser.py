@@ -151,7 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
-                   help="delayed, profile delays: mass matrix (default whitened per subject; low_rank, diag)")
+                   help="delayed, profile delays: coordinates and mass matrix (default curved: whitened per subject "
+                   "and curved along σ_m's ridge; whitened: affine only; low_rank, diag: nutpie's own)")
     p.add_argument("--target-accept", type=acceptance, help="the sampler's target acceptance rate (default 0.9 for "
                    "the delayed model's whitened fit, else nutpie's 0.8); raise it where transitions diverge")
     p.add_argument("--compare-to", metavar="MAXENT_FIT", help="with --human-model delayed: a finished max-ent fit of "
@@ -307,8 +308,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "baseline R's population (default lognormal; policy_scale: R^(-1/2) half-normal; unpooled: none)")
     g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
-    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[1:], default="low_rank",
-                   help="nutpie's mass matrix (default low_rank; whitened needs a fit's ML start)")
+    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[2:], default="low_rank",
+                   help="nutpie's mass matrix (default low_rank; curved and whitened need a fit's ML start)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
     p.set_defaults(func=commands.cmd_bench_fit)
     return parser

@@ -78,7 +78,7 @@ R_POPULATION_NAMES = ("lognormal", "policy_scale", "unpooled")
 #: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
 RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred")
 #: The delayed fit's mass matrices, default first, then nutpie's own (:data:`models.bayes.delayed_model.ADAPTATIONS`).
-ADAPTATION_NAMES = ("whitened", "low_rank", "diag")
+ADAPTATION_NAMES = ("curved", "whitened", "low_rank", "diag")
 #: Points of the adequacy check at the posterior (:data:`pipelines.fit.checks.ADEQUACY_POINTS`, tested equal).
 ADEQUACY_AT_NAMES = ("draw", "means")
 ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one joint posterior draw picked by the "

@@ -31,7 +31,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_model import (ADAPTATIONS, DELAY_INDEX, DELAYED_POPULATION_PARAMETERS, DelayedForm,
+from models.bayes.delayed_blocks import motor_coordinate
+from models.bayes.delayed_model import (ADAPTATIONS, CURVED, DELAY_INDEX, DELAYED_POPULATION_PARAMETERS, DelayedForm,
                                         DelayedPriors, WHITENED, build_delayed_model, delay_step, nutpie_options)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
 from models.delayed.identify import delay_grid, identify_unit_delayed
@@ -219,7 +220,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     that choose the blocks' forms), and the returned fit's delays are the posterior modes.
     ``rho_form`` (:data:`models.bayes.delayed_blocks.RHO_FORMS`, with ``R_population="policy_scale"``)
     replaces the ρ form of the chosen (or given) ``delayed_form``. ``adaptation``
-    (:data:`models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None: the first, whitened)
+    (:data:`models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None: the first, curved)
     chooses the coordinates and nutpie's mass matrix; ``target_accept`` (None: the adaptation's, e.g.
     :data:`models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`) the sampler's target acceptance rate.
     """
@@ -228,7 +229,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     if adaptation is not None and (adaptation not in ADAPTATIONS or delay_mode != "profile"):
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
     adaptation = ADAPTATIONS[0] if adaptation is None else adaptation
-    whiten = delay_mode == "profile" and adaptation == WHITENED
+    whiten = delay_mode == "profile" and adaptation in (CURVED, WHITENED)
     nuts = nutpie_options(adaptation) | ({} if target_accept is None else {"target_accept": float(target_accept)})
     levels = prepared.settings.design.ordered_levels
     if log_R is not None and log_R not in LOG_R_FORMS:
@@ -259,8 +260,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                   initvals=start, target_accept=target_accept)
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     elif whiten:
+        pivot = motor_coordinate("sigma_m", delayed_form.sigma_m) if adaptation == CURVED else None
         idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
-                                                cores=cores, show_progress=show_progress, nuts=nuts)
+                                                cores=cores, show_progress=show_progress, nuts=nuts, pivot=pivot)
     else:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
                                   show_progress=show_progress, nuts=nuts, initvals=start)
@@ -276,7 +278,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                       "their units' spread (start_scales), jittered" if start else
                       "the chains start at PyMC's initial point (no ML estimates), jittered")
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
-               "coordinates (pipelines/fit/whiten.py)" if whiten else ""),
+               "coordinates (pipelines/fit/whiten.py)" if whiten else "")
+            + ("; each subject's coordinates curved along its ridge in σ_m (models/bayes/whiten.py, "
+               "ridge_curvature)" if adaptation == CURVED else ""),
             "start_scales": {k: np.asarray(start[k]).tolist() for k in sources},
             **({"start_scales_from": sources} if start else {}),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},

@@ -121,14 +121,16 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
 
 
 def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | None = None,
-                   whitened: bool = False) -> dict:
+                   whitening: dict | None = None) -> dict:
     """Which sampler a fit used and its mass matrix, for the sidecar (``nutpie_options``: the delayed fit's;
-    ``whitened``: on each subject's whitened coordinates, :mod:`pipelines.fit.whiten`)."""
+    ``whitening``: the record of its whitened coordinates, :mod:`pipelines.fit.whiten`, if any)."""
     if human_model == "delayed" and delay_mode == "sampled":
         return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
                 "adaptation": "diag (PyMC's NUTS)"}
     return {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')",
-            "adaptation": f"{nutpie_options['adaptation']} (nutpie)" + (", per-subject whitened" if whitened else "")
+            "adaptation": f"{nutpie_options['adaptation']} (nutpie)"
+            + (", per-subject whitened" if whitening is not None else "")
+            + (f", curved along {whitening['curved_along']}" if whitening and "curved_along" in whitening else "")
             if human_model == "delayed" else
             "diag (nutpie default)"}
 
@@ -343,7 +345,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
         "human_model": human_model, "seed": int(seed), "seeds": seeds,
-        "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options"), "whitening" in extra),
+        "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options"), extra.get("whitening")),
                     "chains": int(chains), "draws": int(draws), "tune": int(tune),
                     "cores": int(min(chains, cores or os.cpu_count() or 1)),
                     "target_accept": (target_accept if target_accept is not None else

@@ -23,8 +23,8 @@ import time
 
 import numpy as np
 
-from models.bayes.whiten import (WHITE, block_hessian, coordinate_scales, subject_blocks, to_unconstrained,
-                                 whitened_model, whitening_factors)
+from models.bayes.whiten import (WHITE, block_column, block_hessian, coordinate_scales, ridge_curvature,
+                                 subject_blocks, to_unconstrained, whitened_model, whitening_factors)
 from pipelines.fit.sampling import add_log_likelihood, sample_model
 from pipelines.fit.start import held_mask
 
@@ -34,10 +34,14 @@ MODE_MAX_ITER = 1000
 HESSIAN_STEP = 1e-4
 
 
-def whitening(model, start: dict | None):
+def whitening(model, start: dict | None, pivot: str | None = None):
     """(logp graph, its flat input, x̂, groups, point_map_info, record) of ``model`` (module docstring,
     steps 1-2); ``groups``: [(subject blocks, L)] and, where there are any, (the other coordinates (m, 1), their
-    scales (m, 1, 1)), as :func:`models.bayes.whiten.to_unconstrained` takes them."""
+    scales (m, 1, 1)), as :func:`models.bayes.whiten.to_unconstrained` takes them.
+
+    ``pivot``: the name of a free variable with one value per subject along which each subject's ridge is
+    curved (:func:`models.bayes.whiten.ridge_curvature`; the blocks then are (blocks, L, (column, a))).
+    """
     from pymc.blocking import DictToArrayBijection
     from pymc.initial_point import make_initial_point_fn
     from pymc.pytensorf import compile as compile_pymc
@@ -74,14 +78,23 @@ def whitening(model, start: dict | None):
     others = np.setdiff1d(np.arange(x_hat.size), blocks.ravel())[:, None]
     S = coordinate_scales(lambda x: fn(x)[1], x_hat, others[:, 0], HESSIAN_STEP)
     sd = np.sqrt(np.einsum("ijk,ijk->ij", L, L))  # each coordinate's scale, sqrt(diag(L Lᵀ))
-    record = {"method": "per-subject affine whitening (models/bayes/whiten.py), nutpie's diagonal mass matrix",
+    block = (blocks, L)
+    curved = {}
+    if pivot is not None:
+        column = block_column(raveled.point_map_info, dims, len(model.coords["subject"]),
+                              model.rvs_to_values[model[pivot]].name)
+        a, curved = ridge_curvature(lambda x: fn(x)[1], x_hat, blocks, L, column)
+        block = (blocks, L, (column, a))
+        curved = {"curved_along": pivot, **curved}
+    record = {"method": "per-subject " + ("whitening curved along each subject's ridge in " + pivot if pivot else
+                                          "affine whitening") + " (models/bayes/whiten.py), nutpie's diagonal mass matrix",
               "coordinates_per_subject": int(blocks.shape[1]), "mode_iterations": int(res.nit),
               "mode_log_density_gain": float(f0 - res.fun) if moved else 0.0, "mode_used": moved,
               "subjects_not_at_a_maximum": int(np.sum(n_neg > 0)),
               "scale_range": [float(sd.min()), float(sd.max())], "other_coordinates": int(others.shape[0]),
               "other_scale_range": [float(S.min()), float(S.max())] if others.size else [],
-              "mode_s": t1 - t0, "hessian_s": time.perf_counter() - t1}
-    groups = [(blocks, L)] + ([(others, S)] if others.size else [])
+              **curved, "mode_s": t1 - t0, "hessian_s": time.perf_counter() - t1}
+    groups = [block] + ([(others, S)] if others.size else [])
     return logp, flat, x_hat, groups, raveled.point_map_info, record
 
 
@@ -112,7 +125,8 @@ def posterior_of(model, x: np.ndarray, point_map_info):
 
 
 def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws: int, tune: int,
-                    cores: int | None = None, show_progress: bool = False, nuts: dict | None = None):
+                    cores: int | None = None, show_progress: bool = False, nuts: dict | None = None,
+                    pivot: str | None = None):
     """Sample ``model`` in whitened coordinates (module docstring); returns (idata, seconds, record).
 
     ``idata`` is as :func:`pipelines.fit.sampling.sample_model` returns it for ``model`` (posterior,
@@ -120,7 +134,7 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     ``record`` says what the whitening found (for the sidecar).
     """
     t0 = time.perf_counter()
-    logp, flat, x_hat, groups, info, record = whitening(model, start)
+    logp, flat, x_hat, groups, info, record = whitening(model, start, pivot)
     white = whitened_model(logp, flat, x_hat, groups)
     t1 = time.perf_counter()
     idata, sec = sample_model(white, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,

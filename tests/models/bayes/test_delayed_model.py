@@ -159,6 +159,22 @@ def test_folded_centred_motor_block(plant, study):
     assert lf - lc == pytest.approx(-np.sum(np.log(2.0) + np.log(sig)), rel=1e-9, abs=1e-8)
 
 
+def test_motor_coordinate_is_the_free_variable_each_form_samples(plant, study):
+    """The coordinate a curved whitening bends along (models.bayes.delayed_blocks.motor_coordinate) is the free
+    variable of σ_m's block, with one value per subject, in every form."""
+    from models.bayes.delayed_blocks import MOTOR_FORMS, motor_coordinate
+
+    w = study
+    for form in MOTOR_FORMS:
+        model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                    delayed_form=DelayedForm("centred", form))
+        name = motor_coordinate("sigma_m", form)
+        assert model[name] in model.free_RVs and model.named_vars_to_dims[name] == ("subject",)
+        assert {v.name for v in model.free_RVs} & {"sigma_m", "z_sigma_m", "sigma_m_signed"} == {name}
+    with pytest.raises(ValueError, match="unknown form 'wavy'"):
+        motor_coordinate("sigma_m", "wavy")
+
+
 def test_the_motor_noise_variance_has_an_inverse_gamma_prior_by_default(plant, study):
     """s_m² ~ IG(1, 0.03) (sampled as sigma_m_scale_sq, s_m its square root); without it s_m ~ Gamma(2, rate 8)
     (the default before) or HalfNormal(sigma_m_scale); one prior at a time, each checked."""

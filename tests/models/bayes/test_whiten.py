@@ -8,8 +8,8 @@ import pytest
 from pymc.blocking import DictToArrayBijection, RaveledVars
 from pymc.pytensorf import join_nonshared_inputs
 
-from models.bayes.whiten import (block_hessian, coordinate_scales, subject_blocks, to_unconstrained, whitened_model,
-                                 whitening_factors)
+from models.bayes.whiten import (block_column, block_hessian, coordinate_scales, ridge_curvature, subject_blocks,
+                                 to_unconstrained, whitened_model, whitening_factors)
 
 
 def _model(n=4):
@@ -126,3 +126,81 @@ def test_one_coordinate_groups_scale_their_coordinates():
     x_hat = np.array([1.0, 2.0, 3.0])
     groups = [(np.array([[0], [2]]), np.array([[[0.5]], [[0.1]]]))]
     np.testing.assert_allclose(to_unconstrained(np.array([2.0, 2.0, 2.0]), x_hat, groups), [2.0, 4.0, 3.2])
+
+
+def _banana(n=3, beta=0.7, c=(4.0, -2.0, 9.0), s=(0.5, 0.3, 0.2), t=0.05):
+    """Per subject v ~ N(0, s_i), y ~ N(beta v + c_i v², t): a ridge y = beta v + c_i v² through the mode 0."""
+    with pm.Model(coords={"subject": [f"s{i}" for i in range(n)]}) as model:
+        v = pm.Normal("v", 0.0, np.asarray(s), dims="subject")
+        pm.Normal("y", beta * v + np.asarray(c) * v**2, t, dims="subject")
+    return model
+
+
+def test_ridge_curvature_is_exact_on_a_banana_and_its_curved_map_is_a_standard_normal():
+    # the ridge is quadratic in the pivot, so the second difference is exact at any span, and x(w) = x̂ + L w +
+    # a δ² makes the density exactly -½|w|² + const (the map's Jacobian is constant)
+    beta, c, s, t = 0.7, np.array([4.0, -2.0, 9.0]), np.array([0.5, 0.3, 0.2]), 0.05
+    model = _banana(beta=beta, c=c, s=s, t=t)
+    point, raveled, dims = _flat(model)
+    blocks = subject_blocks(raveled.point_map_info, dims, 3)
+    pivot = block_column(raveled.point_map_info, dims, 3, "v")
+    assert pivot == 0 and blocks.shape == (3, 2)
+    [logp], flat = join_nonshared_inputs(point, [model.logp()], model.value_vars)
+    import pytensor
+    import pytensor.tensor as pt
+    grad = pytensor.function([flat], pt.grad(logp, flat))
+    x_hat = np.zeros(raveled.data.size)
+    H = block_hessian(grad, x_hat, blocks, 1e-4)
+    L, _ = whitening_factors(H)
+    for span in (1.0, 2.5):
+        a, record = ridge_curvature(grad, x_hat, blocks, L, pivot, span=span)
+        np.testing.assert_allclose(a[:, 1], c, rtol=1e-6)
+        np.testing.assert_array_equal(a[:, 0], 0.0)
+        assert record["subjects_without_curvature"] == 0
+    # the pivot's marginal scale is s_i (H by central differences of step 1e-4, whose error here is O(1e-5))
+    np.testing.assert_allclose(record["pivot_scale_range"], [2.5 * s.min(), 2.5 * s.max()], rtol=1e-4)
+    # the map itself, with the exact precision at the mode ((v, y) order): -½|w|² + const to rounding
+    P = np.array([[[1 / si**2 + beta**2 / t**2, -beta / t**2], [-beta / t**2, 1 / t**2]] for si in s])
+    L = np.linalg.cholesky(np.linalg.inv(P))
+    a, _ = ridge_curvature(grad, x_hat, blocks, L, pivot)
+    np.testing.assert_allclose(a[:, 1], c, rtol=1e-9)
+    groups = [(blocks, L, (pivot, a))]
+    white = whitened_model(logp, flat, x_hat, groups).compile_logp()
+    rng = np.random.default_rng(5)
+    values = [white({"w": w}) + 0.5 * w @ w for w in rng.normal(size=(6, x_hat.size)) * 2.0]
+    np.testing.assert_allclose(values, values[0], rtol=1e-9)
+    # to_unconstrained is the same map, on draws (chain, draw, D): y - beta v - c v² is linear in w
+    w = rng.normal(size=(2, 4, x_hat.size))
+    x = to_unconstrained(w, x_hat, groups)
+    v, y = x[..., blocks[:, 0]], x[..., blocks[:, 1]]
+    straight = to_unconstrained(w, x_hat, [(blocks, L)])
+    np.testing.assert_allclose(y - c * v**2, straight[..., blocks[:, 1]], rtol=1e-12, atol=1e-14)
+    np.testing.assert_array_equal(v, straight[..., blocks[:, 0]])
+    # without the curvature, the same density is not a standard normal in w
+    flat_white = whitened_model(logp, flat, x_hat, [(blocks, L)]).compile_logp()
+    values = [flat_white({"w": w}) + 0.5 * w @ w for w in rng.normal(size=(6, x_hat.size)) * 2.0]
+    assert np.ptp(values) > 1.0
+
+
+def test_ridge_curvature_refuses_a_pivot_outside_the_block_and_block_column_a_shared_variable():
+    model = _model(4)
+    point, raveled, dims = _flat(model)
+    blocks = subject_blocks(raveled.point_map_info, dims, 4)
+    assert block_column(raveled.point_map_info, dims, 4, "b_log__") == 2
+    with pytest.raises(ValueError, match="exactly one coordinate per subject"):
+        block_column(raveled.point_map_info, dims, 4, "a")
+    with pytest.raises(ValueError, match="exactly one coordinate per subject"):
+        block_column(raveled.point_map_info, dims, 4, "mu")
+    with pytest.raises(ValueError, match="not a value variable"):
+        block_column(raveled.point_map_info, dims, 4, "b")
+    with pytest.raises(ValueError, match="pivot 3 is not one of a block's 3 coordinates"):
+        ridge_curvature(lambda x: -x, np.zeros(14), blocks, np.broadcast_to(np.eye(3), (4, 3, 3)), 3)
+    # a subject whose differences are not finite gets no curvature (the affine map), and is counted
+    def grad(x):
+        g = -x.copy()
+        if abs(x[blocks[1, 2]]) > 0:
+            g[blocks[1]] = np.nan
+        return g
+    a, record = ridge_curvature(grad, np.zeros(14), blocks, np.broadcast_to(np.eye(3), (4, 3, 3)), 2)
+    np.testing.assert_array_equal(a[1], 0.0)
+    assert record["subjects_without_curvature"] == 1

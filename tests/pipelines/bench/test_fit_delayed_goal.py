@@ -34,7 +34,8 @@ def test_the_workflow_benchmark_times_scioc_fits_own_path(tmp_path):
     st, s, smp = res["settings"], res["seconds"], res["sampler"]
     assert (st["human"], st["segments"], st["subjects"], st["chains"], st["draws"], st["tune"]) == \
         ("kbl", 4, 2, 2, 30, 40)
-    assert st["adaptation"] == "diag (nutpie), per-subject whitened"
+    assert st["adaptation"] in ("diag (nutpie), per-subject whitened, curved along " + v
+                                for v in ("sigma_m", "sigma_m_signed"))  # the default, σ_m's form by the data
     assert st["experiment"] == "data/examples/paper-torque-sensor/experiment.toml"
     assert 0 < st["delays"][0] <= st["delays"][1] <= 30  # the kbl human's delays are found, within the grid
     assert 0 < s["sample"] < s["fit"] and s["identify"] > 0

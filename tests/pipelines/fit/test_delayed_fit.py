@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from models.bayes.delayed_blocks import motor_coordinate
 from models.bayes.delayed_model import WHITENED_TARGET_ACCEPT, DelayedForm, DelayedPriors
 from models.design import STUDY
 from models.plant import discretize
@@ -59,8 +60,12 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     # which of them the units' ML targets informed: all but s_m², which starts at its inverse gamma's point
     assert side["start_scales_from"] == {**{k: "units' spread" for k in side["start_scales"]},
                                          "sigma_m_scale_sq": "PyMC's initial point"}
-    # by default on each subject's whitened coordinates (scioc fit --adaptation whitened), with what the whitening found
-    assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened"
+    # by default on each subject's whitened coordinates curved along σ_m's ridge (scioc fit --adaptation curved), with
+    # what the whitening found; the ridge is along the coordinate of σ_m's block in its form (chosen by the data)
+    pivot = motor_coordinate("sigma_m", side["delayed_form"]["sigma_m"])
+    assert side["sampler"]["adaptation"] == f"diag (nutpie), per-subject whitened, curved along {pivot}"
+    assert side["whitening"]["curved_along"] == pivot and pivot in ("sigma_m", "sigma_m_signed")
+    assert 0 < side["whitening"]["pivot_scale_range"][0] <= side["whitening"]["pivot_scale_range"][1]
     assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
     assert side["sampler"]["target_accept"] == WHITENED_TARGET_ACCEPT == 0.9
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]

@@ -144,6 +144,10 @@ every population parameter at R-hat <= 1.007 and ESS >= 601, with one divergent 
 subject's tail of σ_m towards 0). The affine map cannot straighten the subjects' tails in log R
 and σ_m; they set the trees' depth.
 
+Since 2026-12-05 the default (:data:`CURVED`) also bends each subject's coordinates along its ridge in σ_m
+(:mod:`models.bayes.whiten`, "Curved"): with σ_m's block folded centred, σ_m = |v| and log R grows with v², a
+parabola through the mode v = 0 that no affine map straightens. Measured: README, "Speed".
+
 Its target acceptance rate is 0.9 (:data:`WHITENED_TARGET_ACCEPT`), not nutpie's 0.8: the
 convergence verdict fails on a single divergent transition, and the smaller steps left fewer.
 Measured on 12 subjects of each human (those of :mod:`pipelines.fit.delayed_forms`' table, the same

@@ -74,8 +74,10 @@ from pytensor.graph.replace import graph_replace
 #: Eigenvalues of |H_i| below this fraction of its largest are raised to it (a direction the data and
 #: prior leave flat at x̂ gets a finite scale; its own diagonal mass-matrix entry adapts it).
 EIGEN_FLOOR = 1e-6
-#: Most chord iterations of each conditional mode of :func:`ridge_curvature`.
-RIDGE_MAX_ITER = 100
+#: Most Newton iterations of each conditional mode of :func:`ridge_curvature`.
+RIDGE_MAX_ITER = 50
+#: How often :func:`ridge_curvature` halves a subject's span where its ridge has no maximum there.
+RIDGE_HALVINGS = 2
 #: :func:`ridge_curvature`'s iteration has settled when every step is below this fraction of its coordinate's scale.
 RIDGE_TOL = 1e-6
 #: Name of the whitened coordinates w in the sampled model.
@@ -172,16 +174,17 @@ def whitening_factors(H: np.ndarray, floor: float = EIGEN_FLOOR) -> tuple[np.nda
 
 
 def ridge_curvature(grad, x: np.ndarray, blocks: np.ndarray, L: np.ndarray, pivot: int, span: float = 1.0,
-                    max_iter: int = RIDGE_MAX_ITER, tol: float = RIDGE_TOL) -> tuple[np.ndarray, dict]:
+                    max_iter: int = RIDGE_MAX_ITER, tol: float = RIDGE_TOL,
+                    halvings: int = RIDGE_HALVINGS) -> tuple[np.ndarray, dict]:
     """(a (n, k), record): each subject's ridge's curvature along its coordinate ``pivot`` (module docstring,
     "Curved"), a[:, pivot] = 0; zero for a subject whose conditional modes are not found.
 
     With P_i = (L_i L_iᵀ)⁻¹ (the SoftAbs precision), r the block's other coordinates and h_i = ``span`` ·
-    sqrt((L_i L_iᵀ)_pp) the pivot's scale: y_i(t), the maximum of log p over r with the pivot at x_p + t, for
-    t = -h, 0, h, by the chord iteration y <- y + P_rr⁻¹ ∇_r log p (every subject at once: the blocks do not
-    interact; from the linear ridge y(0) - P_rr⁻¹ P_rp t), until every step is below ``tol`` of its coordinate's
-    scale; then a_r = (y(h) + y(-h) - 2 y(0)) / (2 h²), the secant of the ridge. A subject whose iteration does not
-    settle within ``max_iter`` steps, or is not finite, keeps the affine map.
+    sqrt((L_i L_iᵀ)_pp) the pivot's scale: y_i(t), the maximum of log p over r with the pivot at x_p + t
+    (:func:`conditional_modes`), for t = 0 and ±h; then a_r = (y(h) + y(-h) - 2 y(0)) / (2 h²), the secant of
+    the ridge. Where the ridge has no maximum at ±h (R -> ∞ once the motor noise alone exceeds a subject's
+    residual), h is halved, at most ``halvings`` times; a subject whose modes are still not found keeps
+    the affine map.
     """
     n, k = blocks.shape
     if not 0 <= pivot < k:
@@ -189,36 +192,83 @@ def ridge_curvature(grad, x: np.ndarray, blocks: np.ndarray, L: np.ndarray, pivo
     rest = np.array([c for c in range(k) if c != pivot], dtype=int)
     cov = L @ np.swapaxes(L, 1, 2)
     P = np.linalg.inv(cov)
-    P_rr = P[:, rest][:, :, rest]
-    h = span * np.sqrt(cov[:, pivot, pivot])
-    b = -np.linalg.solve(P_rr, P[:, rest, pivot][:, :, None])[:, :, 0]
+    b = -np.linalg.solve(P[:, rest][:, :, rest], P[:, rest, pivot][:, :, None])[:, :, 0]
     sd = np.sqrt(np.einsum("ijj->ij", cov))[:, rest]
-    cols = blocks[:, rest]
-    modes, settled, iterations = [], np.ones(n, dtype=bool), []
-    for t in (-h, np.zeros(n), h):
-        y = np.array(x, dtype=float)
-        y[blocks[:, pivot]] += t
-        y[cols] += b * t[:, None]
-        done, broken = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
-        for it in range(max_iter):
-            with np.errstate(invalid="ignore", over="ignore"):
-                step = np.linalg.solve(P_rr, np.asarray(grad(y), dtype=float)[cols][:, :, None])[:, :, 0]
-            broken |= ~np.all(np.isfinite(step), axis=1)
-            step[done | broken] = 0.0
-            y[cols] += step
-            done |= ~broken & (np.max(np.abs(step) / sd, axis=1) < tol)
-            if np.all(done | broken):
-                break
-        iterations.append(it + 1)
-        settled &= done & ~broken
-        modes.append(y[cols])
+
+    def modes(t):
+        return conditional_modes(grad, x, blocks, pivot, t, b, sd, max_iter=max_iter, tol=tol)
+
+    y0, settled, it0 = modes(np.zeros(n))
+    h = span * np.sqrt(cov[:, pivot, pivot])
     a = np.zeros((n, k))
-    with np.errstate(invalid="ignore"):
-        a[:, rest] = (modes[0] + modes[2] - 2.0 * modes[1]) / (2.0 * h[:, None] ** 2)
-    a[~settled] = 0.0
+    found = np.zeros(n, dtype=bool)
+    iterations = [it0]
+    for _ in range(halvings + 1):
+        (lo, ok_lo, i_lo), (hi, ok_hi, i_hi) = modes(-h), modes(h)
+        iterations += [i_lo, i_hi]
+        new = ~found & settled & ok_lo & ok_hi
+        a[np.ix_(new, rest)] = (lo[new] + hi[new] - 2.0 * y0[new]) / (2.0 * h[new, None] ** 2)
+        found |= new
+        if found[settled].all():
+            break
+        h = np.where(found, h, 0.5 * h)
     return a, {"pivot_scale_range": [float(h.min()), float(h.max())],
-               "subjects_without_curvature": int(np.sum(~settled)), "ridge_iterations": iterations,
+               "subjects_without_curvature": int(np.sum(~found)), "ridge_iterations": iterations,
                "largest_shift_in_scales": float(np.max(np.abs(a[:, rest]) * h[:, None] ** 2 / sd))}
+
+
+def conditional_modes(grad, x: np.ndarray, blocks: np.ndarray, pivot: int, t: np.ndarray, slope: np.ndarray,
+                      scale: np.ndarray, *, max_iter: int = RIDGE_MAX_ITER, tol: float = RIDGE_TOL):
+    """(y (n, k-1), settled (n), iterations): each subject's maximum of log p over its block's coordinates but
+    ``pivot``, with the pivot held at x_p + t_i; from x_r + slope_i t_i, by Newton's iteration
+    (:func:`newton_steps`; every subject at once: the blocks do not interact) until every step is below ``tol``
+    of its coordinate's ``scale`` (n, k-1). Each step is at most one scale, and halved in length for a subject
+    whenever it grew (where log p is not near quadratic, e.g. log τ_nm's tail towards 0: a chord iteration with
+    the Hessian at x̂ jumped by a hundred scales or cycled on the full-size study). Not settled: no step below
+    ``tol`` within ``max_iter``, or not finite."""
+    n, k = blocks.shape
+    cols = blocks[:, [c for c in range(k) if c != pivot]]
+    y = np.array(x, dtype=float)
+    y[blocks[:, pivot]] += t
+    y[cols] += slope * t[:, None]
+    done, broken = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    length, last = np.ones(n), np.full(n, np.inf)
+    for it in range(max_iter):
+        with np.errstate(invalid="ignore", over="ignore"):
+            step = newton_steps(grad, y, cols, scale)
+        broken |= ~np.all(np.isfinite(step), axis=1)
+        step[done | broken] = 0.0
+        size = np.max(np.abs(step) / scale, axis=1)  # the Newton step, in the coordinates' scales
+        done |= ~broken & (size < tol)
+        length = np.where(size > last, 0.5 * length, length)  # not contracting: shorter steps
+        last = size
+        with np.errstate(divide="ignore"):
+            y[cols] += step * np.minimum(length, 1.0 / size)[:, None]  # and at most one scale at a time
+        if np.all(done | broken):
+            break
+    return y[cols], done & ~broken, it + 1
+
+
+def newton_steps(grad, x: np.ndarray, blocks: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Each block's Newton step (n, k) towards the maximum of log p over its coordinates, at x: |H_i|⁻¹ ∇_i log p
+    with |H_i| as in :func:`whitening_factors` (H by :func:`block_hessian`, step 1e-4 of each coordinate's
+    ``scale`` (n, k)); NaN for a block whose Hessian or gradient is not finite."""
+    n, k = blocks.shape
+    g = np.asarray(grad(x), dtype=float)[blocks]
+    H = np.empty((n, k, k))
+    for c in range(k):
+        e = np.zeros_like(x)
+        e[blocks[:, c]] = 1e-4 * scale[:, c]
+        H[:, :, c] = (np.asarray(grad(x + e), dtype=float)[blocks] - np.asarray(grad(x - e), dtype=float)[blocks]) \
+            / (2e-4 * scale[:, c][:, None])
+    H = 0.5 * (H + np.swapaxes(H, 1, 2))
+    step = np.full((n, k), np.nan)
+    for i in range(n):
+        if np.all(np.isfinite(H[i])) and np.all(np.isfinite(g[i])):
+            lam, V = np.linalg.eigh(-H[i])
+            lam = np.maximum(np.abs(lam), EIGEN_FLOOR * np.max(np.abs(lam)))
+            step[i] = V @ ((V.T @ g[i]) / lam)
+    return step
 
 
 def to_unconstrained(w: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
@@ -261,5 +311,6 @@ def whitened_model(logp, flat, x_hat: np.ndarray, groups) -> pm.Model:
     return model
 
 
-__all__ = ["EIGEN_FLOOR", "WHITE", "block_column", "block_hessian", "coordinate_scales", "ridge_curvature", "subject_blocks",
+__all__ = ["EIGEN_FLOOR", "RIDGE_HALVINGS", "RIDGE_MAX_ITER", "RIDGE_TOL", "WHITE", "block_column", "block_hessian",
+           "conditional_modes", "coordinate_scales", "newton_steps", "ridge_curvature", "subject_blocks",
            "to_unconstrained", "whitened_model", "whitening_factors"]

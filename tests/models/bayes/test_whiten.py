@@ -204,3 +204,25 @@ def test_ridge_curvature_refuses_a_pivot_outside_the_block_and_block_column_a_sh
     a, record = ridge_curvature(grad, np.zeros(14), blocks, np.broadcast_to(np.eye(3), (4, 3, 3)), 2)
     np.testing.assert_array_equal(a[1], 0.0)
     assert record["subjects_without_curvature"] == 1
+
+
+def test_ridge_curvature_halves_the_span_where_the_ridge_has_no_maximum():
+    # log p = -v²/2 - ½ (1 - v²/0.64) (y - 0.5 v - 3 v²)² / 0.01: the ridge y = 0.5 v + 3 v² has a maximum over y only
+    # where |v| < 0.8. The pivot's scale at the mode is 1, so ±1 finds none, ±0.5 the exact curvature 3.
+    def grad(x):
+        v, y = x
+        r, prec = y - 0.5 * v - 3.0 * v**2, (1.0 - v**2 / 0.64) / 0.01
+        dv = -v + (v / 0.64) * r**2 / 0.01 + prec * r * (0.5 + 6.0 * v)
+        return np.array([dv, -prec * r])
+
+    blocks = np.array([[0, 1]])
+    H = block_hessian(grad, np.zeros(2), blocks, 1e-5)
+    L, _ = whitening_factors(H)
+    a, record = ridge_curvature(grad, np.zeros(2), blocks, L, 0)
+    np.testing.assert_allclose(a[0], [0.0, 3.0], rtol=1e-6)
+    assert record["subjects_without_curvature"] == 0
+    np.testing.assert_allclose(record["pivot_scale_range"], [0.5, 0.5], rtol=1e-4)
+    # with no halving allowed, the ridge's maximum at ±1 is not found, and the subject keeps the affine map
+    a, record = ridge_curvature(grad, np.zeros(2), blocks, L, 0, halvings=0)
+    np.testing.assert_array_equal(a, 0.0)
+    assert record["subjects_without_curvature"] == 1

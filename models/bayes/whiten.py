@@ -120,18 +120,20 @@ def block_column(point_map_info, dims: list, n_subjects: int, name: str) -> int:
     raise ValueError(f"{name} is not a value variable of the model")
 
 
-def block_hessian(grad, x: np.ndarray, blocks: np.ndarray, step: float) -> np.ndarray:
+def block_hessian(grad, x: np.ndarray, blocks: np.ndarray, step) -> np.ndarray:
     """Hessian blocks (n, k, k) of log p in each subject's coordinates, by central differences of ``grad``.
 
     Column c of every block comes from one pair of gradients with coordinate c of *every*
     subject moved by ±``step`` (module docstring: the blocks do not interact). Symmetrized.
+    ``step``: one for every coordinate, or (n, k), one per subject and coordinate.
     """
     n, k = blocks.shape
+    steps = np.broadcast_to(np.asarray(step, dtype=float), (n, k))
     H = np.empty((n, k, k))
     for c in range(k):
         e = np.zeros_like(x)
-        e[blocks[:, c]] = step
-        H[:, :, c] = (np.asarray(grad(x + e))[blocks] - np.asarray(grad(x - e))[blocks]) / (2.0 * step)
+        e[blocks[:, c]] = steps[:, c]
+        H[:, :, c] = (np.asarray(grad(x + e))[blocks] - np.asarray(grad(x - e))[blocks]) / (2.0 * steps[:, c, None])
     return 0.5 * (H + np.swapaxes(H, 1, 2))
 
 
@@ -255,13 +257,7 @@ def newton_steps(grad, x: np.ndarray, blocks: np.ndarray, scale: np.ndarray) -> 
     ``scale`` (n, k)); NaN for a block whose Hessian or gradient is not finite."""
     n, k = blocks.shape
     g = np.asarray(grad(x), dtype=float)[blocks]
-    H = np.empty((n, k, k))
-    for c in range(k):
-        e = np.zeros_like(x)
-        e[blocks[:, c]] = 1e-4 * scale[:, c]
-        H[:, :, c] = (np.asarray(grad(x + e), dtype=float)[blocks] - np.asarray(grad(x - e), dtype=float)[blocks]) \
-            / (2e-4 * scale[:, c][:, None])
-    H = 0.5 * (H + np.swapaxes(H, 1, 2))
+    H = block_hessian(grad, x, blocks, 1e-4 * scale)
     step = np.full((n, k), np.nan)
     for i in range(n):
         if np.all(np.isfinite(H[i])) and np.all(np.isfinite(g[i])):

@@ -8,6 +8,15 @@ files it calls. A kernel whose callee in another file changed would load its old
 code, silently computing with the old callee. So the cache lives in a folder named by a
 hash of every source file of this package (:func:`numba_cache_dir`): any edit starts a
 fresh cache, and a cache is only ever read by the code that wrote it.
+
+The second fact about numba that decides bits: a function that does not state ``fastmath`` or
+``error_model`` takes them from the caller that first compiles it, and the cache then keeps that
+version under the function's signature alone. The delayed kernel's callees (the arm torque's
+recursion, the plans) compiled inside :data:`FASTMATH` kernels reassociated their sums; compiled
+first from Python, they did not, and a kernel compiled later against that cached callee computed
+other last bits: the same seed gave another profile argmax of the perceptual delay (measured
+2026-12-06, ``tests/models/test_numba_cache.py``). So every ``njit`` here states both
+(``tests/test_layout.py``).
 """
 
 import hashlib
@@ -16,6 +25,11 @@ import tempfile
 from pathlib import Path
 
 import numba
+
+#: numba's ``fastmath`` of the delayed likelihood's kernels and of every function they call
+#: (:mod:`models.delayed.kernel`): reassociated sums (vectorized), no "contract": with it, bits
+#: depended on numba's cache state. Every other kernel computes without fast-math.
+FASTMATH = {"reassoc"}
 
 
 def numba_cache_dir(package: Path | None = None, root: Path | None = None) -> Path:

@@ -233,7 +233,7 @@ class ClosedLoop(NamedTuple):
     u_A: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _closed_loop(A, b, gain, weights, hold, stride, assist, x0, r, L, f, noise):
     K = noise.shape[0]
     N = weights.shape[0]

@@ -117,7 +117,7 @@ class Chain(NamedTuple):
 # --------------------------------------------------------------------------- the chain
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def measure_span(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, angle_out, err_out, u_out):
     """One data set of a span through the acquisition chain: what the statistics see of its window.
 
@@ -142,7 +142,7 @@ def measure_span(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, angle_
     return ang, v, u
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _measure(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, L, f, S, angle_out, err_out, u_out, z_out):
     """One data set through the acquisition chain and the max-ent residual pass (writes the out rows)."""
     ang, v, u = measure_span(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, angle_out, err_out, u_out)
@@ -159,7 +159,7 @@ def _measure(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, L, f, S, a
         x1 = n1
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _replicates(A, b, gain, known, L, f, S, x0, ref, noise, scale, step, recon_on, F, Kg, Sv, C, w0, K,
                 angle_out, err_out, u_out, z_out):
     """Draw B data sets from the fitted model in closed loop and measure each (rows 1..B of the outs)."""

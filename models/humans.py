@@ -209,7 +209,7 @@ HUMANS: dict[str, HumanSpec] = {
 }
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=False, error_model="python")
 def _step(A, b_c, b_a, z, k, cmd, ua):
     n = A.shape[0]
     for i in range(n):
@@ -219,7 +219,7 @@ def _step(A, b_c, b_a, z, k, cmd, ua):
         z[k + 1, i] = acc
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=False, error_model="python")
 def _torque(z, k, cmd, ua, Aw, bw, lagged):
     # The ZOH-equivalent torque: the one that, held, gives x_{k+1}'s velocity on the 2-state wheel.
     if not lagged:
@@ -227,7 +227,7 @@ def _torque(z, k, cmd, ua, Aw, bw, lagged):
     return (z[k + 1, 1] - Aw[1, 0] * z[k, 0] - Aw[1, 1] * z[k, 1]) / bw[1] - ua
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _lq_kernel(A, b_c, b_a, A_plan, gain, ff, L, f, eps, w, a_m, d, z0, Aw, bw, lagged):
     K = f.shape[0]
     n = A.shape[0]
@@ -263,7 +263,7 @@ def _lq_kernel(A, b_c, b_a, A_plan, gain, ff, L, f, eps, w, a_m, d, z0, Aw, bw, 
     return z, uH, uA
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _crossover_kernel(A, b_c, b_a, gain, ff, r, rdot, Kp, TL, a_I, d, w, a_m, z0, Aw, bw, lagged):
     K = ff.shape[0]
     z = np.empty((K + 1, A.shape[0]))

@@ -40,7 +40,7 @@ from models.cost import validate_theta
 from models.plant import DiscretePlant
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy", fastmath=False)
 def riccati_gains(p11, p12, p22, a11, a12, a21, a22, b1, b2, R):
     """Quantities of one backward step derived from ``P_{k+1}`` (symmetric, 3 entries).
 
@@ -60,7 +60,7 @@ def riccati_gains(p11, p12, p22, a11, a12, a21, a22, b1, b2, R):
     return S, invS, L1, L2, pb1, pb2, m11, m12, m21, m22
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=False, error_model="numpy")
 def riccati_update(p11, p12, p22, q11, q22, R, L1, L2, m11, m12, m21, m22):
     """``P_k = Q + Lᵀ R L + Mᵀ P_{k+1} M`` (Joseph form: symmetric, equal to the textbook form).
 
@@ -96,7 +96,7 @@ class Policy(NamedTuple):
     S: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _policy_kernel(A, b, q11, q22, R, r, a):
     K = a.shape[0]
     a11, a12, a21, a22 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
@@ -147,7 +147,7 @@ def lq_policy(plant: DiscretePlant, theta, angle_ref, u_A) -> Policy:
     return Policy(L=L, f=f, S=S)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def rollout(A, b, L, f, x0, a, noise):
     """Run ``u_k = -L_k x_k + f_k + noise_k`` through the plant with extra torque ``a``.
 
@@ -166,7 +166,7 @@ def rollout(A, b, L, f, x0, a, noise):
     return x, u
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _general_policy_kernel(A, b_c, b_a, Q, R, x_ref, a):
     n = A.shape[0]
     K = a.shape[0]

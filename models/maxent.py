@@ -82,7 +82,7 @@ class LoglikGrad(NamedTuple):
 FREEZE_RTOL = 1e-15
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)
 def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
     """Log-likelihood and θ-gradient of one segment (see the module docstring).
 
@@ -257,7 +257,7 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
     return _finish(K_obs, q11, q22, R, ll, logs, g0, g1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=False, error_model="numpy")
 def _finish(K, q11, q22, R, quad, logs, g0, g1):
     """Assemble log p = quad + ½ sum log(2 S_k) - K/2 log 2π and the R-derivative.
 
@@ -270,7 +270,7 @@ def _finish(K, q11, q22, R, quad, logs, g0, g1):
     return ll, g0, g1, g2
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def batch_kernel(A, b, fb, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
     """Log-likelihood and θ-gradient of every segment of a batch, written into ``ll`` and ``g``.
 

@@ -122,7 +122,7 @@ def propagate(plant: DiscretePlant, x0: np.ndarray, u: np.ndarray) -> np.ndarray
     return _propagate(plant.A, plant.b, x0[0], x0[1], u)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _propagate(A, b, phi0, omega0, u):
     x = np.empty((u.shape[0] + 1, 2))
     x[0, 0] = phi0

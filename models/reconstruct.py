@@ -80,7 +80,7 @@ def _transition(A, b, var_eps, q):
     return F, Qn
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _gains(F, Qn, r, n, smooth):
     """The data-independent half of the Kalman filter and RTS smoother over n samples.
 
@@ -137,7 +137,7 @@ def _gains(F, Qn, r, n, smooth):
     return Kg, Sv, C
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def smooth_means(F, b, y, a, Kg, Sv, C, smooth):
     """Filter (and RTS smoother) means of one angle record with precomputed gains (:func:`_gains`).
 
@@ -219,7 +219,7 @@ def fixed_reconstruction(plant: DiscretePlant, n: int, sigma_eps: float, q: floa
     return FixedReconstruction(F, np.asarray(plant.b, dtype=float), np.asarray(plant.A, dtype=float), Kg, Sv, C)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def torque_from_means(A, b, zs, a):
     """u_H from smoothed means: smooth torque plus the white part from the velocity row (b2 > 0)."""
     n = zs.shape[0]
@@ -231,7 +231,7 @@ def torque_from_means(A, b, zs, a):
     return u
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def apply_reconstruction(F, b, A, Kg, Sv, C, y, a):
     """Reconstruct angle, velocity and u_H of one record with a :class:`FixedReconstruction`'s arrays.
 

@@ -52,7 +52,7 @@ def wheel_constants(dt: float, params: WheelParameters = WheelParameters()) -> t
             float(wheel.b[1]), np.linalg.eigvals(A_c).astype(np.complex128))
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _mm(X, Y):
     Z = np.empty((2, 2))
     for i in range(2):
@@ -61,7 +61,7 @@ def _mm(X, Y):
     return Z
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _phi_series(X):
     """(φ1(X), ψ(X)) of a 2 × 2 matrix by scaling and squaring (module docstring)."""
     norm = max(abs(X[0, 0]) + abs(X[1, 0]), abs(X[0, 1]) + abs(X[1, 1]))
@@ -87,7 +87,7 @@ def _phi_series(X):
     return P1, P2
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def lag_nb(tau_nm, dt, A_c, b_w, Pb, b1, poles):
     """``(a, α, da/dτ_nm, dα/dτ_nm)`` of one τ_nm >= 0 (s); the wheel's constants from :func:`wheel_constants`."""
     if tau_nm < TAU_TINY:

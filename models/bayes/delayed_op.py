@@ -69,7 +69,7 @@ N_PARAMETER_INPUTS = 3
 WARM_EPS = 1e-20
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def warm_samples(a, alpha):
     """Samples of warm-up after which its start weighs < :data:`WARM_EPS` in the arm torque (lag a, α)."""
     if alpha >= 1.0:
@@ -82,7 +82,7 @@ def warm_samples(a, alpha):
     return int(math.ceil(math.log(WARM_EPS) / math.log(p)))
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, wstart,
               tstart):
     n = u.shape[0]

@@ -49,7 +49,7 @@ from models.segment import SegmentBatch
 DATA_NAMES = ("x1", "x2", "r", "u", "a", "fb")
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _evaluate(A, b, theta, x1, x2, r, u, a, fb):
     # Outputs and the kernel's scratch are allocated per call: nutpie evaluates chains in
     # parallel threads.

@@ -89,7 +89,7 @@ class AngleLoglik(NamedTuple):
 FREEZE_RTOL = 1e-13
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)
 def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn, freeze):
     """The Kalman filter of the module docstring; returns log p(y_1..y_K | y_0), fills ``inn`` (K,).
 

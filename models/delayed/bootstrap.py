@@ -177,7 +177,7 @@ class DelayedChain(NamedTuple):
     noise_scale: float = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _window_states(A, b, x1, x2, u, a, w0, K, x1_out, x2_out):
     """States over the window from (x1, x2) at w0, driven by the measured torque plus u_A (as prepare_batch)."""
     x1_out[0] = x1
@@ -188,7 +188,7 @@ def _window_states(A, b, x1, x2, u, a, w0, K, x1_out, x2_out):
         x2_out[k + 1] = A[1, 0] * x1_out[k] + A[1, 1] * x2_out[k] + b[1] * tot
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _measure_rows(A, b, Y, V, UH, UA, ref, recon_on, F, Kg, Sv, C, w0, K, a, al, angle_out, err_out, u_out, x1_out,
                   x2_out, arm_out):
     """Every replicate row through the chain: window statistics' inputs, window states, T(u) from 0."""

@@ -50,17 +50,13 @@ import math
 import numpy as np
 from numba import njit
 
+from models import FASTMATH
 from models.maxent import FREEZE_RTOL, HALF_LOG_2PI, PROD_HUGE, PROD_TINY
 
 #: The Schur columns count as stationary once d + 1 consecutive steps change x by at most
 #: FREEZE_RTOL relative and y (which drives every later change of x, to second order) is below
 #: this fraction of x.
 Y_RTOL = 1e-7
-
-#: numba options of the kernels here and in :mod:`models.delayed.kernel`: reassociated sums (vectorized), no
-#: "contract": with it, bits depended on numba's cache state (tests/models/test_numba_cache.py).
-FASTMATH = {"reassoc"}
-
 
 #: Unsigned index type of the inner loops (module docstring).
 U = np.uint64
@@ -397,4 +393,4 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
     return ll, k_f
 
 
-__all__ = ["FASTMATH", "U", "banded_loglik"]
+__all__ = ["U", "banded_loglik"]

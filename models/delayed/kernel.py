@@ -29,7 +29,7 @@ The kernel (this module, :mod:`models.delayed.riccati`, :mod:`models.delayed.rev
 (each costs reference counting), unsigned indices where LLVM should vectorize. numba's
 on-disk cache lives in a folder named by a hash of every source of ``models`` (:mod:`models`),
 so an edited callee is never served stale. The kernels' sums may be reassociated but not
-contracted into fused multiply-adds (:data:`models.delayed.innovations.FASTMATH` says why).
+contracted into fused multiply-adds (:data:`models.FASTMATH` says why).
 """
 
 from __future__ import annotations
@@ -39,7 +39,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from models.delayed.innovations import FASTMATH, U, banded_loglik
+from models import FASTMATH
+from models.delayed.innovations import U, banded_loglik
 from models.delayed.lag import arm_torque_recursion
 from models.delayed.reverse import plan_reverse
 from models.delayed.riccati import SEED, TAPE, plan_adjoint, plan_recursion
@@ -245,7 +246,7 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
     out[7] = k_f
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def make_scratch(K, KM, dmax):
     """Scratch arrays for :func:`segment_kernel`: K observed steps, K + M planned, delays <= dmax."""
     dd = max(dmax, 1)
@@ -259,7 +260,7 @@ def make_scratch(K, KM, dmax):
             (np.empty((3, 3)), np.empty(3)))
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, c, nchunks, dmax, out, inn):
     """Segments c, c + nchunks, c + 2 nchunks, ... of a batch (:func:`batch_kernel`), with their own scratch."""
     n = u.shape[0]
@@ -273,7 +274,7 @@ def _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze,
             out[m, i] = res[m]
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def _max_delay(delay):
     dmax = 0
     for i in range(delay.shape[0]):
@@ -281,7 +282,7 @@ def _max_delay(delay):
     return dmax
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=False, error_model="python")
 def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
     """Every segment of a batch, each on its own, in ``nchunks`` parallel chunks (``prange``).
 
@@ -298,7 +299,7 @@ def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, f
         _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, c, nchunks, dmax, out, inn)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def batch_kernel_serial(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
     """:func:`batch_kernel` in the calling thread. A parallel region costs a wake-up of every thread and
     waits for the slowest, which on a busy machine measured 7 ms for a single 1500-step segment whose own

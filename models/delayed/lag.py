@@ -56,6 +56,7 @@ import numpy as np
 from numba import njit
 from scipy.linalg import expm_frechet
 
+from models import FASTMATH
 from models.design import DT_HUMAN, WheelParameters
 from models.plant import DiscretePlant, continuous_matrices, discretize
 
@@ -216,7 +217,7 @@ def check_wheel(plant: DiscretePlant, params: WheelParameters) -> None:
         raise ValueError("plant is not the discretization of params; pass the WheelParameters it came from")
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def arm_torque_recursion(u, a, al, tau, dtau, dct):
     """The arm torque over ``u`` (K,) from ``tau[0]`` and its tangents ``dtau[0]`` in (a, α).
 

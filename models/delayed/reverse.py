@@ -30,8 +30,10 @@ from __future__ import annotations
 
 from numba import njit
 
+from models import FASTMATH
 
-@njit(cache=True, error_model="numpy")
+
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def plan_reverse(Ab, bc, ba, dAb, dbc, r, ua, K_obs, k_z, tape, fbar, Sbar, Lbar, Sc_bar, Lc_bar, seed, G):
     """Add F's derivative in :data:`models.delayed.riccati.DIRECTIONS` through the recorded steps to G (4,).
 

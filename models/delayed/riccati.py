@@ -38,6 +38,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from models import FASTMATH
 from models.maxent import FREEZE_RTOL
 
 #: Directions of the plan's derivative, in this order.
@@ -49,7 +50,7 @@ TAPE = 17
 SEED = 19
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K_obs, freeze, f, S_t, L_t, cst, frozen, W, tape):
     """Run the recursion backward over the plan's K + M steps; return (k_R, k_z).
 
@@ -203,7 +204,7 @@ def plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K_obs, freeze, f, S_t, L_t, c
     return k_R, k_z
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def plan_adjoint(bc, S, r, ua, om, K_obs, k_z, frozen, W, seed):
     """F's adjoints of the stationary constants, from ``F = sum_{k < k_z, k < K} om_k f_k``, into ``seed`` (:data:`SEED`).
 

@@ -38,7 +38,7 @@ from models.plant import DiscretePlant, discretize_lagged
 from models.segment import Feedback, Segment
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False, error_model="python")
 def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps, m, d, At, bt, physical):
     """Run the closed loop for every column of the noises.
 

@@ -107,3 +107,44 @@ def test_the_likelihoods_bits_do_not_depend_on_whether_numba_compiled_them_or_lo
     assert first.pop("cache hits") == 0  # the first process compiled every kernel
     assert second.pop("cache hits") > 0  # the second loaded them
     assert first == second
+
+
+#: The delayed likelihood's bits, after ``first`` ran in the same interpreter (and filled the cache with it).
+LIKELIHOOD = """
+import hashlib, sys, warnings
+import numpy as np
+from models import delayed
+from models.bayes.delayed_windows import delayed_windows
+from models.delayed.lag import arm_torque
+from models.plant import discretize
+from models.segment import prepare_batch
+warnings.simplefilter("ignore")
+if sys.argv[1] == "arm torque first":
+    print(arm_torque(np.random.default_rng(0).normal(size=200), 0.9, 0.3).tau[-1])
+    sys.exit(0)
+plant = discretize(0.01)
+w = delayed_windows(6, np.random.default_rng(2), K=600, preview=50, delay=(0, 25))
+r = delayed.loglik_grad(w.theta, prepare_batch(plant, w.segments), plant, tau_nm=w.tau_nm, sigma_m=w.sigma_m,
+                        delay=w.delay, tau0=0.1)
+print(hashlib.sha256(r.loglik.tobytes() + r.grad.tobytes()).hexdigest())
+"""
+
+
+@pytest.mark.slow  # three fresh interpreters, two compiling the delayed kernel: about a minute
+def test_the_kernels_bits_do_not_depend_on_which_caller_compiled_a_callee_first(tmp_path):
+    # Negative control (measured 2026-12-06, before every njit stated fastmath and error_model): the arm torque's
+    # recursion, compiled first from Python and cached without the kernel's reassociation, made the kernel
+    # compiled against it in the next interpreter compute other last bits of the same likelihood.
+    import os
+    import subprocess
+    import sys
+
+    def run(cache, what):
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / cache), "PYTHONHASHSEED": "0"}
+        done = subprocess.run([sys.executable, "-c", LIKELIHOOD, what], env=env, capture_output=True, text=True,
+                              timeout=1800)
+        assert done.returncode == 0, done.stderr[-3000:]
+        return done.stdout.strip().splitlines()[-1]
+
+    run("callee first", "arm torque first")
+    assert run("callee first", "likelihood") == run("kernel first", "likelihood")

@@ -18,7 +18,7 @@ from models.design import WheelParameters
 from models.segment import prepare_batch
 
 OBJECT_MODE = "object mode"
-#: The kernel sums with reassociation (models.delayed.innovations.FASTMATH), so the same
+#: The kernel sums with reassociation (models.FASTMATH), so the same
 #: arithmetic compiled inside another function (the Op's) rounds differently; the
 #: log-likelihood of a 300-step segment is ~1e3 nats and moves by ~1e-9 between such
 #: compilations (measured up to 3e-12 relative). Any modelling difference is far larger.

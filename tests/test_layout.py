@@ -161,35 +161,57 @@ def test_every_imported_third_party_package_is_declared():
     assert not missing, f"imported but not declared in pyproject.toml: {sorted(missing)}"
 
 
-def _is_cached_jit(call) -> bool:
-    """``njit(..., cache=True, ...)`` or ``jit(...)`` / ``numba.njit(...)`` with ``cache=True``."""
+def _jit_name(call) -> str | None:
     f = call.func
-    name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
-    return name in ("njit", "jit") and any(k.arg == "cache" and getattr(k.value, "value", False) is True
-                                           for k in call.keywords)
+    return f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
+
+
+def _jitted(source: str) -> list:
+    """(function name, keywords) for every function of ``source`` that numba compiles: decorated by ``njit`` or
+    ``jit`` (called, or bare: no keywords), or wrapped as ``njit(...)(f)``; once per decoration or wrap."""
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.FunctionDef):
+            for dec in node.decorator_list:
+                if isinstance(dec, ast.Call) and _jit_name(dec) in ("njit", "jit"):
+                    out.append((node.name, {k.arg: k.value for k in dec.keywords}))
+                elif isinstance(dec, (ast.Name, ast.Attribute)) and getattr(dec, "id", getattr(dec, "attr", None)) in (
+                        "njit", "jit"):
+                    out.append((node.name, {}))
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and _jit_name(node.func) in ("njit", "jit")
+              and len(node.args) == 1 and isinstance(node.args[0], ast.Name)):
+            out.append((node.args[0].id, {k.arg: k.value for k in node.func.keywords}))
+    return out
 
 
 def _functions_cached_twice(source: str) -> list:
     """Names of the functions of ``source`` that numba compiles with ``cache=True`` more than once
     (decorated and wrapped, or wrapped twice as in ``njit(cache=True, parallel=True)(f)``)."""
     count = {}
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.FunctionDef):
-            for dec in node.decorator_list:
-                if isinstance(dec, ast.Call) and _is_cached_jit(dec):
-                    count[node.name] = count.get(node.name, 0) + 1
-        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and _is_cached_jit(node.func)
-              and len(node.args) == 1 and isinstance(node.args[0], ast.Name)):
-            count[node.args[0].id] = count.get(node.args[0].id, 0) + 1
+    for name, kw in _jitted(source):
+        if getattr(kw.get("cache"), "value", False) is True:
+            count[name] = count.get(name, 0) + 1
     return sorted(name for name, n in count.items() if n > 1)
+
+
+def _njit_without_flags(source: str) -> list:
+    """Names of the functions of ``source`` that numba compiles without stating both ``fastmath`` and
+    ``error_model``."""
+    return sorted(name for name, kw in _jitted(source) if not {"fastmath", "error_model"} <= set(kw))
+
+
+def _offending_files(find) -> dict:
+    """{file: names} where ``find(source)`` names something, over every module of models/ and pipelines/."""
+    found = {str(p.relative_to(ROOT)): find(p.read_text())
+             for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
+    return {rel: names for rel, names in found.items() if names}
 
 
 def test_no_function_is_compiled_into_the_numba_cache_twice():
     """numba's cache keys a function by its file, name and first line: two cached dispatchers of one
     function share their entries, and one loads the other's code (the delayed batch kernel's parallel
     version ran serially that way, models/delayed/kernel.py)."""
-    bad = {rel: names for rel, names in ((str(p.relative_to(ROOT)), _functions_cached_twice(p.read_text()))
-                                         for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))) if names}
+    bad = _offending_files(_functions_cached_twice)
     assert not bad, bad
 
 
@@ -203,35 +225,12 @@ def test_a_function_cached_twice_would_be_found():
     assert _functions_cached_twice(source) == ["_batch"]
 
 
-def _njit_without_flags(source: str) -> list:
-    """Names of the functions of ``source`` compiled by ``njit``/``jit`` without stating both ``fastmath`` and
-    ``error_model`` (as a decorator, or as ``njit(...)(f)``)."""
-    def lacks(call) -> bool:
-        f = call.func
-        name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
-        return name in ("njit", "jit") and not {"fastmath", "error_model"} <= {k.arg for k in call.keywords}
-
-    bad = []
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.FunctionDef):
-            for dec in node.decorator_list:
-                if (isinstance(dec, ast.Call) and lacks(dec)) or (
-                        isinstance(dec, (ast.Name, ast.Attribute)) and getattr(dec, "id", getattr(dec, "attr", None))
-                        in ("njit", "jit")):
-                    bad.append(node.name)
-        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and lacks(node.func)
-              and len(node.args) == 1 and isinstance(node.args[0], ast.Name)):
-            bad.append(node.args[0].id)
-    return sorted(bad)
-
-
 def test_every_numba_function_states_its_fastmath_and_error_model():
     """numba gives a function that does not state ``fastmath`` or ``error_model`` those of the caller that
     first compiles it, and caches that version under its signature alone: which caller came first, in this
     process or in the one that filled the cache, then decided the bits of every later kernel compiled against
     it (models/__init__.py; the delayed kernel's callees, measured 2026-12-06)."""
-    bad = {rel: names for rel, names in ((str(p.relative_to(ROOT)), _njit_without_flags(p.read_text()))
-                                         for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))) if names}
+    bad = _offending_files(_njit_without_flags)
     assert not bad, bad
 
 

@@ -109,7 +109,8 @@ def test_the_likelihoods_bits_do_not_depend_on_whether_numba_compiled_them_or_lo
     assert first == second
 
 
-#: The delayed likelihood's bits, after ``first`` ran in the same interpreter (and filled the cache with it).
+#: Run in a fresh interpreter: with argument "likelihood", print a digest of the delayed likelihood's bits; with
+#: "arm torque first", only compile (and cache) the arm torque's recursion from Python, as ``arm_torque`` does.
 LIKELIHOOD = """
 import hashlib, sys, warnings
 import numpy as np

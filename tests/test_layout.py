@@ -161,9 +161,9 @@ def test_every_imported_third_party_package_is_declared():
     assert not missing, f"imported but not declared in pyproject.toml: {sorted(missing)}"
 
 
-def _jit_name(call) -> str | None:
-    f = call.func
-    return f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
+def _is_jit(f) -> bool:
+    """``f`` (a decorator, or the function of a call) names ``njit`` or ``jit``, bare or as ``numba.njit``."""
+    return (f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)) in ("njit", "jit")
 
 
 def _jitted(source: str) -> list:
@@ -173,12 +173,11 @@ def _jitted(source: str) -> list:
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.FunctionDef):
             for dec in node.decorator_list:
-                if isinstance(dec, ast.Call) and _jit_name(dec) in ("njit", "jit"):
+                if isinstance(dec, ast.Call) and _is_jit(dec.func):
                     out.append((node.name, {k.arg: k.value for k in dec.keywords}))
-                elif isinstance(dec, (ast.Name, ast.Attribute)) and getattr(dec, "id", getattr(dec, "attr", None)) in (
-                        "njit", "jit"):
+                elif _is_jit(dec):
                     out.append((node.name, {}))
-        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and _jit_name(node.func) in ("njit", "jit")
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and _is_jit(node.func.func)
               and len(node.args) == 1 and isinstance(node.args[0], ast.Name)):
             out.append((node.args[0].id, {k.arg: k.value for k in node.func.keywords}))
     return out

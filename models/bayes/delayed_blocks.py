@@ -297,6 +297,28 @@ def motor_coordinate(name: str, form: str) -> str:
     return {"centred": name, "noncentred": f"z_{name}", "folded": f"z_{name}", "folded_centred": f"{name}_signed"}[form]
 
 
+#: The forms in which a half-normal block's coordinate is signed: its law symmetric about the coordinate's 0.
+SIGNED_FORMS = ("folded", "folded_centred")
+
+
+def ridge_pivot(priors: DelayedPriors, form: DelayedForm) -> str:
+    """The free variable along which a curved whitening bends each subject's block (:func:`models.bayes.whiten.
+    ridge_curvature`): ρ's coordinate where ρ = R^(-1/2) is signed (``R_population="policy_scale"``, ρ in one of
+    :data:`SIGNED_FORMS`), else σ_m's (:func:`motor_coordinate`).
+
+    Why. The policy noise (variance ∝ ρ²) and the motor noise (∝ σ_m²) share the torque's variability, so each
+    subject's posterior follows a ridge ρ² + k σ_m² ≈ c. Along σ_m's coordinate that ridge is log R ≈ c' + k' σ_m²,
+    the parabola :mod:`models.bayes.whiten` ("Curved") bends along. With ρ's coordinate signed (ρ = |ρ̃|) the ridge
+    is an arch over it: σ_m largest where ρ̃ = 0 and falling as |ρ̃| grows, on both sides, which a subject whose
+    data leave ρ near 0 crosses (ρ̃ changes sign). ρ̃ as a function of σ_m has two branches, which no bend along σ_m
+    follows; σ_m as a function of ρ̃ is one symmetric curve, a parabola at its top, so the bend is along ρ̃.
+    Measured: :mod:`pipelines.fit.delayed_forms`, "The ridge's pivot with a signed ρ".
+    """
+    if priors.R_population == "policy_scale" and form.rho in SIGNED_FORMS:
+        return motor_coordinate("rho", form.rho)
+    return motor_coordinate("sigma_m", form.sigma_m)
+
+
 def half_normal_block(name: str, scale, form: str, *, start: float | None = None):
     """Per subject, ``name`` ~ HalfNormal(``scale``) in one of :data:`MOTOR_FORMS`: centred; non-centred
     (scale · z, z ~ HalfNormal(1), named ``z_<name>``); folded (scale · |z|, z ~ N(0, 1) unconstrained,
@@ -317,4 +339,4 @@ def half_normal_block(name: str, scale, form: str, *, start: float | None = None
 
 __all__ = ["DELAYED_POPULATION_PARAMETERS", "FOLDED_CENTRED_START", "DelayedForm", "DelayedPriors", "MOTOR_FORMS",
            "RHO_FORMS", "R_POPULATIONS", "baseline_log_R", "cost_blocks", "half_normal_block", "motor_blocks",
-           "motor_coordinate"]
+           "motor_coordinate", "ridge_pivot", "SIGNED_FORMS"]

@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_blocks import motor_coordinate
+from models.bayes.delayed_blocks import ridge_pivot
 from models.bayes.delayed_model import (ADAPTATIONS, CURVED, DELAY_INDEX, DELAYED_POPULATION_PARAMETERS, DelayedForm,
                                         DelayedPriors, WHITENED, build_delayed_model, delay_step, nutpie_options)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
@@ -260,7 +260,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                   initvals=start, target_accept=target_accept)
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     elif whiten:
-        pivot = motor_coordinate("sigma_m", delayed_form.sigma_m) if adaptation == CURVED else None
+        pivot = ridge_pivot(delayed_priors, delayed_form) if adaptation == CURVED else None
         idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
                                                 cores=cores, show_progress=show_progress, nuts=nuts, pivot=pivot)
     else:
@@ -279,8 +279,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                       "the chains start at PyMC's initial point (no ML estimates), jittered")
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
                "coordinates (pipelines/fit/whiten.py)" if whiten else "")
-            + ("; each subject's coordinates curved along its ridge in σ_m (models/bayes/whiten.py, "
-               "ridge_curvature)" if adaptation == CURVED else ""),
+            + (f"; each subject's coordinates curved along its ridge in {pivot} (models/bayes/whiten.py, "
+               "ridge_curvature; models/bayes/delayed_blocks.py, ridge_pivot)" if adaptation == CURVED else ""),
             "start_scales": {k: np.asarray(start[k]).tolist() for k in sources},
             **({"start_scales_from": sources} if start else {}),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},

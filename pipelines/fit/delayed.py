@@ -245,6 +245,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         delayed_form = replace(delayed_form, rho=rho_form)
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
+    pivot = ridge_pivot(delayed_priors, delayed_form) if whiten and adaptation == CURVED else None
     grid = delay_grid(float(plant.dt))
     model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant,
                                 delay=None if sampled else delays.samples, delay_grid=grid if sampled else None,
@@ -260,7 +261,6 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                   initvals=start, target_accept=target_accept)
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     elif whiten:
-        pivot = ridge_pivot(delayed_priors, delayed_form) if adaptation == CURVED else None
         idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
                                                 cores=cores, show_progress=show_progress, nuts=nuts, pivot=pivot)
     else:
@@ -280,7 +280,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
                "coordinates (pipelines/fit/whiten.py)" if whiten else "")
             + (f"; each subject's coordinates curved along its ridge in {pivot} (models/bayes/whiten.py, "
-               "ridge_curvature; models/bayes/delayed_blocks.py, ridge_pivot)" if adaptation == CURVED else ""),
+               "ridge_curvature; models/bayes/delayed_blocks.py, ridge_pivot)" if pivot else ""),
             "start_scales": {k: np.asarray(start[k]).tolist() for k in sources},
             **({"start_scales_from": sources} if start else {}),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},

@@ -146,7 +146,9 @@ and σ_m; they set the trees' depth.
 
 Since 2026-12-05 the default (:data:`CURVED`) also bends each subject's coordinates along its ridge in σ_m
 (:mod:`models.bayes.whiten`, "Curved"): with σ_m's block folded centred, σ_m = |v| and log R grows with v², a
-parabola through the mode v = 0 that no affine map straightens. Measured: README, "Speed".
+parabola through the mode v = 0 that no affine map straightens. Measured: README, "Speed". With a signed
+ρ = R^(-1/2) (``R_population="policy_scale"``, ρ folded or folded centred) it bends along ρ's coordinate
+instead, the ridge there being an arch over it (:func:`models.bayes.delayed_blocks.ridge_pivot`).
 
 Its target acceptance rate is 0.9 (:data:`WHITENED_TARGET_ACCEPT`), not nutpie's 0.8: the
 convergence verdict fails on a single divergent transition, and the smaller steps left fewer.
@@ -204,8 +206,8 @@ NUTPIE_ADAPTATIONS = ("low_rank", "diag")
 DELAYED_NUTS = {"adaptation": NUTPIE_ADAPTATIONS[0]}
 #: The name in :data:`ADAPTATIONS` of the whitened sampling.
 WHITENED = "whitened"
-#: The name in :data:`ADAPTATIONS` of the whitened sampling with each subject's ridge along σ_m curved (module
-#: docstring, "Curved").
+#: The name in :data:`ADAPTATIONS` of the whitened sampling with each subject's ridge along σ_m (or a signed ρ)
+#: curved (module docstring, "Curved").
 CURVED = "curved"
 #: The mass matrices a delayed fit with profile delays may use (``scioc fit --adaptation``), the default first:
 #: nutpie's diagonal one on each subject's whitened coordinates curved along σ_m's ridge, then on the affine

@@ -38,7 +38,8 @@ fit_delayed --keep``, measured ad hoc: the posterior's slope of log R on σ_m² 
 third subject; the correlation of baseline log R and σ_m per subject 0.21-0.90, median 0.80).
 Where σ_m's coordinate is v (σ_m = |v|, the folded centred form), the mode is at v = 0 and that
 parabola is symmetric about it: no linear map of v removes it, and each tree of NUTS has to turn
-along it. So, given a ``pivot`` coordinate p in each block (σ_m's), the map is::
+along it. So, given a ``pivot`` coordinate p in each block (σ_m's; ρ's where ρ = R^(-1/2) is signed, whose
+ridge is an arch over it: :func:`models.bayes.delayed_blocks.ridge_pivot`), the map is::
 
     x_i = x̂_i + L_i w_i + a_i δ_i²,   δ_i = (L_i w_i)_p,   a_ip = 0
 

@@ -152,7 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
                    help="delayed, profile delays: coordinates and mass matrix (default curved: whitened per subject "
-                   "and curved along σ_m's ridge; whitened: affine only; low_rank, diag: nutpie's own)")
+                   "and curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own)")
     p.add_argument("--target-accept", type=acceptance, help="the sampler's target acceptance rate (default 0.9 for "
                    "the delayed model's whitened fit, else nutpie's 0.8); raise it where transitions diverge")
     p.add_argument("--compare-to", metavar="MAXENT_FIT", help="with --human-model delayed: a finished max-ent fit of "

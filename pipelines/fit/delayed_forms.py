@@ -122,6 +122,29 @@ population's scale sits near 0.06-0.08 N·m (the Gamma's posterior: 0.006-0.05) 
 subject's σ_m stays below its data's bound. Human motor noise is never absent (Kleinman, Baron
 & Levison 1970; the ``kbl`` human's 0.25 N·m), and the subjects' σ_m, not s_m, are what the
 likelihood sees.
+
+The ridge's pivot with a signed ρ (``--R-population policy_scale`` with ρ folded or folded centred;
+:func:`models.bayes.delayed_blocks.ridge_pivot`). On the 12 subjects of the ``kbl`` human of README
+"Which part of the warm-up", fitted with ρ folded centred and the bend along σ_m (README, "Not yet"), 10
+of the 12 subjects' ρ̃ changed sign within a chain (positive in 25-85 % of a chain's draws; the other two
+kept one sign), and every subject's σ_m fell as |ρ̃| grew (correlation of |ρ̃| and σ_m -0.21 to -0.73;
+read ad hoc from that fit's posterior): the arch that ridge_pivot's docstring describes, which a bend
+along σ_m cannot follow. Bent along ρ̃ (``scioc fit s12/study.parquet --human-model delayed --estimates
+s12/delayed/estimates.parquet --chains 2 --draws 300 --tune 300 --adequacy-boot 19 --seed N
+--R-population policy_scale --rho-form folded_centred``; the first two rows at b564776, before
+ridge_pivot; per run the leapfrog steps per warm-up and kept draw, divergent transitions, of the
+population parameters the smallest ESS (of bulk and tail) and the largest R-hat, of the units' log R
+the smallest bulk ESS and the largest R-hat; of 600 draws)::
+
+    bend along   seed   steps        div   population                    units' log R
+    σ_m          1      92.1  95.1   1     σ_βR 141; ρ's scale 1.010     62, 1.042
+    σ_m          2      120.2 83.2   0     σ_βR 186; s_m 1.022           54, 1.031
+    ρ̃            1      39.3  31.9   0     σ_βR 86; σ_βR 1.019           77, 1.027
+    ρ̃            2      37.6  31.2   0     β_R 178; β 1.016              220, 1.010
+
+A third of the leapfrog steps, as many as the lognormal population's (33.3 and 33.6 with the same
+seeds, whose worst population parameter, μ_R, had ESS 48 and 12): per gradient about 1.8 and 2.5 times
+the population ESS of the bend along σ_m, and the units' log R mix at least as well.
 """
 
 from __future__ import annotations

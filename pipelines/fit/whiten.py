@@ -10,7 +10,7 @@ The steps, all deterministic (the seed enters only the sampler, as in :func:`pip
 2. H_i: each subject's Hessian block at x̂ (:func:`models.bayes.whiten.block_hessian`,
    central differences of step :data:`HESSIAN_STEP` on the unconstrained scale); and each other
    coordinate's own scale there (:func:`models.bayes.whiten.coordinate_scales`); given a ``pivot``
-   variable (the delayed fit's σ_m, :data:`models.bayes.delayed_model.CURVED`), each subject's ridge's
+   variable (the delayed fit's σ_m or a signed ρ, :func:`models.bayes.delayed_blocks.ridge_pivot`), each subject's ridge's
    curvature along it (:func:`models.bayes.whiten.ridge_curvature`, the module's "Curved").
 3. The model in w (:func:`models.bayes.whiten.whitened_model`) sampled by nutpie with its
    diagonal mass matrix, the chains jittered around w = 0 (x̂) as PyMC jitters its own start.

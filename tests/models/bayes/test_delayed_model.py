@@ -175,6 +175,35 @@ def test_motor_coordinate_is_the_free_variable_each_form_samples(plant, study):
         motor_coordinate("sigma_m", "wavy")
 
 
+def test_the_ridge_pivot_is_rhos_coordinate_where_rho_is_signed_else_sigma_ms(plant, study):
+    """models.bayes.delayed_blocks.ridge_pivot: with R_population="policy_scale" and ρ folded or folded centred
+    (signed, SIGNED_FORMS) a curved whitening bends along ρ's free variable; in every other case (ρ centred or
+    non-centred, or no ρ at all) along σ_m's, in σ_m's form. Each is a free variable of the model with one value
+    per subject."""
+    from models.bayes.delayed_blocks import MOTOR_FORMS, SIGNED_FORMS, ridge_pivot
+    from models.bayes.delayed_model import DelayedPriors
+
+    w = study
+    expected = {"folded": "z_rho", "folded_centred": "rho_signed"}
+    sigma_m = {"centred": "sigma_m", "noncentred": "z_sigma_m", "folded": "z_sigma_m",
+               "folded_centred": "sigma_m_signed"}
+    assert set(SIGNED_FORMS) == set(expected)
+    seen = set()
+    for population in ("lognormal", "policy_scale", "unpooled"):
+        for rho in MOTOR_FORMS:
+            for sm in ("centred", "folded_centred"):
+                dp, form = DelayedPriors(R_population=population), DelayedForm("noncentred", sm, rho=rho)
+                name = ridge_pivot(dp, form)
+                want = expected.get(rho, sigma_m[sm]) if population == "policy_scale" else sigma_m[sm]
+                assert name == want, (population, rho, sm)
+                seen.add(name)
+                if population == "policy_scale" or rho == "folded":  # build each distinct model once
+                    model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
+                                                delayed_priors=dp, delayed_form=form)
+                    assert model[name] in model.free_RVs and model.named_vars_to_dims[name] == ("subject",)
+    assert seen == {"z_rho", "rho_signed", "sigma_m", "sigma_m_signed"}
+
+
 def test_the_motor_noise_variance_has_an_inverse_gamma_prior_by_default(plant, study):
     """s_m² ~ IG(1, 0.03) (sampled as sigma_m_scale_sq, s_m its square root); without it s_m ~ Gamma(2, rate 8)
     (the default before) or HalfNormal(sigma_m_scale); one prior at a time, each checked."""

@@ -289,6 +289,21 @@ def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
 
 
 @pytest.mark.slow
+def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
+    # scioc fit --R-population policy_scale --rho-form folded_centred, the default (curved) whitening: each subject's
+    # block bends along ρ's signed coordinate (models.bayes.delayed_blocks.ridge_pivot), not σ_m's, and says so.
+    root, sim, prepared = delayed_study
+    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
+    paths = fit_to_dir(sim["study"], root / "fit_rho_curved", settings=SETTINGS, prepared=prepared,
+                       delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="folded_centred", **small)
+    side = json.loads(open(paths["sidecar"]).read())
+    assert side["whitening"]["curved_along"] == "rho_signed"
+    assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened, curved along rho_signed"
+    assert "curved along its ridge in rho_signed" in side["start"]
+    assert 0 < side["whitening"]["pivot_scale_range"][0] <= side["whitening"]["pivot_scale_range"][1]
+
+
+@pytest.mark.slow
 def test_the_adequacy_of_a_finished_fit_is_checked_again_as_the_fit_checked_it(delayed_study, delayed_fit, tmp_path):
     # scioc adequacy FIT: at the fit's own point and seed it reproduces contrasts.json's verdict exactly; at the means
     # it is the former rule; --out writes a file of its own and never one of the fit's.

@@ -19,6 +19,23 @@ ESS_MIN = 400
 #: E-BFMI below this flags a chain (reported, advisory: not part of the verdict).
 EBFMI_MIN = 0.3
 
+#: Unit blocks whose baseline has a normal population, and that population's mean: their pooling factor is reported.
+POOLED_BASELINES = {"log_theta1": "mu_log_theta1", "log_R": "mu_log_R"}
+
+#: A pooling factor at least this: the population carries more of each subject's baseline than its data do.
+LOOSE_POOLING = 0.5
+
+
+def pooling_factor(eps: np.ndarray) -> float:
+    """Gelman & Pardoe's (2006) pooling factor λ = 1 - V_j(E[ε_j]) / E[V_j(ε_j)] of draws ``eps`` (..., J), each
+    unit's deviation from its population mean; V_j is the sample variance over the J units, E over the draws.
+
+    In the normal model (ε_j ~ N(0, σ²), data of variance s² on each) λ is the shrinkage s² / (s² + σ²): near 0
+    where each unit's data fix it, near 1 where its posterior is the population's (the data barely inform it).
+    """
+    e = np.asarray(eps, dtype=float).reshape(-1, np.shape(eps)[-1])
+    return float(1.0 - np.var(e.mean(axis=0), ddof=1) / np.mean(np.var(e, axis=1, ddof=1)))
+
 
 def _elements(draws):
     """``(label, selection)`` of each element of a population parameter: the name alone for a scalar,
@@ -62,6 +79,10 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
         r, b, t = az.rhat(ds)[v].values, az.ess(ds, method="bulk")[v].values, az.ess(ds, method="tail")[v].values
         units[v] = {"rhat_max": float(np.nanmax(r)), "ess_bulk_min": float(np.nanmin(b)),
                     "ess_tail_min": float(np.nanmin(t))}
+        mean = POOLED_BASELINES.get(v)
+        if mean in post and "condition" in post[v].dims:  # the baseline level is the first
+            units[v]["pooling_factor"] = pooling_factor((post[v].isel(condition=0) - post[mean])
+                                                        .transpose("chain", "draw", ...).values)
     bfmi = np.atleast_1d(az.bfmi(idata)["energy"].values).astype(float)
     n_steps = ss["n_steps"].values
     sampler = {
@@ -120,6 +141,11 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
       chain at stationarity; a projection, rounded up to 100, not a promise).
     * R-hat above :data:`RHAT_MAX`: the chains disagree; a longer warm-up and more draws, then
       the verdict again. An R-hat that stays high means chains in different modes or regions.
+    * μ_R or σ_R failing in a delayed fit whose subjects' baseline log R has a pooling factor of at
+      least :data:`LOOSE_POOLING` (:func:`pooling_factor`; the data barely fix each subject's R, as
+      where motor noise explains the variability that policy noise would): the policy-scale
+      population of R, which converged where the lognormal one did not (README, "Why the steps
+      grew"; the lognormal one had pooling factor 0.78 there, the max-ent human's 0.07).
     """
     if diag.get("passed", False):
         return []
@@ -151,5 +177,11 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
         out.append(f"R-hat of {worst} {pop[worst]['rhat']:.3f} > {RHAT_MAX} ({len(high)} parameter"
                    f"{'s' * (len(high) != 1)}): the chains disagree; refit with a longer --tune and more --draws, "
                    "then judge again; an R-hat that stays high means chains in different regions")
+    lam = diag.get("units", {}).get("log_R", {}).get("pooling_factor", math.nan)
+    if {"mu_log_R", "sigma_log_R"} & (set(low) | set(high)) and "sigma_m_scale" in pop and lam >= LOOSE_POOLING:
+        out.append(f"the data barely fix each subject's R (pooling factor of its baseline log R {lam:.2f}, at least "
+                   f"{LOOSE_POOLING}): a population of log R is then held by its prior and each subject's lower bound "
+                   "and mixes slowly in any form; refit with --R-population policy_scale --rho-form folded_centred "
+                   "(R^(-1/2) half-normal, which converged on the README's kbl study)")
     return out
 

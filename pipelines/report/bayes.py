@@ -55,7 +55,8 @@ def section_diagnostics(side: dict, design: Design = STUDY) -> Markup:
             for v, p in d["population"].items()]
     urow = [{"unit quantity (subject × condition)": v, **u} for v, u in d["units"].items()]
     units = pd.DataFrame(urow).rename(columns={"rhat_max": "max R-hat", "ess_bulk_min": "min bulk ESS",
-                                               "ess_tail_min": "min tail ESS"})
+                                               "ess_tail_min": "min tail ESS",
+                                               "pooling_factor": "pooling factor of the baseline"})
     return render("diagnostics.html.j2", s=side["sampler"], seed=side["seed"], crit=crit,
                   verdicts=list(side["diagnostics"].items()), remedies=fit_remedies(side),
                   models=table(pd.DataFrame(rows), left=("model", "min ESS (parameter)")),

@@ -53,3 +53,42 @@ def test_a_parameter_that_never_moved_fails_the_verdict_and_is_advised_on():
                    "R-hat of s_m nan > 1.01 (2 parameters): the chains disagree; refit with a longer --tune and more "
                    "--draws, then judge again; an R-hat that stays high means chains in different regions"]
 
+
+
+@pytest.mark.parametrize("s, expected", [(0.2, 0.04 / 1.04), (1.0, 0.5), (3.0, 0.9)])
+def test_the_pooling_factor_is_the_shrinkage_of_the_normal_model(s, expected):
+    # ε_j ~ N(0, 1), data y_j ~ N(ε_j, s²): the posterior of ε_j is N(b y_j, b s²), b = 1 / (1 + s²), and Gelman and
+    # Pardoe's λ is s² / (1 + s²). 400 units, 2000 exact posterior draws each.
+    import numpy as np
+
+    from pipelines.fit.diagnostics import pooling_factor
+
+    rng = np.random.default_rng(11)
+    y = rng.normal(0.0, 1.0, 400) + rng.normal(0.0, s, 400)
+    b = 1.0 / (1.0 + s**2)
+    draws = b * y + np.sqrt(b) * s * rng.standard_normal((2, 1000, 400))
+    assert pooling_factor(draws) == pytest.approx(expected, abs=0.05)
+
+
+def _delayed_diag(pooling):
+    pop = {"beta": {"rhat": 1.001, "ess_bulk": 2000.0, "ess_tail": 1800.0},
+           "sigma_m_scale": {"rhat": 1.001, "ess_bulk": 2000.0, "ess_tail": 1800.0},
+           "sigma_log_R": {"rhat": 1.024, "ess_bulk": 109.0, "ess_tail": 300.0}}
+    diag = _diag(population=pop)
+    diag["units"] = {"log_R": {"rhat_max": 1.05, "ess_bulk_min": 50.0, "ess_tail_min": 60.0, "pooling_factor": pooling}}
+    return diag
+
+
+def test_a_loose_R_whose_population_does_not_mix_is_sent_to_the_policy_scale_population():
+    out = remedies(_delayed_diag(0.78), chains=4, draws=1000, target_accept=0.9)
+    assert out[-1].startswith("the data barely fix each subject's R (pooling factor of its baseline log R 0.78, ")
+    assert "--R-population policy_scale --rho-form folded_centred" in out[-1]
+    # negative controls: R fixed by the data (the max-ent human's 0.07), or a max-ent fit (no motor noise), or no
+    # pooling factor at all: the same failing σ_R gets only the generic advice
+    assert not any("policy_scale" in t for t in remedies(_delayed_diag(0.07), chains=4, draws=1000, target_accept=0.9))
+    maxent = _delayed_diag(0.78)
+    del maxent["population"]["sigma_m_scale"]
+    assert not any("policy_scale" in t for t in remedies(maxent, chains=4, draws=1000, target_accept=0.9))
+    bare = _delayed_diag(0.78)
+    del bare["units"]
+    assert len(remedies(bare, chains=4, draws=1000, target_accept=0.9)) == len(out) - 1

@@ -338,5 +338,5 @@ def half_normal_block(name: str, scale, form: str, *, start: float | None = None
 
 
 __all__ = ["DELAYED_POPULATION_PARAMETERS", "FOLDED_CENTRED_START", "DelayedForm", "DelayedPriors", "MOTOR_FORMS",
-           "RHO_FORMS", "R_POPULATIONS", "baseline_log_R", "cost_blocks", "half_normal_block", "motor_blocks",
-           "motor_coordinate", "ridge_pivot", "SIGNED_FORMS"]
+           "RHO_FORMS", "R_POPULATIONS", "SIGNED_FORMS", "baseline_log_R", "cost_blocks", "half_normal_block",
+           "motor_blocks", "motor_coordinate", "ridge_pivot"]

@@ -197,7 +197,7 @@ def test_the_ridge_pivot_is_rhos_coordinate_where_rho_is_signed_else_sigma_ms(pl
                 want = expected.get(rho, sigma_m[sm]) if population == "policy_scale" else sigma_m[sm]
                 assert name == want, (population, rho, sm)
                 seen.add(name)
-                if population == "policy_scale" or rho == "folded":  # build each distinct model once
+                if population == "policy_scale" or rho == "folded":  # elsewhere ρ's form builds nothing: once
                     model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
                                                 delayed_priors=dp, delayed_form=form)
                     assert model[name] in model.free_RVs and model.named_vars_to_dims[name] == ("subject",)

@@ -54,7 +54,6 @@ def test_a_parameter_that_never_moved_fails_the_verdict_and_is_advised_on():
                    "--draws, then judge again; an R-hat that stays high means chains in different regions"]
 
 
-
 @pytest.mark.parametrize("s, expected", [(0.2, 0.04 / 1.04), (1.0, 0.5), (3.0, 0.9)])
 def test_the_pooling_factor_is_the_shrinkage_of_the_normal_model(s, expected):
     # ε_j ~ N(0, 1), data y_j ~ N(ε_j, s²): the posterior of ε_j is N(b y_j, b s²), b = 1 / (1 + s²), and Gelman and

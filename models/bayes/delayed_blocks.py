@@ -301,22 +301,28 @@ def motor_coordinate(name: str, form: str) -> str:
 SIGNED_FORMS = ("folded", "folded_centred")
 
 
-def ridge_pivot(priors: DelayedPriors, form: DelayedForm) -> str:
-    """The free variable along which a curved whitening bends each subject's block (:func:`models.bayes.whiten.
-    ridge_curvature`): ρ's coordinate where ρ = R^(-1/2) is signed (``R_population="policy_scale"``, ρ in one of
-    :data:`SIGNED_FORMS`), else σ_m's (:func:`motor_coordinate`).
+def ridge_pivots(priors: DelayedPriors, form: DelayedForm) -> tuple[str, ...]:
+    """The free variables a curved whitening may bend each subject's block along (:func:`models.bayes.whiten.
+    ridge_curvature`), one chosen per subject (:func:`models.bayes.whiten.nearest_fold`): ρ's coordinate where
+    ρ = R^(-1/2) is signed (``R_population="policy_scale"``, ρ in one of :data:`SIGNED_FORMS`), and σ_m's
+    (:func:`motor_coordinate`) where it is signed too or where ρ is not.
 
     Why. The policy noise (variance ∝ ρ²) and the motor noise (∝ σ_m²) share the torque's variability, so each
     subject's posterior follows a ridge ρ² + k σ_m² ≈ c. Along σ_m's coordinate that ridge is log R ≈ c' + k' σ_m²,
     the parabola :mod:`models.bayes.whiten` ("Curved") bends along. With ρ's coordinate signed (ρ = |ρ̃|) the ridge
     is an arch over it: σ_m largest where ρ̃ = 0 and falling as |ρ̃| grows, on both sides, which a subject whose
     data leave ρ near 0 crosses (ρ̃ changes sign). ρ̃ as a function of σ_m has two branches, which no bend along σ_m
-    follows; σ_m as a function of ρ̃ is one symmetric curve, a parabola at its top, so the bend is along ρ̃.
+    follows; σ_m as a function of ρ̃ is one symmetric curve, a parabola at its top, so the bend is along ρ̃. With
+    σ_m signed as well, the arch of a subject whose data leave σ_m near 0 (no motor noise: the max-ent human) tops
+    in σ_m instead, and the bend for that subject is along σ_m: each subject's pivot is the signed coordinate whose
+    fold its mode is nearest, in that coordinate's own scale.
     Measured: :mod:`pipelines.fit.delayed_forms`, "The ridge's pivot with a signed ρ".
     """
+    sigma_m = motor_coordinate("sigma_m", form.sigma_m)
     if priors.R_population == "policy_scale" and form.rho in SIGNED_FORMS:
-        return motor_coordinate("rho", form.rho)
-    return motor_coordinate("sigma_m", form.sigma_m)
+        rho = motor_coordinate("rho", form.rho)
+        return (rho, sigma_m) if form.sigma_m in SIGNED_FORMS else (rho,)
+    return (sigma_m,)
 
 
 def half_normal_block(name: str, scale, form: str, *, start: float | None = None):
@@ -339,4 +345,4 @@ def half_normal_block(name: str, scale, form: str, *, start: float | None = None
 
 __all__ = ["DELAYED_POPULATION_PARAMETERS", "FOLDED_CENTRED_START", "DelayedForm", "DelayedPriors", "MOTOR_FORMS",
            "RHO_FORMS", "R_POPULATIONS", "SIGNED_FORMS", "baseline_log_R", "cost_blocks", "half_normal_block",
-           "motor_blocks", "motor_coordinate", "ridge_pivot"]
+           "motor_blocks", "motor_coordinate", "ridge_pivots"]

@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_blocks import ridge_pivot
+from models.bayes.delayed_blocks import ridge_pivots
 from models.bayes.delayed_model import (ADAPTATIONS, CURVED, DELAY_INDEX, DELAYED_POPULATION_PARAMETERS, DelayedForm,
                                         DelayedPriors, WHITENED, build_delayed_model, delay_step, nutpie_options)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
@@ -245,7 +245,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         delayed_form = replace(delayed_form, rho=rho_form)
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
-    pivot = ridge_pivot(delayed_priors, delayed_form) if whiten and adaptation == CURVED else None
+    pivots = ridge_pivots(delayed_priors, delayed_form) if whiten and adaptation == CURVED else None
     grid = delay_grid(float(plant.dt))
     model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant,
                                 delay=None if sampled else delays.samples, delay_grid=grid if sampled else None,
@@ -262,7 +262,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     elif whiten:
         idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
-                                                cores=cores, show_progress=show_progress, nuts=nuts, pivot=pivot)
+                                                cores=cores, show_progress=show_progress, nuts=nuts, pivots=pivots)
     else:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
                                   show_progress=show_progress, nuts=nuts, initvals=start)
@@ -279,8 +279,10 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                       "the chains start at PyMC's initial point (no ML estimates), jittered")
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
                "coordinates (pipelines/fit/whiten.py)" if whiten else "")
-            + (f"; each subject's coordinates curved along its ridge in {pivot} (models/bayes/whiten.py, "
-               "ridge_curvature; models/bayes/delayed_blocks.py, ridge_pivot)" if pivot else ""),
+            + (f"; each subject's coordinates curved along its ridge in {' or '.join(pivots)}"
+               + (" (per subject, the one whose fold the mode is nearest)" if len(pivots) > 1 else "")
+               + " (models/bayes/whiten.py, ridge_curvature; models/bayes/delayed_blocks.py, ridge_pivots)"
+               if pivots else ""),
             "start_scales": {k: np.asarray(start[k]).tolist() for k in sources},
             **({"start_scales_from": sources} if start else {}),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},

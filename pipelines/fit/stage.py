@@ -130,9 +130,18 @@ def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | Non
     return {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')",
             "adaptation": f"{nutpie_options['adaptation']} (nutpie)"
             + (", per-subject whitened" if whitening is not None else "")
-            + (f", curved along {whitening['curved_along']}" if whitening and "curved_along" in whitening else "")
+            + (", curved along " + curved_along(whitening["curved_along"])
+               if whitening and "curved_along" in whitening else "")
             if human_model == "delayed" else
             "diag (nutpie default)"}
+
+
+def curved_along(counts: dict) -> str:
+    """The pivots of a curved whitening (:func:`pipelines.fit.whiten.whitening`'s ``curved_along``) for the sidecar:
+    the name alone, or each with its number of subjects where each subject had its own."""
+    if len(counts) == 1:
+        return next(iter(counts))
+    return ", ".join(f"{name} ({n} subjects)" for name, n in counts.items())
 
 
 def choose_parameterization(estimates) -> tuple[Parameterization, str]:

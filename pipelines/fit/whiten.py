@@ -9,9 +9,11 @@ The steps, all deterministic (the seed enters only the sampler, as in :func:`pip
    kept only if it improves on the start.
 2. H_i: each subject's Hessian block at x̂ (:func:`models.bayes.whiten.block_hessian`,
    central differences of step :data:`HESSIAN_STEP` on the unconstrained scale); and each other
-   coordinate's own scale there (:func:`models.bayes.whiten.coordinate_scales`); given a ``pivot``
-   variable (the delayed fit's σ_m or a signed ρ, :func:`models.bayes.delayed_blocks.ridge_pivot`), each subject's ridge's
-   curvature along it (:func:`models.bayes.whiten.ridge_curvature`, the module's "Curved").
+   coordinate's own scale there (:func:`models.bayes.whiten.coordinate_scales`); given ``pivots``
+   (the delayed fit's σ_m or a signed ρ, or both signed: :func:`models.bayes.delayed_blocks.ridge_pivots`), each
+   subject's pivot (with several, the one whose fold x̂ is nearest: :func:`models.bayes.whiten.nearest_fold`) and its
+   ridge's curvature along it (:func:`models.bayes.whiten.ridge_curvature`, the module's "Curved"), one group of
+   subjects per pivot.
 3. The model in w (:func:`models.bayes.whiten.whitened_model`) sampled by nutpie with its
    diagonal mass matrix, the chains jittered around w = 0 (x̂) as PyMC jitters its own start.
 4. The draws mapped back: x(w), then every free variable and deterministic of the original
@@ -25,8 +27,8 @@ import time
 
 import numpy as np
 
-from models.bayes.whiten import (WHITE, block_column, block_hessian, coordinate_scales, ridge_curvature,
-                                 subject_blocks, to_unconstrained, whitened_model, whitening_factors)
+from models.bayes.whiten import (WHITE, block_column, block_hessian, coordinate_scales, nearest_fold,
+                                 ridge_curvature, subject_blocks, to_unconstrained, whitened_model, whitening_factors)
 from pipelines.fit.sampling import add_log_likelihood, sample_model
 from pipelines.fit.start import held_mask
 
@@ -36,13 +38,15 @@ MODE_MAX_ITER = 1000
 HESSIAN_STEP = 1e-4
 
 
-def whitening(model, start: dict | None, pivot: str | None = None):
+def whitening(model, start: dict | None, pivots: tuple[str, ...] | None = None):
     """(logp graph, its flat input, x̂, groups, point_map_info, record) of ``model`` (module docstring,
     steps 1-2); ``groups``: [(subject blocks, L)] and, where there are any, (the other coordinates (m, 1), their
     scales (m, 1, 1)), as :func:`models.bayes.whiten.to_unconstrained` takes them.
 
-    ``pivot``: the name of a free variable with one value per subject along which each subject's ridge is
-    curved (:func:`models.bayes.whiten.ridge_curvature`; the blocks then are (blocks, L, (column, a))).
+    ``pivots``: names of free variables with one value per subject along which each subject's ridge may be
+    curved (:func:`models.bayes.whiten.ridge_curvature`); with several (signed coordinates), each subject's is the
+    one whose fold x̂ is nearest (:func:`models.bayes.whiten.nearest_fold`). The subjects' blocks then are one
+    (blocks, L, (column, a)) group per pivot used.
     """
     from pymc.blocking import DictToArrayBijection
     from pymc.initial_point import make_initial_point_fn
@@ -80,23 +84,31 @@ def whitening(model, start: dict | None, pivot: str | None = None):
     others = np.setdiff1d(np.arange(x_hat.size), blocks.ravel())[:, None]
     S = coordinate_scales(lambda x: fn(x)[1], x_hat, others[:, 0], HESSIAN_STEP)
     sd = np.sqrt(np.einsum("ijk,ijk->ij", L, L))  # each coordinate's scale, sqrt(diag(L Lᵀ))
-    block = (blocks, L)
-    curved = {}
-    if pivot is not None:
-        column = block_column(raveled.point_map_info, dims, len(model.coords["subject"]),
-                              model.rvs_to_values[model[pivot]].name)
-        a, curved = ridge_curvature(lambda x: fn(x)[1], x_hat, blocks, L, column)
-        block = (blocks, L, (column, a))
-        curved = {"curved_along": pivot, **curved}
-    record = {"method": "per-subject " + ("whitening curved along each subject's ridge in " + pivot if pivot else
-                                          "affine whitening") + " (models/bayes/whiten.py), nutpie's diagonal mass matrix",
+    block_groups, curved = [(blocks, L)], {}
+    if pivots:
+        n = len(model.coords["subject"])
+        columns = [block_column(raveled.point_map_info, dims, n, model.rvs_to_values[model[p]].name) for p in pivots]
+        chosen = nearest_fold(x_hat, blocks, L, columns) if len(pivots) > 1 else np.zeros(n, dtype=int)
+        block_groups, ridges = [], {}
+        for j, (name, column) in enumerate(zip(pivots, columns)):
+            rows = chosen == j
+            if rows.any():
+                a, ridges[name] = ridge_curvature(lambda x: fn(x)[1], x_hat, blocks[rows], L[rows], column)
+                block_groups.append((blocks[rows], L[rows], (column, a)))
+        curved = {"curved_along": {name: int(np.sum(chosen == j)) for j, name in enumerate(pivots)},
+                  "pivot_by_subject": [pivots[j] for j in chosen], "ridge": ridges,
+                  "subjects_without_curvature": sum(r["subjects_without_curvature"] for r in ridges.values()),
+                  "largest_shift_in_scales": max(r["largest_shift_in_scales"] for r in ridges.values())}
+    record = {"method": "per-subject " + ("whitening curved along each subject's ridge in " + " or ".join(pivots)
+                                          if pivots else "affine whitening")
+              + " (models/bayes/whiten.py), nutpie's diagonal mass matrix",
               "coordinates_per_subject": int(blocks.shape[1]), "mode_iterations": int(res.nit),
               "mode_log_density_gain": float(f0 - res.fun) if moved else 0.0, "mode_used": moved,
               "subjects_not_at_a_maximum": int(np.sum(n_neg > 0)),
               "scale_range": [float(sd.min()), float(sd.max())], "other_coordinates": int(others.shape[0]),
               "other_scale_range": [float(S.min()), float(S.max())] if others.size else [],
               **curved, "mode_s": t1 - t0, "hessian_s": time.perf_counter() - t1}
-    groups = [block] + ([(others, S)] if others.size else [])
+    groups = block_groups + ([(others, S)] if others.size else [])
     return logp, flat, x_hat, groups, raveled.point_map_info, record
 
 
@@ -128,7 +140,7 @@ def posterior_of(model, x: np.ndarray, point_map_info):
 
 def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws: int, tune: int,
                     cores: int | None = None, show_progress: bool = False, nuts: dict | None = None,
-                    pivot: str | None = None):
+                    pivots: tuple[str, ...] | None = None):
     """Sample ``model`` in whitened coordinates (module docstring); returns (idata, seconds, record).
 
     ``idata`` is as :func:`pipelines.fit.sampling.sample_model` returns it for ``model`` (posterior,
@@ -136,7 +148,7 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     ``record`` says what the whitening found (for the sidecar).
     """
     t0 = time.perf_counter()
-    logp, flat, x_hat, groups, info, record = whitening(model, start, pivot)
+    logp, flat, x_hat, groups, info, record = whitening(model, start, pivots)
     white = whitened_model(logp, flat, x_hat, groups)
     t1 = time.perf_counter()
     idata, sec = sample_model(white, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,

@@ -175,12 +175,14 @@ def test_motor_coordinate_is_the_free_variable_each_form_samples(plant, study):
         motor_coordinate("sigma_m", "wavy")
 
 
-def test_the_ridge_pivot_is_rhos_coordinate_where_rho_is_signed_else_sigma_ms(plant, study):
-    """models.bayes.delayed_blocks.ridge_pivot: with R_population="policy_scale" and ρ folded or folded centred
-    (signed, SIGNED_FORMS) a curved whitening bends along ρ's free variable; in every other case (ρ centred or
-    non-centred, or no ρ at all) along σ_m's, in σ_m's form. Each is a free variable of the model with one value
-    per subject."""
-    from models.bayes.delayed_blocks import MOTOR_FORMS, SIGNED_FORMS, ridge_pivot
+def test_the_ridge_pivots_are_rhos_coordinate_where_rho_is_signed_and_sigma_ms_where_it_is_signed_or_rho_is_not(
+        plant, study):
+    """models.bayes.delayed_blocks.ridge_pivots: with R_population="policy_scale" and ρ folded or folded centred
+    (signed, SIGNED_FORMS) a curved whitening may bend along ρ's free variable, and along σ_m's too where σ_m's form is
+    signed (each subject its own: models.bayes.whiten.nearest_fold); in every other case (ρ centred or non-centred,
+    or no ρ at all) along σ_m's alone, in σ_m's form. Each is a free variable of the model with one value per
+    subject."""
+    from models.bayes.delayed_blocks import MOTOR_FORMS, SIGNED_FORMS, ridge_pivots
     from models.bayes.delayed_model import DelayedPriors
 
     w = study
@@ -193,14 +195,18 @@ def test_the_ridge_pivot_is_rhos_coordinate_where_rho_is_signed_else_sigma_ms(pl
         for rho in MOTOR_FORMS:
             for sm in ("centred", "folded_centred"):
                 dp, form = DelayedPriors(R_population=population), DelayedForm("noncentred", sm, rho=rho)
-                name = ridge_pivot(dp, form)
-                want = expected.get(rho, sigma_m[sm]) if population == "policy_scale" else sigma_m[sm]
-                assert name == want, (population, rho, sm)
-                seen.add(name)
+                names = ridge_pivots(dp, form)
+                if population == "policy_scale" and rho in expected:
+                    want = (expected[rho], sigma_m[sm]) if sm == "folded_centred" else (expected[rho],)
+                else:
+                    want = (sigma_m[sm],)
+                assert names == want, (population, rho, sm)
+                seen.update(names)
                 if population == "policy_scale" or rho == "folded":  # elsewhere ρ's form builds nothing: once
                     model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
                                                 delayed_priors=dp, delayed_form=form)
-                    assert model[name] in model.free_RVs and model.named_vars_to_dims[name] == ("subject",)
+                    for name in names:
+                        assert model[name] in model.free_RVs and model.named_vars_to_dims[name] == ("subject",)
     assert seen == {"z_rho", "rho_signed", "sigma_m", "sigma_m_signed"}
 
 

@@ -8,8 +8,8 @@ import pytest
 from pymc.blocking import DictToArrayBijection, RaveledVars
 from pymc.pytensorf import join_nonshared_inputs
 
-from models.bayes.whiten import (block_column, block_hessian, coordinate_scales, ridge_curvature, subject_blocks,
-                                 to_unconstrained, whitened_model, whitening_factors)
+from models.bayes.whiten import (block_column, block_hessian, coordinate_scales, nearest_fold, ridge_curvature,
+                                 subject_blocks, to_unconstrained, whitened_model, whitening_factors)
 
 
 def _model(n=4):
@@ -226,3 +226,19 @@ def test_ridge_curvature_halves_the_span_where_the_ridge_has_no_maximum():
     a, record = ridge_curvature(grad, np.zeros(2), blocks, L, 0, halvings=0)
     np.testing.assert_array_equal(a, 0.0)
     assert record["subjects_without_curvature"] == 1
+
+
+def test_nearest_fold_picks_the_signed_coordinate_nearest_its_zero_in_its_own_scale():
+    # 3 subjects, block (p, q, r), pivots p and q, scales from L (diagonal 0.5, 2, 1). Subject 0: |p|/0.5 = 0.2 against
+    # |q|/2 = 1, p; subject 1: 3 against 0.1, q; subject 2: 1 against 1, a tie, the first pivot given.
+    blocks = np.arange(9).reshape(3, 3)
+    L = np.broadcast_to(np.diag([0.5, 2.0, 1.0]), (3, 3, 3))
+    x = np.array([0.1, 2.0, 9.0, 1.5, 0.2, 9.0, 0.5, 2.0, 0.0])
+    np.testing.assert_array_equal(nearest_fold(x, blocks, L, [0, 1]), [0, 1, 0])
+    np.testing.assert_array_equal(nearest_fold(x, blocks, L, [1, 0]), [1, 0, 0])  # indices into the pivots given
+    np.testing.assert_array_equal(nearest_fold(-x, blocks, L, [0, 1]), [0, 1, 0])  # a fold: the sign is no matter
+    # the scales decide: with p's scale 0.1, subject 2's p is 5 scales from its fold and q 1, so q
+    L2 = np.broadcast_to(np.diag([0.1, 2.0, 1.0]), (3, 3, 3))
+    np.testing.assert_array_equal(nearest_fold(x, blocks, L2, [0, 1]), [0, 1, 1])
+    with pytest.raises(ValueError, match="must be columns of a block's 3 coordinates"):
+        nearest_fold(x, blocks, L, [0, 3])

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.bayes.delayed_blocks import motor_coordinate
+from models.bayes.delayed_blocks import SIGNED_FORMS, motor_coordinate
 from models.bayes.delayed_model import WHITENED_TARGET_ACCEPT, DelayedForm, DelayedPriors
 from models.design import STUDY
 from models.plant import discretize
@@ -64,8 +64,10 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     # what the whitening found; the ridge is along the coordinate of σ_m's block in its form (chosen by the data)
     pivot = motor_coordinate("sigma_m", side["delayed_form"]["sigma_m"])
     assert side["sampler"]["adaptation"] == f"diag (nutpie), per-subject whitened, curved along {pivot}"
-    assert side["whitening"]["curved_along"] == pivot and pivot in ("sigma_m", "sigma_m_signed")
-    assert 0 < side["whitening"]["pivot_scale_range"][0] <= side["whitening"]["pivot_scale_range"][1]
+    assert side["whitening"]["curved_along"] == {pivot: 3} and pivot in ("sigma_m", "sigma_m_signed")
+    assert side["whitening"]["pivot_by_subject"] == [pivot] * 3
+    scales = side["whitening"]["ridge"][pivot]["pivot_scale_range"]
+    assert 0 < scales[0] <= scales[1]
     assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
     assert side["sampler"]["target_accept"] == WHITENED_TARGET_ACCEPT == 0.9
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
@@ -297,10 +299,12 @@ def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
     paths = fit_to_dir(sim["study"], root / "fit_rho_curved", settings=SETTINGS, prepared=prepared,
                        delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="folded_centred", **small)
     side = json.loads(open(paths["sidecar"]).read())
-    assert side["whitening"]["curved_along"] == "rho_signed"
+    assert side["delayed_form"]["sigma_m"] not in SIGNED_FORMS  # chosen by these data: ρ's is the only pivot
+    assert side["whitening"]["curved_along"] == {"rho_signed": 3}
     assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened, curved along rho_signed"
-    assert "curved along its ridge in rho_signed" in side["start"]
-    assert 0 < side["whitening"]["pivot_scale_range"][0] <= side["whitening"]["pivot_scale_range"][1]
+    assert "curved along its ridge in rho_signed (models" in side["start"]
+    scales = side["whitening"]["ridge"]["rho_signed"]["pivot_scale_range"]
+    assert 0 < scales[0] <= scales[1]
 
 
 @pytest.mark.slow

@@ -225,3 +225,16 @@ def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
     assert "interrupted" in err
     assert [p.name for p in out.iterdir()] == ["contrasts.json"] and "old" in (out / "contrasts.json").read_text()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_the_sidecar_names_a_curved_whitenings_pivots_with_their_subjects_where_there_are_several():
+    from pipelines.fit.stage import sampler_record
+
+    record = sampler_record("delayed", "profile", {"adaptation": "diag"},
+                            {"curved_along": {"rho_signed": 30, "sigma_m_signed": 12}})
+    assert record["adaptation"] == ("diag (nutpie), per-subject whitened, curved along rho_signed (30 subjects), "
+                                    "sigma_m_signed (12 subjects)")
+    one = sampler_record("delayed", "profile", {"adaptation": "diag"}, {"curved_along": {"sigma_m": 42}})
+    assert one["adaptation"] == "diag (nutpie), per-subject whitened, curved along sigma_m"
+    assert sampler_record("delayed", "profile", {"adaptation": "diag"}, {})["adaptation"] == (
+        "diag (nutpie), per-subject whitened")

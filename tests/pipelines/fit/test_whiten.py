@@ -168,10 +168,10 @@ def test_the_curved_map_samples_a_banana_exactly_and_its_negative_control_fails(
     # the draws mapped back are the banana's; mapped back without the curvature they are not
     model = _banana()
     idata, _, record = sample_whitened(model, None, seed=4, chains=2, draws=1000, tune=500, cores=1,
-                                       nuts={"adaptation": "diag"}, pivot="v")
-    assert record["curved_along"] == "v" and record["subjects_without_curvature"] == 0
+                                       nuts={"adaptation": "diag"}, pivots=("v",))
+    assert record["curved_along"] == {"v": 2} and record["subjects_without_curvature"] == 0
     assert _banana_failures(idata["posterior"]) == []
-    _, _, x_hat, groups, info, _ = whitening(_banana(), None, "v")
+    _, _, x_hat, groups, info, _ = whitening(_banana(), None, ("v",))
     [(blocks, L, (pivot, a))] = groups
     np.testing.assert_allclose(a[:, 1], CURVE, rtol=1e-4)
     post = idata["posterior"]
@@ -183,3 +183,47 @@ def test_the_curved_map_samples_a_banana_exactly_and_its_negative_control_fails(
     flat_w[..., blocks] = w
     np.testing.assert_allclose(to_unconstrained(flat_w, x_hat, groups), x, rtol=1e-9, atol=1e-12)
     assert _banana_failures(posterior_of(model, to_unconstrained(flat_w, x_hat, [(blocks, L)]), info)) != []
+
+
+def _crossed_bananas():
+    """Two signed coordinates u, v per subject; subject 0's ridge y = BETA v + CURVE_0 v² is curved along v (u ~
+    N(2.5, SCALE_0) apart, its mode far from u's fold), subject 1's y = BETA u + CURVE_1 u² along u (v apart)."""
+    with pm.Model(coords={"subject": ["s0", "s1"]}) as model:
+        u = pm.Normal("u", np.array([2.5, 0.0]), SCALE, dims="subject")
+        v = pm.Normal("v", np.array([0.0, 2.5]), SCALE, dims="subject")
+        t = pm.math.stack([v[0], u[1]])
+        pm.Normal("y", BETA * t + CURVE * t**2, NOISE_Y, dims="subject")
+    return model
+
+
+def test_with_two_pivots_each_subject_bends_along_the_one_whose_fold_its_mode_is_nearest():
+    # pivots ("u", "v"): subject 0's mode is at v = 0, 2.5 scales of u from u's fold, so it bends along v; subject 1
+    # along u; one group per pivot, each with its own ridge's curvature, and the draws are the exact posterior's
+    # (y's mean CURVE SCALE² and SD as in _banana_failures, with the pivot in place of v)
+    model = _crossed_bananas()
+    idata, _, record = sample_whitened(model, None, seed=4, chains=2, draws=1000, tune=500, cores=1,
+                                       nuts={"adaptation": "diag"}, pivots=("u", "v"))
+    assert record["curved_along"] == {"u": 1, "v": 1} and record["pivot_by_subject"] == ["v", "u"]
+    assert set(record["ridge"]) == {"u", "v"} and record["subjects_without_curvature"] == 0
+    _, _, x_hat, groups, _, _ = whitening(_crossed_bananas(), None, ("u", "v"))
+    [(rows_u, _, (col_u, a_u)), (rows_v, _, (col_v, a_v))] = groups  # value order u (2), v (2), y (2)
+    np.testing.assert_array_equal(rows_u, [[1, 3, 5]])
+    np.testing.assert_array_equal(rows_v, [[0, 2, 4]])
+    assert (col_u, col_v) == (0, 1)
+    np.testing.assert_allclose([a_u[0, 2], a_v[0, 2]], [CURVE[1], CURVE[0]], rtol=1e-4)
+    np.testing.assert_allclose([a_u[0, 1], a_v[0, 0]], 0.0, atol=1e-6)  # the other signed coordinate is apart
+    post = idata["posterior"]
+
+    def as_banana(u, v, y):
+        return {"v": post["v"].copy(data=np.stack([v[..., 0], u[..., 1]], -1)), "y": post["y"].copy(data=y)}
+
+    assert _banana_failures(as_banana(post["u"].values, post["v"].values, post["y"].values)) == []
+    # negative control: the same w draws mapped back with each group bent by the other group's curvature
+    x = np.concatenate([post["u"].values, post["v"].values, post["y"].values], axis=-1)
+    w = np.zeros_like(x)
+    for rows, L, (col, a) in groups:
+        dx = x[..., rows] - x_hat[rows]
+        w[..., rows] = np.einsum("ijk,...ik->...ij", np.linalg.inv(L), dx - a * dx[..., col:col + 1] ** 2)
+    (_, L_u, _), (_, L_v, _) = groups
+    swapped = to_unconstrained(w, x_hat, [(rows_u, L_u, (col_u, a_v)), (rows_v, L_v, (col_v, a_u))])
+    assert _banana_failures(as_banana(swapped[..., :2], swapped[..., 2:4], swapped[..., 4:])) != []

@@ -149,7 +149,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--log-R-form", choices=RHO_FORM_NAMES[:2], default=None, help="delayed: form of the log R "
                    "blocks (default: centred if the estimates find no motor noise; pipelines/fit/delayed_forms.py)")
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
-                   help="with --R-population policy_scale: form of ρ = R^(-1/2) (default folded)")
+                   help="with --R-population policy_scale: form of ρ = R^(-1/2) (default: chosen by the estimates, "
+                   "centred where they fix ρ, else folded_centred; folded without them)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
                    help="delayed, profile delays: coordinates and mass matrix (default curved: whitened per subject "
                    "and curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own)")

@@ -164,14 +164,17 @@ LOG_R_FORMS = ("centred", "noncentred")
 
 
 def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, str]:
-    """The forms of the lag and motor-noise blocks for these data, and why (recorded in the sidecar).
+    """The forms of the lag, motor-noise and policy-scale blocks for these data, and why (recorded in the sidecar).
 
     Per block, z = ML estimate / SE per unit (0 where the estimate is at its bound 0 or has
     no SE); centred if the median z is at least :data:`CENTRED_Z` (a delayed human: the data
     fix each subject's value, and a non-centred scale would form a ridge with them), else
     :data:`LOOSE_FORM` (a human without lag or motor noise: the values sit at 0, where a centred
     half-normal forms a funnel with its scale): τ_nm non-centred, σ_m folded centred (module docstring,
-    "Motor noise" and "The motor-noise scale's prior"). Without estimates: both non-centred.
+    "Motor noise" and "The motor-noise scale's prior"). ρ = R^(-1/2) (``--R-population policy_scale``
+    only) likewise, with z = ρ̂ / SE(ρ̂) = 2 / SE(log R̂) (0 where R is at its bound): centred where the data
+    fix it, else folded centred (module docstring, "The form of ρ"). Without estimates: τ_nm and σ_m
+    non-centred, ρ folded.
     """
     if estimates is None or not {"tau_nm", "se_tau_nm", "sigma_m", "se_sigma_m"} <= set(estimates.columns):
         return DelayedForm("noncentred", "noncentred"), "non-centred (no delayed estimates to measure the data by)"
@@ -179,11 +182,23 @@ def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, st
     for name in ("tau_nm", "sigma_m"):
         v = pd.to_numeric(estimates[name], errors="coerce").to_numpy(dtype=float)
         se = pd.to_numeric(estimates[f"se_{name}"], errors="coerce").to_numpy(dtype=float)
-        z = np.where(np.isfinite(v / se) & (se > 0), v / se, 0.0)
-        med = float(np.median(z))
-        forms[name] = "centred" if med >= CENTRED_Z else LOOSE_FORM[name]
-        why.append(f"{name} {forms[name]} (median estimate/SE {med:.3g}, threshold {CENTRED_Z:g})")
+        forms[name], reason = _form_by_z(name, v / se, se > 0)
+        why.append(reason)
+    if "se_log_R" in estimates.columns:
+        se = pd.to_numeric(estimates["se_log_R"], errors="coerce").to_numpy(dtype=float)
+        forms["rho"], reason = _form_by_z("rho", 2.0 / se, se > 0, loose="folded_centred")
+        why.append(reason + " (with --R-population policy_scale)")
     return DelayedForm(**forms), "; ".join(why)
+
+
+def _form_by_z(name: str, z: np.ndarray, valid: np.ndarray, loose: str | None = None) -> tuple[str, str]:
+    """Centred if the median of ``z`` (0 where not ``valid`` or not finite) is at least :data:`CENTRED_Z`, else
+    ``loose`` (default ``LOOSE_FORM[name]``); and the reason."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(np.isfinite(z) & valid, z, 0.0)
+    med = float(np.median(z))
+    form = "centred" if med >= CENTRED_Z else (LOOSE_FORM[name] if loose is None else loose)
+    return form, f"{name} {form} (median estimate/SE {med:.3g}, threshold {CENTRED_Z:g})"
 
 
 def log_R_form(delayed_form: DelayedForm) -> tuple[str, str]:

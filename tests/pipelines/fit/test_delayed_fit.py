@@ -184,6 +184,20 @@ def test_the_lag_and_noise_blocks_are_centred_only_where_the_data_pin_them():
     assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "folded_centred")
 
 
+def test_rhos_block_is_centred_only_where_the_data_pin_it():
+    # ρ = R^(-1/2): ρ̂/SE(ρ̂) = 2/SE(log R̂). The max-ent human's R is pinned (SE of log R 0.2: z = 10), the kbl human's
+    # is not (SE 1.3: z 1.5; R at its bound: no SE, z 0); without SEs of log R, ρ keeps DelayedForm's default
+    pinned = pd.DataFrame({"tau_nm": [0.06, 0.08], "se_tau_nm": [0.005, 0.006], "sigma_m": [0.25, 0.24],
+                           "se_sigma_m": [0.02, 0.02]})
+    form, reason = choose_delayed_form(pinned.assign(se_log_R=[0.2, 0.19]))
+    assert form.rho == "centred" and "rho centred (median estimate/SE 10.3, threshold 3)" in reason
+    assert choose_delayed_form(pinned.assign(se_log_R=[1.3, np.nan]))[0].rho == "folded_centred"
+    at_threshold = 2.0 / CENTRED_Z
+    assert choose_delayed_form(pinned.assign(se_log_R=[at_threshold] * 2))[0].rho == "centred"
+    assert choose_delayed_form(pinned.assign(se_log_R=[at_threshold * 1.001] * 2))[0].rho == "folded_centred"
+    assert choose_delayed_form(pinned)[0].rho == DelayedForm().rho == "folded"
+
+
 def test_the_log_R_blocks_are_centred_only_where_no_motor_noise_is_found():
     # the max-ent human (no motor noise found): the policy noise alone fixes R per unit
     form, reason = log_R_form(DelayedForm("noncentred", "noncentred"))

@@ -148,7 +148,8 @@ Since 2026-12-05 the default (:data:`CURVED`) also bends each subject's coordina
 (:mod:`models.bayes.whiten`, "Curved"): with σ_m's block folded centred, σ_m = |v| and log R grows with v², a
 parabola through the mode v = 0 that no affine map straightens. Measured: README, "Speed". With a signed
 ρ = R^(-1/2) (``R_population="policy_scale"``, ρ folded or folded centred) it bends along ρ's coordinate
-instead, the ridge there being an arch over it (:func:`models.bayes.delayed_blocks.ridge_pivot`).
+instead, the ridge there being an arch over it, or with σ_m's signed too, per subject along the one whose fold
+its mode is nearest (:func:`models.bayes.delayed_blocks.ridge_pivots`).
 
 Its target acceptance rate is 0.9 (:data:`WHITENED_TARGET_ACCEPT`), not nutpie's 0.8: the
 convergence verdict fails on a single divergent transition, and the smaller steps left fewer.

@@ -124,15 +124,15 @@ subject's σ_m stays below its data's bound. Human motor noise is never absent (
 likelihood sees.
 
 The ridge's pivot with a signed ρ (``--R-population policy_scale`` with ρ folded or folded centred;
-:func:`models.bayes.delayed_blocks.ridge_pivot`). On the 12 subjects of the ``kbl`` human of README
+:func:`models.bayes.delayed_blocks.ridge_pivots`). On the 12 subjects of the ``kbl`` human of README
 "Which part of the warm-up", fitted with ρ folded centred and the bend along σ_m (README, "Not yet"), 10
 of the 12 subjects' ρ̃ changed sign within a chain (positive in 25-85 % of a chain's draws; the other two
 kept one sign), and every subject's σ_m fell as |ρ̃| grew (correlation of |ρ̃| and σ_m -0.21 to -0.73;
-read ad hoc from that fit's posterior): the arch that ridge_pivot's docstring describes, which a bend
+read ad hoc from that fit's posterior): the arch that ridge_pivots' docstring describes, which a bend
 along σ_m cannot follow. Bent along ρ̃ (``scioc fit s12/study.parquet --human-model delayed --estimates
 s12/delayed/estimates.parquet --chains 2 --draws 300 --tune 300 --adequacy-boot 19 --seed N
 --R-population policy_scale --rho-form folded_centred``; the first two rows at b564776, before
-ridge_pivot; per run the leapfrog steps per warm-up and kept draw, divergent transitions, of the
+the ridge's pivot; per run the leapfrog steps per warm-up and kept draw, divergent transitions, of the
 population parameters the smallest ESS (of bulk and tail) and the largest R-hat, of the units' log R
 the smallest bulk ESS and the largest R-hat; of 600 draws)::
 
@@ -145,6 +145,32 @@ the smallest bulk ESS and the largest R-hat; of 600 draws)::
 A third of the leapfrog steps, as many as the lognormal population's (33.3 and 33.6 with the same
 seeds, whose worst population parameter, μ_R, had ESS 48 and 12): per gradient about 1.8 and 2.5 times
 the population ESS of the bend along σ_m, and the units' log R mix at least as well.
+
+The form of ρ (:func:`choose_delayed_form`). On the max-ent human the same options go wrong the
+other way: its data fix each ρ far from the fold (ρ̂/SE about 10), so a signed ρ̃ has two modes,
+±ρ, each a few thousandths wide, joined only over the arch through large σ_m; and σ_m, not ρ,
+sits at its fold. The 12-subject max-ent study above, the same command with ``--rho-form F`` (per
+run as the table above; "ρ̃" at e524099, the others at f0acfef, whose
+:func:`models.bayes.whiten.nearest_fold` bent every one of the 12 subjects along σ_m; "lognormal":
+no ``--R-population``, the default)::
+
+    ρ's form, bend              seed   steps        div   population                    units' log R
+    folded centred, ρ̃           1      113.1 82.0   13    σ_β 146; σ_β 1.014            26, 1.070
+    folded centred, per subject 1      47.0  30.7   1     σ_β 175; ρ's scale 1.020      268, 1.019
+    folded centred, per subject 2      150.6 144.8  2     τ_nm's scale 114; ρ's scale   89, 1.028
+                                                          1.012
+    centred, σ_m                1      27.9  24.6   0     σ_β 152; σ_βR 1.010           223, 1.013
+    centred, σ_m                2      26.2  28.2   4     σ_β 81; σ_β 1.042             182, 1.011
+    lognormal, σ_m              1      25.5  20.8   0     σ_β 138; τ_nm's scale 1.012   274, 1.011
+    lognormal, σ_m              2      25.0  19.7   0     τ_nm's scale 67; τ_nm's       338, 1.025
+                                                          scale 1.015
+
+Per subject, the bend follows the arch (seed 1) until a subject crosses it (seed 2: S07's ρ̃ sat at
+-ρ in one chain and +ρ in the other, and the whitening had given its σ_m a scale ten times the
+others'; read ad hoc from the fit and its whitening). Centred, ρ has one mode, its block mixes as the lognormal's, and
+only the motor-noise funnel's rare divergences remain (seed 2: all four in one chain with s_m above
+its 95 % quantile). So ρ is centred where the estimates fix it, like τ_nm's and σ_m's blocks, and
+folded centred (the ``kbl`` rows above) where they do not.
 """
 
 from __future__ import annotations

@@ -307,7 +307,7 @@ def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
 @pytest.mark.slow
 def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
     # scioc fit --R-population policy_scale --rho-form folded_centred, the default (curved) whitening: each subject's
-    # block bends along ρ's signed coordinate (models.bayes.delayed_blocks.ridge_pivot), not σ_m's, and says so.
+    # block bends along ρ's signed coordinate (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.
     root, sim, prepared = delayed_study
     small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
     paths = fit_to_dir(sim["study"], root / "fit_rho_curved", settings=SETTINGS, prepared=prepared,

@@ -104,7 +104,9 @@ DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 R_POPULATIONS = ("lognormal", "policy_scale", "unpooled")
 #: The forms of τ_nm and σ_m, and of ρ (:class:`DelayedForm`).
 MOTOR_FORMS = ("centred", "noncentred", "folded", "folded_centred")
-RHO_FORMS = MOTOR_FORMS
+#: ρ's forms: a half-normal block's, or ``mixed`` (per subject centred or folded centred,
+#: :func:`mixed_half_normal_block`).
+RHO_FORMS = MOTOR_FORMS + ("mixed",)
 
 
 @dataclass(frozen=True)
@@ -210,17 +212,25 @@ class DelayedForm:
     ρ[i] = s_ρ |z[i]| (the same half-normal law, with z unconstrained where the log transform of
     a half-normal stretches ρ -> 0 to an infinite tail), or ``folded_centred``, ρ̃[i] ~ N(0, s_ρ)
     and ρ[i] = |ρ̃[i]| (the same law again, centred: for subjects whose data fix ρ, where
-    ``folded`` ties z to s_ρ); measured in the module docstring.
+    ``folded`` ties z to s_ρ); measured in the module docstring. ``mixed``: centred for the
+    subjects of ``rho_pinned`` (one flag per subject, in the model's order), folded centred for
+    the others (:func:`mixed_half_normal_block`; :func:`pipelines.fit.delayed_forms.choose_delayed_form`
+    flags the subjects whose estimates fix ρ).
     """
 
     tau_nm: str = "centred"
     sigma_m: str = "centred"
     rho: str = "folded"
+    rho_pinned: tuple = ()
 
     def __post_init__(self):
         for name, allowed in (("tau_nm", MOTOR_FORMS), ("sigma_m", MOTOR_FORMS), ("rho", RHO_FORMS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"DelayedForm.{name} must be one of {allowed}; got {getattr(self, name)!r}")
+        if not all(isinstance(v, (bool, np.bool_)) for v in self.rho_pinned):
+            raise ValueError(f"DelayedForm.rho_pinned must hold one bool per subject; got {self.rho_pinned!r}")
+        if self.rho == "mixed" and not self.rho_pinned:
+            raise ValueError("DelayedForm.rho='mixed' needs rho_pinned, one flag per subject (from ML estimates)")
 
 
 def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedForm):
@@ -229,7 +239,11 @@ def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedF
     Folded: ρ -> 0 is a finite step, not log ρ -> -∞, and z = 1 is not R = ∞; folded centred starts at
     ρ = exp(-μ/2), R at the prior's centre."""
     scale = pm.HalfNormal("rho_scale", delayed_priors.rho_prior_scale(priors))
-    rho = half_normal_block("rho", scale, form.rho, start=float(np.exp(-0.5 * priors.mu_log_R[0])))
+    start = float(np.exp(-0.5 * priors.mu_log_R[0]))
+    if form.rho == "mixed":
+        rho = mixed_half_normal_block("rho", scale, np.asarray(form.rho_pinned, dtype=bool), start=start)
+    else:
+        rho = half_normal_block("rho", scale, form.rho, start=start)
     return -2.0 * pt.log(rho)
 
 
@@ -301,11 +315,13 @@ def motor_coordinate(name: str, form: str) -> str:
 SIGNED_FORMS = ("folded", "folded_centred")
 
 
-def ridge_pivots(priors: DelayedPriors, form: DelayedForm) -> tuple[str, ...]:
+def ridge_pivots(priors: DelayedPriors, form: DelayedForm, n_subjects: int) -> tuple[tuple[str, np.ndarray], ...]:
     """The free variables a curved whitening may bend each subject's block along (:func:`models.bayes.whiten.
-    ridge_curvature`), one chosen per subject (:func:`models.bayes.whiten.nearest_fold`): ρ's coordinate where
-    ρ = R^(-1/2) is signed (``R_population="policy_scale"``, ρ in one of :data:`SIGNED_FORMS`), and σ_m's
-    (:func:`motor_coordinate`) where it is signed too or where ρ is not.
+    ridge_curvature`), each with the subjects (n_subjects,) in which its coordinate is signed; per subject the
+    signed one whose fold its mode is nearest, else the last (:func:`models.bayes.whiten.nearest_fold`). ρ's
+    coordinate comes first where ρ = R^(-1/2) has one (``R_population="policy_scale"``; signed in
+    :data:`SIGNED_FORMS`, and for ``mixed`` in the subjects not ``rho_pinned``); σ_m's (:func:`motor_coordinate`)
+    always, last.
 
     Why. The policy noise (variance ∝ ρ²) and the motor noise (∝ σ_m²) share the torque's variability, so each
     subject's posterior follows a ridge ρ² + k σ_m² ≈ c. Along σ_m's coordinate that ridge is log R ≈ c' + k' σ_m²,
@@ -316,13 +332,51 @@ def ridge_pivots(priors: DelayedPriors, form: DelayedForm) -> tuple[str, ...]:
     σ_m signed as well, the arch of a subject whose data leave σ_m near 0 (no motor noise: the max-ent human) tops
     in σ_m instead, and the bend for that subject is along σ_m: each subject's pivot is the signed coordinate whose
     fold its mode is nearest, in that coordinate's own scale.
-    Measured: :mod:`pipelines.fit.delayed_forms`, "The ridge's pivot with a signed ρ".
+    Measured: :mod:`pipelines.fit.delayed_forms`, "The ridge's pivot with a signed ρ" and "The form of ρ".
     """
-    sigma_m = motor_coordinate("sigma_m", form.sigma_m)
-    if priors.R_population == "policy_scale" and form.rho in SIGNED_FORMS:
-        rho = motor_coordinate("rho", form.rho)
-        return (rho, sigma_m) if form.sigma_m in SIGNED_FORMS else (rho,)
-    return (sigma_m,)
+    sigma_m = (motor_coordinate("sigma_m", form.sigma_m), np.full(n_subjects, form.sigma_m in SIGNED_FORMS))
+    if priors.R_population != "policy_scale":
+        return (sigma_m,)
+    if form.rho == "mixed":
+        pinned = np.asarray(form.rho_pinned, dtype=bool)
+        if pinned.shape != (n_subjects,):
+            raise ValueError(f"rho_pinned has {pinned.size} flags for {n_subjects} subjects")
+        return ("rho_free", ~pinned), sigma_m
+    return (motor_coordinate("rho", form.rho), np.full(n_subjects, form.rho in SIGNED_FORMS)), sigma_m
+
+
+def mixed_half_normal_block(name: str, scale, pinned: np.ndarray, *, start: float):
+    """Per subject, ``name`` ~ HalfNormal(``scale``), from one unconstrained free variable ``<name>_free`` v with
+    the form chosen per subject: centred (``name`` = exp(v), as PyMC's log transform of a half-normal) where
+    ``pinned``, folded centred (``name`` = |v|, v ~ N(0, ``scale``)) elsewhere; the same law in both, so the model
+    is the half-normal population of any other form. Starts at ``start`` (v = log ``start`` where pinned).
+
+    Why per subject: a centred block stretches ρ -> 0 into log ρ's infinite tail, where subjects whose data leave
+    ρ near 0 stall; a folded centred one gives a subject whose data fix ρ far from 0 two modes ±ρ, joined only over
+    its ridge's arch, which the sampler crosses with deep trees (:mod:`pipelines.fit.delayed_forms`, "The form of
+    ρ"). A study of the ``kbl`` human has both kinds of subject.
+    """
+    pinned = np.asarray(pinned, dtype=bool)
+    n = len(pm.modelcontext(None).coords["subject"])
+    if pinned.shape != (n,):
+        raise ValueError(f"{name}: {pinned.size} pinned flags for {n} subjects")
+
+    def to_value(v):
+        return pt.switch(pinned, pt.exp(v), pt.abs(v))
+
+    def logp(v, s):
+        half_normal = pm.logp(pm.HalfNormal.dist(s), to_value(v))
+        # pinned: the half-normal density at exp(v) times the Jacobian exp(v); else v ~ N(0, s), whose |v| is
+        # half-normal with density 2 N(|v|; 0, s)
+        return pt.switch(pinned, half_normal + v, half_normal - np.log(2.0))
+
+    def random(s, rng=None, size=None):
+        v = rng.normal(0.0, s, size=size)
+        return np.where(pinned, np.log(np.abs(v)), v)
+
+    free = pm.CustomDist(f"{name}_free", scale, logp=logp, random=random, dims="subject",
+                         initval=np.where(pinned, np.log(start), start))
+    return pm.Deterministic(name, to_value(free), dims="subject")
 
 
 def half_normal_block(name: str, scale, form: str, *, start: float | None = None):
@@ -345,4 +399,4 @@ def half_normal_block(name: str, scale, form: str, *, start: float | None = None
 
 __all__ = ["DELAYED_POPULATION_PARAMETERS", "FOLDED_CENTRED_START", "DelayedForm", "DelayedPriors", "MOTOR_FORMS",
            "RHO_FORMS", "R_POPULATIONS", "SIGNED_FORMS", "baseline_log_R", "cost_blocks", "half_normal_block",
-           "motor_blocks", "motor_coordinate", "ridge_pivots"]
+           "mixed_half_normal_block", "motor_blocks", "motor_coordinate", "ridge_pivots"]

@@ -40,7 +40,7 @@ Where σ_m's coordinate is v (σ_m = |v|, the folded centred form), the mode is 
 parabola is symmetric about it: no linear map of v removes it, and each tree of NUTS has to turn
 along it. So, given a ``pivot`` coordinate p in each block (σ_m's; ρ's where ρ = R^(-1/2) is signed, whose
 ridge is an arch over it; with both signed, per subject the one whose fold the mode is nearest,
-:func:`nearest_fold`: :func:`models.bayes.delayed_blocks.ridge_pivots`), the map is::
+:func:`nearest_fold`, :func:`models.bayes.delayed_blocks.ridge_pivots`), the map is::
 
     x_i = x̂_i + L_i w_i + a_i δ_i²,   δ_i = (L_i w_i)_p,   a_ip = 0
 
@@ -177,17 +177,20 @@ def whitening_factors(H: np.ndarray, floor: float = EIGEN_FLOOR) -> tuple[np.nda
     return L, n_neg
 
 
-def nearest_fold(x: np.ndarray, blocks: np.ndarray, L: np.ndarray, pivots) -> np.ndarray:
-    """Each subject's pivot (n,), an index into ``pivots`` (columns of a block whose coordinates are signed: their
-    law symmetric about 0, the fold): the one whose value at ``x`` is nearest 0 in its own scale, |x_p| / sqrt((L_i
-    L_iᵀ)_pp); the first on a tie. The ridge a signed pair shares is an arch that tops where one of them is 0
+def nearest_fold(x: np.ndarray, blocks: np.ndarray, L: np.ndarray, pivots, signed) -> np.ndarray:
+    """Each subject's pivot (n,), an index into ``pivots`` (columns of a block): among the pivots whose coordinate
+    is signed in that subject (``signed`` (n, len(pivots)) bool: its law symmetric about 0, the fold), the one
+    whose value at ``x`` is nearest 0 in its own scale, |x_p| / sqrt((L_i L_iᵀ)_pp), the first on a tie; the last
+    pivot where none is signed. The ridge a signed pair shares is an arch that tops where one of them is 0
     (:func:`models.bayes.delayed_blocks.ridge_pivots`), and the subject's mode lies near that top."""
     pivots = np.asarray(pivots, dtype=int)
-    k = blocks.shape[1]
+    n, k = blocks.shape
     if pivots.ndim != 1 or pivots.size == 0 or np.any((pivots < 0) | (pivots >= k)):
         raise ValueError(f"pivots {pivots.tolist()} must be columns of a block's {k} coordinates")
+    signed = np.broadcast_to(np.asarray(signed, dtype=bool), (n, pivots.size))
     sd = np.sqrt(np.einsum("ijk,ijk->ij", L, L))[:, pivots]
-    return np.argmin(np.abs(x[blocks[:, pivots]]) / sd, axis=1)
+    distance = np.where(signed, np.abs(x[blocks[:, pivots]]) / sd, np.inf)
+    return np.where(signed.any(axis=1), np.argmin(distance, axis=1), pivots.size - 1)
 
 
 def ridge_curvature(grad, x: np.ndarray, blocks: np.ndarray, L: np.ndarray, pivot: int, span: float = 1.0,

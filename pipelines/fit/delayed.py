@@ -235,17 +235,22 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     if log_R is not None and log_R not in LOG_R_FORMS:
         raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")
     ml = estimates if estimates is not None else delays.estimates  # the ML estimates: given, or the fit's own profile's
+    subjects = list(dict.fromkeys(str(s) for s in prepared.subjects))  # the model's order (models.units.index_study)
     if delayed_form is None:
-        delayed_form, form_reason = choose_delayed_form(ml)
+        delayed_form, form_reason = choose_delayed_form(ml, subjects)
     else:
         form_reason = "given"
     log_R, R_reason = log_R_form(delayed_form) if log_R is None else (log_R, "given")
     form = replace(form, R_mc=log_R, R_sc=log_R)
     if rho_form is not None:
+        if rho_form == "mixed" and len(delayed_form.rho_pinned) != len(subjects):
+            raise ValueError("--rho-form mixed chooses each subject's form by its ML estimates (se_log_R): give "
+                             "--estimates with that column, or another form")
         delayed_form = replace(delayed_form, rho=rho_form)
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
-    pivots = ridge_pivots(delayed_priors, delayed_form) if whiten and adaptation == CURVED else None
+    n_subjects = len(subjects)
+    pivots = ridge_pivots(delayed_priors, delayed_form, n_subjects) if whiten and adaptation == CURVED else None
     grid = delay_grid(float(plant.dt))
     model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant,
                                 delay=None if sampled else delays.samples, delay_grid=grid if sampled else None,
@@ -279,8 +284,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                       "the chains start at PyMC's initial point (no ML estimates), jittered")
             + ("; whitened: from there the mode with the population scales held, jittered U(-1, 1) in whitened "
                "coordinates (pipelines/fit/whiten.py)" if whiten else "")
-            + (f"; each subject's coordinates curved along its ridge in {' or '.join(pivots)}"
-               + (" (per subject, the one whose fold the mode is nearest)" if len(pivots) > 1 else "")
+            + (f"; each subject's coordinates curved along its ridge in {' or '.join(whitening['curved_along'])}"
+               + (" (per subject: the signed one whose fold the mode is nearest)"
+                  if len(whitening["curved_along"]) > 1 else "")
                + " (models/bayes/whiten.py, ridge_curvature; models/bayes/delayed_blocks.py, ridge_pivots)"
                if pivots else ""),
             "start_scales": {k: np.asarray(start[k]).tolist() for k in sources},

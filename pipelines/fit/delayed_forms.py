@@ -189,7 +189,7 @@ LOOSE_FORM = {"tau_nm": "noncentred", "sigma_m": "folded_centred"}
 LOG_R_FORMS = ("centred", "noncentred")
 
 
-def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, str]:
+def choose_delayed_form(estimates: pd.DataFrame | None, subjects=None) -> tuple[DelayedForm, str]:
     """The forms of the lag, motor-noise and policy-scale blocks for these data, and why (recorded in the sidecar).
 
     Per block, z = ML estimate / SE per unit (0 where the estimate is at its bound 0 or has
@@ -199,8 +199,9 @@ def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, st
     half-normal forms a funnel with its scale): τ_nm non-centred, σ_m folded centred (module docstring,
     "Motor noise" and "The motor-noise scale's prior"). ρ = R^(-1/2) (``--R-population policy_scale``
     only) likewise, with z = ρ̂ / SE(ρ̂) = 2 / SE(log R̂) (0 where R is at its bound): centred where the data
-    fix it, else folded centred (module docstring, "The form of ρ"). Without estimates: τ_nm and σ_m
-    non-centred, ρ folded.
+    fix it, else folded centred; given ``subjects`` (the model's order), per subject (its units' z combined,
+    :func:`_rho_by_subject`), ``mixed`` where some subjects' data fix ρ and others' do not, with ``rho_pinned``
+    (module docstring, "The form of ρ"). Without estimates: τ_nm and σ_m non-centred, ρ folded.
     """
     if estimates is None or not {"tau_nm", "se_tau_nm", "sigma_m", "se_sigma_m"} <= set(estimates.columns):
         return DelayedForm("noncentred", "noncentred"), "non-centred (no delayed estimates to measure the data by)"
@@ -212,9 +213,26 @@ def choose_delayed_form(estimates: pd.DataFrame | None) -> tuple[DelayedForm, st
         why.append(reason)
     if "se_log_R" in estimates.columns:
         se = pd.to_numeric(estimates["se_log_R"], errors="coerce").to_numpy(dtype=float)
-        forms["rho"], reason = _form_by_z("rho", 2.0 / se, se > 0, loose="folded_centred")
+        if subjects is not None and "subject" in estimates.columns:
+            forms["rho"], forms["rho_pinned"], reason = _rho_by_subject(2.0 / se, se > 0, estimates["subject"],
+                                                                         subjects)
+        else:
+            forms["rho"], reason = _form_by_z("rho", 2.0 / se, se > 0, loose="folded_centred")
         why.append(reason + " (with --R-population policy_scale)")
     return DelayedForm(**forms), "; ".join(why)
+
+
+def _rho_by_subject(z: np.ndarray, valid: np.ndarray, unit_subjects, subjects) -> tuple[str, tuple, str]:
+    """(ρ's form, rho_pinned, reason): each subject of ``subjects`` pinned where its units' ``z`` (0 where not
+    ``valid``) combined, sqrt(Σ z²) (the z of their inverse-variance mean, as if they shared one ρ), is at least
+    :data:`CENTRED_Z`; centred if all are, folded centred if none is, else mixed."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(np.isfinite(z) & valid, z, 0.0)
+    by_subject = np.sqrt((pd.Series(z) ** 2).groupby(np.asarray(unit_subjects).astype(str)).sum())
+    pinned = tuple(bool(by_subject.get(str(s), 0.0) >= CENTRED_Z) for s in subjects)  # no units: not pinned
+    form = "centred" if all(pinned) else "folded_centred" if not any(pinned) else "mixed"
+    return form, pinned, (f"rho {form} ({sum(pinned)} of {len(pinned)} subjects with their units' estimate/SE "
+                          f"combined at least the threshold {CENTRED_Z:g})")
 
 
 def _form_by_z(name: str, z: np.ndarray, valid: np.ndarray, loose: str | None = None) -> tuple[str, str]:

@@ -10,10 +10,10 @@ The steps, all deterministic (the seed enters only the sampler, as in :func:`pip
 2. H_i: each subject's Hessian block at x̂ (:func:`models.bayes.whiten.block_hessian`,
    central differences of step :data:`HESSIAN_STEP` on the unconstrained scale); and each other
    coordinate's own scale there (:func:`models.bayes.whiten.coordinate_scales`); given ``pivots``
-   (the delayed fit's σ_m or a signed ρ, or both signed: :func:`models.bayes.delayed_blocks.ridge_pivots`), each
-   subject's pivot (with several, the one whose fold x̂ is nearest: :func:`models.bayes.whiten.nearest_fold`) and its
-   ridge's curvature along it (:func:`models.bayes.whiten.ridge_curvature`, the module's "Curved"), one group of
-   subjects per pivot.
+   (the delayed fit's σ_m or ρ, each signed in some subjects: :func:`models.bayes.delayed_blocks.ridge_pivots`), each
+   subject's pivot (the signed one whose fold x̂ is nearest, else the last: :func:`models.bayes.whiten.nearest_fold`)
+   and its ridge's curvature along it (:func:`models.bayes.whiten.ridge_curvature`, the module's "Curved"), one
+   group of subjects per pivot.
 3. The model in w (:func:`models.bayes.whiten.whitened_model`) sampled by nutpie with its
    diagonal mass matrix, the chains jittered around w = 0 (x̂) as PyMC jitters its own start.
 4. The draws mapped back: x(w), then every free variable and deterministic of the original
@@ -38,15 +38,16 @@ MODE_MAX_ITER = 1000
 HESSIAN_STEP = 1e-4
 
 
-def whitening(model, start: dict | None, pivots: tuple[str, ...] | None = None):
+def whitening(model, start: dict | None, pivots=None):
     """(logp graph, its flat input, x̂, groups, point_map_info, record) of ``model`` (module docstring,
     steps 1-2); ``groups``: [(subject blocks, L)] and, where there are any, (the other coordinates (m, 1), their
     scales (m, 1, 1)), as :func:`models.bayes.whiten.to_unconstrained` takes them.
 
-    ``pivots``: names of free variables with one value per subject along which each subject's ridge may be
-    curved (:func:`models.bayes.whiten.ridge_curvature`); with several (signed coordinates), each subject's is the
-    one whose fold x̂ is nearest (:func:`models.bayes.whiten.nearest_fold`). The subjects' blocks then are one
-    (blocks, L, (column, a)) group per pivot used.
+    ``pivots``: (name, signed) pairs, ``name`` a free variable with one value per subject along which each
+    subject's ridge may be curved (:func:`models.bayes.whiten.ridge_curvature`), ``signed`` (n_subjects,) where
+    its coordinate is signed; each subject's pivot is the signed one whose fold x̂ is nearest, else the last
+    (:func:`models.bayes.whiten.nearest_fold`). The subjects' blocks then are one (blocks, L, (column, a)) group
+    per pivot used.
     """
     from pymc.blocking import DictToArrayBijection
     from pymc.initial_point import make_initial_point_fn
@@ -87,20 +88,22 @@ def whitening(model, start: dict | None, pivots: tuple[str, ...] | None = None):
     block_groups, curved = [(blocks, L)], {}
     if pivots:
         n = len(model.coords["subject"])
-        columns = [block_column(raveled.point_map_info, dims, n, model.rvs_to_values[model[p]].name) for p in pivots]
-        chosen = nearest_fold(x_hat, blocks, L, columns) if len(pivots) > 1 else np.zeros(n, dtype=int)
+        names = [name for name, _ in pivots]
+        columns = [block_column(raveled.point_map_info, dims, n, model.rvs_to_values[model[p]].name) for p in names]
+        chosen = nearest_fold(x_hat, blocks, L, columns, np.column_stack([signed for _, signed in pivots]))
         block_groups, ridges = [], {}
-        for j, (name, column) in enumerate(zip(pivots, columns)):
+        for j, (name, column) in enumerate(zip(names, columns)):
             rows = chosen == j
             if rows.any():
                 a, ridges[name] = ridge_curvature(lambda x: fn(x)[1], x_hat, blocks[rows], L[rows], column)
                 block_groups.append((blocks[rows], L[rows], (column, a)))
-        curved = {"curved_along": {name: int(np.sum(chosen == j)) for j, name in enumerate(pivots)},
-                  "pivot_by_subject": [pivots[j] for j in chosen], "ridge": ridges,
+        used = [j for j in range(len(names)) if np.any(chosen == j)]
+        curved = {"curved_along": {names[j]: int(np.sum(chosen == j)) for j in used},
+                  "pivot_by_subject": [names[j] for j in chosen], "ridge": ridges,
                   "subjects_without_curvature": sum(r["subjects_without_curvature"] for r in ridges.values()),
                   "largest_shift_in_scales": max(r["largest_shift_in_scales"] for r in ridges.values())}
-    record = {"method": "per-subject " + ("whitening curved along each subject's ridge in " + " or ".join(pivots)
-                                          if pivots else "affine whitening")
+    record = {"method": "per-subject " + ("whitening curved along each subject's ridge in "
+                                          + " or ".join(curved["curved_along"]) if pivots else "affine whitening")
               + " (models/bayes/whiten.py), nutpie's diagonal mass matrix",
               "coordinates_per_subject": int(blocks.shape[1]), "mode_iterations": int(res.nit),
               "mode_log_density_gain": float(f0 - res.fun) if moved else 0.0, "mode_used": moved,
@@ -140,7 +143,7 @@ def posterior_of(model, x: np.ndarray, point_map_info):
 
 def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws: int, tune: int,
                     cores: int | None = None, show_progress: bool = False, nuts: dict | None = None,
-                    pivots: tuple[str, ...] | None = None):
+                    pivots=None):
     """Sample ``model`` in whitened coordinates (module docstring); returns (idata, seconds, record).
 
     ``idata`` is as :func:`pipelines.fit.sampling.sample_model` returns it for ``model`` (posterior,

@@ -175,39 +175,89 @@ def test_motor_coordinate_is_the_free_variable_each_form_samples(plant, study):
         motor_coordinate("sigma_m", "wavy")
 
 
-def test_the_ridge_pivots_are_rhos_coordinate_where_rho_is_signed_and_sigma_ms_where_it_is_signed_or_rho_is_not(
-        plant, study):
-    """models.bayes.delayed_blocks.ridge_pivots: with R_population="policy_scale" and ρ folded or folded centred
-    (signed, SIGNED_FORMS) a curved whitening may bend along ρ's free variable, and along σ_m's too where σ_m's form is
-    signed (each subject its own: models.bayes.whiten.nearest_fold); in every other case (ρ centred or non-centred,
-    or no ρ at all) along σ_m's alone, in σ_m's form. Each is a free variable of the model with one value per
-    subject."""
-    from models.bayes.delayed_blocks import MOTOR_FORMS, SIGNED_FORMS, ridge_pivots
+def test_the_ridge_pivots_are_rhos_coordinate_where_rho_has_one_then_sigma_ms_with_where_each_is_signed(plant, study):
+    """models.bayes.delayed_blocks.ridge_pivots: with R_population="policy_scale" a curved whitening may bend along ρ's
+    free variable (signed where its form is folded or folded centred, or, mixed, in the subjects not rho_pinned),
+    and along σ_m's, last (signed where its form is); each subject's is the signed one whose fold its mode is nearest,
+    else σ_m's (models.bayes.whiten.nearest_fold). Without ρ, σ_m's alone. Each is a free variable of the model with
+    one value per subject."""
+    from models.bayes.delayed_blocks import MOTOR_FORMS, RHO_FORMS, SIGNED_FORMS, ridge_pivots
     from models.bayes.delayed_model import DelayedPriors
 
     w = study
-    expected = {"folded": "z_rho", "folded_centred": "rho_signed"}
+    n = len(dict.fromkeys(w.subjects))
+    rho_name = {"centred": "rho", "noncentred": "z_rho", "folded": "z_rho",
+                "folded_centred": "rho_signed", "mixed": "rho_free"}
     sigma_m = {"centred": "sigma_m", "noncentred": "z_sigma_m", "folded": "z_sigma_m",
                "folded_centred": "sigma_m_signed"}
-    assert set(SIGNED_FORMS) == set(expected)
+    assert set(SIGNED_FORMS) == {"folded", "folded_centred"} and set(rho_name) == set(RHO_FORMS)
+    pinned = tuple(bool(i % 2) for i in range(n))
     seen = set()
     for population in ("lognormal", "policy_scale", "unpooled"):
-        for rho in MOTOR_FORMS:
+        for rho in RHO_FORMS:
             for sm in ("centred", "folded_centred"):
-                dp, form = DelayedPriors(R_population=population), DelayedForm("noncentred", sm, rho=rho)
-                names = ridge_pivots(dp, form)
-                if population == "policy_scale" and rho in expected:
-                    want = (expected[rho], sigma_m[sm]) if sm == "folded_centred" else (expected[rho],)
+                dp = DelayedPriors(R_population=population)
+                form = DelayedForm("noncentred", sm, rho=rho, rho_pinned=pinned if rho == "mixed" else ())
+                pivots = ridge_pivots(dp, form, n)
+                want_sm = (sigma_m[sm], [sm in SIGNED_FORMS] * n)
+                if population == "policy_scale":
+                    rho_signed = [not p for p in pinned] if rho == "mixed" else [rho in SIGNED_FORMS] * n
+                    want = [(rho_name[rho], rho_signed), want_sm]
                 else:
-                    want = (sigma_m[sm],)
-                assert names == want, (population, rho, sm)
-                seen.update(names)
-                if population == "policy_scale" or rho == "folded":  # elsewhere ρ's form builds nothing: once
+                    want = [want_sm]
+                assert [(name, list(signed)) for name, signed in pivots] == want, (population, rho, sm)
+                seen.update(name for name, _ in pivots)
+                if population == "policy_scale":
                     model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
                                                 delayed_priors=dp, delayed_form=form)
-                    for name in names:
+                    for name, _ in pivots:
                         assert model[name] in model.free_RVs and model.named_vars_to_dims[name] == ("subject",)
-    assert seen == {"z_rho", "rho_signed", "sigma_m", "sigma_m_signed"}
+    assert seen == set(rho_name.values()) | {"sigma_m", "sigma_m_signed"}
+    with pytest.raises(ValueError, match="rho_pinned has 1 flags"):
+        ridge_pivots(DelayedPriors(R_population="policy_scale"), DelayedForm(rho="mixed", rho_pinned=(True,)), n)
+    assert MOTOR_FORMS == RHO_FORMS[:4]
+
+
+def test_the_mixed_form_of_rho_is_the_half_normal_law_centred_where_pinned_and_folded_centred_elsewhere(plant, study):
+    """models.bayes.delayed_blocks.mixed_half_normal_block: ρ = exp(v) where pinned, |v| elsewhere, with v's density
+    such that ρ ~ HalfNormal(s_ρ) in both: its log density at given values against the half-normal's with each form's
+    Jacobian, its prior draws against the half-normal's quantiles (KS test, false alarm 1e-3), and the model's
+    posterior graph reads ρ from v as said. Negative controls: draws of v itself (not ρ) fail the KS test."""
+    import pytensor
+    from scipy import stats
+
+    from models.bayes.delayed_blocks import mixed_half_normal_block
+
+    pinned = np.array([True, False, True])
+    with pm.Model(coords={"subject": ["a", "b", "c"]}) as model:
+        scale = pm.HalfNormal("s", 1.0)
+        mixed_half_normal_block("rho", scale, pinned, start=0.3)
+    assert {v.name for v in model.value_vars} == {"s_log__", "rho_free"}
+    assert model.rvs_to_transforms.get(model["rho_free"]) is None  # unconstrained
+    ip = model.initial_point()
+    np.testing.assert_allclose(ip["rho_free"], [np.log(0.3), 0.3, np.log(0.3)])
+    v = np.array([np.log(0.5), -0.7, 0.2])
+    rho = np.array([0.5, 0.7, np.exp(0.2)])
+    logp = model.compile_logp()({"s_log__": np.log(0.8), "rho_free": v})
+    want = (stats.halfnorm.logpdf(0.8) + np.log(0.8)  # s and its log transform's Jacobian
+            + stats.halfnorm.logpdf(rho[[0, 2]], scale=0.8).sum() + v[0] + v[2]  # pinned: exp(v)'s Jacobians
+            + stats.norm.logpdf(v[1], scale=0.8))  # folded centred: v ~ N(0, s)
+    np.testing.assert_allclose(logp, want, rtol=1e-12)
+    value = model.rvs_to_values[model["rho_free"]]
+    read = pytensor.function([value], model.replace_rvs_by_values([model["rho"]])[0])
+    np.testing.assert_allclose(read(v), rho, rtol=1e-12)
+    s_draws, rho_draws, v_draws = pm.draw([model["s"], model["rho"], model["rho_free"]], draws=4000, random_seed=3)
+    for j in range(3):
+        assert stats.kstest(rho_draws[:, j] / s_draws, stats.halfnorm.cdf).pvalue > 1e-3
+    assert stats.kstest(v_draws[:, 0] / s_draws, stats.halfnorm.cdf).pvalue < 1e-3  # log ρ is not half-normal
+    assert stats.kstest(v_draws[:, 1] / s_draws, stats.halfnorm.cdf).pvalue < 1e-3  # ρ̃ is signed
+    with pytest.raises(ValueError, match="2 pinned flags for 3 subjects"):
+        with pm.Model(coords={"subject": ["a", "b", "c"]}):
+            mixed_half_normal_block("rho", 1.0, pinned[:2], start=0.3)
+    with pytest.raises(ValueError, match="needs rho_pinned"):
+        DelayedForm(rho="mixed")
+    with pytest.raises(ValueError, match="one bool per subject"):
+        DelayedForm(rho="mixed", rho_pinned=(1, 0))
 
 
 def test_the_motor_noise_variance_has_an_inverse_gamma_prior_by_default(plant, study):

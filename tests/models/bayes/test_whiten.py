@@ -234,11 +234,16 @@ def test_nearest_fold_picks_the_signed_coordinate_nearest_its_zero_in_its_own_sc
     blocks = np.arange(9).reshape(3, 3)
     L = np.broadcast_to(np.diag([0.5, 2.0, 1.0]), (3, 3, 3))
     x = np.array([0.1, 2.0, 9.0, 1.5, 0.2, 9.0, 0.5, 2.0, 0.0])
-    np.testing.assert_array_equal(nearest_fold(x, blocks, L, [0, 1]), [0, 1, 0])
-    np.testing.assert_array_equal(nearest_fold(x, blocks, L, [1, 0]), [1, 0, 0])  # indices into the pivots given
-    np.testing.assert_array_equal(nearest_fold(-x, blocks, L, [0, 1]), [0, 1, 0])  # a fold: the sign is no matter
+    both = np.ones((3, 2), dtype=bool)
+    np.testing.assert_array_equal(nearest_fold(x, blocks, L, [0, 1], both), [0, 1, 0])
+    np.testing.assert_array_equal(nearest_fold(x, blocks, L, [1, 0], both), [1, 0, 0])  # indices into the pivots
+    np.testing.assert_array_equal(nearest_fold(-x, blocks, L, [0, 1], both), [0, 1, 0])  # a fold: the sign is no matter
     # the scales decide: with p's scale 0.1, subject 2's p is 5 scales from its fold and q 1, so q
     L2 = np.broadcast_to(np.diag([0.1, 2.0, 1.0]), (3, 3, 3))
-    np.testing.assert_array_equal(nearest_fold(x, blocks, L2, [0, 1]), [0, 1, 1])
+    np.testing.assert_array_equal(nearest_fold(x, blocks, L2, [0, 1], both), [0, 1, 1])
+    # only signed coordinates compete: p not signed in subject 0 gives it q; where neither is signed, the last pivot
+    signed = np.array([[False, True], [True, False], [False, False]])
+    np.testing.assert_array_equal(nearest_fold(x, blocks, L, [0, 1], signed), [1, 0, 1])
+    np.testing.assert_array_equal(nearest_fold(x, blocks, L, [0, 1], [False, False]), [1, 1, 1])
     with pytest.raises(ValueError, match="must be columns of a block's 3 coordinates"):
-        nearest_fold(x, blocks, L, [0, 3])
+        nearest_fold(x, blocks, L, [0, 3], both)

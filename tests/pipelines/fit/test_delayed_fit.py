@@ -198,6 +198,19 @@ def test_rhos_block_is_centred_only_where_the_data_pin_it():
     assert choose_delayed_form(pinned)[0].rho == DelayedForm().rho == "folded"
 
 
+def test_given_the_subjects_rhos_form_is_chosen_per_subject_by_its_units_combined():
+    # each subject's units' z = 2/SE(log R̂) combined as sqrt(Σ z²): A 2.5 and 2.5 -> 3.54, pinned; B 2.5 and no SE (R at
+    # its bound) -> 2.5, not; C 3.2 alone; D has no units in the estimates, not pinned. Flags in the order given.
+    est = pd.DataFrame({"subject": ["A", "A", "B", "B", "C", "C"], "tau_nm": 0.06, "se_tau_nm": 0.005,
+                        "sigma_m": 0.25, "se_sigma_m": 0.02,
+                        "se_log_R": [0.8, 0.8, 0.8, np.nan, 0.625, 50.0]})
+    form, reason = choose_delayed_form(est, ["C", "B", "A", "D"])
+    assert form.rho == "mixed" and form.rho_pinned == (True, False, True, False)
+    assert "rho mixed (2 of 4 subjects" in reason
+    assert choose_delayed_form(est, ["A", "C"])[0] == DelayedForm("centred", "centred", "centred", (True, True))
+    assert choose_delayed_form(est, ["B", "D"])[0].rho == "folded_centred"
+
+
 def test_the_log_R_blocks_are_centred_only_where_no_motor_noise_is_found():
     # the max-ent human (no motor noise found): the policy noise alone fixes R per unit
     form, reason = log_R_form(DelayedForm("noncentred", "noncentred"))

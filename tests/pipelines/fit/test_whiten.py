@@ -168,10 +168,10 @@ def test_the_curved_map_samples_a_banana_exactly_and_its_negative_control_fails(
     # the draws mapped back are the banana's; mapped back without the curvature they are not
     model = _banana()
     idata, _, record = sample_whitened(model, None, seed=4, chains=2, draws=1000, tune=500, cores=1,
-                                       nuts={"adaptation": "diag"}, pivots=("v",))
+                                       nuts={"adaptation": "diag"}, pivots=[("v", np.ones(2, bool))])
     assert record["curved_along"] == {"v": 2} and record["subjects_without_curvature"] == 0
     assert _banana_failures(idata["posterior"]) == []
-    _, _, x_hat, groups, info, _ = whitening(_banana(), None, ("v",))
+    _, _, x_hat, groups, info, _ = whitening(_banana(), None, [("v", np.ones(2, bool))])
     [(blocks, L, (pivot, a))] = groups
     np.testing.assert_allclose(a[:, 1], CURVE, rtol=1e-4)
     post = idata["posterior"]
@@ -183,6 +183,10 @@ def test_the_curved_map_samples_a_banana_exactly_and_its_negative_control_fails(
     flat_w[..., blocks] = w
     np.testing.assert_allclose(to_unconstrained(flat_w, x_hat, groups), x, rtol=1e-9, atol=1e-12)
     assert _banana_failures(posterior_of(model, to_unconstrained(flat_w, x_hat, [(blocks, L)]), info)) != []
+
+
+#: Both coordinates signed in both subjects.
+PIVOTS = [("u", np.ones(2, bool)), ("v", np.ones(2, bool))]
 
 
 def _crossed_bananas():
@@ -202,10 +206,10 @@ def test_with_two_pivots_each_subject_bends_along_the_one_whose_fold_its_mode_is
     # (y's mean CURVE SCALE² and SD as in _banana_failures, with the pivot in place of v)
     model = _crossed_bananas()
     idata, _, record = sample_whitened(model, None, seed=4, chains=2, draws=1000, tune=500, cores=1,
-                                       nuts={"adaptation": "diag"}, pivots=("u", "v"))
+                                       nuts={"adaptation": "diag"}, pivots=PIVOTS)
     assert record["curved_along"] == {"u": 1, "v": 1} and record["pivot_by_subject"] == ["v", "u"]
     assert set(record["ridge"]) == {"u", "v"} and record["subjects_without_curvature"] == 0
-    _, _, x_hat, groups, _, _ = whitening(_crossed_bananas(), None, ("u", "v"))
+    _, _, x_hat, groups, _, _ = whitening(_crossed_bananas(), None, PIVOTS)
     [(rows_u, _, (col_u, a_u)), (rows_v, _, (col_v, a_v))] = groups  # value order u (2), v (2), y (2)
     np.testing.assert_array_equal(rows_u, [[1, 3, 5]])
     np.testing.assert_array_equal(rows_v, [[0, 2, 4]])

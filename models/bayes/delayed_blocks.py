@@ -102,10 +102,8 @@ from models.bayes.hierarchical import Priors
 DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 #: The populations of the subjects' baseline R (:class:`DelayedPriors`).
 R_POPULATIONS = ("lognormal", "policy_scale", "unpooled")
-#: The forms of τ_nm and σ_m, and of ρ (:class:`DelayedForm`).
+#: The forms of τ_nm and σ_m (:class:`DelayedForm`); ρ's add ``mixed`` (:func:`mixed_half_normal_block`).
 MOTOR_FORMS = ("centred", "noncentred", "folded", "folded_centred")
-#: ρ's forms: a half-normal block's, or ``mixed`` (per subject centred or folded centred,
-#: :func:`mixed_half_normal_block`).
 RHO_FORMS = MOTOR_FORMS + ("mixed",)
 
 
@@ -328,11 +326,10 @@ def ridge_pivots(priors: DelayedPriors, form: DelayedForm, n_subjects: int) -> t
     the parabola :mod:`models.bayes.whiten` ("Curved") bends along. With ρ's coordinate signed (ρ = |ρ̃|) the ridge
     is an arch over it: σ_m largest where ρ̃ = 0 and falling as |ρ̃| grows, on both sides, which a subject whose
     data leave ρ near 0 crosses (ρ̃ changes sign). ρ̃ as a function of σ_m has two branches, which no bend along σ_m
-    follows; σ_m as a function of ρ̃ is one symmetric curve, a parabola at its top, so the bend is along ρ̃. With
-    σ_m signed as well, the arch of a subject whose data leave σ_m near 0 (no motor noise: the max-ent human) tops
-    in σ_m instead, and the bend for that subject is along σ_m: each subject's pivot is the signed coordinate whose
-    fold its mode is nearest, in that coordinate's own scale.
-    Measured: :mod:`pipelines.fit.delayed_forms`, "The ridge's pivot with a signed ρ" and "The form of ρ".
+    follows; σ_m as a function of ρ̃ is one symmetric curve, a parabola at its top, so the bend is along ρ̃. Where
+    the data leave σ_m near 0 instead (no motor noise), the arch tops in σ_m, and so the bend is along the signed
+    coordinate whose fold the subject's mode is nearest. Measured: :mod:`pipelines.fit.delayed_forms`, "The
+    ridge's pivot with a signed ρ" and "The form of ρ".
     """
     sigma_m = (motor_coordinate("sigma_m", form.sigma_m), np.full(n_subjects, form.sigma_m in SIGNED_FORMS))
     if priors.R_population != "policy_scale":

@@ -216,7 +216,7 @@ def cmd_fit(args) -> int:
         raise ValueError("--compare-to compares a delayed fit with a max-ent one: it needs --human-model delayed")
     if args.delay != "profile" and args.human_model != "delayed":
         raise ValueError("--delay sampled samples the delayed human's delays: it needs --human-model delayed")
-    if args.R_population != "lognormal" and args.human_model != "delayed":
+    if args.R_population is not None and args.human_model != "delayed":
         raise ValueError("--R-population is the delayed model's population of R: it needs --human-model delayed")
     if args.rho_form is not None and args.R_population != "policy_scale":
         raise ValueError("--rho-form is the form of R^(-1/2) under --R-population policy_scale: it needs that option")
@@ -239,7 +239,8 @@ def cmd_fit(args) -> int:
                        settings=settings, experiment_file=source, subject=args.subject, estimates_path=args.estimates,
                        truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
                        human_model=args.human_model, delay_mode=args.delay,
-                       delayed_priors=DelayedPriors(R_population=args.R_population), rho_form=args.rho_form,
+                       delayed_priors=(None if args.R_population is None
+                                       else DelayedPriors(R_population=args.R_population)), rho_form=args.rho_form,
                        adaptation=args.adaptation, log_R_form=args.log_R_form, adequacy_at=args.adequacy_at,
                        target_accept=args.target_accept)
     print(format_fit(args.out))

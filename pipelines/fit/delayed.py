@@ -41,7 +41,7 @@ from models.segment import prepare_batch
 from pipelines.adequacy import assess_study, not_checked
 from pipelines.fit.checks import mixedlm_check, motor_truth, posterior_point, truth_check, unit_theta
 from pipelines.fit.contrasts import contrasts
-from pipelines.fit.delayed_forms import LOG_R_FORMS, choose_delayed_form, log_R_form
+from pipelines.fit.delayed_forms import LOG_R_FORMS, choose_R_population, choose_delayed_form, log_R_form
 from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
@@ -205,13 +205,15 @@ def sampled_delays(idata, prepared, dt: float, grid: np.ndarray) -> Delays:
 
 
 def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
-                         tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors = DelayedPriors(),
+                         tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors | None = None,
                          delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
                          delay_mode: str = "profile", rho_form: str | None = None,
                          adaptation: str | None = None, log_R: str | None = None,
                          target_accept: float | None = None) -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
+    ``delayed_priors``: None chooses the population of R by the data
+    (:func:`pipelines.fit.delayed_forms.choose_R_population`), the other priors their defaults.
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
     chose them; the log R blocks take ``log_R`` (:data:`pipelines.fit.delayed_forms.LOG_R_FORMS`),
     by default :func:`pipelines.fit.delayed_forms.log_R_form`'s choice by the data.
@@ -236,6 +238,11 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")
     ml = estimates if estimates is not None else delays.estimates  # the ML estimates: given, or the fit's own profile's
     subjects = list(dict.fromkeys(str(s) for s in prepared.subjects))  # the model's order (models.units.index_study)
+    if delayed_priors is None:
+        population, population_reason = choose_R_population(ml, subjects)
+        delayed_priors = DelayedPriors(R_population=population)
+    else:
+        population_reason = "given"
     if delayed_form is None:
         delayed_form, form_reason = choose_delayed_form(ml, subjects)
     else:
@@ -292,6 +299,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
             "start_scales": {k: np.asarray(start[k]).tolist() for k in sources},
             **({"start_scales_from": sources} if start else {}),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},
+            "R_population_reason": population_reason,
             "delayed_parameterization": {**asdict(form), "log_R_reason": R_reason},
             **({"delay_sampler": "PyMC NUTS (diagonal mass matrix) beside DelayMetropolis, numba-compiled",
                 "pymc_nuts_options": {} if target_accept is None else {"target_accept": float(target_accept)}}

@@ -171,6 +171,35 @@ others'; read ad hoc from the fit and its whitening). Centred, ρ has one mode, 
 only the motor-noise funnel's rare divergences remain (seed 2: all four in one chain with s_m above
 its 95 % quantile). So ρ is centred where the estimates fix it, like τ_nm's and σ_m's blocks, and
 folded centred (the ``kbl`` rows above) where they do not.
+
+Per subject (``mixed``, :func:`models.bayes.delayed_blocks.mixed_half_normal_block`). A study of the
+``kbl`` human has both kinds of subject. In its full-size fit with ρ folded centred (README, "Not
+yet": the run that passed the verdict at 2540 s of sampling), the 9 subjects whose posterior |ρ|
+was at least 3.4 of its SDs from 0 changed the sign of ρ̃ 0-16 times in a chain of 1000 draws,
+the other 33 13-604 times: for those 9 the two modes ±ρ are nearly apart, as on the max-ent
+human (read ad hoc from that fit's posterior). Their units' estimates, combined
+(:func:`rho_pinned`), flag 14 subjects, those 9 among them; so ρ's block is centred for the
+subjects the estimates flag and folded centred for the others, each subject bending along ρ̃
+where it is signed and along σ_m elsewhere (:func:`models.bayes.delayed_blocks.ridge_pivots`).
+On the 12-subject ``kbl`` study above (3 flagged; ``--R-population policy_scale``, the form chosen,
+at e7cd12a, seed 1): 40.0 and 31.7 leapfrog steps per warm-up and kept draw, 0 divergent, of the
+population β_R's ESS 144 the smallest and σ_β's R-hat 1.015 the largest, the units' log R at
+least ESS 79 and at most R-hat 1.028: as the folded centred rows (12 subjects have few that the
+data pin). At full size: README, "Not yet".
+
+The population of R (:func:`choose_R_population`). On the max-ent human the policy-scale
+population with ρ centred (the form the estimates choose there; the full-size study of README
+"Speed", ``scioc fit ... --R-population policy_scale --seed 2018`` at fdc832d, alone) ran at 64
+leapfrog steps per draw and had 41 divergent transitions in its first 2793 of 8000 draws, when it
+was stopped; the lognormal population passes the verdict on the same study at about 31 (README).
+On the ``kbl`` human the lognormal population's μ_R and σ_R do not mix in any form tried. So the
+population follows the data: lognormal where the estimates fix every subject's R (on the max-ent
+human every subject's combined z is at least 4.4, median 23.6, at full size), the policy scale where
+they leave any subject's R loose (on the ``kbl`` human 28 of 42 subjects, median z 2.15), since a
+subject whose R may be infinite (no policy noise, as the KBL model's human) is then inside the
+population. The two populations are models of the same quantity that differ where the data say
+little about it; the sidecar records which was used and why (``R_population_reason``), and
+``--R-population`` chooses one instead.
 """
 
 from __future__ import annotations
@@ -214,25 +243,47 @@ def choose_delayed_form(estimates: pd.DataFrame | None, subjects=None) -> tuple[
     if "se_log_R" in estimates.columns:
         se = pd.to_numeric(estimates["se_log_R"], errors="coerce").to_numpy(dtype=float)
         if subjects is not None and "subject" in estimates.columns:
-            forms["rho"], forms["rho_pinned"], reason = _rho_by_subject(2.0 / se, se > 0, estimates["subject"],
-                                                                         subjects)
+            forms["rho"], forms["rho_pinned"], reason = _rho_by_subject(estimates, subjects)
         else:
             forms["rho"], reason = _form_by_z("rho", 2.0 / se, se > 0, loose="folded_centred")
         why.append(reason + " (with --R-population policy_scale)")
     return DelayedForm(**forms), "; ".join(why)
 
 
-def _rho_by_subject(z: np.ndarray, valid: np.ndarray, unit_subjects, subjects) -> tuple[str, tuple, str]:
-    """(ρ's form, rho_pinned, reason): each subject of ``subjects`` pinned where its units' ``z`` (0 where not
-    ``valid``) combined, sqrt(Σ z²) (the z of their inverse-variance mean, as if they shared one ρ), is at least
-    :data:`CENTRED_Z`; centred if all are, folded centred if none is, else mixed."""
+def rho_pinned(estimates: pd.DataFrame, subjects) -> tuple[bool, ...]:
+    """Per subject of ``subjects`` (in their order): do its estimates fix ρ = R^(-1/2)? Its units' z = ρ̂/SE(ρ̂) =
+    2/SE(log R̂) (0 where R is at its bound, without an SE) combined, sqrt(Σ z²) (the z of their inverse-variance
+    mean, as if they shared one ρ), at least :data:`CENTRED_Z`. A subject without units in ``estimates``: no."""
+    se = pd.to_numeric(estimates["se_log_R"], errors="coerce").to_numpy(dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(np.isfinite(z) & valid, z, 0.0)
-    by_subject = np.sqrt((pd.Series(z) ** 2).groupby(np.asarray(unit_subjects).astype(str)).sum())
-    pinned = tuple(bool(by_subject.get(str(s), 0.0) >= CENTRED_Z) for s in subjects)  # no units: not pinned
+        z = np.where(np.isfinite(2.0 / se) & (se > 0), 2.0 / se, 0.0)
+    by_subject = np.sqrt((pd.Series(z) ** 2).groupby(estimates["subject"].astype(str).to_numpy()).sum())
+    return tuple(bool(by_subject.get(str(s), 0.0) >= CENTRED_Z) for s in subjects)
+
+
+def _rho_by_subject(estimates: pd.DataFrame, subjects) -> tuple[str, tuple, str]:
+    """(ρ's form, rho_pinned, reason): centred if :func:`rho_pinned` flags every subject, folded centred if none,
+    else mixed."""
+    pinned = rho_pinned(estimates, subjects)
     form = "centred" if all(pinned) else "folded_centred" if not any(pinned) else "mixed"
     return form, pinned, (f"rho {form} ({sum(pinned)} of {len(pinned)} subjects with their units' estimate/SE "
                           f"combined at least the threshold {CENTRED_Z:g})")
+
+
+def choose_R_population(estimates: pd.DataFrame | None, subjects) -> tuple[str, str]:
+    """The population of the subjects' baseline R (:class:`models.bayes.delayed_blocks.DelayedPriors`'s
+    ``R_population``) for these data, and why: ``lognormal`` (the max-ent model's) where the estimates fix every
+    subject's R (:func:`rho_pinned`), else ``policy_scale`` (module docstring, "The population of R"); lognormal
+    without estimates with an SE of log R."""
+    if estimates is None or not {"se_log_R", "subject"} <= set(estimates.columns):
+        return "lognormal", "lognormal: no estimates of R with SEs to measure the data by"
+    pinned = rho_pinned(estimates, subjects)
+    if all(pinned):
+        return "lognormal", (f"lognormal: the estimates fix every subject's R ({len(pinned)} of {len(pinned)} with "
+                             f"their units' 2/SE(log R) combined at least {CENTRED_Z:g})")
+    return "policy_scale", (f"policy_scale: the estimates leave {len(pinned) - sum(pinned)} of {len(pinned)} "
+                            f"subjects' R loose (their units' 2/SE(log R) combined below {CENTRED_Z:g}; R may be "
+                            "infinite, no policy noise), so R^(-1/2) has a half-normal population")
 
 
 def _form_by_z(name: str, z: np.ndarray, valid: np.ndarray, loose: str | None = None) -> tuple[str, str]:
@@ -255,4 +306,5 @@ def log_R_form(delayed_form: DelayedForm) -> tuple[str, str]:
                           "trades off against, leaving R loose per unit")
 
 
-__all__ = ["CENTRED_Z", "LOG_R_FORMS", "LOOSE_FORM", "choose_delayed_form", "log_R_form"]
+__all__ = ["CENTRED_Z", "LOG_R_FORMS", "LOOSE_FORM", "choose_R_population", "choose_delayed_form", "log_R_form",
+           "rho_pinned"]

@@ -165,7 +165,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
                human_model: str | None = None, delay_mode: str = "profile",
-               delayed_priors: DelayedPriors = DelayedPriors(), rho_form: str | None = None,
+               delayed_priors: DelayedPriors | None = None, rho_form: str | None = None,
                adaptation: str | None = None, log_R_form: str | None = None, adequacy_at: str = "draw",
                target_accept: float | None = None) -> dict:
     """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
@@ -214,7 +214,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         delay of every unit and how it was chosen.
     delay_mode, delayed_priors, rho_form, adaptation, log_R_form
         ``delayed`` only, as :func:`pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
-        at each subject's profile maximum or sampled, the priors (e.g. the population of R), the form of ρ,
+        at each subject's profile maximum or sampled, the priors (e.g. the population of R; None: the defaults, the
+        population of R chosen by the data), the form of ρ,
         the coordinates and nutpie's mass matrix (None: the first of :data:`models.bayes.delayed_model.ADAPTATIONS`),
         and the form of the log R blocks (its ``log_R``; None: chosen by the data).
     adequacy_at : {"draw", "means"}

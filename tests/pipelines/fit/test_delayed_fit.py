@@ -198,6 +198,20 @@ def test_rhos_block_is_centred_only_where_the_data_pin_it():
     assert choose_delayed_form(pinned)[0].rho == DelayedForm().rho == "folded"
 
 
+def test_the_population_of_R_is_lognormal_only_where_the_estimates_fix_every_subjects_R():
+    from pipelines.fit.delayed_forms import choose_R_population
+
+    est = pd.DataFrame({"subject": ["A", "A", "B", "B"], "se_log_R": [0.2, 0.3, 0.5, 0.4]})  # z 10, 6.7; 4, 5
+    population, reason = choose_R_population(est, ["A", "B"])
+    assert population == "lognormal" and "every subject's R (2 of 2" in reason
+    loose = est.assign(se_log_R=[0.2, 0.3, np.nan, 1.5])  # B: R at its bound in one unit, 1.33 in the other
+    population, reason = choose_R_population(loose, ["A", "B"])
+    assert population == "policy_scale" and "leave 1 of 2 subjects' R loose" in reason
+    assert choose_R_population(est, ["A", "B", "C"])[0] == "policy_scale"  # C has no estimates: not fixed
+    assert choose_R_population(None, ["A"])[0] == "lognormal"
+    assert choose_R_population(est.drop(columns="se_log_R"), ["A"])[0] == "lognormal"
+
+
 def test_given_the_subjects_rhos_form_is_chosen_per_subject_by_its_units_combined():
     # each subject's units' z = 2/SE(log R̂) combined as sqrt(Σ z²): A 2.5 and 2.5 -> 3.54, pinned; B 2.5 and no SE (R at
     # its bound) -> 2.5, not; C 3.2 alone; D has no units in the estimates, not pinned. Flags in the order given.

@@ -151,8 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "blocks (default: centred if the estimates find no motor noise; pipelines/fit/delayed_forms.py)")
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default: chosen by the estimates, "
-                   "per subject centred where they fix ρ, else folded_centred, mixed where both occur; folded "
-                   "without them)")
+                   "centred where they fix every subject's ρ, else folded_centred; folded without them; mixed: "
+                   "per subject, centred where they fix its ρ)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
                    help="delayed, profile delays: coordinates and mass matrix (default curved: whitened per subject "
                    "and curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own)")

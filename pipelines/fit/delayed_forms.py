@@ -229,8 +229,8 @@ def choose_delayed_form(estimates: pd.DataFrame | None, subjects=None) -> tuple[
     "Motor noise" and "The motor-noise scale's prior"). ρ = R^(-1/2) (``--R-population policy_scale``
     only) likewise, with z = ρ̂ / SE(ρ̂) = 2 / SE(log R̂) (0 where R is at its bound): centred where the data
     fix it, else folded centred; given ``subjects`` (the model's order), per subject (its units' z combined,
-    :func:`_rho_by_subject`), ``mixed`` where some subjects' data fix ρ and others' do not, with ``rho_pinned``
-    (module docstring, "The form of ρ"). Without estimates: τ_nm and σ_m non-centred, ρ folded.
+    :func:`rho_pinned`, recorded as ``rho_pinned`` for ``--rho-form mixed``): centred where the data fix every
+    subject's ρ (module docstring, "The form of ρ"). Without estimates: τ_nm and σ_m non-centred, ρ folded.
     """
     if estimates is None or not {"tau_nm", "se_tau_nm", "sigma_m", "se_sigma_m"} <= set(estimates.columns):
         return DelayedForm("noncentred", "noncentred"), "non-centred (no delayed estimates to measure the data by)"
@@ -262,10 +262,10 @@ def rho_pinned(estimates: pd.DataFrame, subjects) -> tuple[bool, ...]:
 
 
 def _rho_by_subject(estimates: pd.DataFrame, subjects) -> tuple[str, tuple, str]:
-    """(ρ's form, rho_pinned, reason): centred if :func:`rho_pinned` flags every subject, folded centred if none,
-    else mixed."""
+    """(ρ's form, rho_pinned, reason): centred if :func:`rho_pinned` flags every subject, else folded centred (not
+    ``mixed``, which diverged where folded centred did not: module docstring, "Per subject")."""
     pinned = rho_pinned(estimates, subjects)
-    form = "centred" if all(pinned) else "folded_centred" if not any(pinned) else "mixed"
+    form = "centred" if all(pinned) else "folded_centred"
     return form, pinned, (f"rho {form} ({sum(pinned)} of {len(pinned)} subjects with their units' estimate/SE "
                           f"combined at least the threshold {CENTRED_Z:g})")
 

@@ -53,21 +53,32 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     side = json.loads(open(delayed_fit["sidecar"]).read())
     assert side["human_model"] == "delayed"
     assert side["start"].startswith("the chains start near the ML estimates")  # the fit's own profile's, no --estimates
+    # the kbl human's estimates leave some subject's R loose: the population of R is the policy scale's
+    assert side["delayed_priors"]["R_population"] == "policy_scale"
+    assert side["R_population_reason"].startswith("policy_scale: the estimates leave")
     # the population scales held at their units' spread, each below its prior's scale (PyMC's initial point)
-    assert set(side["start_scales"]) == {"sigma_log_theta1", "sigma_beta", "sigma_log_R", "sigma_beta_log_R",
+    assert set(side["start_scales"]) == {"sigma_log_theta1", "sigma_beta", "rho_scale", "sigma_beta_log_R",
                                          "tau_theta2", "tau_nm_scale", "sigma_m_scale_sq"}
     assert all(0 < np.max(v) for v in side["start_scales"].values())
-    # which of them the units' ML targets informed: all but s_m², which starts at its inverse gamma's point
+    # which of them the units' ML targets informed: all but s_m², which starts at its inverse gamma's point, and
+    # ρ's scale, which has no target
     assert side["start_scales_from"] == {**{k: "units' spread" for k in side["start_scales"]},
-                                         "sigma_m_scale_sq": "PyMC's initial point"}
-    # by default on each subject's whitened coordinates curved along σ_m's ridge (scioc fit --adaptation curved), with
-    # what the whitening found; the ridge is along the coordinate of σ_m's block in its form (chosen by the data)
-    pivot = motor_coordinate("sigma_m", side["delayed_form"]["sigma_m"])
-    assert side["sampler"]["adaptation"] == f"diag (nutpie), per-subject whitened, curved along {pivot}"
-    assert side["whitening"]["curved_along"] == {pivot: 3} and pivot in ("sigma_m", "sigma_m_signed")
-    assert side["whitening"]["pivot_by_subject"] == [pivot] * 3
-    scales = side["whitening"]["ridge"][pivot]["pivot_scale_range"]
-    assert 0 < scales[0] <= scales[1]
+                                         "sigma_m_scale_sq": "PyMC's initial point", "rho_scale": "PyMC's initial point"}
+    # by default on each subject's whitened coordinates curved along its ridge (scioc fit --adaptation curved), with
+    # what the whitening found: along ρ's coordinate where it is signed (σ_m's block is centred here, the data fix
+    # σ_m), else along σ_m's; ρ's form per subject as the data chose it
+    form = side["delayed_form"]
+    assert form["sigma_m"] == "centred" and len(form["rho_pinned"]) == 3
+    signed_rho = {"folded_centred": [True] * 3, "centred": [False] * 3,
+                  "mixed": [not p for p in form["rho_pinned"]]}[form["rho"]]
+    rho = "rho_free" if form["rho"] == "mixed" else motor_coordinate("rho", form["rho"])
+    pivots = [rho if signed else "sigma_m" for signed in signed_rho]
+    assert side["whitening"]["pivot_by_subject"] == pivots
+    assert side["whitening"]["curved_along"] == {p: pivots.count(p) for p in (rho, "sigma_m") if p in pivots}
+    assert side["sampler"]["adaptation"].startswith("diag (nutpie), per-subject whitened, curved along ")
+    for name in side["whitening"]["curved_along"]:
+        scales = side["whitening"]["ridge"][name]["pivot_scale_range"]
+        assert 0 < scales[0] <= scales[1]
     assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
     assert side["sampler"]["target_accept"] == WHITENED_TARGET_ACCEPT == 0.9
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
@@ -212,15 +223,15 @@ def test_the_population_of_R_is_lognormal_only_where_the_estimates_fix_every_sub
     assert choose_R_population(est.drop(columns="se_log_R"), ["A"])[0] == "lognormal"
 
 
-def test_given_the_subjects_rhos_form_is_chosen_per_subject_by_its_units_combined():
+def test_given_the_subjects_rhos_form_is_centred_only_where_their_units_combined_fix_every_subjects_rho():
     # each subject's units' z = 2/SE(log R̂) combined as sqrt(Σ z²): A 2.5 and 2.5 -> 3.54, pinned; B 2.5 and no SE (R at
     # its bound) -> 2.5, not; C 3.2 alone; D has no units in the estimates, not pinned. Flags in the order given.
     est = pd.DataFrame({"subject": ["A", "A", "B", "B", "C", "C"], "tau_nm": 0.06, "se_tau_nm": 0.005,
                         "sigma_m": 0.25, "se_sigma_m": 0.02,
                         "se_log_R": [0.8, 0.8, 0.8, np.nan, 0.625, 50.0]})
     form, reason = choose_delayed_form(est, ["C", "B", "A", "D"])
-    assert form.rho == "mixed" and form.rho_pinned == (True, False, True, False)
-    assert "rho mixed (2 of 4 subjects" in reason
+    assert form.rho_pinned == (True, False, True, False)  # for --rho-form mixed
+    assert form.rho == "folded_centred" and "rho folded_centred (2 of 4 subjects" in reason  # not every one fixed
     assert choose_delayed_form(est, ["A", "C"])[0] == DelayedForm("centred", "centred", "centred", (True, True))
     assert choose_delayed_form(est, ["B", "D"])[0].rho == "folded_centred"
 

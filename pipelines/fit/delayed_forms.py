@@ -178,18 +178,24 @@ yet": the run that passed the verdict at 2540 s of sampling), the 9 subjects who
 was at least 3.4 of its SDs from 0 changed the sign of ρ̃ 0-16 times in a chain of 1000 draws,
 the other 33 13-604 times: for those 9 the two modes ±ρ are nearly apart, as on the max-ent
 human (read ad hoc from that fit's posterior). Their units' estimates, combined
-(:func:`rho_pinned`), flag 14 subjects, those 9 among them; so ρ's block is centred for the
+(:func:`rho_pinned`), flag 14 subjects, those 9 among them. ``mixed`` makes ρ's block centred for the
 subjects the estimates flag and folded centred for the others, each subject bending along ρ̃
 where it is signed and along σ_m elsewhere (:func:`models.bayes.delayed_blocks.ridge_pivots`).
-On the 12-subject ``kbl`` study above (3 flagged; ``--R-population policy_scale``, the form chosen,
-at e7cd12a, seed 1): 40.0 and 31.7 leapfrog steps per warm-up and kept draw, 0 divergent, of the
+On the 12-subject ``kbl`` study above (``--R-population policy_scale``, seed 1, run before e7cd12a
+was committed; its sidecar records ``mixed`` with 3 of 12 subjects centred): 40.0 and 31.7 leapfrog steps per warm-up and kept draw, 0 divergent, of the
 population β_R's ESS 144 the smallest and σ_β's R-hat 1.015 the largest, the units' log R at
 least ESS 79 and at most R-hat 1.028: as the folded centred rows (12 subjects have few that the
-data pin). At full size: README, "Not yet".
+data pin). At full size it did worse (the same study and estimates, ``scioc fit ... --R-population
+policy_scale --seed 2018`` at e7cd12a, when the data chose ``mixed``: 14 of 42 subjects centred):
+27 divergent transitions in its first 3754 of 8000 draws, at 80 leapfrog steps per draw, where the
+folded centred form had none at 78; stopped there (where they diverged was not read). So the data
+choose folded centred unless they fix every subject's ρ, and ``mixed`` is an option
+(``--rho-form mixed``), not a default.
 
 The population of R (:func:`choose_R_population`). On the max-ent human the policy-scale
 population with ρ centred (the form the estimates choose there; the full-size study of README
-"Speed", ``scioc fit ... --R-population policy_scale --seed 2018`` at fdc832d, alone) ran at 64
+"Speed", ``scioc fit ... --R-population policy_scale --seed 2018`` at fdc832d, with two 12-subject fits
+beside it for some minutes) ran at 64
 leapfrog steps per draw and had 41 divergent transitions in its first 2793 of 8000 draws, when it
 was stopped; the lognormal population passes the verdict on the same study at about 31 (README).
 On the ``kbl`` human the lognormal population's μ_R and σ_R do not mix in any form tried. So the

@@ -48,6 +48,11 @@ def format_fit(out) -> str:
                      "beta may be an artifact of model misfit")
     if side.get("human_model", "maxent") != "maxent":
         lines.append(f"human model: {side['human_model']} (delays: {side['delay']['source']})")
+        population = side.get("delayed_priors", {}).get("R_population")
+        if population is not None and "R_population_reason" in side:  # sidecars before 8b3b9c5 have no reason
+            reason = side["R_population_reason"]
+            lines.append(f"population of R: {population} (given)" if reason == "given" else
+                         f"population of R, chosen by the estimates: {reason}")
     lines.append(f"sampler convergence: condition model {conv['condition']}"
                  + (f"; pooled model {conv['pooled']}" if "pooled" in conv else ""))
     lines += [f"  to try ({name} model): {text}" for name, text in fit_remedies(side)]

@@ -108,6 +108,7 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert res["adequacy"]["verdict"] in ("pass", "fail")
     text = format_fit(root / "fit_delayed")
     assert "human model: delayed" in text and "pooled" not in text and "tau_nm: truth" in text
+    assert "population of R, chosen by the estimates: policy_scale: the estimates leave" in text
     # A tiny fit's verdict fails; its advice comes from its own numbers (tests/pipelines/fit/test_diagnostics.py).
     side = json.loads(open(delayed_fit["sidecar"]).read())
     assert side["convergence_verdict"]["condition"] != "pass"
@@ -332,7 +333,8 @@ def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
     side = json.loads(open(paths["sidecar"]).read())
     assert side["sampler"]["adaptation"] == "diag (nutpie)" and side["nutpie_options"] == {"adaptation": "diag"}
     assert side["sampler"]["target_accept"] == 0.8  # nutpie's own, off the whitened coordinates
-    assert side["delayed_priors"]["R_population"] == "policy_scale"
+    assert side["delayed_priors"]["R_population"] == "policy_scale" and side["R_population_reason"] == "given"
+    assert "population of R: policy_scale (given)" in format_fit(root / "fit_rho")
     chosen, _ = choose_delayed_form(pd.read_parquet(root / "identify" / "estimates.parquet"))
     assert side["delayed_form"] == {**side["delayed_form"], "rho": "folded_centred", "tau_nm": chosen.tau_nm,
                                     "sigma_m": chosen.sigma_m}

@@ -145,8 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default profile; nutpie), or sampled beside the rest (PyMC's NUTS and a Metropolis step)")
     p.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default=None,
                    help="with --human-model delayed: population of the subjects' baseline R (default: chosen by the "
-                        "estimates, lognormal where they fix every subject's R, else policy_scale: R^(-1/2) "
-                        "half-normal; unpooled: none; pipelines/fit/delayed_forms.py)")
+                        "estimates, lognormal where they fix the R of at least half the subjects, else policy_scale: "
+                        "R^(-1/2) half-normal; unpooled: none; pipelines/fit/delayed_forms.py)")
     p.add_argument("--log-R-form", choices=RHO_FORM_NAMES[:2], default=None, help="delayed: form of the log R "
                    "blocks (default: centred if the estimates find no motor noise; pipelines/fit/delayed_forms.py)")
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,

@@ -174,38 +174,40 @@ folded centred (the ``kbl`` rows above) where they do not.
 
 Per subject (``mixed``, :func:`models.bayes.delayed_blocks.mixed_half_normal_block`). A study of the
 ``kbl`` human has both kinds of subject. In its full-size fit with ρ folded centred (README, "Not
-yet": the run that passed the verdict at 2540 s of sampling), the 9 subjects whose posterior |ρ|
-was at least 3.4 of its SDs from 0 changed the sign of ρ̃ 0-16 times in a chain of 1000 draws,
-the other 33 13-604 times: for those 9 the two modes ±ρ are nearly apart, as on the max-ent
-human (read ad hoc from that fit's posterior). Their units' estimates, combined
-(:func:`rho_pinned`), flag 14 subjects, those 9 among them. ``mixed`` makes ρ's block centred for the
-subjects the estimates flag and folded centred for the others, each subject bending along ρ̃
-where it is signed and along σ_m elsewhere (:func:`models.bayes.delayed_blocks.ridge_pivots`).
-On the 12-subject ``kbl`` study above (``--R-population policy_scale``, seed 1, run before e7cd12a
-was committed; its sidecar records ``mixed`` with 3 of 12 subjects centred): 40.0 and 31.7 leapfrog steps per warm-up and kept draw, 0 divergent, of the
-population β_R's ESS 144 the smallest and σ_β's R-hat 1.015 the largest, the units' log R at
-least ESS 79 and at most R-hat 1.028: as the folded centred rows (12 subjects have few that the
-data pin). At full size it did worse (the same study and estimates, ``scioc fit ... --R-population
-policy_scale --seed 2018`` at e7cd12a, when the data chose ``mixed``: 14 of 42 subjects centred):
-27 divergent transitions in its first 3754 of 8000 draws, at 80 leapfrog steps per draw, where the
-folded centred form had none at 78; stopped there (where they diverged was not read). So the data
-choose folded centred unless they fix every subject's ρ, and ``mixed`` is an option
-(``--rho-form mixed``), not a default.
+yet": the run that passed the verdict at 2540 s of sampling), the 9 subjects whose posterior |ρ| was
+at least 3.4 of its SDs from 0 changed the sign of ρ̃ 0-16 times in a chain of 1000 draws, the other
+33 13-604 times: for those 9 the two modes ±ρ are nearly apart, as on the max-ent human (read ad hoc
+from that fit's posterior). Their units' estimates, combined (:func:`rho_pinned`), flag 14 subjects,
+those 9 among them. ``mixed`` makes ρ's block centred for the subjects the estimates flag and folded
+centred for the others, each subject bending along ρ̃ where it is signed and along σ_m elsewhere
+(:func:`models.bayes.delayed_blocks.ridge_pivots`). On the 12-subject ``kbl`` study above
+(``--R-population policy_scale``, seed 1, run before e7cd12a was committed; its sidecar records
+``mixed`` with 3 of 12 subjects centred): 40.0 and 31.7 leapfrog steps per warm-up and kept draw, 0
+divergent, of the population β_R's ESS 144 the smallest and σ_β's R-hat 1.015 the largest, the
+units' log R at least ESS 79 and at most R-hat 1.028: as the folded centred rows (12 subjects have
+few that the data pin). At full size it did worse (the same study and estimates, ``scioc fit ...
+--R-population policy_scale --seed 2018`` at e7cd12a, when the data chose ``mixed``: 14 of 42
+subjects centred): 27 divergent transitions in its first 3754 of 8000 draws, at 80 leapfrog steps
+per draw, where the folded centred form had none at 78; stopped there (where they diverged was not
+read). So the data choose folded centred unless they fix every subject's ρ, and ``mixed`` is an
+option (``--rho-form mixed``), not a default.
 
-The population of R (:func:`choose_R_population`). On the max-ent human the policy-scale
-population with ρ centred (the form the estimates choose there; the full-size study of README
-"Speed", ``scioc fit ... --R-population policy_scale --seed 2018`` at fdc832d, with two 12-subject fits
-beside it for some minutes) ran at 64
-leapfrog steps per draw and had 41 divergent transitions in its first 2793 of 8000 draws, when it
-was stopped; the lognormal population passes the verdict on the same study at about 31 (README).
-On the ``kbl`` human the lognormal population's μ_R and σ_R do not mix in any form tried. So the
-population follows the data: lognormal where the estimates fix every subject's R (on the max-ent
-human every subject's combined z is at least 4.4, median 23.6, at full size), the policy scale where
-they leave any subject's R loose (on the ``kbl`` human 28 of 42 subjects, median z 2.15), since a
-subject whose R may be infinite (no policy noise, as the KBL model's human) is then inside the
-population. The two populations are models of the same quantity that differ where the data say
-little about it; the sidecar records which was used and why (``R_population_reason``), and
-``--R-population`` chooses one instead.
+The population of R (:func:`choose_R_population`). On the max-ent human the policy-scale population
+with ρ centred (the form the estimates choose there; the full-size study of README "Speed", ``scioc
+fit ... --R-population policy_scale --seed 2018`` at fdc832d, with two 12-subject fits beside it for
+some minutes) ran at 64 leapfrog steps per draw and had 41 divergent transitions in its first 2793
+of 8000 draws, when it was stopped; the lognormal population passes the verdict on the same study at
+about 31 (README). On the ``kbl`` human the lognormal population's μ_R and σ_R do not mix in any
+form tried. So the population follows the data: lognormal where the estimates fix the R of at least
+half the subjects (on the max-ent human every subject's combined z is at least 4.4, median 23.6, at
+full size), the policy scale where they leave more than half loose (on the ``kbl`` human 28 of 42
+subjects, median z 2.15), since a subject whose R may be infinite (no policy noise, as the KBL
+model's human) is then inside the population. By the median subject, as the other blocks' forms: a
+few loose subjects among many whose data fix R leave σ_R held by the many, and the policy scale
+failed where most subjects' R is fixed (a study of such a mixture has not been fitted). The two
+populations are models of the same quantity that differ where the data say little about it; the
+sidecar records which was used and why (``R_population_reason``), and ``--R-population`` chooses one
+instead.
 """
 
 from __future__ import annotations
@@ -278,18 +280,19 @@ def _rho_by_subject(estimates: pd.DataFrame, subjects) -> tuple[str, tuple, str]
 
 def choose_R_population(estimates: pd.DataFrame | None, subjects) -> tuple[str, str]:
     """The population of the subjects' baseline R (:class:`models.bayes.delayed_blocks.DelayedPriors`'s
-    ``R_population``) for these data, and why: ``lognormal`` (the max-ent model's) where the estimates fix every
-    subject's R (:func:`rho_pinned`), else ``policy_scale`` (module docstring, "The population of R"); lognormal
-    without estimates with an SE of log R."""
+    ``R_population``) for these data, and why: ``lognormal`` (the max-ent model's) where the estimates fix the R of
+    at least half the subjects (:func:`rho_pinned`; as the other blocks' forms, by the median subject), else
+    ``policy_scale`` (module docstring, "The population of R"); lognormal without estimates with an SE of log R."""
     if estimates is None or not {"se_log_R", "subject"} <= set(estimates.columns):
         return "lognormal", "lognormal: no estimates of R with SEs to measure the data by"
     pinned = rho_pinned(estimates, subjects)
-    if all(pinned):
-        return "lognormal", (f"lognormal: the estimates fix every subject's R ({len(pinned)} of {len(pinned)} with "
-                             f"their units' 2/SE(log R) combined at least {CENTRED_Z:g})")
-    return "policy_scale", (f"policy_scale: the estimates leave {len(pinned) - sum(pinned)} of {len(pinned)} "
-                            f"subjects' R loose (their units' 2/SE(log R) combined below {CENTRED_Z:g}; R may be "
-                            "infinite, no policy noise), so R^(-1/2) has a half-normal population")
+    n, fixed = len(pinned), sum(pinned)
+    if 2 * fixed >= n:
+        return "lognormal", (f"lognormal: the estimates fix the R of {fixed} of {n} subjects (their units' "
+                             f"2/SE(log R) combined at least {CENTRED_Z:g}), at least half")
+    return "policy_scale", (f"policy_scale: the estimates leave the R of {n - fixed} of {n} subjects loose (their "
+                            f"units' 2/SE(log R) combined below {CENTRED_Z:g}; R may be infinite, no policy noise), "
+                            "more than half, so R^(-1/2) has a half-normal population")
 
 
 def _form_by_z(name: str, z: np.ndarray, valid: np.ndarray, loose: str | None = None) -> tuple[str, str]:

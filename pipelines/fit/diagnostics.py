@@ -158,8 +158,10 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
         out.append(f"{n_div} divergent transition{'s' * (n_div != 1)}: refit with --target-accept {higher:g} "
                    f"(this fit: {ta:g}; smaller steps, deeper trees); divergences that persist mark a region the "
                    "sampler cannot enter, and the model's form must change there, not the number of draws")
-    pop = diag["population"]
-    # NaN (a parameter that never moved) fails the verdict's checks, so it is advised on here too
+    # NaN (a parameter that never moved) fails the verdict's checks, so it is advised on here too; a sidecar stores
+    # NaN as null (posterior.json), e.g. the R-hat of a one-chain fit
+    pop = {k: {m: math.nan if p.get(m) is None else float(p[m]) for m in ("ess_bulk", "ess_tail", "rhat")}
+           for k, p in diag["population"].items()}
     low = {k: min(p["ess_bulk"], p["ess_tail"]) for k, p in pop.items()
            if not min(p["ess_bulk"], p["ess_tail"]) >= ESS_MIN}
     if low:

@@ -55,7 +55,7 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert side["start"].startswith("the chains start near the ML estimates")  # the fit's own profile's, no --estimates
     # the kbl human's estimates leave some subject's R loose: the population of R is the policy scale's
     assert side["delayed_priors"]["R_population"] == "policy_scale"
-    assert side["R_population_reason"].startswith("policy_scale: the estimates leave")
+    assert side["R_population_reason"].startswith("policy_scale: the estimates leave the R of")
     # the population scales held at their units' spread, each below its prior's scale (PyMC's initial point)
     assert set(side["start_scales"]) == {"sigma_log_theta1", "sigma_beta", "rho_scale", "sigma_beta_log_R",
                                          "tau_theta2", "tau_nm_scale", "sigma_m_scale_sq"}
@@ -210,16 +210,18 @@ def test_rhos_block_is_centred_only_where_the_data_pin_it():
     assert choose_delayed_form(pinned)[0].rho == DelayedForm().rho == "folded"
 
 
-def test_the_population_of_R_is_lognormal_only_where_the_estimates_fix_every_subjects_R():
+def test_the_population_of_R_is_lognormal_where_the_estimates_fix_the_R_of_at_least_half_the_subjects():
     from pipelines.fit.delayed_forms import choose_R_population
 
     est = pd.DataFrame({"subject": ["A", "A", "B", "B"], "se_log_R": [0.2, 0.3, 0.5, 0.4]})  # z 10, 6.7; 4, 5
     population, reason = choose_R_population(est, ["A", "B"])
-    assert population == "lognormal" and "every subject's R (2 of 2" in reason
-    loose = est.assign(se_log_R=[0.2, 0.3, np.nan, 1.5])  # B: R at its bound in one unit, 1.33 in the other
+    assert population == "lognormal" and "fix the R of 2 of 2 subjects" in reason
+    loose = est.assign(se_log_R=[1.0, np.nan, np.nan, 1.5])  # A: 2 and R at its bound; B: the bound and 1.33
     population, reason = choose_R_population(loose, ["A", "B"])
-    assert population == "policy_scale" and "leave 1 of 2 subjects' R loose" in reason
-    assert choose_R_population(est, ["A", "B", "C"])[0] == "policy_scale"  # C has no estimates: not fixed
+    assert population == "policy_scale" and "leave the R of 2 of 2 subjects loose" in reason
+    half = est.assign(se_log_R=[0.2, 0.3, np.nan, 1.5])  # A fixed, B loose: half, lognormal
+    assert choose_R_population(half, ["A", "B"])[0] == "lognormal"
+    assert choose_R_population(half, ["A", "B", "C"])[0] == "policy_scale"  # C has no estimates: not fixed
     assert choose_R_population(None, ["A"])[0] == "lognormal"
     assert choose_R_population(est.drop(columns="se_log_R"), ["A"])[0] == "lognormal"
 

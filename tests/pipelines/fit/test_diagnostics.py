@@ -54,6 +54,16 @@ def test_a_parameter_that_never_moved_fails_the_verdict_and_is_advised_on():
                    "--draws, then judge again; an R-hat that stays high means chains in different regions"]
 
 
+def test_undefined_values_read_back_from_a_sidecar_are_advised_on_as_nan():
+    # posterior.json stores NaN as null (a one-chain fit's R-hat): read back, the advice is the NaN case's, not a crash
+    pop = {"s_m": {"rhat": None, "ess_bulk": None, "ess_tail": 12.0},
+           "beta": {"rhat": None, "ess_bulk": 700.0, "ess_tail": 650.0}}
+    diag = {"sampler": {"divergences": 0}, "population": pop, "passed": False}
+    out = remedies(diag, chains=1, draws=30, target_accept=0.9)
+    assert out[0] == "ESS of s_m is nan: the chains do not move in it; more draws will not help"
+    assert out[1].startswith("R-hat of s_m nan > 1.01 (2 parameters)")
+
+
 @pytest.mark.parametrize("s, expected", [(0.2, 0.04 / 1.04), (1.0, 0.5), (3.0, 0.9)])
 def test_the_pooling_factor_is_the_shrinkage_of_the_normal_model(s, expected):
     # ε_j ~ N(0, 1), data y_j ~ N(ε_j, s²): the posterior of ε_j is N(b y_j, b s²), b = 1 / (1 + s²), and Gelman and

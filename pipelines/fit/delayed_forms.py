@@ -249,10 +249,10 @@ def choose_delayed_form(estimates: pd.DataFrame | None, subjects=None) -> tuple[
         forms[name], reason = _form_by_z(name, v / se, se > 0)
         why.append(reason)
     if "se_log_R" in estimates.columns:
-        se = pd.to_numeric(estimates["se_log_R"], errors="coerce").to_numpy(dtype=float)
         if subjects is not None and "subject" in estimates.columns:
             forms["rho"], forms["rho_pinned"], reason = _rho_by_subject(estimates, subjects)
         else:
+            se = pd.to_numeric(estimates["se_log_R"], errors="coerce").to_numpy(dtype=float)
             forms["rho"], reason = _form_by_z("rho", 2.0 / se, se > 0, loose="folded_centred")
         why.append(reason + " (with --R-population policy_scale)")
     return DelayedForm(**forms), "; ".join(why)
@@ -298,8 +298,7 @@ def choose_R_population(estimates: pd.DataFrame | None, subjects) -> tuple[str, 
 def _form_by_z(name: str, z: np.ndarray, valid: np.ndarray, loose: str | None = None) -> tuple[str, str]:
     """Centred if the median of ``z`` (0 where not ``valid`` or not finite) is at least :data:`CENTRED_Z`, else
     ``loose`` (default ``LOOSE_FORM[name]``); and the reason."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(np.isfinite(z) & valid, z, 0.0)
+    z = np.where(np.isfinite(z) & valid, z, 0.0)
     med = float(np.median(z))
     form = "centred" if med >= CENTRED_Z else (LOOSE_FORM[name] if loose is None else loose)
     return form, f"{name} {form} (median estimate/SE {med:.3g}, threshold {CENTRED_Z:g})"

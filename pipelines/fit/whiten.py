@@ -91,14 +91,14 @@ def whitening(model, start: dict | None, pivots=None):
         names = [name for name, _ in pivots]
         columns = [block_column(raveled.point_map_info, dims, n, model.rvs_to_values[model[p]].name) for p in names]
         chosen = nearest_fold(x_hat, blocks, L, columns, np.column_stack([signed for _, signed in pivots]))
-        block_groups, ridges = [], {}
+        block_groups, ridges, counts = [], {}, {}
         for j, (name, column) in enumerate(zip(names, columns)):
             rows = chosen == j
             if rows.any():
                 a, ridges[name] = ridge_curvature(lambda x: fn(x)[1], x_hat, blocks[rows], L[rows], column)
                 block_groups.append((blocks[rows], L[rows], (column, a)))
-        used = [j for j in range(len(names)) if np.any(chosen == j)]
-        curved = {"curved_along": {names[j]: int(np.sum(chosen == j)) for j in used},
+                counts[name] = int(rows.sum())
+        curved = {"curved_along": counts,
                   "pivot_by_subject": [names[j] for j in chosen], "ridge": ridges,
                   "subjects_without_curvature": sum(r["subjects_without_curvature"] for r in ridges.values()),
                   "largest_shift_in_scales": max(r["largest_shift_in_scales"] for r in ridges.values())}

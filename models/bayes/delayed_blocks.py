@@ -97,6 +97,7 @@ import pytensor.tensor as pt
 
 from models.bayes.blocks import Parameterization, unit_block
 from models.bayes.hierarchical import Priors
+from models.bayes.noise_blocks import NOISE_A, NOISE_B, mixed_half_normal_block, polar_noise_block
 
 #: Population parameters of the lag and motor-noise blocks (and of ρ, with ``R_population="policy_scale"``).
 DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
@@ -104,7 +105,7 @@ DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 R_POPULATIONS = ("lognormal", "policy_scale", "unpooled")
 #: The forms of τ_nm and σ_m (:class:`DelayedForm`); ρ's add ``mixed`` (:func:`mixed_half_normal_block`).
 MOTOR_FORMS = ("centred", "noncentred", "folded", "folded_centred")
-RHO_FORMS = MOTOR_FORMS + ("mixed",)
+RHO_FORMS = MOTOR_FORMS + ("mixed", "polar")
 
 
 @dataclass(frozen=True)
@@ -213,13 +214,16 @@ class DelayedForm:
     ``folded`` ties z to s_ρ); measured in the module docstring. ``mixed``: centred for the
     subjects of ``rho_pinned`` (one flag per subject, in the model's order), folded centred for
     the others (:func:`mixed_half_normal_block`; :func:`pipelines.fit.delayed_forms.choose_delayed_form`
-    flags the subjects whose estimates fix ρ).
+    flags the subjects whose estimates fix ρ). ``polar``: ρ and σ_m of each subject with a k in ``polar_k`` (one
+    per subject, NaN for none) in polar coordinates, the others folded centred (:mod:`models.bayes.noise_blocks`;
+    ``sigma_m``'s form then does not apply; :func:`pipelines.fit.noise_arcs.noise_arcs` chooses k).
     """
 
     tau_nm: str = "centred"
     sigma_m: str = "centred"
     rho: str = "folded"
     rho_pinned: tuple = ()
+    polar_k: tuple = ()
 
     def __post_init__(self):
         for name, allowed in (("tau_nm", MOTOR_FORMS), ("sigma_m", MOTOR_FORMS), ("rho", RHO_FORMS)):
@@ -229,6 +233,8 @@ class DelayedForm:
             raise ValueError(f"DelayedForm.rho_pinned must hold one bool per subject; got {self.rho_pinned!r}")
         if self.rho == "mixed" and not self.rho_pinned:
             raise ValueError("DelayedForm.rho='mixed' needs rho_pinned, one flag per subject (from ML estimates)")
+        if self.rho == "polar" and not self.polar_k:
+            raise ValueError("DelayedForm.rho='polar' needs polar_k, one k (or NaN) per subject (from ML estimates)")
 
 
 def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedForm):
@@ -240,6 +246,9 @@ def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedF
     start = float(np.exp(-0.5 * priors.mu_log_R[0]))
     if form.rho == "mixed":
         rho = mixed_half_normal_block("rho", scale, np.asarray(form.rho_pinned, dtype=bool), start=start)
+    elif form.rho == "polar":
+        rho, _ = polar_noise_block(scale, motor_noise_scale(delayed_priors), form.polar_k, start_rho=start,
+                                   start_sigma=FOLDED_CENTRED_START["sigma_m"])
     else:
         rho = half_normal_block("rho", scale, form.rho, start=start)
     return -2.0 * pt.log(rho)
@@ -286,18 +295,25 @@ def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: d
 FOLDED_CENTRED_START = {"tau_nm": 0.05, "sigma_m": 0.05}
 
 
-def motor_blocks(priors: DelayedPriors, form: DelayedForm):
-    """τ_nm and σ_m per subject, each from a half-normal population, in the forms of ``form``; s_τ half-normal,
-    s_m² inverse gamma by default (:class:`DelayedPriors`; module docstring)."""
-    s_tau = pm.HalfNormal("tau_nm_scale", priors.tau_nm_scale)
+def motor_noise_scale(priors: DelayedPriors):
+    """s_m, the population scale of σ_m: s_m² inverse gamma by default, else Gamma or half-normal (:class:`DelayedPriors`)."""
     if priors.sigma_m_variance_inverse_gamma is not None:
         a, b = priors.sigma_m_variance_inverse_gamma
-        s_m = pm.Deterministic("sigma_m_scale", pt.sqrt(pm.InverseGamma("sigma_m_scale_sq", alpha=a, beta=b)))
-    elif priors.sigma_m_scale_gamma is not None:
-        s_m = pm.Gamma("sigma_m_scale", alpha=priors.sigma_m_scale_gamma[0], beta=priors.sigma_m_scale_gamma[1])
-    else:
-        s_m = pm.HalfNormal("sigma_m_scale", priors.sigma_m_scale)
-    return half_normal_block("tau_nm", s_tau, form.tau_nm), half_normal_block("sigma_m", s_m, form.sigma_m)
+        return pm.Deterministic("sigma_m_scale", pt.sqrt(pm.InverseGamma("sigma_m_scale_sq", alpha=a, beta=b)))
+    if priors.sigma_m_scale_gamma is not None:
+        return pm.Gamma("sigma_m_scale", alpha=priors.sigma_m_scale_gamma[0], beta=priors.sigma_m_scale_gamma[1])
+    return pm.HalfNormal("sigma_m_scale", priors.sigma_m_scale)
+
+
+def motor_blocks(priors: DelayedPriors, form: DelayedForm):
+    """τ_nm and σ_m per subject, each from a half-normal population, in the forms of ``form``; s_τ half-normal,
+    s_m (:func:`motor_noise_scale`). σ_m already in the model (``rho="polar"``: made with ρ) is taken as it is."""
+    s_tau = pm.HalfNormal("tau_nm_scale", priors.tau_nm_scale)
+    model = pm.modelcontext(None)
+    made = "sigma_m" in model.named_vars
+    s_m = None if made else motor_noise_scale(priors)
+    tau_nm = half_normal_block("tau_nm", s_tau, form.tau_nm)
+    return tau_nm, model["sigma_m"] if made else half_normal_block("sigma_m", s_m, form.sigma_m)
 
 
 def motor_coordinate(name: str, form: str) -> str:
@@ -329,51 +345,24 @@ def ridge_pivots(priors: DelayedPriors, form: DelayedForm, n_subjects: int) -> t
     follows; σ_m as a function of ρ̃ is one symmetric curve, a parabola at its top, so the bend is along ρ̃. Where
     the data leave σ_m near 0 instead (no motor noise), the arch tops in σ_m, and so the bend is along the signed
     coordinate whose fold the subject's mode is nearest. Measured: :mod:`pipelines.fit.delayed_forms`, "The
-    ridge's pivot with a signed ρ" and "The form of ρ".
+    ridge's pivot with a signed ρ" and "The form of ρ". With ``rho="polar"`` the candidates are the polar block's
+    a (signed where a subject is not in polar coordinates: a = ρ̃) and b (φ, or σ̃): a subject in polar coordinates
+    bends along φ, what is left of its arc where k is not its ellipse's.
     """
     sigma_m = (motor_coordinate("sigma_m", form.sigma_m), np.full(n_subjects, form.sigma_m in SIGNED_FORMS))
     if priors.R_population != "policy_scale":
         return (sigma_m,)
+    if form.rho == "polar":
+        polar = np.isfinite(np.asarray(form.polar_k, dtype=float))
+        if polar.shape != (n_subjects,):
+            raise ValueError(f"polar_k has {polar.size} values for {n_subjects} subjects")
+        return (NOISE_A, ~polar), (NOISE_B, np.full(n_subjects, True))
     if form.rho == "mixed":
         pinned = np.asarray(form.rho_pinned, dtype=bool)
         if pinned.shape != (n_subjects,):
             raise ValueError(f"rho_pinned has {pinned.size} flags for {n_subjects} subjects")
         return ("rho_free", ~pinned), sigma_m
     return (motor_coordinate("rho", form.rho), np.full(n_subjects, form.rho in SIGNED_FORMS)), sigma_m
-
-
-def mixed_half_normal_block(name: str, scale, pinned: np.ndarray, *, start: float):
-    """Per subject, ``name`` ~ HalfNormal(``scale``), from one unconstrained free variable ``<name>_free`` v with
-    the form chosen per subject: centred (``name`` = exp(v), as PyMC's log transform of a half-normal) where
-    ``pinned``, folded centred (``name`` = |v|, v ~ N(0, ``scale``)) elsewhere; the same law in both, so the model
-    is the half-normal population of any other form. Starts at ``start`` (v = log ``start`` where pinned).
-
-    Why per subject: a centred block stretches ρ -> 0 into log ρ's infinite tail, where subjects whose data leave
-    ρ near 0 stall; a folded centred one gives a subject whose data fix ρ far from 0 two modes ±ρ, joined only over
-    its ridge's arch, which the sampler crosses with deep trees (:mod:`pipelines.fit.delayed_forms`, "The form of
-    ρ"). A study of the ``kbl`` human has both kinds of subject.
-    """
-    pinned = np.asarray(pinned, dtype=bool)
-    n = len(pm.modelcontext(None).coords["subject"])
-    if pinned.shape != (n,):
-        raise ValueError(f"{name}: {pinned.size} pinned flags for {n} subjects")
-
-    def to_value(v):
-        return pt.switch(pinned, pt.exp(v), pt.abs(v))
-
-    def logp(v, s):
-        half_normal = pm.logp(pm.HalfNormal.dist(s), to_value(v))
-        # pinned: the half-normal density at exp(v) times the Jacobian exp(v); else v ~ N(0, s), whose |v| is
-        # half-normal with density 2 N(|v|; 0, s)
-        return pt.switch(pinned, half_normal + v, half_normal - np.log(2.0))
-
-    def random(s, rng=None, size=None):
-        v = rng.normal(0.0, s, size=size)
-        return np.where(pinned, np.log(np.abs(v)), v)
-
-    free = pm.CustomDist(f"{name}_free", scale, logp=logp, random=random, dims="subject",
-                         initval=np.where(pinned, np.log(start), start))
-    return pm.Deterministic(name, to_value(free), dims="subject")
 
 
 def half_normal_block(name: str, scale, form: str, *, start: float | None = None):
@@ -396,4 +385,4 @@ def half_normal_block(name: str, scale, form: str, *, start: float | None = None
 
 __all__ = ["DELAYED_POPULATION_PARAMETERS", "FOLDED_CENTRED_START", "DelayedForm", "DelayedPriors", "MOTOR_FORMS",
            "RHO_FORMS", "R_POPULATIONS", "SIGNED_FORMS", "baseline_log_R", "cost_blocks", "half_normal_block",
-           "mixed_half_normal_block", "motor_blocks", "motor_coordinate", "ridge_pivots"]
+           "motor_blocks", "motor_coordinate", "motor_noise_scale", "ridge_pivots"]

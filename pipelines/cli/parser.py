@@ -152,7 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default: chosen by the estimates, "
                    "centred where they fix every subject's ρ, else folded_centred; folded without them; mixed: "
-                   "per subject, centred where they fix its ρ)")
+                   "per subject, centred where they fix its ρ; polar: ρ and σ_m in polar coordinates for the subjects "
+                   "whose likelihood trades one for the other along an arc, models/bayes/noise_blocks.py)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
                    help="delayed, profile delays: coordinates and mass matrix (default curved: whitened per subject "
                    "and curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own)")
@@ -309,9 +310,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--tune", type=positive_int, default=1000, help="tuning draws per chain (default 1000)")
     g.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal", help="the "
                    "baseline R's population (default lognormal; policy_scale: R^(-1/2) half-normal; unpooled: none)")
-    g.add_argument("--rho-form", choices=[f for f in RHO_FORM_NAMES if f != "mixed"], default="folded",
-                   help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded; mixed needs a fit's "
-                   "ML estimates)")
+    g.add_argument("--rho-form", choices=[f for f in RHO_FORM_NAMES if f not in ("mixed", "polar")], default="folded",
+                   help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded; mixed and polar need a "
+                   "fit's ML estimates)")
     g.add_argument("--adaptation", choices=ADAPTATION_NAMES[2:], default="low_rank",
                    help="nutpie's mass matrix (default low_rank; curved and whitened need a fit's ML start)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")

@@ -44,6 +44,7 @@ from pipelines.fit.contrasts import contrasts
 from pipelines.fit.delayed_forms import LOG_R_FORMS, choose_R_population, choose_delayed_form, log_R_form
 from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
+from pipelines.fit.noise_arcs import noise_arcs
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import sample_model
 from pipelines.fit.start import scale_sources, start_point
@@ -249,10 +250,14 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         form_reason = "given"
     log_R, R_reason = log_R_form(delayed_form) if log_R is None else (log_R, "given")
     form = replace(form, R_mc=log_R, R_sc=log_R)
+    arcs = None
     if rho_form is not None:
         if rho_form == "mixed" and len(delayed_form.rho_pinned) != len(subjects):
             raise ValueError("--rho-form mixed chooses each subject's form by its ML estimates (se_log_R): give "
                              "--estimates with that column, or another form")
+        if rho_form == "polar":
+            ks, arcs = noise_arcs(prepared, plant, ml, delays.samples, tau0_function(prepared, plant), subjects)
+            delayed_form = replace(delayed_form, polar_k=ks)
         delayed_form = replace(delayed_form, rho=rho_form)
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
@@ -305,6 +310,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                 "pymc_nuts_options": {} if target_accept is None else {"target_accept": float(target_accept)}}
                if sampled else {"nutpie_options": dict(nuts)}),
             "delayed_form": {**asdict(delayed_form), "reason": form_reason},
+            **({"noise_arcs": arcs} if arcs is not None else {}),
             **({"whitening": whitening} if whiten else {})}
     return DelayedFit(idata, diag, timing, delays, side)
 

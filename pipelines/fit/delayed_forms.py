@@ -172,7 +172,7 @@ only the motor-noise funnel's rare divergences remain (seed 2: all four in one c
 its 95 % quantile). So ρ is centred where the estimates fix it, like τ_nm's and σ_m's blocks, and
 folded centred (the ``kbl`` rows above) where they do not.
 
-Per subject (``mixed``, :func:`models.bayes.delayed_blocks.mixed_half_normal_block`). A study of the
+Per subject (``mixed``, :func:`models.bayes.noise_blocks.mixed_half_normal_block`). A study of the
 ``kbl`` human has both kinds of subject. In its full-size fit with ρ folded centred (README, "Not
 yet": the run that passed the verdict at 2540 s of sampling), the 9 subjects whose posterior |ρ| was
 at least 3.4 of its SDs from 0 changed the sign of ρ̃ 0-16 times in a chain of 1000 draws, the other

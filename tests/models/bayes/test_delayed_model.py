@@ -179,28 +179,33 @@ def test_the_ridge_pivots_are_rhos_coordinate_where_rho_has_one_then_sigma_ms_wi
     """models.bayes.delayed_blocks.ridge_pivots: with R_population="policy_scale" a curved whitening may bend along ρ's
     free variable (signed where its form is folded or folded centred, or, mixed, in the subjects not rho_pinned),
     and along σ_m's, last (signed where its form is); each subject's is the signed one whose fold its mode is nearest,
-    else σ_m's (models.bayes.whiten.nearest_fold). Without ρ, σ_m's alone. Each is a free variable of the model with
-    one value per subject."""
+    else σ_m's (models.bayes.whiten.nearest_fold). Without ρ, σ_m's alone. polar: the block's a (signed where a subject
+    has no k: a = ρ̃) and b (φ or σ̃; signed), whatever σ_m's form. Each is a free variable of the model with one value
+    per subject."""
     from models.bayes.delayed_blocks import MOTOR_FORMS, RHO_FORMS, SIGNED_FORMS, ridge_pivots
     from models.bayes.delayed_model import DelayedPriors
 
     w = study
     n = len(dict.fromkeys(w.subjects))
     rho_name = {"centred": "rho", "noncentred": "z_rho", "folded": "z_rho",
-                "folded_centred": "rho_signed", "mixed": "rho_free"}
+                "folded_centred": "rho_signed", "mixed": "rho_free", "polar": "noise_a"}
     sigma_m = {"centred": "sigma_m", "noncentred": "z_sigma_m", "folded": "z_sigma_m",
                "folded_centred": "sigma_m_signed"}
     assert set(SIGNED_FORMS) == {"folded", "folded_centred"} and set(rho_name) == set(RHO_FORMS)
     pinned = tuple(bool(i % 2) for i in range(n))
+    ks = tuple(2.0 if i % 2 else float("nan") for i in range(n))
     seen = set()
     for population in ("lognormal", "policy_scale", "unpooled"):
         for rho in RHO_FORMS:
             for sm in ("centred", "folded_centred"):
                 dp = DelayedPriors(R_population=population)
-                form = DelayedForm("noncentred", sm, rho=rho, rho_pinned=pinned if rho == "mixed" else ())
+                form = DelayedForm("noncentred", sm, rho=rho, rho_pinned=pinned if rho == "mixed" else (),
+                                   polar_k=ks if rho == "polar" else ())
                 pivots = ridge_pivots(dp, form, n)
                 want_sm = (sigma_m[sm], [sm in SIGNED_FORMS] * n)
-                if population == "policy_scale":
+                if population == "policy_scale" and rho == "polar":
+                    want = [("noise_a", [not p for p in pinned]), ("noise_b", [True] * n)]
+                elif population == "policy_scale":
                     rho_signed = [not p for p in pinned] if rho == "mixed" else [rho in SIGNED_FORMS] * n
                     want = [(rho_name[rho], rho_signed), want_sm]
                 else:
@@ -212,21 +217,28 @@ def test_the_ridge_pivots_are_rhos_coordinate_where_rho_has_one_then_sigma_ms_wi
                                                 delayed_priors=dp, delayed_form=form)
                     for name, _ in pivots:
                         assert model[name] in model.free_RVs and model.named_vars_to_dims[name] == ("subject",)
-    assert seen == set(rho_name.values()) | {"sigma_m", "sigma_m_signed"}
+                    if rho == "polar":  # σ_m is the polar block's, not a block of its own
+                        assert not {v.name for v in model.free_RVs} & {"sigma_m", "z_sigma_m", "sigma_m_signed"}
+                        assert model["sigma_m"] in model.deterministics
+    assert seen == set(rho_name.values()) | {"sigma_m", "sigma_m_signed", "noise_b"}
+    with pytest.raises(ValueError, match="polar_k has 1 values"):
+        ridge_pivots(DelayedPriors(R_population="policy_scale"), DelayedForm(rho="polar", polar_k=(2.0,)), n)
+    with pytest.raises(ValueError, match="needs polar_k"):
+        DelayedForm(rho="polar")
     with pytest.raises(ValueError, match="rho_pinned has 1 flags"):
         ridge_pivots(DelayedPriors(R_population="policy_scale"), DelayedForm(rho="mixed", rho_pinned=(True,)), n)
     assert MOTOR_FORMS == RHO_FORMS[:4]
 
 
 def test_the_mixed_form_of_rho_is_the_half_normal_law_centred_where_pinned_and_folded_centred_elsewhere(plant, study):
-    """models.bayes.delayed_blocks.mixed_half_normal_block: ρ = exp(v) where pinned, |v| elsewhere, with v's density
+    """models.bayes.noise_blocks.mixed_half_normal_block: ρ = exp(v) where pinned, |v| elsewhere, with v's density
     such that ρ ~ HalfNormal(s_ρ) in both: its log density at given values against the half-normal's with each form's
     Jacobian, its prior draws against the half-normal's quantiles (KS test, false alarm 1e-3), and the model's
     posterior graph reads ρ from v as said. Negative controls: draws of v itself (not ρ) fail the KS test."""
     import pytensor
     from scipy import stats
 
-    from models.bayes.delayed_blocks import mixed_half_normal_block
+    from models.bayes.noise_blocks import mixed_half_normal_block
 
     pinned = np.array([True, False, True])
     with pm.Model(coords={"subject": ["a", "b", "c"]}) as model:

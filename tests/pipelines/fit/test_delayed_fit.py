@@ -347,6 +347,31 @@ def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
 
 
 @pytest.mark.slow
+def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed_study):
+    # scioc fit --R-population policy_scale --rho-form polar: each subject's k and fall (pipelines.fit.noise_arcs) are
+    # in the sidecar, the subjects whose fall reaches ARC_MIN (and only they) have a k in the form, the whitening bends
+    # them along φ (noise_b), and the posterior's ρ and σ_m are the polar block's, positive.
+    from pipelines.fit.noise_arcs import ARC_MIN
+
+    root, sim, prepared = delayed_study
+    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
+    paths = fit_to_dir(sim["study"], root / "fit_polar", settings=SETTINGS, prepared=prepared,
+                       delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="polar", **small)
+    side = json.loads(open(paths["sidecar"]).read())
+    arcs, form = side["noise_arcs"], side["delayed_form"]
+    assert form["rho"] == "polar" and len(form["polar_k"]) == len(arcs) == 3
+    for k, (subject, arc) in zip(form["polar_k"], arcs.items()):
+        polar = arc["fall"] is not None and arc["fall"] >= ARC_MIN and arc["k"] is not None and arc["k"] > 0
+        assert (k == arc["k"]) if polar else (k is None), subject  # NaN is stored as null
+    assert side["whitening"]["curved_along"].get("noise_b", 0) >= sum(k is not None for k in form["polar_k"])
+    import arviz as az
+
+    post = az.from_netcdf(paths["posterior"])["posterior"]
+    assert float(post["rho"].min()) >= 0 and float(post["sigma_m"].min()) >= 0
+    assert {"noise_a", "noise_b"} <= set(post.data_vars)
+
+
+@pytest.mark.slow
 def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
     # scioc fit --R-population policy_scale --rho-form folded_centred, the default (curved) whitening: each subject's
     # block bends along ρ's signed coordinate (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.

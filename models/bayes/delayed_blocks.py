@@ -97,7 +97,8 @@ import pytensor.tensor as pt
 
 from models.bayes.blocks import Parameterization, unit_block
 from models.bayes.hierarchical import Priors
-from models.bayes.noise_blocks import NOISE_A, NOISE_B, mixed_half_normal_block, polar_noise_block
+from models.bayes.noise_blocks import (NOISE_A, NOISE_B, mixed_half_normal_block, polar_noise_block,
+                                      squared_half_normal_block)
 
 #: Population parameters of the lag and motor-noise blocks (and of ρ, with ``R_population="policy_scale"``).
 DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
@@ -105,7 +106,7 @@ DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 R_POPULATIONS = ("lognormal", "policy_scale", "unpooled")
 #: The forms of τ_nm and σ_m (:class:`DelayedForm`); ρ's add ``mixed`` (:func:`mixed_half_normal_block`).
 MOTOR_FORMS = ("centred", "noncentred", "folded", "folded_centred")
-RHO_FORMS = MOTOR_FORMS + ("mixed", "polar")
+RHO_FORMS = MOTOR_FORMS + ("mixed", "polar", "squared")
 
 
 @dataclass(frozen=True)
@@ -216,7 +217,8 @@ class DelayedForm:
     the others (:func:`mixed_half_normal_block`; :func:`pipelines.fit.delayed_forms.choose_delayed_form`
     flags the subjects whose estimates fix ρ). ``polar``: ρ and σ_m of each subject with a k in ``polar_k`` (one
     per subject, NaN for none) in polar coordinates, the others folded centred (:mod:`models.bayes.noise_blocks`;
-    ``sigma_m``'s form then does not apply; :func:`pipelines.fit.noise_arcs.noise_arcs` chooses k).
+    ``sigma_m``'s form then does not apply; :func:`pipelines.fit.noise_arcs.noise_arcs` chooses k). ``squared``:
+    ρ = u², u unconstrained and signed (:func:`models.bayes.noise_blocks.squared_half_normal_block`).
     """
 
     tau_nm: str = "centred"
@@ -246,6 +248,8 @@ def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedF
     start = float(np.exp(-0.5 * priors.mu_log_R[0]))
     if form.rho == "mixed":
         rho = mixed_half_normal_block("rho", scale, np.asarray(form.rho_pinned, dtype=bool), start=start)
+    elif form.rho == "squared":
+        rho = squared_half_normal_block("rho", scale, start=start)
     elif form.rho == "polar":
         rho, _ = polar_noise_block(scale, motor_noise_scale(delayed_priors), form.polar_k, start_rho=start,
                                    start_sigma=FOLDED_CENTRED_START["sigma_m"])
@@ -347,7 +351,8 @@ def ridge_pivots(priors: DelayedPriors, form: DelayedForm, n_subjects: int) -> t
     coordinate whose fold the subject's mode is nearest. Measured: :mod:`pipelines.fit.delayed_forms`, "The
     ridge's pivot with a signed ρ" and "The form of ρ". With ``rho="polar"`` the candidates are the polar block's
     a (signed where a subject is not in polar coordinates: a = ρ̃) and b (φ, or σ̃): a subject in polar coordinates
-    bends along φ, what is left of its arc where k is not its ellipse's.
+    bends along φ, what is left of its arc where k is not its ellipse's. With ``rho="squared"`` ρ's candidate is its
+    root u (signed).
     """
     sigma_m = (motor_coordinate("sigma_m", form.sigma_m), np.full(n_subjects, form.sigma_m in SIGNED_FORMS))
     if priors.R_population != "policy_scale":
@@ -357,6 +362,8 @@ def ridge_pivots(priors: DelayedPriors, form: DelayedForm, n_subjects: int) -> t
         if polar.shape != (n_subjects,):
             raise ValueError(f"polar_k has {polar.size} values for {n_subjects} subjects")
         return (NOISE_A, ~polar), (NOISE_B, np.full(n_subjects, True))
+    if form.rho == "squared":
+        return ("rho_root", np.full(n_subjects, True)), sigma_m
     if form.rho == "mixed":
         pinned = np.asarray(form.rho_pinned, dtype=bool)
         if pinned.shape != (n_subjects,):

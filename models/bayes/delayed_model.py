@@ -210,10 +210,13 @@ WHITENED = "whitened"
 #: The name in :data:`ADAPTATIONS` of the whitened sampling with each subject's ridge along σ_m (or a signed ρ)
 #: curved (module docstring, "Curved").
 CURVED = "curved"
+#: The name in :data:`ADAPTATIONS` of the curved whitened sampling with nutpie's low-rank mass matrix on top.
+CURVED_LOW_RANK = "curved_low_rank"
 #: The mass matrices a delayed fit with profile delays may use (``scioc fit --adaptation``), the default first:
 #: nutpie's diagonal one on each subject's whitened coordinates curved along σ_m's ridge, then on the affine
-#: whitened ones (:mod:`models.bayes.whiten`; module docstring, "Whitened", "Curved"), then nutpie's own.
-ADAPTATIONS = (CURVED, WHITENED, *NUTPIE_ADAPTATIONS)
+#: whitened ones (:mod:`models.bayes.whiten`; module docstring, "Whitened", "Curved"), then nutpie's own, then its
+#: low-rank one on the curved coordinates (:data:`CURVED_LOW_RANK`).
+ADAPTATIONS = (CURVED, WHITENED, *NUTPIE_ADAPTATIONS, CURVED_LOW_RANK)
 
 
 #: nutpie's target acceptance rate on the whitened coordinates (module docstring, "Whitened"; nutpie's default 0.8).
@@ -222,11 +225,12 @@ WHITENED_TARGET_ACCEPT = 0.9
 
 def nutpie_options(adaptation: str) -> dict:
     """nutpie's options for a delayed fit with this :data:`ADAPTATIONS` entry (whitened, curved or not: its diagonal
-    mass matrix and :data:`WHITENED_TARGET_ACCEPT`)."""
+    mass matrix, or the low-rank one with :data:`CURVED_LOW_RANK`, and :data:`WHITENED_TARGET_ACCEPT`)."""
     if adaptation not in ADAPTATIONS:
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}; got {adaptation!r}")
-    if adaptation in (CURVED, WHITENED):
-        return {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
+    if adaptation in (CURVED, WHITENED, CURVED_LOW_RANK):
+        return {"adaptation": "low_rank" if adaptation == CURVED_LOW_RANK else "diag",
+                "target_accept": WHITENED_TARGET_ACCEPT}
     return {"adaptation": adaptation}
 
 
@@ -362,6 +366,6 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
                            **kwargs)
 
 
-__all__ = ["ADAPTATIONS", "CURVED", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
+__all__ = ["ADAPTATIONS", "CURVED", "CURVED_LOW_RANK", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
            "DelayedForm", "DelayedPriors", "NUTPIE_ADAPTATIONS", "R_POPULATIONS", "WHITENED", "WHITENED_TARGET_ACCEPT",
            "build_delayed_model", "delay_step", "nutpie_options"]

@@ -1,16 +1,22 @@
-"""Per-subject forms of a subject's noise scales: ρ centred or folded per subject (``mixed``), ρ and σ_m in polar
-coordinates (``polar``), the arc the data leave between them made straight.
+"""Other forms of a subject's noise scales: ρ centred or folded per subject (``mixed``), ρ = u² (``squared``), and
+ρ and σ_m in polar coordinates (``polar``), the arc the data leave between them made straight.
+
+The first two are documented at their functions; the rest of this docstring is the polar form's.
 
 Why. The policy noise (variance ∝ ρ², ρ = R^(-1/2)) and the motor noise (∝ σ_m²) share a
 subject's torque variability, so where the data fix both only through their sum the
 posterior follows the ridge ρ² + k σ_m² ≈ c (:func:`models.bayes.delayed_blocks.ridge_pivots`).
 With ρ and σ_m folded centred (ρ = |ρ̃|, σ_m = |σ̃|, both signed) that ridge is an ellipse in
 (ρ̃, σ̃), and a subject whose data fix ρ away from 0 (the ``kbl`` human's "pinned" subjects)
-has its posterior on a long arc of it: on the full-size ``kbl`` study, measured ad hoc, the
-conditional maximum of σ_m² fell from 1.5-1.8 to 0.2-0.6 times its ML value as ρ² went from
-half to twice its own, over a ridge a few nats wide. No affine map, and no quadratic bend about
-one point, straightens an arc that long; NUTS then needs small steps across it and long
-trajectories along it. In polar coordinates::
+has its posterior on a long arc of it: on the full-size ``kbl`` study, with θ, τ_nm and the delay
+held at the ML estimates (:mod:`pipelines.fit.noise_arcs`, read ad hoc), the maximizing σ_m² of 9
+subjects fell from 1.3-1.8 to 0.16-0.66 times its ML value as ρ² went from half to twice its own.
+No affine map, and no quadratic bend about one point, straightens an arc that long; NUTS then needs
+small steps across it and long trajectories along it. (With τ_nm free the posterior's main
+trade-off turned out to be ρ² against τ_nm, not σ_m²: :mod:`pipelines.fit.delayed_forms`, "Polar,
+squared, and the low-rank mass matrix", where what polar coordinates bought is measured.)
+
+In polar coordinates::
 
     ρ̃ = r cos φ,   σ̃ = r sin φ / √k,   a = log r,   b = φ
 
@@ -163,6 +169,26 @@ def mixed_half_normal_block(name: str, scale, pinned: np.ndarray, *, start: floa
     return pm.Deterministic(name, to_value(free), dims="subject")
 
 
+def squared_half_normal_block(name: str, scale, *, start: float):
+    """Per subject ``name`` ~ HalfNormal(``scale``) as u², u unconstrained (``<name>_root``, dims ``subject``): the
+    density of u is |u| p(u²), p the half-normal's, so ρ = 0 is u = 0, a finite step (no log tail), where the density
+    vanishes like |u|: the two copies ±u of a subject are apart, and a chain need not cross between them (as it must
+    cross ρ̃ = 0 in the folded form, where a subject whose data hold ρ away from 0 has a dip). Starts at
+    u = sqrt(``start``)."""
+    n = len(pm.modelcontext(None).coords["subject"])
+
+    def logp(u, s):
+        return pm.logp(pm.HalfNormal.dist(s), u**2) + pt.log(pt.abs(u))
+
+    def random(s, rng=None, size=None):
+        rho = np.abs(rng.normal(0.0, 1.0, size=size)) * s
+        return np.sqrt(rho) * rng.choice([-1.0, 1.0], size=np.shape(rho))
+
+    root = pm.CustomDist(f"{name}_root", scale, logp=logp, random=random, dims="subject",
+                         initval=np.full(n, np.sqrt(start)))
+    return pm.Deterministic(name, root**2, dims="subject")
+
+
 def polar_noise_block(rho_scale, sigma_scale, k, *, start_rho: float, start_sigma: float):
     """Per subject ρ (``rho``) ~ HalfNormal(``rho_scale``) and σ_m (``sigma_m``) ~ HalfNormal(``sigma_scale``),
     independent, sampled as (a, b) (``noise_a``, ``noise_b``, dims ``subject``): polar coordinates where ``k`` (one
@@ -197,4 +223,4 @@ def polar_noise_block(rho_scale, sigma_scale, k, *, start_rho: float, start_sigm
 
 
 __all__ = ["NOISE_A", "NOISE_B", "draw_a", "draw_b", "log_envelope", "mixed_half_normal_block", "noise_logp", "noise_values",
-           "polar_noise_block"]
+           "polar_noise_block", "squared_half_normal_block"]

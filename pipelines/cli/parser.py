@@ -156,7 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "whose likelihood trades one for the other along an arc, models/bayes/noise_blocks.py)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
                    help="delayed, profile delays: coordinates and mass matrix (default curved: whitened per subject "
-                   "and curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own)")
+                   "and curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own; "
+                   "curved_low_rank: curved, with nutpie's low-rank mass matrix)")
     p.add_argument("--target-accept", type=acceptance, help="the sampler's target acceptance rate (default 0.9 for "
                    "the delayed model's whitened fit, else nutpie's 0.8); raise it where transitions diverge")
     p.add_argument("--compare-to", metavar="MAXENT_FIT", help="with --human-model delayed: a finished max-ent fit of "
@@ -313,7 +314,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--rho-form", choices=[f for f in RHO_FORM_NAMES if f not in ("mixed", "polar")], default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded; mixed and polar need a "
                    "fit's ML estimates)")
-    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[2:], default="low_rank",
+    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[2:4], default="low_rank",
                    help="nutpie's mass matrix (default low_rank; curved and whitened need a fit's ML start)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
     p.set_defaults(func=commands.cmd_bench_fit)

@@ -76,9 +76,9 @@ LIKELIHOOD_NAMES = ("torques", "angles")
 #: The delayed model's baseline-R populations (:data:`models.bayes.delayed_model.R_POPULATIONS`, tested equal).
 R_POPULATION_NAMES = ("lognormal", "policy_scale", "unpooled")
 #: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
-RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred", "mixed", "polar")
+RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred", "mixed", "polar", "squared")
 #: The delayed fit's mass matrices, default first, then nutpie's own (:data:`models.bayes.delayed_model.ADAPTATIONS`).
-ADAPTATION_NAMES = ("curved", "whitened", "low_rank", "diag")
+ADAPTATION_NAMES = ("curved", "whitened", "low_rank", "diag", "curved_low_rank")
 #: Points of the adequacy check at the posterior (:data:`pipelines.fit.checks.ADEQUACY_POINTS`, tested equal).
 ADEQUACY_AT_NAMES = ("draw", "means")
 ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one joint posterior draw picked by the "

@@ -192,6 +192,39 @@ per draw, where the folded centred form had none at 78; stopped there (where the
 read). So the data choose folded centred unless they fix every subject's ρ, and ``mixed`` is an
 option (``--rho-form mixed``), not a default.
 
+Polar, squared, and the low-rank mass matrix, on the hard twelve. The 12 subjects of the full-size
+``kbl`` study (``scioc bench --parts fit_delayed --humans kbl``'s, seed 2018) whose posterior read
+worst in session 33's diagnosis (S04, S08, S10, S14, S20, S21, S22, S23, S28, S39, S40, S42), cut
+from its ``study.parquet`` and ``estimates.parquet`` by subject (pandas, ad hoc), fitted as the
+12-subject rows above with ``--R-population policy_scale --rho-form F`` (``lr``: ``--adaptation
+curved_low_rank``, then run through a wrapper that patched ``nutpie_options``; 2026-12-06, with other
+fits beside some of them, which moves no step count)::
+
+    ρ's form (bend)        mass matrix  steps        div  step size    population: smallest ESS; R-hat   units' log R
+    folded centred (ρ̃)     diagonal     49.7  58.0   0    0.131 0.099  β_R 84; β_R 1.023                 43, 1.050
+    polar (φ)              diagonal     45.6  43.7   0    0.158 0.115  σ_βR 141; σ_βR 1.019              33, 1.044
+    squared (u)            diagonal     36.6  30.7   33   0.175 0.208  σ_βR 96; τ_θ2 1.015               37, 1.031
+    folded centred (ρ̃)     low rank     76.0  33.2   0    0.141 0.146  σ_βR 107; σ_β 1.016               41, 1.036
+    polar (φ)              low rank     84.4  31.6   0    0.174 0.147  σ_βR 77; σ_βR 1.045               130, 1.030
+    squared (u)            low rank     60.7  30.6   1    0.189 0.160  σ_βR 191; s_ρ 1.015               147, 1.021
+
+The same twelve, read in the model's unconstrained coordinates of the first row's draws (ad hoc): the
+trade-off the data leave is between ρ² and τ_nm (τ_nm on ρ² linear, R² 0.56-0.90 per subject), much
+more than between ρ² and σ_m² (R² 0.02-0.47, τ_nm free). ρ̃ changed sign 12-62 times in 600 draws
+for S04, S14, S20, S22 and S42 (0-5 for the others); of those read closely (S04, S08, S20, S42), log
+τ_nm, and often log σ_m and log θ1's mean, lie on ρ̃ along parabolas about ρ̃ = 0, with a dip there (ρ
+= 0 less likely than their mode, not excluded); those whose ρ̃ kept its sign (S21, S23, S40) lie on a
+straight ridge of ρ̃, log τ_nm and log σ_m (smallest eigenvalue of the correlation 0.015-0.023),
+which the whitening takes out. So: polar coordinates (:mod:`models.bayes.noise_blocks`, k from
+:mod:`pipelines.fit.noise_arcs`, 7 of the 12 in them) straighten less than their arcs promised, a
+quarter fewer steps; ρ = u² removes the dip (no sign changes at all) and halves the steps, but its
+density vanishes at u = 0 like |u|, and for S04, S14, S20 and S22, whose ρ reaches 0, the draw with
+the smallest |u| was a divergent one; nutpie's low-rank mass
+matrix on the curved coordinates, which learns the correlations the whitening leaves, cuts the kept
+draws' steps of the folded centred and polar forms to about the squared form's (58.0 -> 33.2, 43.7 ->
+31.6), at the price of an expensive middle warm-up (tenths 5-6: 139-218 steps per draw). Neither form is a default: ``--rho-form polar`` and ``--rho-form squared`` are options,
+and the low-rank matrix (``--adaptation curved_low_rank``) is measured at full size in README, "Speed".
+
 The population of R (:func:`choose_R_population`). On the max-ent human the policy-scale population
 with ρ centred (the form the estimates choose there; the full-size study of README "Speed", ``scioc
 fit ... --R-population policy_scale --seed 2018`` at fdc832d, with two 12-subject fits beside it for

@@ -11,9 +11,10 @@ the three). The subject goes to polar coordinates where that fall, from s = ½ t
 keeps the folded centred coordinates (ρ near 0: no arc; σ_m² barely moved: ρ and σ_m fixed apart).
 
 Measured ad hoc on the full-size ``kbl`` study (``scioc bench --parts fit_delayed --humans kbl``'s
-data, 42 subjects): the fall was 0.6-1.6 of σ_m² for the subjects whose estimates fix R (k 1.5-4.7),
-0.4 for three more, and below 0.25 for the rest (ρ at 0, or σ_m fixed whatever ρ); 12 subjects
-reached the 0.3. On the max-ent human σ_m's ML is near 0 and no subject qualifies.
+data, 42 subjects, each unit at its own ML delay): the fall was 0.6-1.6 of σ_m² for 9 subjects (k
+1.8-4.7), about 0.4 for 3 more, and below 0.25 for the other 30 (ρ at 0, or σ_m fixed whatever ρ):
+12 reached the 0.3. Measured on a subset: :mod:`pipelines.fit.delayed_forms`, "Polar, squared, and
+the low-rank mass matrix".
 """
 
 from __future__ import annotations

@@ -49,7 +49,7 @@ def test_the_names_the_parser_spells_are_the_pipelines():
     assert R_POPULATION_NAMES == R_POPULATIONS and RHO_FORM_NAMES == RHO_FORMS
     assert RHO_FORM_NAMES[:2] == LOG_R_FORMS  # scioc fit --log-R-form's choices
     assert ADAPTATION_NAMES == ADAPTATIONS and ADAPTATIONS[:2] == (CURVED, WHITENED)  # the default first
-    assert ADAPTATION_NAMES[2:] == NUTPIE_ADAPTATIONS and DELAYED_NUTS["adaptation"] == NUTPIE_ADAPTATIONS[0]
+    assert ADAPTATION_NAMES[2:4] == NUTPIE_ADAPTATIONS and DELAYED_NUTS["adaptation"] == NUTPIE_ADAPTATIONS[0]
     assert MAX_DELAY_S == DELAY_GRID_S[-1]
 
 

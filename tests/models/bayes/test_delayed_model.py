@@ -188,7 +188,8 @@ def test_the_ridge_pivots_are_rhos_coordinate_where_rho_has_one_then_sigma_ms_wi
     w = study
     n = len(dict.fromkeys(w.subjects))
     rho_name = {"centred": "rho", "noncentred": "z_rho", "folded": "z_rho",
-                "folded_centred": "rho_signed", "mixed": "rho_free", "polar": "noise_a"}
+                "folded_centred": "rho_signed", "mixed": "rho_free", "polar": "noise_a",
+                "squared": "rho_root"}
     sigma_m = {"centred": "sigma_m", "noncentred": "z_sigma_m", "folded": "z_sigma_m",
                "folded_centred": "sigma_m_signed"}
     assert set(SIGNED_FORMS) == {"folded", "folded_centred"} and set(rho_name) == set(RHO_FORMS)
@@ -206,7 +207,8 @@ def test_the_ridge_pivots_are_rhos_coordinate_where_rho_has_one_then_sigma_ms_wi
                 if population == "policy_scale" and rho == "polar":
                     want = [("noise_a", [not p for p in pinned]), ("noise_b", [True] * n)]
                 elif population == "policy_scale":
-                    rho_signed = [not p for p in pinned] if rho == "mixed" else [rho in SIGNED_FORMS] * n
+                    rho_signed = ([not p for p in pinned] if rho == "mixed"
+                                  else [rho in SIGNED_FORMS or rho == "squared"] * n)
                     want = [(rho_name[rho], rho_signed), want_sm]
                 else:
                     want = [want_sm]

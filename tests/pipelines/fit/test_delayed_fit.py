@@ -372,6 +372,20 @@ def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed
 
 
 @pytest.mark.slow
+def test_the_curved_coordinates_take_nutpies_low_rank_mass_matrix_on_request(delayed_study):
+    # scioc fit --adaptation curved_low_rank: the same whitened, curved coordinates as the default, sampled with
+    # nutpie's low-rank mass matrix at the whitened fit's target acceptance rate, and the sidecar says so.
+    root, sim, prepared = delayed_study
+    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
+    paths = fit_to_dir(sim["study"], root / "fit_curved_lr", settings=SETTINGS, prepared=prepared,
+                       adaptation="curved_low_rank", **small)
+    side = json.loads(open(paths["sidecar"]).read())
+    assert side["nutpie_options"] == {"adaptation": "low_rank", "target_accept": WHITENED_TARGET_ACCEPT}
+    assert side["sampler"]["adaptation"].startswith("low_rank (nutpie), per-subject whitened, curved along ")
+    assert side["whitening"]["curved_along"]
+
+
+@pytest.mark.slow
 def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
     # scioc fit --R-population policy_scale --rho-form folded_centred, the default (curved) whitening: each subject's
     # block bends along ρ's signed coordinate (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.

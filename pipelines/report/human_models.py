@@ -63,6 +63,7 @@ class ModelRun(NamedTuple):
     fit: dict | None  # contrasts.json
     convergence: str | None = None  # the sampler-convergence verdict of the fit with condition effects (posterior.json)
     remedies: tuple = ()  # what to try where that verdict fails (pipelines.fit.summary.fit_remedies)
+    population: str | None = None  # the delayed fit's population of R and why (posterior.json), :func:`population_words`
 
 
 def read_models(root) -> dict[str, ModelRun]:
@@ -78,8 +79,20 @@ def read_models(root) -> dict[str, ModelRun]:
         out[name] = ModelRun(name, meta.get("adequacy"), None if res is None else res.get("adequacy") or {},
                              read_artifact(root / tests), res,
                              None if side is None else (side.get("convergence_verdict") or {}).get("condition"),
-                             () if side is None else tuple(t for m, t in fit_remedies(side) if m == "condition"))
+                             () if side is None else tuple(t for m, t in fit_remedies(side) if m == "condition"),
+                             population_words(side))
     return out
+
+
+def population_words(side: dict | None) -> str | None:
+    """A delayed fit's population of the subjects' baseline R, with ρ's form under the policy scale, and why
+    (``delayed_priors``, ``R_population_reason``, ``delayed_form`` of its posterior.json); None for another fit."""
+    if not side or "delayed_priors" not in side:
+        return None
+    population = side["delayed_priors"]["R_population"]
+    rho = f", ρ = R^(-1/2) {side['delayed_form']['rho']}" if population == "policy_scale" else ""
+    reason = side.get("R_population_reason", "given")
+    return f"{population}{rho} ({'given' if reason == 'given' else 'chosen by the estimates: ' + reason})"
 
 
 def passes(m: ModelRun) -> bool:
@@ -198,6 +211,10 @@ def _table(models: dict[str, ModelRun], hm: dict | None, design: Design) -> Mark
             ("adequacy at the posterior θ (fit)",
              {k: "no fit" if m.posterior is None else verdict_words(m.posterior) for k, m in models.items()}),
             ("sampler convergence (fit)", {k: m.convergence or "no fit" for k, m in models.items()})]
+    if any(m.population for m in models.values()):
+        rows.append(("population of the subjects' R (fit)",
+                     {k: m.population or ("lognormal (the paper's model's)" if m.fit else "no fit")
+                      for k, m in models.items()}))
     if any(m.remedies for m in models.values()):
         rows.append(("what to try (fit's sampler)", {k: "; ".join(m.remedies) or "—" for k, m in models.items()}))
     for v in design.contrasts:
@@ -255,4 +272,5 @@ def headline(root, design: Design = STUDY) -> Markup:
 
 
 __all__ = ["ANGLE_ONLY", "LOSO_Z", "MODEL_ARTIFACTS", "RUN_FILE", "ModelRun", "adequacy_words", "conclusion",
-           "cost_words", "headline", "loso_preference", "passes", "read_models", "section", "supported", "verdict_words"]
+           "cost_words", "headline", "loso_preference", "passes", "population_words", "read_models", "section",
+           "supported", "verdict_words"]

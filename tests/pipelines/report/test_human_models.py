@@ -253,3 +253,22 @@ def test_too_few_importance_points_make_the_loso_unreliable_and_the_section_says
     assert "the estimates are unreliable (importance-sampling ESS below 100)" in html
     assert "smallest ESS is 12, the Monte Carlo SE of the difference 0.61" in html
     assert "leave-one-subject-out is unreliable (importance-sampling ESS below 100;" in html
+
+
+def test_the_table_names_the_population_of_R_each_fit_used_and_why(tmp_path):
+    """A delayed fit's posterior.json names its population of the subjects' R (and ρ's form under the policy scale)
+    and why; the table shows it beside the max-ent fit's, the paper's lognormal one. Without that record (older
+    fits) the row is left out."""
+    root = write_run(tmp_path, loso=_loso(z=5.0), convergence={"maxent": "pass", "delayed": "pass"})
+    assert "population of the subjects" not in _text(section(root))
+    side = json.loads((root / "fit_delayed" / "posterior.json").read_text())
+    reason = "policy_scale: the estimates leave the R of 5 of 6 subjects loose"
+    side.update({"delayed_priors": {"R_population": "policy_scale"}, "R_population_reason": reason,
+                 "delayed_form": {"rho": "folded_centred"}})
+    (root / "fit_delayed" / "posterior.json").write_text(json.dumps(side))
+    text = _text(section(root))
+    assert ("population of the subjects' R (fit) lognormal (the paper's model's) policy_scale, ρ = R^(-1/2) "
+            f"folded_centred (chosen by the estimates: {reason})") in text
+    side.update({"delayed_priors": {"R_population": "lognormal"}, "R_population_reason": "given"})
+    (root / "fit_delayed" / "posterior.json").write_text(json.dumps(side))
+    assert "lognormal (the paper's model's) lognormal (given)" in _text(section(root))

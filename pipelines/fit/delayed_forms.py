@@ -279,14 +279,18 @@ def choose_delayed_form(estimates: pd.DataFrame | None, subjects=None) -> tuple[
     for name in ("tau_nm", "sigma_m"):
         v = pd.to_numeric(estimates[name], errors="coerce").to_numpy(dtype=float)
         se = pd.to_numeric(estimates[f"se_{name}"], errors="coerce").to_numpy(dtype=float)
-        forms[name], reason = _form_by_z(name, v / se, se > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):  # an SE of 0 or NaN: not valid, z unused there
+            z = v / se
+        forms[name], reason = _form_by_z(name, z, se > 0)
         why.append(reason)
     if "se_log_R" in estimates.columns:
         if subjects is not None and "subject" in estimates.columns:
             forms["rho"], forms["rho_pinned"], reason = _rho_by_subject(estimates, subjects)
         else:
             se = pd.to_numeric(estimates["se_log_R"], errors="coerce").to_numpy(dtype=float)
-            forms["rho"], reason = _form_by_z("rho", 2.0 / se, se > 0, loose="folded_centred")
+            with np.errstate(divide="ignore"):
+                z = 2.0 / se
+            forms["rho"], reason = _form_by_z("rho", z, se > 0, loose="folded_centred")
         why.append(reason + " (with --R-population policy_scale)")
     return DelayedForm(**forms), "; ".join(why)
 

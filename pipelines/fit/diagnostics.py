@@ -103,11 +103,11 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
         "step_size": [float(x) for x in ss["step_size"].values[:, -1]],
     }
     worst_rhat = max(population.values(), key=lambda p: p["rhat"])
-    worst_ess = min(population.items(), key=lambda kv: min(kv[1]["ess_bulk"], kv[1]["ess_tail"]))
+    worst_ess = min(population.items(), key=lambda kv: -1.0 if math.isnan(smaller_ess(kv[1])) else smaller_ess(kv[1]))
     checks = {
         "no_divergences": sampler["divergences"] == 0,
         f"rhat_le_{RHAT_MAX}": all(p["rhat"] <= RHAT_MAX for p in population.values()),
-        f"ess_bulk_tail_ge_{ESS_MIN}": all(min(p["ess_bulk"], p["ess_tail"]) >= ESS_MIN for p in population.values()),
+        f"ess_bulk_tail_ge_{ESS_MIN}": all(smaller_ess(p) >= ESS_MIN for p in population.values()),
     }
     failed = [k for k, ok in checks.items() if not ok]
     return {
@@ -118,11 +118,17 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
         "advisory": {f"ebfmi_ge_{EBFMI_MIN}": bool((bfmi >= EBFMI_MIN).all()),
                      "no_draw_at_max_tree_depth": sampler["draws_at_max_tree_depth"] == 0},
         "worst": {"rhat": worst_rhat["rhat"], "ess_parameter": worst_ess[0],
-                  "ess": min(worst_ess[1]["ess_bulk"], worst_ess[1]["ess_tail"]),
+                  "ess": smaller_ess(worst_ess[1]),
                   "min_ess_bulk_per_s": min(p["ess_bulk_per_s"] for p in population.values())},
         "convergence_verdict": "pass" if not failed else "fail: " + ", ".join(failed),
         "passed": not failed,
     }
+
+
+def smaller_ess(p: dict) -> float:
+    """The smaller of a parameter's bulk and tail ESS, NaN where either is (a quantity that did not move: Python's
+    ``min`` would return NaN or the other value depending on their order)."""
+    return float(np.minimum(p["ess_bulk"], p["ess_tail"]))
 
 
 #: nutpie's target acceptance rate where a fit sets none (the max-ent fits; nutpie's default).
@@ -162,8 +168,7 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
     # NaN as null (posterior.json), e.g. the R-hat of a one-chain fit
     pop = {k: {m: math.nan if p.get(m) is None else float(p[m]) for m in ("ess_bulk", "ess_tail", "rhat")}
            for k, p in diag["population"].items()}
-    low = {k: min(p["ess_bulk"], p["ess_tail"]) for k, p in pop.items()
-           if not min(p["ess_bulk"], p["ess_tail"]) >= ESS_MIN}
+    low = {k: smaller_ess(p) for k, p in pop.items() if not smaller_ess(p) >= ESS_MIN}
     if low:
         worst = min(low, key=lambda k: -1.0 if math.isnan(low[k]) else low[k])
         ess = low[worst]

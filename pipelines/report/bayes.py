@@ -16,6 +16,7 @@ import pandas as pd
 from markupsafe import Markup
 
 from models.design import STUDY, Design
+from pipelines.fit.diagnostics import smaller_ess
 from pipelines.fit.summary import fit_remedies
 from pipelines.report import figures
 from pipelines.report.contrasts import blocks, label, section_forest, section_methods, section_truth_check
@@ -51,7 +52,7 @@ def section_diagnostics(side: dict, design: Design = STUDY) -> Markup:
     prow = [{"parameter": label(v, design), "R-hat": p["rhat"], "bulk ESS": p["ess_bulk"], "tail ESS": p["ess_tail"],
              "bulk ESS/s": p["ess_bulk_per_s"],
              "meets criteria": "yes" if (p["rhat"] <= crit["rhat_max"]
-                                         and min(p["ess_bulk"], p["ess_tail"]) >= crit["ess_bulk_and_tail_min"]) else "NO"}
+                                         and smaller_ess(p) >= crit["ess_bulk_and_tail_min"]) else "NO"}
             for v, p in d["population"].items()]
     urow = [{"unit quantity (subject × condition)": v, **u} for v, u in d["units"].items()]
     units = pd.DataFrame(urow).rename(columns={"rhat_max": "max R-hat", "ess_bulk_min": "min bulk ESS",

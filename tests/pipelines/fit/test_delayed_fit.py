@@ -194,6 +194,14 @@ def test_the_lag_and_noise_blocks_are_centred_only_where_the_data_pin_them():
     # A max-ent human: the lag at its bound (no SE), the motor noise small against its SE.
     at_zero = pinned.assign(tau_nm=[0.0, 0.0], se_tau_nm=[np.nan, np.nan], sigma_m=[0.05, 0.03])
     assert choose_delayed_form(at_zero)[0] == DelayedForm("noncentred", "folded_centred")
+    # An SE of exactly 0 (or of log R) is no SE: it counts as z = 0, without a division warning.
+    import warnings
+
+    zero_se = at_zero.assign(se_tau_nm=[0.0, 0.0], se_log_R=[0.0, 0.5])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        form = choose_delayed_form(zero_se)[0]
+    assert form == DelayedForm("noncentred", "folded_centred", rho="folded_centred")
 
 
 def test_rhos_block_is_centred_only_where_the_data_pin_it():

@@ -64,6 +64,22 @@ def test_undefined_values_read_back_from_a_sidecar_are_advised_on_as_nan():
     assert out[1].startswith("R-hat of s_m nan > 1.01 (2 parameters)")
 
 
+@pytest.mark.parametrize("bulk, tail", [(None, 12.0), (12.0, None)])
+def test_a_nan_bulk_or_tail_ess_reads_as_nan_whichever_it_is(bulk, tail):
+    # Python's min(nan, x) is nan but min(x, nan) is x: the smaller ESS must not depend on which of the two is NaN
+    import math
+
+    from pipelines.fit.diagnostics import smaller_ess
+
+    p = {"ess_bulk": math.nan if bulk is None else bulk, "ess_tail": math.nan if tail is None else tail}
+    assert math.isnan(smaller_ess(p))
+    assert smaller_ess({"ess_bulk": 12.0, "ess_tail": 30.0}) == 12.0
+    pop = {"s_m": {"rhat": 1.0, "ess_bulk": bulk, "ess_tail": tail}}
+    out = remedies({"sampler": {"divergences": 0}, "population": pop, "passed": False}, chains=2, draws=30,
+                   target_accept=0.9)
+    assert out[0] == "ESS of s_m is nan: the chains do not move in it; more draws will not help"
+
+
 @pytest.mark.parametrize("s, expected", [(0.2, 0.04 / 1.04), (1.0, 0.5), (3.0, 0.9)])
 def test_the_pooling_factor_is_the_shrinkage_of_the_normal_model(s, expected):
     # ε_j ~ N(0, 1), data y_j ~ N(ε_j, s²): the posterior of ε_j is N(b y_j, b s²), b = 1 / (1 + s²), and Gelman and

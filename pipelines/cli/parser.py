@@ -153,7 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --R-population policy_scale: form of ρ = R^(-1/2) (default: chosen by the estimates, "
                    "centred where they fix every subject's ρ, else folded_centred; folded without them; mixed: "
                    "per subject, centred where they fix its ρ; polar: ρ and σ_m in polar coordinates for the subjects "
-                   "whose likelihood trades one for the other along an arc, models/bayes/noise_blocks.py)")
+                   "whose likelihood trades one for the other along an arc; squared: ρ = u², u signed; both in "
+                   "models/bayes/noise_blocks.py)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
                    help="delayed, profile delays: coordinates and mass matrix (default curved: whitened per subject "
                    "and curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own; "

@@ -354,6 +354,14 @@ def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
     assert "beta" in res and res["adequacy"]["verdict"] in ("pass", "fail")
 
 
+def _small_fit(delayed_study, out: str, **kwargs):
+    """A one-chain, 30-draw fit of the 3-subject study into ``out``: its paths and its sidecar."""
+    root, sim, prepared = delayed_study
+    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
+    paths = fit_to_dir(sim["study"], root / out, settings=SETTINGS, prepared=prepared, **kwargs, **small)
+    return paths, json.loads(open(paths["sidecar"]).read())
+
+
 @pytest.mark.slow
 def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed_study):
     # scioc fit --R-population policy_scale --rho-form polar: each subject's k and fall (pipelines.fit.noise_arcs) are
@@ -361,11 +369,8 @@ def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed
     # them along φ (noise_b), and the posterior's ρ and σ_m are the polar block's, positive.
     from pipelines.fit.noise_arcs import ARC_MIN
 
-    root, sim, prepared = delayed_study
-    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
-    paths = fit_to_dir(sim["study"], root / "fit_polar", settings=SETTINGS, prepared=prepared,
-                       delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="polar", **small)
-    side = json.loads(open(paths["sidecar"]).read())
+    paths, side = _small_fit(delayed_study, "fit_polar", delayed_priors=DelayedPriors(R_population="policy_scale"),
+                             rho_form="polar")
     arcs, form = side["noise_arcs"], side["delayed_form"]
     assert form["rho"] == "polar" and len(form["polar_k"]) == len(arcs) == 3
     for k, (subject, arc) in zip(form["polar_k"], arcs.items()):
@@ -383,11 +388,7 @@ def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed
 def test_the_curved_coordinates_take_nutpies_low_rank_mass_matrix_on_request(delayed_study):
     # scioc fit --adaptation curved_low_rank: the same whitened, curved coordinates as the default, sampled with
     # nutpie's low-rank mass matrix at the whitened fit's target acceptance rate, and the sidecar says so.
-    root, sim, prepared = delayed_study
-    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
-    paths = fit_to_dir(sim["study"], root / "fit_curved_lr", settings=SETTINGS, prepared=prepared,
-                       adaptation="curved_low_rank", **small)
-    side = json.loads(open(paths["sidecar"]).read())
+    _, side = _small_fit(delayed_study, "fit_curved_lr", adaptation="curved_low_rank")
     assert side["nutpie_options"] == {"adaptation": "low_rank", "target_accept": WHITENED_TARGET_ACCEPT}
     assert side["sampler"]["adaptation"].startswith("low_rank (nutpie), per-subject whitened, curved along ")
     assert side["whitening"]["curved_along"]
@@ -397,11 +398,8 @@ def test_the_curved_coordinates_take_nutpies_low_rank_mass_matrix_on_request(del
 def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
     # scioc fit --R-population policy_scale --rho-form folded_centred, the default (curved) whitening: each subject's
     # block bends along ρ's signed coordinate (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.
-    root, sim, prepared = delayed_study
-    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
-    paths = fit_to_dir(sim["study"], root / "fit_rho_curved", settings=SETTINGS, prepared=prepared,
-                       delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="folded_centred", **small)
-    side = json.loads(open(paths["sidecar"]).read())
+    _, side = _small_fit(delayed_study, "fit_rho_curved", delayed_priors=DelayedPriors(R_population="policy_scale"),
+                         rho_form="folded_centred")
     assert side["delayed_form"]["sigma_m"] not in SIGNED_FORMS  # chosen by these data: ρ's is the only pivot
     assert side["whitening"]["curved_along"] == {"rho_signed": 3}
     assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened, curved along rho_signed"

@@ -67,6 +67,10 @@ def noise_arcs(prepared, plant, estimates: pd.DataFrame, delay_samples, tau0_at,
     ks, record = [], {}
     for subject in subjects:
         units = [(key, idx) for key, idx in prepared.units.items() if str(key[0]) == str(subject)]
+        if not units or any((str(s), str(c)) not in rows for (s, c), _ in units):
+            ks.append(float("nan"))  # a unit without ML estimates: no arc to read, the folded centred coordinates
+            record[str(subject)] = {"fall": None, "k": None}
+            continue
         pos = [i for _, idx in units for i in idx]
         est = [rows[(str(s), str(c))] for (s, c), idx in units for _ in idx]
         R = np.array([e.R for e in est], dtype=float)

@@ -45,3 +45,25 @@ def test_a_bound_at_zero_motor_noise_stops_the_fall_at_sigma_squared():
     rho2, sigma2, k = 0.02, 0.01, 1.0
     fall, _ = subject_arc(_ring(rho2, sigma2, k), rho2, sigma2)
     assert fall == pytest.approx((0.5 * rho2 / k + sigma2) / sigma2, rel=1e-3)
+
+
+def test_a_subject_without_estimates_for_every_unit_keeps_the_folded_centred_coordinates():
+    """noise_arcs: a subject one of whose units has no ML estimate (or whose ρ or σ_m is 0) gets k NaN, not an error;
+    nothing of its data is read."""
+    import math
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from pipelines.fit.noise_arcs import noise_arcs
+
+    design = SimpleNamespace(ordered_levels=("MC", "SC"), wheel=None)
+    prepared = SimpleNamespace(units={("S1", "MC"): [0], ("S1", "SC"): [1], ("S2", "MC"): [2], ("S2", "SC"): [3]},
+                               settings=SimpleNamespace(design=design), segments=None)
+    est = pd.DataFrame({"subject": ["S1", "S2", "S2"], "condition": ["MC", "MC", "SC"], "theta1": 1.0,
+                        "theta2": 0.1, "R": 5.0, "tau_nm": 0.05, "sigma_m": [0.2, 0.0, 0.0]})
+    ks, record = noise_arcs(prepared, None, est, [10, 10, 10, 10], None, ["S1", "S2"])
+    assert all(math.isnan(k) for k in ks)
+    assert record == {"S1": {"fall": None, "k": None}, "S2": {"fall": None, "k": None}}
+    with pytest.raises(ValueError, match="sigma_m"):
+        noise_arcs(prepared, None, est.drop(columns="sigma_m"), [10] * 4, None, ["S1"])

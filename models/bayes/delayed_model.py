@@ -217,6 +217,9 @@ CURVED_LOW_RANK = "curved_low_rank"
 #: whitened ones (:mod:`models.bayes.whiten`; module docstring, "Whitened", "Curved"), then nutpie's own, then its
 #: low-rank one on the curved coordinates (:data:`CURVED_LOW_RANK`).
 ADAPTATIONS = (CURVED, WHITENED, *NUTPIE_ADAPTATIONS, CURVED_LOW_RANK)
+#: The entries of :data:`ADAPTATIONS` sampled on each subject's whitened coordinates, and those of them curved.
+WHITENED_ADAPTATIONS = (CURVED, WHITENED, CURVED_LOW_RANK)
+CURVED_ADAPTATIONS = (CURVED, CURVED_LOW_RANK)
 
 
 #: nutpie's target acceptance rate on the whitened coordinates (module docstring, "Whitened"; nutpie's default 0.8).
@@ -228,7 +231,7 @@ def nutpie_options(adaptation: str) -> dict:
     mass matrix, or the low-rank one with :data:`CURVED_LOW_RANK`, and :data:`WHITENED_TARGET_ACCEPT`)."""
     if adaptation not in ADAPTATIONS:
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}; got {adaptation!r}")
-    if adaptation in (CURVED, WHITENED, CURVED_LOW_RANK):
+    if adaptation in WHITENED_ADAPTATIONS:
         return {"adaptation": "low_rank" if adaptation == CURVED_LOW_RANK else "diag",
                 "target_accept": WHITENED_TARGET_ACCEPT}
     return {"adaptation": adaptation}
@@ -366,6 +369,7 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
                            **kwargs)
 
 
-__all__ = ["ADAPTATIONS", "CURVED", "CURVED_LOW_RANK", "DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS",
-           "DelayedForm", "DelayedPriors", "NUTPIE_ADAPTATIONS", "R_POPULATIONS", "WHITENED", "WHITENED_TARGET_ACCEPT",
+__all__ = ["ADAPTATIONS", "CURVED", "CURVED_ADAPTATIONS", "CURVED_LOW_RANK", "DELAY_INDEX", "DELAYED_NUTS",
+           "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors",
+           "NUTPIE_ADAPTATIONS", "R_POPULATIONS", "WHITENED", "WHITENED_ADAPTATIONS", "WHITENED_TARGET_ACCEPT",
            "build_delayed_model", "delay_step", "nutpie_options"]

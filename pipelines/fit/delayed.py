@@ -32,9 +32,9 @@ import numpy as np
 import pandas as pd
 
 from models.bayes.delayed_blocks import ridge_pivots
-from models.bayes.delayed_model import (ADAPTATIONS, CURVED, CURVED_LOW_RANK, DELAY_INDEX,
-                                        DELAYED_POPULATION_PARAMETERS, DelayedForm, DelayedPriors, WHITENED,
-                                        build_delayed_model, delay_step, nutpie_options)
+from models.bayes.delayed_model import (ADAPTATIONS, CURVED_ADAPTATIONS, DELAY_INDEX, DELAYED_POPULATION_PARAMETERS,
+                                        WHITENED_ADAPTATIONS, DelayedForm, DelayedPriors, build_delayed_model,
+                                        delay_step, nutpie_options)
 from models.bayes.hierarchical import POPULATION_PARAMETERS
 from models.delayed.identify import delay_grid, identify_unit_delayed
 from models.delayed.lag import lag_coefficients, window_tau0
@@ -233,7 +233,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     if adaptation is not None and (adaptation not in ADAPTATIONS or delay_mode != "profile"):
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
     adaptation = ADAPTATIONS[0] if adaptation is None else adaptation
-    whiten = delay_mode == "profile" and adaptation in (CURVED, WHITENED, CURVED_LOW_RANK)
+    whiten = delay_mode == "profile" and adaptation in WHITENED_ADAPTATIONS
     nuts = nutpie_options(adaptation) | ({} if target_accept is None else {"target_accept": float(target_accept)})
     levels = prepared.settings.design.ordered_levels
     if log_R is not None and log_R not in LOG_R_FORMS:
@@ -263,7 +263,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
     n_subjects = len(subjects)
-    pivots = ridge_pivots(delayed_priors, delayed_form, n_subjects) if whiten and adaptation in (CURVED, CURVED_LOW_RANK) else None
+    curved = whiten and adaptation in CURVED_ADAPTATIONS
+    pivots = ridge_pivots(delayed_priors, delayed_form, n_subjects) if curved else None
     grid = delay_grid(float(plant.dt))
     model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant,
                                 delay=None if sampled else delays.samples, delay_grid=grid if sampled else None,

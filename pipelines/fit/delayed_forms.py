@@ -219,11 +219,12 @@ which the whitening takes out. So: polar coordinates (:mod:`models.bayes.noise_b
 :mod:`pipelines.fit.noise_arcs`, 7 of the 12 in them) straighten less than their arcs promised, a
 quarter fewer steps; ρ = u² removes the dip (no sign changes at all) and halves the steps, but its
 density vanishes at u = 0 like |u|, and for S04, S14, S20 and S22, whose ρ reaches 0, the draw with
-the smallest |u| was a divergent one; nutpie's low-rank mass
-matrix on the curved coordinates, which learns the correlations the whitening leaves, cuts the kept
-draws' steps of the folded centred and polar forms to about the squared form's (58.0 -> 33.2, 43.7 ->
-31.6), at the price of an expensive middle warm-up (tenths 5-6: 139-218 steps per draw). Neither form is a default: ``--rho-form polar`` and ``--rho-form squared`` are options,
-and the low-rank matrix (``--adaptation curved_low_rank``) is measured at full size in README, "Speed".
+the smallest |u| was a divergent one; nutpie's low-rank mass matrix on the curved coordinates,
+which learns the correlations the whitening leaves, cuts the kept draws' steps of the folded
+centred and polar forms to about the squared form's (58.0 -> 33.2, 43.7 -> 31.6), at the price of
+an expensive middle warm-up (tenths 5-6: 139-218 steps per draw). None of the three is a default:
+``--rho-form polar`` and ``--rho-form squared`` are options, and the low-rank matrix
+(``--adaptation curved_low_rank``) is measured at full size in README, "Speed".
 
 The population of R (:func:`choose_R_population`). On the max-ent human the policy-scale population
 with ρ centred (the form the estimates choose there; the full-size study of README "Speed", ``scioc

@@ -103,7 +103,7 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
         "step_size": [float(x) for x in ss["step_size"].values[:, -1]],
     }
     worst_rhat = max(population.values(), key=lambda p: p["rhat"])
-    worst_ess = min(population.items(), key=lambda kv: -1.0 if math.isnan(smaller_ess(kv[1])) else smaller_ess(kv[1]))
+    worst_ess = min(population.items(), key=lambda kv: nan_first(smaller_ess(kv[1])))
     checks = {
         "no_divergences": sampler["divergences"] == 0,
         f"rhat_le_{RHAT_MAX}": all(p["rhat"] <= RHAT_MAX for p in population.values()),
@@ -129,6 +129,11 @@ def smaller_ess(p: dict) -> float:
     """The smaller of a parameter's bulk and tail ESS, NaN where either is (a quantity that did not move: Python's
     ``min`` would return NaN or the other value depending on their order)."""
     return float(np.minimum(p["ess_bulk"], p["ess_tail"]))
+
+
+def nan_first(ess: float) -> float:
+    """A sort key that puts an undefined (NaN) ESS below every defined one: the worst."""
+    return -1.0 if math.isnan(ess) else ess
 
 
 #: nutpie's target acceptance rate where a fit sets none (the max-ent fits; nutpie's default).
@@ -170,7 +175,7 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
            for k, p in diag["population"].items()}
     low = {k: smaller_ess(p) for k, p in pop.items() if not smaller_ess(p) >= ESS_MIN}
     if low:
-        worst = min(low, key=lambda k: -1.0 if math.isnan(low[k]) else low[k])
+        worst = min(low, key=lambda k: nan_first(low[k]))
         ess = low[worst]
         if ess > 0:
             need = int(math.ceil(ESS_MIN / ess * draws / 100.0) * 100)

@@ -212,14 +212,18 @@ WHITENED = "whitened"
 CURVED = "curved"
 #: The name in :data:`ADAPTATIONS` of the curved whitened sampling with nutpie's low-rank mass matrix on top.
 CURVED_LOW_RANK = "curved_low_rank"
+#: The name in :data:`ADAPTATIONS` of the curved whitening measured again on a pilot run's draws
+#: (:mod:`models.bayes.whiten_draws`; module docstring, "Pilot").
+PILOT = "pilot"
 #: The mass matrices a delayed fit with profile delays may use (``scioc fit --adaptation``), the default first:
-#: nutpie's diagonal one on each subject's whitened coordinates curved along σ_m's ridge, then on the affine
-#: whitened ones (:mod:`models.bayes.whiten`; module docstring, "Whitened", "Curved"), then nutpie's own, then its
-#: low-rank one on the curved coordinates (:data:`CURVED_LOW_RANK`).
-ADAPTATIONS = (CURVED, WHITENED, *NUTPIE_ADAPTATIONS, CURVED_LOW_RANK)
+#: nutpie's diagonal one on each subject's whitened coordinates curved along its ridge, measured on a pilot run's
+#: draws, then measured at the Hessian alone, then on the affine whitened ones (:mod:`models.bayes.whiten`; module
+#: docstring, "Whitened", "Curved"), then nutpie's own, then its low-rank one on the curved coordinates
+#: (:data:`CURVED_LOW_RANK`).
+ADAPTATIONS = (PILOT, CURVED, WHITENED, *NUTPIE_ADAPTATIONS, CURVED_LOW_RANK)
 #: The entries of :data:`ADAPTATIONS` sampled on each subject's whitened coordinates, and those of them curved.
-WHITENED_ADAPTATIONS = (CURVED, WHITENED, CURVED_LOW_RANK)
-CURVED_ADAPTATIONS = (CURVED, CURVED_LOW_RANK)
+WHITENED_ADAPTATIONS = (PILOT, CURVED, WHITENED, CURVED_LOW_RANK)
+CURVED_ADAPTATIONS = (PILOT, CURVED, CURVED_LOW_RANK)
 
 
 #: nutpie's target acceptance rate on the whitened coordinates (module docstring, "Whitened"; nutpie's default 0.8).
@@ -371,5 +375,5 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
 
 __all__ = ["ADAPTATIONS", "CURVED", "CURVED_ADAPTATIONS", "CURVED_LOW_RANK", "DELAY_INDEX", "DELAYED_NUTS",
            "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors",
-           "NUTPIE_ADAPTATIONS", "R_POPULATIONS", "WHITENED", "WHITENED_ADAPTATIONS", "WHITENED_TARGET_ACCEPT",
+           "NUTPIE_ADAPTATIONS", "PILOT", "R_POPULATIONS", "WHITENED", "WHITENED_ADAPTATIONS", "WHITENED_TARGET_ACCEPT",
            "build_delayed_model", "delay_step", "nutpie_options"]

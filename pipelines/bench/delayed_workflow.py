@@ -62,7 +62,7 @@ def within_goal(segments: int, chains: int, draws: int, fit_s: float) -> bool | 
 
 
 def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: int = 4, draws: int = 1000,
-                           tune: int = 1000, n_subjects: int | None = None, adequacy_boot: int | None = None,
+                           tune: int | None = None, n_subjects: int | None = None, adequacy_boot: int | None = None,
                            keep=None) -> dict:
     """Simulate, identify and fit the ``delayed`` human as ``scioc`` does (module docstring) and time it.
 
@@ -133,7 +133,9 @@ def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:
     st, smp = side["sampler"], diag["sampler"]
     chains, draws, tune = st["chains"], st["draws"], st["tune"]
     cores = min(int(st["cores"]), chains)
-    gradients = chains * (tune * smp["tuning_mean_steps_per_draw"] + draws * smp["mean_steps_per_draw"])
+    pilots = (side.get("whitening") or {}).get("pilot") or []
+    pilot_gradients = sum(p["tuning_leapfrog_steps"] + p["leapfrog_steps"] for p in pilots)
+    gradients = chains * (tune * smp["tuning_mean_steps_per_draw"] + draws * smp["mean_steps_per_draw"]) + pilot_gradients
     delays = [u["delay_samples"] for u in side["delay"]["by_unit"].values()]
     truth = res.get("truth") or {}
     fit_s = float(sec["total_s"])
@@ -147,6 +149,9 @@ def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:
         "sampler": {"warmup_steps_per_draw": smp["tuning_mean_steps_per_draw"],
                     "warmup_steps_by_tenth": smp["tuning_steps_by_tenth"],
                     "steps_per_draw": smp["mean_steps_per_draw"], "divergences": smp["divergences"],
+                    "pilot": [{"tune": p["tune"], "draws": p["draws"],
+                               "steps_per_draw": (p["tuning_leapfrog_steps"] + p["leapfrog_steps"])
+                               / (chains * (p["tune"] + p["draws"]))} for p in pilots],
                     "gradients": gradients, "ms_per_gradient_on_a_core": 1e3 * sec["condition"]["sample_s"] * cores
                     / gradients},
         "convergence_verdict": diag["convergence_verdict"],
@@ -178,8 +183,10 @@ def format_delayed_workflow(res: dict) -> str:
         f"  scioc fit: {s['fit']:.0f} s ({goal_text(res)}); sampling {s['sample']:.0f} s; scioc identify before it "
         f"{s['identify']:.0f} s",
         f"  sampler: {smp['steps_per_draw']:.1f} leapfrog steps per kept draw, {smp['warmup_steps_per_draw']:.1f} per "
-        f"warm-up draw (by tenth " + " ".join(f"{x:.0f}" for x in smp["warmup_steps_by_tenth"]) + f"); "
-        f"{smp['gradients'] / 1e3:.0f} k gradients, {smp['ms_per_gradient_on_a_core']:.1f} ms each on a core; "
+        f"warm-up draw (by tenth " + " ".join(f"{x:.0f}" for x in smp["warmup_steps_by_tenth"]) + "); "
+        + "".join(f"after a pilot of {p['tune']} + {p['draws']} draws at {p['steps_per_draw']:.1f} steps per draw; "
+                  for p in smp.get("pilot", []))
+        + f"{smp['gradients'] / 1e3:.0f} k gradients, {smp['ms_per_gradient_on_a_core']:.1f} ms each on a core; "
         f"{smp['divergences']} divergent",
         f"  sampler convergence: {res['convergence_verdict']} (worst R-hat {w['rhat']:.3f}, {w['rhat_parameter']}; smallest ESS "
         f"{w['ess']:.0f}, {w['ess_parameter']}); adequacy {res['adequacy']['verdict']} "

@@ -7,7 +7,7 @@ import argparse
 from importlib.metadata import PackageNotFoundError, version
 
 import pipelines.cli.commands as commands
-from pipelines.cli.values import (ADAPTATION_NAMES, ADEQUACY_AT_HELP, ADEQUACY_AT_NAMES, HUMAN_MODEL_NAMES,
+from pipelines.cli.values import (ADAPTATION_NAMES, NUTPIE_ADAPTATION_NAMES, ADEQUACY_AT_HELP, ADEQUACY_AT_NAMES, HUMAN_MODEL_NAMES,
                                   HUMAN_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, PARAMETERIZATION_BLOCKS, PREVIEW,
                                   RHO_FORM_NAMES, RUN_SECONDS, R_POPULATION_NAMES, WINDOW_TEXT, acceptance,
                                   finite_float, human_models_list, humans_list, nonnegative_float, nonnegative_int,
@@ -131,7 +131,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=nonnegative_int, default=2018, help="sampler seed (default 2018)")
     p.add_argument("--chains", type=positive_int, default=4, help="Markov chains (default 4)")
     p.add_argument("--draws", type=positive_int, default=1000, help="draws kept per chain (default 1000)")
-    p.add_argument("--tune", type=nonnegative_int, default=1000, help="warm-up draws per chain (default 1000)")
+    p.add_argument("--tune", type=nonnegative_int, default=None, help="warm-up draws per chain (default 1000; 300 "
+                   "after the pilot run of the delayed fit's default --adaptation pilot, itself 100 + 100)")
     p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
     p.add_argument("--cores", type=positive_int, help="chains sampled in parallel (default: all CPUs)")
     p.add_argument("--estimates", metavar="PATH",
@@ -156,8 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "whose likelihood trades one for the other along an arc; squared: ρ = u², u signed; both in "
                    "models/bayes/noise_blocks.py)")
     p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
-                   help="delayed, profile delays: coordinates and mass matrix (default curved: whitened per subject "
-                   "and curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own; "
+                   help="delayed, profile delays: coordinates and mass matrix (default pilot: as curved, then "
+                   "measured again on a short pilot run's draws; curved: whitened per subject at the Hessian and "
+                   "curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own; "
                    "curved_low_rank: curved, with nutpie's low-rank mass matrix)")
     p.add_argument("--target-accept", type=acceptance, help="the sampler's target acceptance rate (default 0.9 for "
                    "the delayed model's whitened fit, else nutpie's 0.8); raise it where transitions diverge")
@@ -315,7 +317,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--rho-form", choices=[f for f in RHO_FORM_NAMES if f not in ("mixed", "polar")], default="folded",
                    help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded; mixed and polar need a "
                    "fit's ML estimates)")
-    g.add_argument("--adaptation", choices=ADAPTATION_NAMES[2:4], default="low_rank",
+    g.add_argument("--adaptation", choices=NUTPIE_ADAPTATION_NAMES, default="low_rank",
                    help="nutpie's mass matrix (default low_rank; curved and whitened need a fit's ML start)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
     p.set_defaults(func=commands.cmd_bench_fit)

@@ -78,7 +78,9 @@ R_POPULATION_NAMES = ("lognormal", "policy_scale", "unpooled")
 #: The forms of ρ (:data:`models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
 RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred", "mixed", "polar", "squared")
 #: The delayed fit's mass matrices, default first, then nutpie's own (:data:`models.bayes.delayed_model.ADAPTATIONS`).
-ADAPTATION_NAMES = ("curved", "whitened", "low_rank", "diag", "curved_low_rank")
+ADAPTATION_NAMES = ("pilot", "curved", "whitened", "low_rank", "diag", "curved_low_rank")
+#: nutpie's own mass matrices among them (``scioc bench-fit --adaptation``; tested equal).
+NUTPIE_ADAPTATION_NAMES = ADAPTATION_NAMES[3:5]
 #: Points of the adequacy check at the posterior (:data:`pipelines.fit.checks.ADEQUACY_POINTS`, tested equal).
 ADEQUACY_AT_NAMES = ("draw", "means")
 ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one joint posterior draw picked by the "

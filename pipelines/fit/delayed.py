@@ -49,6 +49,7 @@ from pipelines.fit.noise_arcs import noise_arcs
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import sample_model
 from pipelines.fit.start import scale_sources, start_point
+from pipelines.fit.warmup import pilot_runs
 from pipelines.fit.whiten import sample_whitened
 from pipelines.io import InputDataError
 
@@ -281,7 +282,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
     elif whiten:
         idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
-                                                cores=cores, show_progress=show_progress, nuts=nuts, pivots=pivots)
+                                                cores=cores, show_progress=show_progress, nuts=nuts, pivots=pivots,
+                                                pilot=pilot_runs(adaptation, delay_mode, tune, draws))
     else:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
                                   show_progress=show_progress, nuts=nuts, initvals=start)
@@ -302,7 +304,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                + (" (per subject: the signed one whose fold the mode is nearest)"
                   if len(whitening["curved_along"]) > 1 else "")
                + " (models/bayes/whiten.py, ridge_curvature; models/bayes/delayed_blocks.py, ridge_pivots)"
-               if pivots else ""),
+               if pivots else "")
+            + ("; then measured again on a pilot run's draws (models/bayes/whiten_draws.py), the kept run starting at "
+               "its first chain's last draw, jittered" if whiten and whitening.get("pilot") else ""),
             "start_scales": {k: np.asarray(start[k]).tolist() for k in sources},
             **({"start_scales_from": sources} if start else {}),
             "delayed_priors": {k: getattr(delayed_priors, k) for k in delayed_priors.__dataclass_fields__},

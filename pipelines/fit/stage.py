@@ -67,6 +67,7 @@ from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, NUTPIE_TARGET_ACCEPT, 
 from pipelines.fit.loo import loo_comparison, subject_loo_comparison
 from pipelines.fit.ppc import PPC_DRAWS, constant_data, posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import child_seeds, sample_model
+from pipelines.fit.warmup import default_tune
 from pipelines.io import InputDataError, load_study
 from pipelines.prepare import IdentifySettings, PreparedStudy, check_design, check_human_model, prepare_study
 from pipelines.provenance import versions
@@ -132,6 +133,7 @@ def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | Non
             + (", per-subject whitened" if whitening is not None else "")
             + (", curved along " + curved_along(whitening["curved_along"])
                if whitening and "curved_along" in whitening else "")
+            + (", measured again on a pilot run's draws" if whitening and whitening.get("pilot") else "")
             if human_model == "delayed" else
             "diag (nutpie default)"}
 
@@ -160,7 +162,7 @@ def choose_parameterization(estimates) -> tuple[Parameterization, str]:
     return Parameterization(), f"default: the median SE of log θ1 per unit is {se:.3g} > {CENTRED_SE_LOG_THETA1}"
 
 
-def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 1000,
+def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int | None = None,
                settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
@@ -179,7 +181,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     seed : int
         Root seed (split into the samplers' and the predictive draws' seeds).
     chains, draws, tune : int
-        nutpie chains, and draws kept per chain after ``tune`` warm-up draws.
+        nutpie chains, and draws kept per chain after ``tune`` warm-up draws (default
+        :func:`pipelines.fit.warmup.default_tune`: 1000, 300 after the delayed fit's pilot run).
     settings : IdentifySettings
         Window, preview and reconstruction, as for ``scioc identify``, and the experiment
         (``settings.design``: wheel, sample time, levels, assistants).
@@ -253,6 +256,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         raise ValueError(f"--adequacy-at must be one of {', '.join(ADEQUACY_POINTS)}; got {adequacy_at!r}")
     if human_model != settings.human_model and settings.human_model != "maxent":
         raise ValueError(f"human_model {human_model!r} contradicts the settings' {settings.human_model!r}")
+    if tune is None:
+        tune = default_tune(human_model, delay_mode, adaptation)
     for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
         if int(v) != v or v < low:
             raise ValueError(f"--{name} must be an integer >= {low}; got {v!r}")

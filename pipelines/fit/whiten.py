@@ -16,6 +16,10 @@ The steps, all deterministic (the seed enters only the sampler, as in :func:`pip
    group of subjects per pivot.
 3. The model in w (:func:`models.bayes.whiten.whitened_model`) sampled by nutpie with its
    diagonal mass matrix, the chains jittered around w = 0 (x̂) as PyMC jitters its own start.
+   With a ``pilot``, first a short run of it, whose draws measure each block's centre, factor and
+   curvature again (:func:`models.bayes.whiten_draws.draws_factors`: where the posterior is far from
+   Gaussian at x̂, the Hessian there describes it badly), then the run whose draws are kept, on
+   the new coordinates, the chains jittered around the pilot's centre.
 4. The draws mapped back: x(w), then every free variable and deterministic of the original
    model, so that the posterior holds what nutpie would have returned for it; then the
    pointwise log-likelihood.
@@ -29,6 +33,7 @@ import numpy as np
 
 from models.bayes.whiten import (WHITE, block_column, block_hessian, coordinate_scales, nearest_fold,
                                  ridge_curvature, subject_blocks, to_unconstrained, whitened_model, whitening_factors)
+from models.bayes.whiten_draws import draws_factors, to_white
 from pipelines.fit.sampling import add_log_likelihood, sample_model
 from pipelines.fit.start import held_mask
 
@@ -39,9 +44,10 @@ HESSIAN_STEP = 1e-4
 
 
 def whitening(model, start: dict | None, pivots=None):
-    """(logp graph, its flat input, x̂, groups, point_map_info, record) of ``model`` (module docstring,
+    """(logp graph, its flat input, x̂, groups, point_map_info, record, folds) of ``model`` (module docstring,
     steps 1-2); ``groups``: [(subject blocks, L)] and, where there are any, (the other coordinates (m, 1), their
-    scales (m, 1, 1)), as :func:`models.bayes.whiten.to_unconstrained` takes them.
+    scales (m, 1, 1)), as :func:`models.bayes.whiten.to_unconstrained` takes them; ``folds``: per group, None, or
+    for a curved one whether each of its subjects' pivot is signed (:func:`models.bayes.whiten_draws.draws_factors`).
 
     ``pivots``: (name, signed) pairs, ``name`` a free variable with one value per subject along which each
     subject's ridge may be curved (:func:`models.bayes.whiten.ridge_curvature`), ``signed`` (n_subjects,) where
@@ -85,18 +91,20 @@ def whitening(model, start: dict | None, pivots=None):
     others = np.setdiff1d(np.arange(x_hat.size), blocks.ravel())[:, None]
     S = coordinate_scales(lambda x: fn(x)[1], x_hat, others[:, 0], HESSIAN_STEP)
     sd = np.sqrt(np.einsum("ijk,ijk->ij", L, L))  # each coordinate's scale, sqrt(diag(L Lᵀ))
-    block_groups, curved = [(blocks, L)], {}
+    block_groups, folds, curved = [(blocks, L)], [None], {}
     if pivots:
         n = len(model.coords["subject"])
         names = [name for name, _ in pivots]
         columns = [block_column(raveled.point_map_info, dims, n, model.rvs_to_values[model[p]].name) for p in names]
         chosen = nearest_fold(x_hat, blocks, L, columns, np.column_stack([signed for _, signed in pivots]))
-        block_groups, ridges, counts = [], {}, {}
+        block_groups, folds, ridges, counts = [], [], {}, {}
+        signed_by_pivot = np.column_stack([np.broadcast_to(np.asarray(signed, dtype=bool), (n,)) for _, signed in pivots])
         for j, (name, column) in enumerate(zip(names, columns)):
             rows = chosen == j
             if rows.any():
                 a, ridges[name] = ridge_curvature(lambda x: fn(x)[1], x_hat, blocks[rows], L[rows], column)
                 block_groups.append((blocks[rows], L[rows], (column, a)))
+                folds.append(signed_by_pivot[rows, j])
                 counts[name] = int(rows.sum())
         curved = {"curved_along": counts,
                   "pivot_by_subject": [names[j] for j in chosen], "ridge": ridges,
@@ -112,7 +120,8 @@ def whitening(model, start: dict | None, pivots=None):
               "other_scale_range": [float(S.min()), float(S.max())] if others.size else [],
               **curved, "mode_s": t1 - t0, "hessian_s": time.perf_counter() - t1}
     groups = block_groups + ([(others, S)] if others.size else [])
-    return logp, flat, x_hat, groups, raveled.point_map_info, record
+    folds = folds + ([None] if others.size else [])
+    return logp, flat, x_hat, groups, raveled.point_map_info, record, folds
 
 
 def posterior_of(model, x: np.ndarray, point_map_info):
@@ -141,29 +150,65 @@ def posterior_of(model, x: np.ndarray, point_map_info):
     return xr.Dataset(data, coords=coords)
 
 
+def pilot_seeds(seed: int, n: int) -> list[int]:
+    """The pilot runs' seeds, from the fit's sampler seed: ``SeedSequence(seed).spawn(n)``, a stream of their own."""
+    return [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(int(seed)).spawn(n)]
+
+
 def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws: int, tune: int,
                     cores: int | None = None, show_progress: bool = False, nuts: dict | None = None,
-                    pivots=None):
+                    pivots=None, pilot=None):
     """Sample ``model`` in whitened coordinates (module docstring); returns (idata, seconds, record).
 
     ``idata`` is as :func:`pipelines.fit.sampling.sample_model` returns it for ``model`` (posterior,
     sample_stats with the warm-up's steps, log_likelihood); ``seconds`` adds ``whitening`` (steps 1-2);
     ``record`` says what the whitening found (for the sidecar).
+
+    ``pilot``: a sequence of (tune, draws) per chain: pilot runs, one after the other, the first on the Hessian's
+    whitening, each later one on the whitening measured again on the draws of the one before
+    (:func:`models.bayes.whiten_draws.draws_factors`), and the run whose draws are returned on the last one's
+    (seeds :func:`pilot_seeds`); each run after a pilot starts (jittered) at the pilot's first chain's last draw,
+    inside the posterior's bulk, not at its centre. ``seconds["sample"]`` then holds every run's sampling, ``record["pilot"]``
+    each pilot's draws and leapfrog steps.
     """
     t0 = time.perf_counter()
-    logp, flat, x_hat, groups, info, record = whitening(model, start, pivots)
+    logp, flat, x_hat, groups, info, record, folds = whitening(model, start, pivots)
     white = whitened_model(logp, flat, x_hat, groups)
     t1 = time.perf_counter()
+    pilot = [tuple(int(v) for v in stage) for stage in (pilot or ())]
+    if any(len(stage) != 2 or stage[0] < 0 or stage[1] < 2 for stage in pilot):
+        raise ValueError(f"pilot needs (tune >= 0, draws >= 2) per run; got {pilot!r}")
+    spent, refit_s, runs, init = {"sample": 0.0, "compile_and_sample": 0.0}, 0.0, [], None
+    for (p_tune, p_draws), p_seed in zip(pilot, pilot_seeds(seed, len(pilot))):
+        first, sec = sample_model(white, seed=p_seed, chains=chains, draws=p_draws, tune=p_tune, cores=cores,
+                                  show_progress=show_progress, log_likelihood=False, nuts=nuts, initvals=init)
+        spent = {k: spent[k] + sec[k] for k in spent}
+        t2 = time.perf_counter()
+        stats = first["sample_stats"]
+        x = to_unconstrained(first["posterior"][WHITE].values, x_hat, groups)
+        x_hat, groups, kept = draws_factors(x, x_hat, groups, folds)
+        white = whitened_model(logp, flat, x_hat, groups)
+        init = {WHITE: to_white(x[0, -1], x_hat, groups)}  # the next run starts where the first chain ended
+        refit_s += time.perf_counter() - t2
+        runs.append({"tune": p_tune, "draws": p_draws, "sample_s": sec["sample"],
+                     "tuning_leapfrog_steps": int(stats.attrs.get("tuning_leapfrog_steps", 0)),
+                     "leapfrog_steps": int(stats["n_steps"].values.sum()),
+                     "divergences": int(stats["diverging"].values.sum()), "blocks_kept_from_before": kept})
+    if runs:
+        record["pilot"] = runs
+        record["method"] += (f"; then measured again on the draws of {len(runs)} pilot run(s), each on the last's "
+                             "(models/bayes/whiten_draws.py)")
     idata, sec = sample_model(white, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
-                              show_progress=show_progress, log_likelihood=False, nuts=nuts)
+                              show_progress=show_progress, log_likelihood=False, nuts=nuts, initvals=init)
+    sec = {**sec, **{k: sec[k] + spent[k] for k in spent}}
     attrs = dict(idata["posterior"].attrs)
     posterior = posterior_of(model, to_unconstrained(idata["posterior"][WHITE].values, x_hat, groups), info)
     posterior.attrs.update(attrs)
     idata["posterior"] = posterior
     t2 = time.perf_counter()
     add_log_likelihood(idata, model)
-    sec = {**sec, "whitening": t1 - t0, "log_likelihood": time.perf_counter() - t2}
+    sec = {**sec, "whitening": t1 - t0 + refit_s, "log_likelihood": time.perf_counter() - t2}
     return idata, sec, record
 
 
-__all__ = ["HESSIAN_STEP", "MODE_MAX_ITER", "posterior_of", "sample_whitened", "whitening"]
+__all__ = ["HESSIAN_STEP", "MODE_MAX_ITER", "pilot_seeds", "posterior_of", "sample_whitened", "whitening"]

@@ -12,12 +12,12 @@ from models.delayed import (DELAY_GRID_S, Warmup, forward_delayed, identify_unit
                             window_loglik, window_tau0)
 from models.maxent import forward_optimal_control
 from models.bayes.delayed_blocks import R_POPULATIONS, RHO_FORMS
-from models.bayes.delayed_model import ADAPTATIONS, CURVED, DELAYED_NUTS, NUTPIE_ADAPTATIONS, WHITENED
+from models.bayes.delayed_model import ADAPTATIONS, CURVED, DELAYED_NUTS, NUTPIE_ADAPTATIONS, PILOT, WHITENED
 from models.design import STUDY
 from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.cli import main
-from pipelines.cli.values import (ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES,
+from pipelines.cli.values import (ADAPTATION_NAMES, NUTPIE_ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES,
                                   RHO_FORM_NAMES)
 from pipelines.fit.delayed_forms import LOG_R_FORMS
 from pipelines.identify import identify_to_dir
@@ -48,8 +48,8 @@ def test_the_names_the_parser_spells_are_the_pipelines():
     assert LIKELIHOOD_NAMES == LIKELIHOODS
     assert R_POPULATION_NAMES == R_POPULATIONS and RHO_FORM_NAMES == RHO_FORMS
     assert RHO_FORM_NAMES[:2] == LOG_R_FORMS  # scioc fit --log-R-form's choices
-    assert ADAPTATION_NAMES == ADAPTATIONS and ADAPTATIONS[:2] == (CURVED, WHITENED)  # the default first
-    assert ADAPTATION_NAMES[2:4] == NUTPIE_ADAPTATIONS and DELAYED_NUTS["adaptation"] == NUTPIE_ADAPTATIONS[0]
+    assert ADAPTATION_NAMES == ADAPTATIONS and ADAPTATIONS[:3] == (PILOT, CURVED, WHITENED)  # the default first
+    assert NUTPIE_ADAPTATION_NAMES == NUTPIE_ADAPTATIONS and DELAYED_NUTS["adaptation"] == NUTPIE_ADAPTATIONS[0]
     assert MAX_DELAY_S == DELAY_GRID_S[-1]
 
 

@@ -18,6 +18,7 @@ from pipelines.fit.delayed import unit_delays
 from pipelines.fit.delayed_forms import CENTRED_Z, choose_delayed_form, log_R_form
 from pipelines.fit.human_models import compare_human_models, format_human_models
 from pipelines.identify import identify_to_dir
+from pipelines.fit.warmup import PILOT_RUNS
 from pipelines.io import load_study
 from pipelines.prepare import IdentifySettings, prepare_study
 from pipelines.simulate import simulate_to_dir
@@ -76,6 +77,12 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert side["whitening"]["pivot_by_subject"] == pivots
     assert side["whitening"]["curved_along"] == {p: pivots.count(p) for p in (rho, "sigma_m") if p in pivots}
     assert side["sampler"]["adaptation"].startswith("diag (nutpie), per-subject whitened, curved along ")
+    # ... and measured again on a pilot run's draws (scioc fit --adaptation pilot, the default), as long as the
+    # fit's own warm-up and draws allow (pipelines/fit/warmup.py)
+    assert side["sampler"]["adaptation"].endswith(", measured again on a pilot run's draws")
+    [pilot] = side["whitening"]["pilot"]
+    assert (pilot["tune"], pilot["draws"]) == (min(PILOT_RUNS[0][0], TINY["tune"]), min(PILOT_RUNS[0][1], TINY["draws"]))
+    assert pilot["leapfrog_steps"] > 0 and "pilot run" in side["start"]
     for name in side["whitening"]["curved_along"]:
         scales = side["whitening"]["ridge"][name]["pivot_scale_range"]
         assert 0 < scales[0] <= scales[1]

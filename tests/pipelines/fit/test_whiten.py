@@ -103,7 +103,7 @@ def test_the_check_fails_when_the_draws_are_mapped_back_without_the_subjects_fac
     # negative control: the same w draws, with L replaced by the identity (what sampling in w without mapping
     # the whitening back would report)
     model, idata, _, _ = whitened_run
-    _, _, x_hat, groups, info, _ = whitening(model, None)
+    _, _, x_hat, groups, info, _, _ = whitening(model, None)
     (blocks, L), (others, S) = groups
     w = _w_draws(idata, x_hat, blocks, L, others, S)
     np.testing.assert_allclose(posterior_of(model, to_unconstrained(w, x_hat, groups), info)["a"].values,
@@ -171,7 +171,7 @@ def test_the_curved_map_samples_a_banana_exactly_and_its_negative_control_fails(
                                        nuts={"adaptation": "diag"}, pivots=[("v", np.ones(2, bool))])
     assert record["curved_along"] == {"v": 2} and record["subjects_without_curvature"] == 0
     assert _banana_failures(idata["posterior"]) == []
-    _, _, x_hat, groups, info, _ = whitening(_banana(), None, [("v", np.ones(2, bool))])
+    _, _, x_hat, groups, info, _, _ = whitening(_banana(), None, [("v", np.ones(2, bool))])
     [(blocks, L, (pivot, a))] = groups
     np.testing.assert_allclose(a[:, 1], CURVE, rtol=1e-4)
     post = idata["posterior"]
@@ -209,7 +209,8 @@ def test_with_two_pivots_each_subject_bends_along_the_one_whose_fold_its_mode_is
                                        nuts={"adaptation": "diag"}, pivots=PIVOTS)
     assert record["curved_along"] == {"u": 1, "v": 1} and record["pivot_by_subject"] == ["v", "u"]
     assert set(record["ridge"]) == {"u", "v"} and record["subjects_without_curvature"] == 0
-    _, _, x_hat, groups, _, _ = whitening(_crossed_bananas(), None, PIVOTS)
+    _, _, x_hat, groups, _, _, folds = whitening(_crossed_bananas(), None, PIVOTS)
+    assert [f.tolist() for f in folds] == [[True], [True]]  # each group's one subject: its pivot is signed
     [(rows_u, _, (col_u, a_u)), (rows_v, _, (col_v, a_v))] = groups  # value order u (2), v (2), y (2)
     np.testing.assert_array_equal(rows_u, [[1, 3, 5]])
     np.testing.assert_array_equal(rows_v, [[0, 2, 4]])
@@ -231,3 +232,61 @@ def test_with_two_pivots_each_subject_bends_along_the_one_whose_fold_its_mode_is
     (_, L_u, _), (_, L_v, _) = groups
     swapped = to_unconstrained(w, x_hat, [(rows_u, L_u, (col_u, a_v)), (rows_v, L_v, (col_v, a_u))])
     assert _banana_failures(as_banana(swapped[..., :2], swapped[..., 2:4], swapped[..., 4:])) != []
+
+
+def _symmetric_banana():
+    """Per subject v ~ N(0, SCALE_i), y ~ N(CURVE_i v², NOISE_Y): the banana with its law symmetric in v, so that v
+    may be a signed pivot (models/bayes/whiten_draws.py reflects its draws about 0)."""
+    with pm.Model(coords={"subject": ["s0", "s1"]}) as model:
+        v = pm.Normal("v", 0.0, SCALE, dims="subject")
+        pm.Normal("y", CURVE * v**2, NOISE_Y, dims="subject")
+    return model
+
+
+def _symmetric_failures(v, y, ess_v, ess_y) -> list:
+    """v's and y's means (exact 0 and CURVE SCALE²) and v's SD (SCALE) within 5 Monte Carlo SEs (the SD's SE
+    SCALE / sqrt(2 ESS), v being normal); a false alarm of one of the 6 about 6 × 5.7e-7."""
+    failures = []
+    sd_y = np.sqrt(2 * CURVE**2 * SCALE**4 + NOISE_Y**2)
+    for i in range(2):
+        if abs(v[:, i].mean()) > 5 * SCALE[i] / np.sqrt(ess_v[i]):
+            failures.append(f"mean of v[{i}]")
+        if abs(y[:, i].mean() - CURVE[i] * SCALE[i] ** 2) > 5 * sd_y[i] / np.sqrt(ess_y[i]):
+            failures.append(f"mean of y[{i}]")
+        if abs(v[:, i].std() - SCALE[i]) > 5 * SCALE[i] / np.sqrt(2 * ess_v[i]):
+            failures.append(f"sd of v[{i}]")
+    return failures
+
+
+def test_the_symmetric_banana_check_passes_exact_draws_and_fails_wrong_ones():
+    rng = np.random.default_rng(5)
+    v = rng.normal(0.0, SCALE, (4000, 2))
+    y = CURVE * v**2 + rng.normal(0.0, NOISE_Y, (4000, 2))
+    ess = np.full(2, 4000.0)
+    assert _symmetric_failures(v, y, ess, ess) == []
+    assert _symmetric_failures(v, 1.2 * CURVE * v**2, ess, ess) != []  # the curvature 20 % off
+    assert _symmetric_failures(1.1 * v, y, ess, ess) != []  # v's scale 10 % off
+
+
+def test_pilot_runs_change_the_coordinates_not_the_posterior():
+    # sampled again after two pilot runs, each measuring the whitening on its draws (models/bayes/whiten_draws.py,
+    # with v signed: reflected about 0), the symmetric banana's draws are still its exact posterior's; and the
+    # banana with a linear ridge too, whose v is not signed (its draws not reflected)
+    import arviz as az
+
+    idata, sec, record = sample_whitened(_symmetric_banana(), None, seed=4, chains=2, draws=1000, tune=500, cores=1,
+                                         nuts={"adaptation": "diag"}, pivots=[("v", np.ones(2, bool))],
+                                         pilot=[(50, 50), (50, 100)])
+    post = idata["posterior"]
+    v, y = post["v"].values, post["y"].values
+    assert _symmetric_failures(v.reshape(-1, 2), y.reshape(-1, 2), np.asarray(az.ess(v)), np.asarray(az.ess(y))) == []
+    runs = record["pilot"]
+    assert [(r["tune"], r["draws"], r["blocks_kept_from_before"]) for r in runs] == [(50, 50, 0), (50, 100, 0)]
+    assert all(r["leapfrog_steps"] > 0 for r in runs) and 0 < sum(r["sample_s"] for r in runs) <= sec["sample"]
+    assert "2 pilot run(s)" in record["method"]
+    idata, _, _ = sample_whitened(_banana(), None, seed=4, chains=2, draws=1000, tune=500, cores=1,
+                                  nuts={"adaptation": "diag"}, pivots=[("v", np.zeros(2, bool))],
+                                  pilot=[(50, 50), (50, 100)])
+    assert _banana_failures(idata["posterior"]) == []
+    with pytest.raises(ValueError, match="pilot needs"):
+        sample_whitened(_banana(), None, seed=4, chains=2, draws=10, tune=10, cores=1, pilot=[(10, 1)])

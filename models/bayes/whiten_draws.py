@@ -1,0 +1,113 @@
+"""The per-subject whitening of :mod:`models.bayes.whiten` measured on posterior draws instead of at a Hessian.
+
+Why. The whitening's factors L_i come from the Hessian at x̂, the mode with the population's
+scales held. Where a subject's posterior is far from Gaussian there, they describe it badly. On
+the twelve subjects of the ``kbl`` human that sample worst (:mod:`pipelines.fit.delayed_forms`,
+"Polar, squared, and the low-rank mass matrix"), the default fit's draws in the whitened
+coordinates w had SDs from 0.75 to 28 (log σ_m's tail towards 0, which the Hessian at the mode
+does not see), and within a subject correlations whose matrix had eigenvalues from 0.0095 to 4.8:
+nutpie's diagonal mass matrix rescales the first, not the second, and NUTS's step is then set by
+the thinnest direction. Whitened again by each block's own posterior covariance (the same draws,
+ad hoc), the whole 106-dimensional covariance had eigenvalues from 0.11 to 3.0, about what 600
+autocorrelated draws of an identity give. The subjects are independent given the population, so
+nothing between blocks is left for a dense matrix to learn. Measured: README, "Speed".
+
+What. :func:`draws_factors` takes draws x of the posterior (a short pilot run on the Hessian's
+whitening, :func:`pipelines.fit.whiten.sample_whitened`) and gives each block of the same groups
+a new centre, factor and, where curved, curvature:
+
+* an affine block: its draws' mean and the Cholesky factor of their covariance;
+* a curved block (pivot p): the pivot's centre is 0 where it is signed (a folded coordinate, whose
+  law is symmetric about 0: the draws are counted twice, as drawn and reflected about 0, which is
+  exact for the posterior and halves the Monte Carlo error of the even moments) and its mean
+  otherwise. With δ = x_p - centre, every other coordinate is regressed on (1, δ, δ²): the
+  intercept is its centre, the δ² coefficient its curvature a, so that x - centre - a δ² is what the
+  affine factor L must hold (:func:`models.bayes.whiten.to_unconstrained`'s map, with x̂ the centre).
+
+The map stays one-to-one with a constant Jacobian (a_p = 0), so the sampled posterior is still
+exactly the model's, whatever the pilot's draws were: they choose coordinates, not the law. A block
+whose draws did not move (no positive variance) keeps its Hessian factor.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from models.bayes.whiten import EIGEN_FLOOR
+
+
+def covariance_factor(cov: np.ndarray, floor: float = EIGEN_FLOOR) -> np.ndarray | None:
+    """The Cholesky factor of ``cov`` (k, k) with its eigenvalues floored at ``floor`` times the largest, or None
+    where it has no positive finite eigenvalue (a coordinate that did not move)."""
+    cov = np.atleast_2d(np.asarray(cov, dtype=float))
+    if not np.all(np.isfinite(cov)):
+        return None
+    lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    if lam[-1] <= 0.0:
+        return None
+    lam = np.maximum(lam, floor * lam[-1])
+    return np.linalg.cholesky((V * lam) @ V.T)
+
+
+def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds) -> tuple[np.ndarray, list, int]:
+    """(x̂, groups, kept): ``groups`` (as :func:`models.bayes.whiten.to_unconstrained` takes them) measured again on
+    posterior draws ``x`` (..., D) (module docstring); ``kept`` counts the blocks whose draws did not move, which
+    keep their factor and centre from ``x_hat`` and ``groups``.
+
+    ``folds``: one entry per group, None, or for a curved group (n,) bool: is that subject's pivot signed?
+    """
+    x_hat = np.asarray(x_hat, dtype=float)
+    X = np.asarray(x, dtype=float).reshape(-1, x_hat.shape[0])
+    if X.shape[0] < 2 or not np.all(np.isfinite(X)):
+        raise ValueError(f"draws_factors needs at least 2 finite draws; got {X.shape[0]} draws")
+    if len(folds) != len(groups):
+        raise ValueError(f"folds needs one entry per group ({len(groups)}); got {len(folds)}")
+    centre = x_hat.copy()
+    out, kept = [], 0
+    for (blocks, L, *curve), fold in zip(groups, folds):
+        L = np.array(L, dtype=float)
+        pivot = curve[0][0] if curve else None
+        a = np.array(curve[0][1], dtype=float) if curve else None
+        for i, cols in enumerate(blocks):
+            xi = X[:, cols]
+            c = xi.mean(axis=0)
+            if curve:
+                if fold is not None and fold[i]:
+                    mirror = xi.copy()
+                    mirror[:, pivot] = -mirror[:, pivot]
+                    xi = np.concatenate([xi, mirror])
+                    c_p = 0.0
+                else:
+                    c_p = c[pivot]
+                delta = xi[:, pivot] - c_p
+                coef = np.linalg.lstsq(np.column_stack([np.ones_like(delta), delta, delta**2]), xi, rcond=None)[0]
+                c, ai = coef[0].copy(), coef[2].copy()
+                c[pivot], ai[pivot] = c_p, 0.0
+                xi = xi - np.outer(delta**2, ai)
+            factor = covariance_factor(np.cov(xi, rowvar=False))
+            if factor is None:
+                kept += 1
+                continue
+            L[i] = factor
+            centre[cols] = c
+            if curve:
+                a[i] = ai
+        out.append((blocks, L, (pivot, a)) if curve else (blocks, L))
+    return centre, out, kept
+
+
+def to_white(x: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
+    """w from x (..., D): the inverse of :func:`models.bayes.whiten.to_unconstrained` (δ read off the pivot's x,
+    then w = L⁻¹ (x - x̂ - a δ²) per block)."""
+    x = np.asarray(x, dtype=float)
+    w = x - x_hat
+    for blocks, L, *curve in groups:
+        dx = x[..., blocks] - x_hat[blocks]
+        if curve:
+            pivot, a = curve[0]
+            dx = dx - a * dx[..., pivot:pivot + 1] ** 2
+        w[..., blocks] = np.linalg.solve(L, dx[..., None])[..., 0]
+    return w
+
+
+__all__ = ["covariance_factor", "draws_factors", "to_white"]

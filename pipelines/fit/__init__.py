@@ -5,6 +5,8 @@ module                     what it holds
 =========================  ===========================================================
 :mod:`.sampling`           nutpie through ``pm.sample``: seeds, clean stdout, Ctrl-C, log lines
 :mod:`.start`              where the chains start: near the ML estimates
+:mod:`.whiten`             sampling on each subject's whitened coordinates (and after a pilot run)
+:mod:`.warmup`             how long the warm-up is: the default, and the delayed fit's pilot run
 :mod:`.diagnostics`        R-hat, ESS, E-BFMI, divergences and the sampler's verdict
 :mod:`.contrasts`          β, exp(β), P(β < 0), HDIs, per-subject contrasts
 :mod:`.loo`                PSIS-LOO over segments and leave-one-subject-out

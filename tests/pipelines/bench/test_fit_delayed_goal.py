@@ -35,17 +35,23 @@ def test_the_workflow_benchmark_times_scioc_fits_own_path(tmp_path):
     assert (st["human"], st["segments"], st["subjects"], st["chains"], st["draws"], st["tune"]) == \
         ("kbl", 4, 2, 2, 30, 40)
     assert st["adaptation"] in ("diag (nutpie), per-subject whitened, curved along " + v
-                                for v in ("sigma_m", "sigma_m_signed"))  # the default, σ_m's form by the data
+                                + ", measured again on a pilot run's draws"
+                                for v in ("sigma_m", "sigma_m_signed", "rho_signed"))  # the default, forms by the data
     assert st["experiment"] == "data/examples/paper-torque-sensor/experiment.toml"
     assert 0 < st["delays"][0] <= st["delays"][1] <= 30  # the kbl human's delays are found, within the grid
     assert 0 < s["sample"] < s["fit"] and s["identify"] > 0
-    assert smp["gradients"] == pytest.approx(2 * (40 * smp["warmup_steps_per_draw"] + 30 * smp["steps_per_draw"]))
+    # the pilot run (pipelines/fit/warmup.py: as long as the fit's own warm-up and draws allow) counts too
+    [pilot] = smp["pilot"]
+    assert (pilot["tune"], pilot["draws"]) == (40, 30) and pilot["steps_per_draw"] > 0
+    assert smp["gradients"] == pytest.approx(2 * (40 * smp["warmup_steps_per_draw"] + 30 * smp["steps_per_draw"])
+                                             + 2 * 70 * pilot["steps_per_draw"])
     assert smp["ms_per_gradient_on_a_core"] == pytest.approx(1e3 * s["sample"] * st["cores"] / smp["gradients"])
     assert res["within_goal"] is None  # not the goal's size
     assert res["truth"]["beta"]["truth"] == -0.7 and set(res["truth"]["motor"]) == {"tau_nm", "sigma_m"}
     assert res["adequacy"]["segments"] == 4 and res["adequacy"]["verdict"] in ("pass", "fail")
     text = format_delayed_workflow(res)
     assert "kbl human" in text and "not this size" in text and "per-subject whitened" in text
+    assert "after a pilot of 40 + 30 draws" in text
 
 
 def test_bench_refuses_an_unknown_human_and_a_kept_folder_in_use_before_any_work(tmp_path, capsys):

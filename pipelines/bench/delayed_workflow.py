@@ -135,7 +135,8 @@ def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:
     cores = min(int(st["cores"]), chains)
     pilots = (side.get("whitening") or {}).get("pilot") or []
     pilot_gradients = sum(p["tuning_leapfrog_steps"] + p["leapfrog_steps"] for p in pilots)
-    gradients = chains * (tune * smp["tuning_mean_steps_per_draw"] + draws * smp["mean_steps_per_draw"]) + pilot_gradients
+    gradients = (chains * (tune * smp["tuning_mean_steps_per_draw"] + draws * smp["mean_steps_per_draw"])
+                 + pilot_gradients)
     delays = [u["delay_samples"] for u in side["delay"]["by_unit"].values()]
     truth = res.get("truth") or {}
     fit_s = float(sec["total_s"])

@@ -7,12 +7,12 @@ import argparse
 from importlib.metadata import PackageNotFoundError, version
 
 import pipelines.cli.commands as commands
-from pipelines.cli.values import (ADAPTATION_NAMES, NUTPIE_ADAPTATION_NAMES, ADEQUACY_AT_HELP, ADEQUACY_AT_NAMES, HUMAN_MODEL_NAMES,
-                                  HUMAN_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, PARAMETERIZATION_BLOCKS, PREVIEW,
-                                  RHO_FORM_NAMES, RUN_SECONDS, R_POPULATION_NAMES, WINDOW_TEXT, acceptance,
-                                  finite_float, human_models_list, humans_list, nonnegative_float, nonnegative_int,
-                                  nonnegative_seconds, positive_int, positive_seconds, significance_level,
-                                  window_spec)
+from pipelines.cli.values import (ADAPTATION_NAMES, ADEQUACY_AT_HELP, ADEQUACY_AT_NAMES, HUMAN_MODEL_NAMES,
+                                  HUMAN_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, NUTPIE_ADAPTATION_NAMES,
+                                  PARAMETERIZATION_BLOCKS, PREVIEW, RHO_FORM_NAMES, RUN_SECONDS, R_POPULATION_NAMES,
+                                  WINDOW_TEXT, acceptance, finite_float, human_models_list, humans_list,
+                                  nonnegative_float, nonnegative_int, nonnegative_seconds, positive_int,
+                                  positive_seconds, significance_level, window_spec)
 
 
 def _add_force_option(p):

@@ -19,7 +19,7 @@ The steps, all deterministic (the seed enters only the sampler, as in :func:`pip
    With a ``pilot``, first a short run of it, whose draws measure each block's centre, factor and
    curvature again (:func:`models.bayes.whiten_draws.draws_factors`: where the posterior is far from
    Gaussian at x̂, the Hessian there describes it badly), then the run whose draws are kept, on
-   the new coordinates, the chains jittered around the pilot's centre.
+   the new coordinates, the chains jittered around the pilot's first chain's last draw.
 4. The draws mapped back: x(w), then every free variable and deterministic of the original
    model, so that the posterior holds what nutpie would have returned for it; then the
    pointwise log-likelihood.
@@ -98,7 +98,8 @@ def whitening(model, start: dict | None, pivots=None):
         columns = [block_column(raveled.point_map_info, dims, n, model.rvs_to_values[model[p]].name) for p in names]
         chosen = nearest_fold(x_hat, blocks, L, columns, np.column_stack([signed for _, signed in pivots]))
         block_groups, folds, ridges, counts = [], [], {}, {}
-        signed_by_pivot = np.column_stack([np.broadcast_to(np.asarray(signed, dtype=bool), (n,)) for _, signed in pivots])
+        signed_by_pivot = np.column_stack([np.broadcast_to(np.asarray(signed, dtype=bool), (n,))
+                                           for _, signed in pivots])
         for j, (name, column) in enumerate(zip(names, columns)):
             rows = chosen == j
             if rows.any():
@@ -168,8 +169,8 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     whitening, each later one on the whitening measured again on the draws of the one before
     (:func:`models.bayes.whiten_draws.draws_factors`), and the run whose draws are returned on the last one's
     (seeds :func:`pilot_seeds`); each run after a pilot starts (jittered) at the pilot's first chain's last draw,
-    inside the posterior's bulk, not at its centre. ``seconds["sample"]`` then holds every run's sampling, ``record["pilot"]``
-    each pilot's draws and leapfrog steps.
+    inside the posterior's bulk, not at its centre. ``seconds["sample"]`` then holds every run's sampling,
+    ``record["pilot"]`` each pilot's draws and leapfrog steps.
     """
     t0 = time.perf_counter()
     logp, flat, x_hat, groups, info, record, folds = whitening(model, start, pivots)

@@ -17,8 +17,8 @@ from models.design import STUDY
 from models.plant import discretize
 from models.segment import prepare_batch
 from pipelines.cli import main
-from pipelines.cli.values import (ADAPTATION_NAMES, NUTPIE_ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, R_POPULATION_NAMES,
-                                  RHO_FORM_NAMES)
+from pipelines.cli.values import (ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S,
+                                  NUTPIE_ADAPTATION_NAMES, R_POPULATION_NAMES, RHO_FORM_NAMES)
 from pipelines.fit.delayed_forms import LOG_R_FORMS
 from pipelines.identify import identify_to_dir
 from pipelines.loglik import LIKELIHOODS

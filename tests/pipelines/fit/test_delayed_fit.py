@@ -81,7 +81,8 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     # fit's own warm-up and draws allow (pipelines/fit/warmup.py)
     assert side["sampler"]["adaptation"].endswith(", measured again on a pilot run's draws")
     [pilot] = side["whitening"]["pilot"]
-    assert (pilot["tune"], pilot["draws"]) == (min(PILOT_RUNS[0][0], TINY["tune"]), min(PILOT_RUNS[0][1], TINY["draws"]))
+    assert (pilot["tune"], pilot["draws"]) == (min(PILOT_RUNS[0][0], TINY["tune"]),
+                                               min(PILOT_RUNS[0][1], TINY["draws"]))
     assert pilot["leapfrog_steps"] > 0 and "pilot run" in side["start"]
     for name in side["whitening"]["curved_along"]:
         scales = side["whitening"]["ridge"][name]["pivot_scale_range"]

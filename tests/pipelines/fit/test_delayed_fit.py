@@ -404,13 +404,15 @@ def test_the_curved_coordinates_take_nutpies_low_rank_mass_matrix_on_request(del
 
 @pytest.mark.slow
 def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
-    # scioc fit --R-population policy_scale --rho-form folded_centred, the default (curved) whitening: each subject's
-    # block bends along ρ's signed coordinate (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.
+    # scioc fit --R-population policy_scale --rho-form folded_centred, the default whitening (curved, then measured
+    # again on a pilot run's draws): each subject's block bends along ρ's signed coordinate
+    # (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.
     _, side = _small_fit(delayed_study, "fit_rho_curved", delayed_priors=DelayedPriors(R_population="policy_scale"),
                          rho_form="folded_centred")
     assert side["delayed_form"]["sigma_m"] not in SIGNED_FORMS  # chosen by these data: ρ's is the only pivot
     assert side["whitening"]["curved_along"] == {"rho_signed": 3}
-    assert side["sampler"]["adaptation"] == "diag (nutpie), per-subject whitened, curved along rho_signed"
+    assert side["sampler"]["adaptation"] == ("diag (nutpie), per-subject whitened, curved along rho_signed, "
+                                             "measured again on a pilot run's draws")
     assert "curved along its ridge in rho_signed (models" in side["start"]
     scales = side["whitening"]["ridge"]["rho_signed"]["pivot_scale_range"]
     assert 0 < scales[0] <= scales[1]

@@ -96,10 +96,10 @@ def whitening(model, start: dict | None, pivots=None):
         n = len(model.coords["subject"])
         names = [name for name, _ in pivots]
         columns = [block_column(raveled.point_map_info, dims, n, model.rvs_to_values[model[p]].name) for p in names]
-        chosen = nearest_fold(x_hat, blocks, L, columns, np.column_stack([signed for _, signed in pivots]))
-        block_groups, folds, ridges, counts = [], [], {}, {}
         signed_by_pivot = np.column_stack([np.broadcast_to(np.asarray(signed, dtype=bool), (n,))
                                            for _, signed in pivots])
+        chosen = nearest_fold(x_hat, blocks, L, columns, signed_by_pivot)
+        block_groups, folds, ridges, counts = [], [], {}, {}
         for j, (name, column) in enumerate(zip(names, columns)):
             rows = chosen == j
             if rows.any():

@@ -15,11 +15,6 @@ from models.bayes.whiten_draws import covariance_factor, draws_factors, to_white
 N_DRAWS = 20_000
 
 
-def _to_w(x, x_hat, groups):
-    """The inverse of :func:`models.bayes.whiten.to_unconstrained` on draws x (n, D) (tested below)."""
-    return to_white(x, x_hat, groups)
-
-
 def test_to_white_inverts_to_unconstrained_and_the_forward_map_alone_does_not():
     rng = np.random.default_rng(6)
     blocks = np.arange(6).reshape(3, 2)
@@ -50,14 +45,14 @@ def test_an_affine_block_takes_its_draws_mean_and_covariance():
         assert np.all(np.abs(x_hat[blocks[i]] - means[i]) < 5 * se)
         scale = np.sqrt(np.outer(np.diag(covs[i]), np.diag(covs[i])))
         assert np.max(np.abs(L[i] @ L[i].T - covs[i]) / scale) < 0.05  # each entry within 5 % of its scale
-    w = _to_w(x, x_hat, groups)
+    w = to_white(x, x_hat, groups)
     cw = np.cov(w, rowvar=False)
     for i in range(2):  # within a block exactly the identity, by construction; between blocks the draws' noise
         np.testing.assert_allclose(cw[np.ix_(blocks[i], blocks[i])], np.eye(3), atol=1e-9)
     assert np.max(np.abs(cw[np.ix_(blocks[0], blocks[1])])) < 5 / np.sqrt(N_DRAWS)
     np.testing.assert_allclose(to_unconstrained(w, x_hat, groups), x, rtol=1e-10, atol=1e-10)
     # negative control: the same draws in the old coordinates are neither unit-scaled nor uncorrelated
-    assert np.max(np.abs(np.cov(_to_w(x, x_hat, old), rowvar=False) - np.eye(6))) > 0.5
+    assert np.max(np.abs(np.cov(to_white(x, x_hat, old), rowvar=False) - np.eye(6))) > 0.5
 
 
 def _parabola(rng, signed_mean=0.0, c=3.0, s=0.5, t=0.1):
@@ -80,11 +75,11 @@ def test_a_curved_block_straightens_its_parabola_and_an_affine_one_does_not():
     def bend(w):  # what is left of the parabola in w: the slope of w_y on w_v²
         return np.polyfit(w[:, 0] ** 2, w[:, 1], 1)[0]
 
-    assert abs(bend(_to_w(x, x_hat, groups))) < 0.05
-    np.testing.assert_allclose(to_unconstrained(_to_w(x, x_hat, groups), x_hat, groups), x, rtol=1e-10, atol=1e-10)
+    assert abs(bend(to_white(x, x_hat, groups))) < 0.05
+    np.testing.assert_allclose(to_unconstrained(to_white(x, x_hat, groups), x_hat, groups), x, rtol=1e-10, atol=1e-10)
     # negative control: measured as an affine block, the same draws keep their parabola
     x_aff, affine, _ = draws_factors(x, np.zeros(2), [(blocks, np.eye(2)[None].copy())], [None])
-    assert abs(bend(_to_w(x, x_aff, affine))) > 0.5
+    assert abs(bend(to_white(x, x_aff, affine))) > 0.5
 
 
 def test_a_signed_pivot_counts_its_draws_reflected_and_an_unsigned_one_does_not():

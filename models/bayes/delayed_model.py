@@ -181,7 +181,8 @@ coordinates again on the draws of a pilot run (:mod:`pipelines.fit.warmup`: 100 
 starts the kept run at the pilot's last draw. On those twelve (2 chains × (300 + 300) draws, seed 1, policy-scale
 R, ρ folded centred; the pilot 100 + 100): 26.8 leapfrog steps per kept draw against the curved fit's 58.0
 (:mod:`pipelines.fit.delayed_forms`' table), 29.0 per warm-up draw, the pilot 37.9 per draw; the smallest ESS
-of a population parameter 204 (σ_β) against 84. At full size: README, "Speed".
+of a population parameter 204 (σ_β) against 84. At full size: README, "Speed". The pilot runs on 2 chains (at
+most the fit's; :data:`pipelines.fit.warmup.PILOT_CHAINS` says what that saved).
 """
 
 from __future__ import annotations

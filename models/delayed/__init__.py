@@ -9,6 +9,7 @@ module                     what it holds
 :mod:`.riccati`            the plan: 3-state LQ recursion, its tape and stationary adjoint (numba)
 :mod:`.reverse`            the plan's reverse sweep: its derivative in q11, q22 and the lag (numba)
 :mod:`.innovations`        log N(r; 0, Σ) for banded Σ: Schur algorithm, rows, reverse mode (numba)
+:mod:`.schur`              one Schur step on a banded Toeplitz generator, and its reverse (numba)
 :mod:`.kernel`             one segment and the batch: assembly and chain rule (numba)
 :mod:`.sample`             the generative closed loop, :func:`sample_delayed` and :func:`forward_delayed`
 :mod:`.dense`              the dense joint Gaussian, the reference of the tests

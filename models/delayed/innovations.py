@@ -21,7 +21,12 @@ not (the plan's last steps).
   zero) and changes x only at second order (``x' - x = O(ρ²) x + O(ρ) y``), so once
   d + 1 consecutive columns agree to :data:`models.maxent.FREEZE_RTOL` and
   ``|y| <= Y_RTOL |x|`` (the filter's steady state, at step k_f) every later column is
-  the same to rounding and is not computed again. The solves run by columns there.
+  the same to rounding and is not computed again. The solves run by columns there; in both
+  solves (y = L⁻¹ r forward, ω backward) the term of the neighbouring row is carried in a
+  register rather than added into the accumulator q and read back, so that each step's
+  dependence on the last is one multiplication and one subtraction (the rest of the row is
+  not on that path). Measured on the default study's segments (84 × 1500 samples, one
+  thread, ad hoc): the log-density's share of the kernel fell from 3.44 to 3.02 ms at d = 10.
 * Rows after k_R: L D Lᵀ row by row, O(d²) each, from the d rows before (the last
   Toeplitz rows are written out as rows for them).
 
@@ -47,89 +52,16 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from models import FASTMATH
+from models.delayed.schur import U, schur_step, schur_step_adjoint
 from models.maxent import FREEZE_RTOL, HALF_LOG_2PI, PROD_HUGE, PROD_TINY
 
 #: The Schur columns count as stationary once d + 1 consecutive steps change x by at most
 #: FREEZE_RTOL relative and y (which drives every later change of x, to second order) is below
 #: this fraction of x.
 Y_RTOL = 1e-7
-
-#: Unsigned index type of the inner loops (module docstring).
-U = np.uint64
-
-
-@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def _schur_step(XY, k, d):
-    """The generator XY[k + 1, 0:2] of the next Schur complement from XY[k, 0:2] (x, y, length d + 1)."""
-    a = U(k)
-    b = U(k + 1)
-    ud = U(d)
-    if d == 0:
-        XY[b, 0, 0] = XY[a, 0, 0]
-        XY[b, 1, 0] = 0.0
-        return
-    rho = XY[a, 1, 1] / XY[a, 0, 0]
-    c = math.sqrt(1.0 - rho * rho)
-    ic = 1.0 / c
-    for j in range(ud):
-        XY[b, 0, j] = (XY[a, 0, j] - rho * XY[a, 1, j + U(1)]) * ic
-    XY[b, 0, ud] = XY[a, 0, ud] * ic
-    for j in range(ud):
-        XY[b, 1, j] = c * XY[a, 1, j + U(1)] - rho * XY[b, 0, j]
-    XY[b, 1, 0] = 0.0
-    XY[b, 1, ud] = -rho * XY[b, 0, ud]
-
-
-@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def _schur_step_adjoint(XY, k, d):
-    """Reverse of :func:`_schur_step`: the adjoints XY[k - 1, 2:4] of (x, y) at k - 1, overwritten,
-    from those of step k.
-
-    Forward, with ỹ_j = y_{j+1} (ỹ_d = 0), ρ = ỹ_0 / x_0, c = sqrt(1 - ρ²):
-    ``x'_j = (x_j - ρ ỹ_j) / c`` and ``y'_j = c ỹ_j - ρ x'_j`` (j >= 1; y'_0 = 0 is a constant).
-    """
-    a = U(k - 1)
-    b = U(k)
-    ud = U(d)
-    one = U(1)
-    if d == 0:
-        XY[a, 2, 0] = XY[b, 2, 0]
-        XY[a, 3, 0] = 0.0
-        return
-    x0 = XY[a, 0, 0]
-    rho = XY[a, 1, 1] / x0
-    c = math.sqrt(1.0 - rho * rho)
-    ic = 1.0 / c
-    XY[a, 3, 0] = 0.0
-    # g_j: the whole adjoint of x'_j (its own plus through y'_j, j >= 1)
-    g0 = XY[b, 2, 0]
-    XY[a, 2, 0] = g0 * ic
-    XY[a, 3, 1] = -rho * g0 * ic
-    rb = -g0 * XY[a, 1, 1] * ic
-    cb = -g0 * XY[b, 0, 0] * ic
-    for j in range(one, ud):
-        yt = XY[a, 1, j + one]
-        gy = XY[b, 3, j]
-        xn = XY[b, 0, j]
-        g = XY[b, 2, j] - rho * gy
-        cb += gy * yt - g * xn * ic
-        rb -= gy * xn + g * yt * ic
-        XY[a, 2, j] = g * ic
-        XY[a, 3, j + one] = c * gy - rho * g * ic
-    gy = XY[b, 3, ud]
-    xn = XY[b, 0, ud]
-    g = XY[b, 2, ud] - rho * gy
-    rb -= gy * xn
-    cb -= g * xn * ic
-    XY[a, 2, ud] = g * ic
-    rb -= cb * rho * ic  # c = sqrt(1 - ρ²)
-    XY[a, 3, 1] += rb / x0  # ρ = y_1 / x_0
-    XY[a, 2, 0] -= rb * rho / x0
-
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar, Sbar, w, wb, XY, gbar):
@@ -193,7 +125,8 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
             XY[0, 0, j] = gam[j] * sc
             XY[0, 1, j] = gam[j] * sc
         XY[0, 1, 0] = 0.0
-        for k in range(nA):
+        k = 0
+        while k < nA:  # the columns up to the first steady one
             kx = U(min(k, k_f))
             x0 = XY[kx, 0, 0]
             ix0 = 1.0 / x0  # off the recursion's critical path, as the rest but y_k and the update
@@ -213,7 +146,7 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
             for t in range(U(1), U(min(d, nA - 1 - k) + 1)):
                 q[uk + t] += XY[kx, 0, t] * f
             if k + 1 < nA and k < k_f:
-                _schur_step(XY, k, d)
+                schur_step(XY, k, d)
                 if freeze:
                     a = U(k)
                     b = U(k + 1)
@@ -227,6 +160,30 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
                     count = count + 1 if num <= FREEZE_RTOL * den else 0
                     if count > d and ny <= Y_RTOL * den:
                         k_f = k + 1
+            k += 1
+            if k > k_f:
+                break
+        if k < nA:
+            # the columns after the first steady one share its x: l_t = x_t / x_0 in w; the term of the column just
+            # before (l_1 y_{k-1}) is carried in a register, not through q, so that the recursion's path from y_{k-1}
+            # to y_k is one multiply and one subtraction (module docstring)
+            ix0 = 1.0 / XY[k_f, 0, 0]
+            Dk = D[k_f]
+            for t in range(ud + U(1)):
+                w[t] = XY[k_f, 0, t] * ix0
+            l1 = w[1] if d > 0 else 0.0
+            carry = 0.0
+            for k in range(k, nA):
+                yk = r[k] - q[k + d] - carry
+                D[k] = Dk
+                yb_[k + d] = yk
+                quad += yk * yk / Dk
+                carry = l1 * yk
+                uk = U(k + d)
+                for t in range(U(2), U(min(d, nA - 1 - k) + 1)):
+                    q[uk + t] += w[t] * yk
+            for s in range(ud):
+                w[s] = 0.0
         logs += math.log(prod)
         if k_f < nA - 1:
             logs += (nA - 1 - k_f) * math.log(D[k_f])
@@ -272,12 +229,17 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
         for s in range(d):
             w[s] = XY[k_f, 0, d - s] / XY[k_f, 0, 0]
         iD = 1.0 / D[k_f]
+        wl = w[d - 1] if d > 0 else 0.0
+        carry = 0.0  # as in the forward recursion: the nearest term in a register, not through q
         for i in range(nA - 1, hi - 1, -1):
             ui = U(i)
-            o = yb_[i + d] * iD - q[i + d]
+            o = yb_[i + d] * iD - q[i + d] - carry
             ob_[i + d] = o
-            for s in range(ud):
+            carry = wl * o
+            for s in range(U(max(d - 1, 0))):
                 q[ui + s] += w[s] * o
+        if hi > 0:
+            q[hi - 1 + d] += carry
         for s in range(d):
             w[s] = 0.0
     for k in range(hi - 1, -1, -1):  # ... the columns before by columns
@@ -355,7 +317,7 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
                 acc -= XY[uf, 2, t] * XY[uf, 0, t] * ix0
             XY[uf, 2, 0] += acc
             if k_f > 0:
-                _schur_step_adjoint(XY, k_f, d)
+                schur_step_adjoint(XY, k_f, d)
             top = k_f - 1
         for k in range(top, -1, -1):
             # column k: L_{k+t,k} = x_t / x_0 (rows k + t < nA), D_k = x_0²
@@ -382,7 +344,7 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
                     acc -= lb * XY[kx, 0, t] * ix0
             XY[kx, 2, 0] += acc
             if k > 0:
-                _schur_step_adjoint(XY, k, d)
+                schur_step_adjoint(XY, k, d)
         sc = 1.0 / math.sqrt(gam[0])
         acc = 0.0
         for j in range(d + 1):

@@ -150,9 +150,9 @@ def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:
         "sampler": {"warmup_steps_per_draw": smp["tuning_mean_steps_per_draw"],
                     "warmup_steps_by_tenth": smp["tuning_steps_by_tenth"],
                     "steps_per_draw": smp["mean_steps_per_draw"], "divergences": smp["divergences"],
-                    "pilot": [{"tune": p["tune"], "draws": p["draws"],
+                    "pilot": [{"tune": p["tune"], "draws": p["draws"], "chains": p.get("chains", chains),
                                "steps_per_draw": (p["tuning_leapfrog_steps"] + p["leapfrog_steps"])
-                               / (chains * (p["tune"] + p["draws"]))} for p in pilots],
+                               / (p.get("chains", chains) * (p["tune"] + p["draws"]))} for p in pilots],
                     "gradients": gradients, "ms_per_gradient_on_a_core": 1e3 * sec["condition"]["sample_s"] * cores
                     / gradients},
         "convergence_verdict": diag["convergence_verdict"],
@@ -185,7 +185,8 @@ def format_delayed_workflow(res: dict) -> str:
         f"{s['identify']:.0f} s",
         f"  sampler: {smp['steps_per_draw']:.1f} leapfrog steps per kept draw, {smp['warmup_steps_per_draw']:.1f} per "
         f"warm-up draw (by tenth " + " ".join(f"{x:.0f}" for x in smp["warmup_steps_by_tenth"]) + "); "
-        + "".join(f"after a pilot of {p['tune']} + {p['draws']} draws at {p['steps_per_draw']:.1f} steps per draw; "
+        + "".join(f"after a pilot of {p['tune']} + {p['draws']} draws on {p['chains']} chains at "
+                  f"{p['steps_per_draw']:.1f} steps per draw; "
                   for p in smp.get("pilot", []))
         + f"{smp['gradients'] / 1e3:.0f} k gradients, {smp['ms_per_gradient_on_a_core']:.1f} ms each on a core; "
         f"{smp['divergences']} divergent",

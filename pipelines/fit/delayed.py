@@ -283,7 +283,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     elif whiten:
         idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
                                                 cores=cores, show_progress=show_progress, nuts=nuts, pivots=pivots,
-                                                pilot=pilot_runs(adaptation, delay_mode, tune, draws))
+                                                pilot=pilot_runs(adaptation, delay_mode, tune, draws, chains))
     else:
         idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
                                   show_progress=show_progress, nuts=nuts, initvals=start)

@@ -27,6 +27,7 @@ The steps, all deterministic (the seed enters only the sampler, as in :func:`pip
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
@@ -156,6 +157,29 @@ def pilot_seeds(seed: int, n: int) -> list[int]:
     return [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(int(seed)).spawn(n)]
 
 
+def _target_accept(attrs) -> float | None:
+    """The target acceptance rate nutpie sampled at, from its settings in ``sample_stats.attrs`` (None if absent)."""
+    try:
+        settings = json.loads(attrs["inference_library_settings"])["settings"]
+        return float(settings["adapt_options"]["step_size_settings"]["target_accept"])
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _pilot_stage(stage, chains: int, nuts: dict | None):
+    """One pilot run's (tune, draws, chains, nutpie options) from (tune, draws[, chains[, target_accept]])."""
+    stage = tuple(stage)
+    if not 2 <= len(stage) <= 4:
+        raise ValueError(f"pilot needs (tune >= 0, draws >= 2[, chains >= 1[, target_accept]]) per run; got {stage!r}")
+    tune, draws = int(stage[0]), int(stage[1])
+    p_chains = int(stage[2]) if len(stage) > 2 and stage[2] is not None else int(chains)
+    accept = stage[3] if len(stage) > 3 else None
+    if tune < 0 or draws < 2 or p_chains < 1 or (accept is not None and not 0.0 < float(accept) < 1.0):
+        raise ValueError(f"pilot needs (tune >= 0, draws >= 2[, chains >= 1[, target_accept]]) per run; got {stage!r}")
+    p_nuts = nuts if accept is None else {**(nuts or {}), "target_accept": float(accept)}
+    return tune, draws, p_chains, p_nuts
+
+
 def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws: int, tune: int,
                     cores: int | None = None, show_progress: bool = False, nuts: dict | None = None,
                     pivots=None, pilot=None):
@@ -165,7 +189,8 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     sample_stats with the warm-up's steps, log_likelihood); ``seconds`` adds ``whitening`` (steps 1-2);
     ``record`` says what the whitening found (for the sidecar).
 
-    ``pilot``: a sequence of (tune, draws) per chain: pilot runs, one after the other, the first on the Hessian's
+    ``pilot``: a sequence of (tune, draws) per chain, or (tune, draws, chains, target_accept) (None: the fit's own),
+    pilot runs, one after the other, the first on the Hessian's
     whitening, each later one on the whitening measured again on the draws of the one before
     (:func:`models.bayes.whiten_draws.draws_factors`), and the run whose draws are returned on the last one's
     (seeds :func:`pilot_seeds`); each run after a pilot starts (jittered) at the pilot's first chain's last draw,
@@ -176,13 +201,11 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     logp, flat, x_hat, groups, info, record, folds = whitening(model, start, pivots)
     white = whitened_model(logp, flat, x_hat, groups)
     t1 = time.perf_counter()
-    pilot = [tuple(int(v) for v in stage) for stage in (pilot or ())]
-    if any(len(stage) != 2 or stage[0] < 0 or stage[1] < 2 for stage in pilot):
-        raise ValueError(f"pilot needs (tune >= 0, draws >= 2) per run; got {pilot!r}")
+    pilot = [_pilot_stage(stage, chains, nuts) for stage in (pilot or ())]
     spent, refit_s, runs, init = {"sample": 0.0, "compile_and_sample": 0.0}, 0.0, [], None
-    for (p_tune, p_draws), p_seed in zip(pilot, pilot_seeds(seed, len(pilot))):
-        first, sec = sample_model(white, seed=p_seed, chains=chains, draws=p_draws, tune=p_tune, cores=cores,
-                                  show_progress=show_progress, log_likelihood=False, nuts=nuts, initvals=init)
+    for (p_tune, p_draws, p_chains, p_nuts), p_seed in zip(pilot, pilot_seeds(seed, len(pilot))):
+        first, sec = sample_model(white, seed=p_seed, chains=p_chains, draws=p_draws, tune=p_tune, cores=cores,
+                                  show_progress=show_progress, log_likelihood=False, nuts=p_nuts, initvals=init)
         spent = {k: spent[k] + sec[k] for k in spent}
         t2 = time.perf_counter()
         stats = first["sample_stats"]
@@ -191,7 +214,8 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
         white = whitened_model(logp, flat, x_hat, groups)
         init = {WHITE: to_white(x[0, -1], x_hat, groups)}  # the next run starts where the first chain ended
         refit_s += time.perf_counter() - t2
-        runs.append({"tune": p_tune, "draws": p_draws, "sample_s": sec["sample"],
+        runs.append({"tune": p_tune, "draws": p_draws, "chains": int(first["posterior"].sizes["chain"]),
+                     "target_accept": _target_accept({**first["posterior"].attrs, **stats.attrs}), "sample_s": sec["sample"],
                      "tuning_leapfrog_steps": int(stats.attrs.get("tuning_leapfrog_steps", 0)),
                      "leapfrog_steps": int(stats["n_steps"].values.sum()),
                      "divergences": int(stats["diverging"].values.sum()), "blocks_kept_from_before": kept})

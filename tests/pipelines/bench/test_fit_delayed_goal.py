@@ -6,6 +6,7 @@ import pytest
 from pipelines.bench.delayed_workflow import (FIT_DELAYED_GOAL_S, bench_delayed_workflow, format_delayed_workflow,
                                               goal_text, within_goal)
 from pipelines.cli import main
+from pipelines.fit.warmup import PILOT_CHAINS
 
 
 def test_the_goal_applies_to_the_full_size_fit_only():
@@ -42,16 +43,17 @@ def test_the_workflow_benchmark_times_scioc_fits_own_path(tmp_path):
     assert 0 < s["sample"] < s["fit"] and s["identify"] > 0
     # the pilot run (pipelines/fit/warmup.py: as long as the fit's own warm-up and draws allow) counts too
     [pilot] = smp["pilot"]
-    assert (pilot["tune"], pilot["draws"]) == (40, 30) and pilot["steps_per_draw"] > 0
+    assert (pilot["tune"], pilot["draws"], pilot["chains"]) == (40, 30, min(2, PILOT_CHAINS))
+    assert pilot["steps_per_draw"] > 0
     assert smp["gradients"] == pytest.approx(2 * (40 * smp["warmup_steps_per_draw"] + 30 * smp["steps_per_draw"])
-                                             + 2 * 70 * pilot["steps_per_draw"])
+                                             + pilot["chains"] * 70 * pilot["steps_per_draw"])
     assert smp["ms_per_gradient_on_a_core"] == pytest.approx(1e3 * s["sample"] * st["cores"] / smp["gradients"])
     assert res["within_goal"] is None  # not the goal's size
     assert res["truth"]["beta"]["truth"] == -0.7 and set(res["truth"]["motor"]) == {"tau_nm", "sigma_m"}
     assert res["adequacy"]["segments"] == 4 and res["adequacy"]["verdict"] in ("pass", "fail")
     text = format_delayed_workflow(res)
     assert "kbl human" in text and "not this size" in text and "per-subject whitened" in text
-    assert "after a pilot of 40 + 30 draws" in text
+    assert f"after a pilot of 40 + 30 draws on {pilot['chains']} chains" in text
 
 
 def test_bench_refuses_an_unknown_human_and_a_kept_folder_in_use_before_any_work(tmp_path, capsys):

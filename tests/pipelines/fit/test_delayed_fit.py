@@ -18,7 +18,7 @@ from pipelines.fit.delayed import unit_delays
 from pipelines.fit.delayed_forms import CENTRED_Z, choose_delayed_form, log_R_form
 from pipelines.fit.human_models import compare_human_models, format_human_models
 from pipelines.identify import identify_to_dir
-from pipelines.fit.warmup import PILOT_RUNS
+from pipelines.fit.warmup import PILOT_CHAINS, PILOT_RUNS, PILOT_TARGET_ACCEPT
 from pipelines.io import load_study
 from pipelines.prepare import IdentifySettings, prepare_study
 from pipelines.simulate import simulate_to_dir
@@ -83,6 +83,10 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     [pilot] = side["whitening"]["pilot"]
     assert (pilot["tune"], pilot["draws"]) == (min(PILOT_RUNS[0][0], TINY["tune"]),
                                                min(PILOT_RUNS[0][1], TINY["draws"]))
+    # on its own chains (at most the fit's), at the fit's target acceptance rate unless the pilot has its own: as
+    # nutpie recorded them
+    assert pilot["chains"] == min(PILOT_CHAINS, TINY["chains"])
+    assert pilot["target_accept"] == (PILOT_TARGET_ACCEPT or WHITENED_TARGET_ACCEPT)
     assert pilot["leapfrog_steps"] > 0 and "pilot run" in side["start"]
     for name in side["whitening"]["curved_along"]:
         scales = side["whitening"]["ridge"][name]["pivot_scale_range"]

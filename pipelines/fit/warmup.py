@@ -15,12 +15,15 @@ from models.bayes.delayed_model import ADAPTATIONS, PILOT
 #: :func:`pilot_runs`; measured: README, "Speed").
 PILOT_RUNS = ((100, 100),)
 #: The pilot's chains (at most the fit's): its draws only measure the coordinates, and on a 2-core machine two chains
-#: take half the time of four. Measured on the twelve subjects of README "Speed" (4 chains, 300 warm-up and kept draws,
-#: seed 1, alone but for one other fit): the pilot's gradients fell from 30.8 k to 15.8 k, the kept draws' steps
-#: (28.3 and 28.2) and the smallest population ESS (327 and 331) stayed.
+#: take half the time of four. Measured on the twelve subjects of README "Speed" (``scioc fit h12/study.parquet
+#: --human-model delayed --chains 4 --draws 300 --seed 1 --R-population policy_scale --rho-form folded_centred``,
+#: against the same with this constant set to 4 by a wrapper; by gradients, as another fit shared the machine): the
+#: pilot's gradients fell from 30.8 k to 15.8 k; the kept draws' steps (28.3 and 28.2 per draw) and the smallest
+#: population ESS (327 and 331, σ_βR) stayed.
 PILOT_CHAINS = 2
-#: The pilot's NUTS target acceptance rate (None: the fit's own). 0.8 on two chains, measured as above, took 34.4
-#: steps per pilot draw against 39.6 but left 3 divergent transitions in the kept run (0 at the fit's own 0.9).
+#: The pilot's NUTS target acceptance rate (None: the fit's own). 0.8 on two chains (the same command through the
+#: wrapper) took 34.4 steps per pilot draw against 39.6 but left 3 divergent transitions in the kept run (0 at the
+#: fit's own 0.9).
 PILOT_TARGET_ACCEPT = None
 #: Warm-up draws per chain of a fit without a pilot run (``scioc fit --tune``'s default), and of the run after it:
 #: the pilot's draws measured the coordinates and its last draw is where the chains start (README, "Speed").

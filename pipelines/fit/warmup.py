@@ -51,4 +51,5 @@ def default_tune(human_model: str | None, delay_mode: str = "profile", adaptatio
     return TUNE
 
 
-__all__ = ["PILOT_CHAINS", "PILOT_RUNS", "PILOT_TARGET_ACCEPT", "TUNE", "TUNE_AFTER_PILOT", "default_tune", "pilot_runs"]
+__all__ = ["PILOT_CHAINS", "PILOT_RUNS", "PILOT_TARGET_ACCEPT", "TUNE", "TUNE_AFTER_PILOT", "default_tune",
+           "pilot_runs"]

@@ -189,8 +189,8 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     sample_stats with the warm-up's steps, log_likelihood); ``seconds`` adds ``whitening`` (steps 1-2);
     ``record`` says what the whitening found (for the sidecar).
 
-    ``pilot``: a sequence of (tune, draws) per chain, or (tune, draws, chains, target_accept) (None: the fit's own),
-    pilot runs, one after the other, the first on the Hessian's
+    ``pilot``: pilot runs, each (tune, draws) per chain or (tune, draws, chains, target_accept), None for the fit's
+    own, run one after the other, the first on the Hessian's
     whitening, each later one on the whitening measured again on the draws of the one before
     (:func:`models.bayes.whiten_draws.draws_factors`), and the run whose draws are returned on the last one's
     (seeds :func:`pilot_seeds`); each run after a pilot starts (jittered) at the pilot's first chain's last draw,
@@ -215,7 +215,8 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
         init = {WHITE: to_white(x[0, -1], x_hat, groups)}  # the next run starts where the first chain ended
         refit_s += time.perf_counter() - t2
         runs.append({"tune": p_tune, "draws": p_draws, "chains": int(first["posterior"].sizes["chain"]),
-                     "target_accept": _target_accept({**first["posterior"].attrs, **stats.attrs}), "sample_s": sec["sample"],
+                     "target_accept": _target_accept({**first["posterior"].attrs, **stats.attrs}),
+                     "sample_s": sec["sample"],
                      "tuning_leapfrog_steps": int(stats.attrs.get("tuning_leapfrog_steps", 0)),
                      "leapfrog_steps": int(stats["n_steps"].values.sum()),
                      "divergences": int(stats["diverging"].values.sum()), "blocks_kept_from_before": kept})

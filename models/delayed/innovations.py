@@ -25,8 +25,9 @@ not (the plan's last steps).
   solves (y = L⁻¹ r forward, ω backward) the term of the neighbouring row is carried in a
   register rather than added into the accumulator q and read back, so that each step's
   dependence on the last is one multiplication and one subtraction (the rest of the row is
-  not on that path). Measured on the default study's segments (84 × 1500 samples, one
-  thread, ad hoc): the log-density's share of the kernel fell from 3.44 to 3.02 ms at d = 10.
+  not on that path). ``scioc bench --parts delayed``, run twice before (642b0ad) and twice
+  after, alternating, 2026-12-06 (one thread, min): delay 10, 7.82 and 8.01 ms before, 7.60
+  and 7.60 after; delay 30, 17.05 and 17.03, 16.37 and 16.97; delay 0 unchanged.
 * Rows after k_R: L D Lᵀ row by row, O(d²) each, from the d rows before (the last
   Toeplitz rows are written out as rows for them).
 

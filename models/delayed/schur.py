@@ -14,7 +14,7 @@ from numba import njit
 
 from models import FASTMATH
 
-#: Unsigned index type of the inner loops (module docstring).
+#: Unsigned index type of the delayed kernels' inner loops (:mod:`models.delayed.innovations` says why).
 U = np.uint64
 
 

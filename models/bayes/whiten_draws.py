@@ -4,8 +4,8 @@ Why. The whitening's factors L_i come from the Hessian at x̂, the mode with the
 scales held. Where a subject's posterior is far from Gaussian there, they describe it badly. On
 the twelve subjects of the ``kbl`` human that sample worst (:mod:`pipelines.fit.delayed_forms`,
 "Polar, squared, and the low-rank mass matrix"), the curved fit's draws in the whitened
-coordinates w (saved ad hoc by a wrapper; 2 chains × 300 kept draws, seed 1) had SDs from 0.75 to 28 (log σ_m's tail towards 0, which the Hessian at the mode
-does not see), and within a subject correlations whose matrix had eigenvalues from 0.0095 to 4.8:
+coordinates w (saved ad hoc by a wrapper; 2 chains × 300 kept draws, seed 1) had SDs from 0.75
+to 28 (log σ_m's tail towards 0, which the Hessian at the mode does not see), and within a subject correlations whose matrix had eigenvalues from 0.0095 to 4.8:
 nutpie's diagonal mass matrix rescales the first, not the second, and NUTS's step is then set by
 the thinnest direction. Whitened again by each block's own posterior covariance (the same draws,
 ad hoc), the whole 106-dimensional covariance had eigenvalues from 0.11 to 3.0, about what 600

@@ -169,13 +169,14 @@ def _target_accept(attrs) -> float | None:
 def _pilot_stage(stage, chains: int, nuts: dict | None):
     """One pilot run's (tune, draws, chains, nutpie options) from (tune, draws[, chains[, target_accept]])."""
     stage = tuple(stage)
+    bad = ValueError(f"pilot needs (tune >= 0, draws >= 2[, chains >= 1[, target_accept]]) per run; got {stage!r}")
     if not 2 <= len(stage) <= 4:
-        raise ValueError(f"pilot needs (tune >= 0, draws >= 2[, chains >= 1[, target_accept]]) per run; got {stage!r}")
+        raise bad
     tune, draws = int(stage[0]), int(stage[1])
     p_chains = int(stage[2]) if len(stage) > 2 and stage[2] is not None else int(chains)
     accept = stage[3] if len(stage) > 3 else None
     if tune < 0 or draws < 2 or p_chains < 1 or (accept is not None and not 0.0 < float(accept) < 1.0):
-        raise ValueError(f"pilot needs (tune >= 0, draws >= 2[, chains >= 1[, target_accept]]) per run; got {stage!r}")
+        raise bad
     p_nuts = nuts if accept is None else {**(nuts or {}), "target_accept": float(accept)}
     return tune, draws, p_chains, p_nuts
 

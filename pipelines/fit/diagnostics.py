@@ -152,6 +152,8 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
       chain at stationarity; a projection, rounded up to 100, not a promise).
     * R-hat above :data:`RHAT_MAX`: the chains disagree; a longer warm-up and more draws, then
       the verdict again. An R-hat that stays high means chains in different modes or regions.
+    * Kept draws at the largest tree depth (:data:`pipelines.fit.warmup.PILOT_MAX_TREE_DEPTH` in a fit with a
+      pilot run): their trajectories were cut short; valid draws, but less independent ones.
     * μ_R or σ_R failing in a delayed fit whose subjects' baseline log R has a pooling factor of at
       least :data:`LOOSE_POOLING` (:func:`pooling_factor`; the data barely fix each subject's R, as
       where motor noise explains the variability that policy noise would): the policy-scale
@@ -190,6 +192,11 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
         out.append(f"R-hat of {worst} {pop[worst]['rhat']:.3f} > {RHAT_MAX} ({len(high)} parameter"
                    f"{'s' * (len(high) != 1)}): the chains disagree; refit with a longer --tune and more --draws, "
                    "then judge again; an R-hat that stays high means chains in different regions")
+    n_cut = int(diag["sampler"].get("draws_at_max_tree_depth") or 0)
+    if n_cut:
+        out.append(f"{n_cut} draw{'s' * (n_cut != 1)} stopped at the largest tree depth "
+                   f"({diag['sampler'].get('max_tree_depth')}): shorter trajectories than NUTS would have run; valid "
+                   "draws but less independent ones, which more --draws make up for")
     lam = diag.get("units", {}).get("log_R", {}).get("pooling_factor", math.nan)
     if {"mu_log_R", "sigma_log_R"} & (set(low) | set(high)) and "sigma_m_scale" in pop and lam >= LOOSE_POOLING:
         out.append(f"the data barely fix each subject's R (pooling factor of its baseline log R {lam:.2f}, at least "

@@ -157,13 +157,21 @@ def pilot_seeds(seed: int, n: int) -> list[int]:
     return [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(int(seed)).spawn(n)]
 
 
-def _target_accept(attrs) -> float | None:
-    """The target acceptance rate nutpie sampled at, from its settings in ``sample_stats.attrs`` (None if absent)."""
+def nutpie_setting(attrs, *path) -> float | None:
+    """One of the settings nutpie sampled with, from ``sample_stats.attrs`` (``path`` into its ``settings``, e.g.
+    ``"maxdepth"``), as a float; None if absent."""
     try:
-        settings = json.loads(attrs["inference_library_settings"])["settings"]
-        return float(settings["adapt_options"]["step_size_settings"]["target_accept"])
+        value = json.loads(attrs["inference_library_settings"])["settings"]
+        for key in path:
+            value = value[key]
+        return float(value)
     except (KeyError, TypeError, ValueError):
         return None
+
+
+def _target_accept(attrs) -> float | None:
+    """The target acceptance rate nutpie sampled at, from its settings in ``sample_stats.attrs`` (None if absent)."""
+    return nutpie_setting(attrs, "adapt_options", "step_size_settings", "target_accept")
 
 
 def _pilot_stage(stage, chains: int, nuts: dict | None):
@@ -217,6 +225,7 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
         refit_s += time.perf_counter() - t2
         runs.append({"tune": p_tune, "draws": p_draws, "chains": int(first["posterior"].sizes["chain"]),
                      "target_accept": _target_accept({**first["posterior"].attrs, **stats.attrs}),
+                     "max_tree_depth": nutpie_setting({**first["posterior"].attrs, **stats.attrs}, "maxdepth"),
                      "sample_s": sec["sample"],
                      "tuning_leapfrog_steps": int(stats.attrs.get("tuning_leapfrog_steps", 0)),
                      "leapfrog_steps": int(stats["n_steps"].values.sum()),
@@ -238,4 +247,5 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     return idata, sec, record
 
 
-__all__ = ["HESSIAN_STEP", "MODE_MAX_ITER", "pilot_seeds", "posterior_of", "sample_whitened", "whitening"]
+__all__ = ["HESSIAN_STEP", "MODE_MAX_ITER", "nutpie_setting", "pilot_seeds", "posterior_of", "sample_whitened",
+           "whitening"]

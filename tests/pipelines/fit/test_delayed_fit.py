@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 import pytest
+import xarray as xr
 
 from models.bayes.delayed_blocks import SIGNED_FORMS, motor_coordinate
 from models.bayes.delayed_model import WHITENED_TARGET_ACCEPT, DelayedForm, DelayedPriors
@@ -18,7 +19,8 @@ from pipelines.fit.delayed import unit_delays
 from pipelines.fit.delayed_forms import CENTRED_Z, choose_delayed_form, log_R_form
 from pipelines.fit.human_models import compare_human_models, format_human_models
 from pipelines.identify import identify_to_dir
-from pipelines.fit.warmup import PILOT_CHAINS, PILOT_RUNS, PILOT_TARGET_ACCEPT
+from pipelines.fit.whiten import nutpie_setting
+from pipelines.fit.warmup import PILOT_CHAINS, PILOT_MAX_TREE_DEPTH, PILOT_RUNS, PILOT_TARGET_ACCEPT
 from pipelines.io import load_study
 from pipelines.prepare import IdentifySettings, prepare_study
 from pipelines.simulate import simulate_to_dir
@@ -91,7 +93,12 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     for name in side["whitening"]["curved_along"]:
         scales = side["whitening"]["ridge"][name]["pivot_scale_range"]
         assert 0 < scales[0] <= scales[1]
-    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
+    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT,
+                                      "maxdepth": PILOT_MAX_TREE_DEPTH}
+    assert pilot["max_tree_depth"] == PILOT_MAX_TREE_DEPTH  # as nutpie recorded it, for the pilot and the kept run
+    stats = xr.open_datatree(delayed_fit["posterior"])["sample_stats"]
+    assert nutpie_setting(stats.attrs, "maxdepth") == PILOT_MAX_TREE_DEPTH
+    assert int(stats["depth"].values.max()) <= PILOT_MAX_TREE_DEPTH
     assert side["sampler"]["target_accept"] == WHITENED_TARGET_ACCEPT == 0.9
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
     assert "whitened coordinates" in side["start"]

@@ -42,6 +42,19 @@ def test_high_rhat_and_divergences_are_both_advised_and_a_stuck_parameter_is_not
     assert out[2].startswith("R-hat of mu_log_R 1.059 > 1.01 (2 parameters): the chains disagree")
 
 
+def test_draws_cut_at_the_largest_tree_depth_are_advised_on_only_when_the_verdict_fails():
+    pop = {"beta": {"rhat": 1.002, "ess_bulk": 350.0, "ess_tail": 500.0}}
+    diag = _diag(population=pop)
+    diag["sampler"].update(max_tree_depth=6, draws_at_max_tree_depth=7)
+    out = remedies(diag, chains=4, draws=1000, target_accept=0.9)
+    assert out[0].startswith("ESS of beta 350 of 400")
+    assert out[1] == ("7 draws stopped at the largest tree depth (6): shorter trajectories than NUTS would have run; "
+                      "valid draws but less independent ones, which more --draws make up for")
+    passing = _diag()
+    passing["sampler"].update(max_tree_depth=6, draws_at_max_tree_depth=7)
+    assert remedies(passing, chains=4, draws=1000, target_accept=0.9) == []
+
+
 def test_a_parameter_that_never_moved_fails_the_verdict_and_is_advised_on():
     # NaN R-hat and ESS (a constant parameter): the verdict's checks fail on NaN, so the advice must say something.
     nan = float("nan")

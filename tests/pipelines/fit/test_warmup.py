@@ -1,7 +1,7 @@
 """The delayed fit's pilot run and default warm-up (pipelines/fit/warmup.py)."""
 
-from pipelines.fit.warmup import (PILOT_CHAINS, PILOT_RUNS, PILOT_TARGET_ACCEPT, TUNE, TUNE_AFTER_PILOT, default_tune,
-                                  pilot_runs)
+from pipelines.fit.warmup import (PILOT_CHAINS, PILOT_MAX_TREE_DEPTH, PILOT_RUNS, PILOT_TARGET_ACCEPT, TUNE,
+                                  TUNE_AFTER_PILOT, default_tune, pilot_runs, tree_depth_options)
 
 
 def test_the_pilot_runs_on_at_most_its_own_chains_and_no_longer_than_the_fit():
@@ -21,3 +21,11 @@ def test_the_default_warm_up_is_shorter_only_after_a_pilot():
     assert default_tune("delayed", adaptation="curved") == TUNE
     assert default_tune("delayed", delay_mode="sampled") == TUNE
     assert default_tune("maxent") == TUNE
+
+
+def test_the_trees_are_capped_only_in_a_fit_with_a_pilot_run():
+    # the kept draws of the full-size fits were trees of depth 5: the cap leaves them room and bounds the restart
+    assert tree_depth_options("pilot") == tree_depth_options(None) == {"maxdepth": PILOT_MAX_TREE_DEPTH}
+    assert 5 < PILOT_MAX_TREE_DEPTH < 10  # nutpie's own is 10
+    assert tree_depth_options("curved") == {}
+    assert tree_depth_options("pilot", "sampled") == {}

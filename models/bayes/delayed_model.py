@@ -199,6 +199,7 @@ from models.bayes.delay_step import DelayMetropolis
 from models.bayes.delayed_blocks import (DELAYED_POPULATION_PARAMETERS, R_POPULATIONS, DelayedForm, DelayedPriors,
                                          cost_blocks, motor_blocks)
 from models.bayes.delayed_op import DelayedLoglikOp, pack_tau0, warmups_of
+from models.bayes.delayed_value import DelayedLoglikValueOp  # noqa: F401 (registers its rewrite)
 from models.bayes.hierarchical import Priors
 from models.delayed import sample_delayed
 from models.delayed.lag import lag_coefficients, window_tau0

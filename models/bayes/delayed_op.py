@@ -84,7 +84,7 @@ def warm_samples(a, alpha):
 
 @njit(cache=True, fastmath=False, error_model="python")
 def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, wstart,
-              tstart):
+              tstart, grad=True):
     n = u.shape[0]
     J = warm.shape[1]
     lag = np.empty((4, n))
@@ -113,7 +113,7 @@ def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2,
         dt0[i, 0] = dtau[J, 0]
         dt0[i, 1] = dtau[J, 1]
     out = np.empty((6, n))
-    batch_kernel_serial(A, b, fb, theta, lag, sigma_m, delay, t0, dt0, x1, x2, r, u, a, True, 1, out,
+    batch_kernel_serial(A, b, fb, theta, lag, sigma_m, delay, t0, dt0, x1, x2, r, u, a, True, grad, 1, out,
                         np.empty((n, 0)))
     return out[0].copy(), out[1:].copy()
 
@@ -207,11 +207,16 @@ class DelayedLoglikDataOp(Op):
         data = [*mats[:6], ints[0], mats[6], ints[1], tstart]
         return Apply(self, [theta, tau_nm, sigma_m, *data], [pt.dvector(), pt.dmatrix()])
 
-    def perform(self, node, inputs, output_storage):
+    def values(self, inputs, grad: bool = True):
+        """(log-likelihood (n,), gradient (5, n)) at a node's input values; with ``grad`` False the gradient is NaN
+        and the log-likelihood the same number in less time (:func:`models.delayed.kernel.batch_kernel`)."""
         theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:3])
         data = inputs[3:] or self.bound
         data = [np.ascontiguousarray(v, dtype=np.int64 if j in (6, 8) else np.float64) for j, v in enumerate(data)]
-        ll, g = _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data)
+        return _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data, grad)
+
+    def perform(self, node, inputs, output_storage):
+        ll, g = self.values(inputs)
         output_storage[0][0] = ll
         output_storage[1][0] = g
 
@@ -299,22 +304,21 @@ class DelayedLoglikOp(DelayedLoglikDataOp):
             inputs.append(pt.specify_shape(pt.cast(pt.as_tensor_variable(delay), "int64"), (self.n,)))
         return Apply(self, inputs, [pt.dvector(shape=(self.n,)), pt.dmatrix(shape=(5, self.n))])
 
-    def perform(self, node, inputs, output_storage):
+    def values(self, inputs, grad: bool = True):
         data = list(self.bound)
         if len(inputs) > N_PARAMETER_INPUTS:
             data[6] = np.ascontiguousarray(inputs[N_PARAMETER_INPUTS], dtype=np.int64)
         theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:N_PARAMETER_INPUTS])
-        ll, g = _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data)
-        output_storage[0][0] = ll
-        output_storage[1][0] = g
+        return _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data, grad)
 
     def infer_shape(self, node, input_shapes):
         return [(self.n,), (5, self.n)]
 
 
 @numba_funcify.register(DelayedLoglikDataOp)
-def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, **kwargs):
-    """Numba implementation of both Ops: the lag, the warm-ups and the serial batch kernel, no object mode."""
+def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, grad: bool = True, **kwargs):
+    """Numba implementation of both Ops: the lag, the warm-ups and the serial batch kernel, no object mode (``grad``
+    False: the gradient NaN, for :mod:`models.bayes.delayed_value`)."""
     A, b = op.A, op.b
     dt, A_c, b_w, Pb, b1, poles = op.wheel
     evaluate = _evaluate
@@ -324,7 +328,7 @@ def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, **kwargs):
         def delayed_loglik_data(theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, wstart, tstart):
             c = np.ascontiguousarray
             return evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, c(theta), c(tau_nm), c(sigma_m), c(x1), c(x2), c(r),
-                            c(u), c(a), c(fb), c(delay), c(warm), c(wstart), c(tstart))
+                            c(u), c(a), c(fb), c(delay), c(warm), c(wstart), c(tstart), grad)
 
         return delayed_loglik_data
     x1, x2, r, u, a, fb, delay, warm, wstart, tstart = op.bound
@@ -334,7 +338,7 @@ def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, **kwargs):
         def delayed_loglik_sampled(theta, tau_nm, sigma_m, d):
             c = np.ascontiguousarray
             return evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, c(theta), c(tau_nm), c(sigma_m), x1, x2, r, u, a, fb,
-                            c(d), warm, wstart, tstart)
+                            c(d), warm, wstart, tstart, grad)
 
         return delayed_loglik_sampled
 
@@ -342,7 +346,7 @@ def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, **kwargs):
     def delayed_loglik(theta, tau_nm, sigma_m):
         c = np.ascontiguousarray
         return evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, c(theta), c(tau_nm), c(sigma_m), x1, x2, r, u, a, fb,
-                        delay, warm, wstart, tstart)
+                        delay, warm, wstart, tstart, grad)
 
     return delayed_loglik
 

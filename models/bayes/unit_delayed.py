@@ -39,6 +39,7 @@ import pytensor.tensor as pt
 
 from models.bayes.delay_step import DelayMetropolis
 from models.bayes.delayed_op import DELAYED_DATA_NAMES, DelayedLoglikDataOp, pack_tau0
+from models.bayes.delayed_value import DelayedLoglikValueOp  # noqa: F401 (registers its rewrite)
 from models.bayes.op import DATA_NAMES
 from models.cost import from_normalized
 from models.delayed.identify import delay_grid

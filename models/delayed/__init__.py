@@ -26,7 +26,7 @@ from models.delayed.dense import DelayedDense, loglik_dense
 from models.delayed.identify import DELAY_GRID_S, DelayedEstimate, delay_grid, identify_unit_delayed
 from models.delayed.lag import (ArmTorque, LagCoefficients, LaggedPlanningPlant, Warmup, arm_torque, lag_coefficients,
                                 lagged_planning_plant, window_tau0)
-from models.delayed.likelihood import PARAMETERS, DelayedLoglikGrad, innovations, loglik_grad
+from models.delayed.likelihood import PARAMETERS, DelayedLoglikGrad, innovations, loglik, loglik_grad
 from models.delayed.sample import DelayedDraw, closed_loop, forward_delayed, sample_delayed
 
 __all__ = [
@@ -52,6 +52,7 @@ __all__ = [
     "innovations",
     "lag_coefficients",
     "lagged_planning_plant",
+    "loglik",
     "loglik_dense",
     "loglik_grad",
     "sample_delayed",

@@ -65,7 +65,7 @@ from models.maxent import FREEZE_RTOL, HALF_LOG_2PI, PROD_HUGE, PROD_TINY
 Y_RTOL = 1e-7
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar, Sbar, w, wb, XY, gbar):
+def banded_loglik(d, gam, k_R, tailS, r, freeze, grad, Lr, D, yb_, ob_, q, Lbar, Dbar, Sbar, w, wb, XY, gbar):
     """log N(r; 0, Σ), ω = Σ⁻¹ r, ∂/∂γ (Toeplitz rows) and ∂/∂Σ (the other rows), Σ of bandwidth d.
 
     Parameters
@@ -81,6 +81,8 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
     r : ndarray, shape (K,)
     freeze : bool
         Hold the factorization once stationary (module docstring).
+    grad : bool
+        False: stop after the log-density (y and D are written; ω, Sbar and gbar are not).
     Lr, D, Lbar, Dbar : ndarray, shapes (K, >= d), (K,), (K, >= d), (K,)
         Scratch: rows of L (module docstring), D (returned: every row's), and adjoints.
     yb_, ob_, q : ndarray, shape (>= K + d,)
@@ -216,6 +218,8 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, Lr, D, yb_, ob_, q, Lbar, Dbar,
         quad += acc * acc / D[i]
         logs += math.log(D[i])
     ll = -0.5 * quad - 0.5 * logs - K * HALF_LOG_2PI
+    if not grad:
+        return ll, k_f
     # ---- ω = L⁻ᵀ D⁻¹ y: rows after k_R by rows, then the Toeplitz rows by columns
     for i in range(K + d):
         q[i] = 0.0

@@ -48,13 +48,14 @@ from models.delayed.riccati import SEED, TAPE, plan_adjoint, plan_recursion
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a, dtau0_al, x1, x2, r, u, ua, freeze,
-                   sc, out, inn):
+                   grad, sc, out, inn):
     """Log-likelihood and gradient of one segment, written into ``out`` (8,): ll, then
     d/d[q11, q22, R, τ_nm, σ_m], then (as floats) k_R and the first steady column k_f of the factorization.
 
     ``tau0`` is the arm torque at the start, ``dtau0_a`` and ``dtau0_al`` its derivatives in a and α
     (0 for a fixed τ_0). ``sc`` is the scratch tuple of :func:`make_scratch`. If ``inn`` has K entries it receives
-    the standardized innovations ``y_k / sqrt(D_k)`` (iid N(0, 1) under the model).
+    the standardized innovations ``y_k / sqrt(D_k)`` (iid N(0, 1) under the model). ``grad`` False stops after the
+    log-likelihood, the same number (the same operations), and leaves NaN for the gradient.
     """
     (f, Sbk, S_t, L_t, tape, seed, cst, tau, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
      Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar, tailP, W, frozen) = sc
@@ -145,11 +146,18 @@ def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a,
             tailS[ui, ut] = s2 * acc
         tailS[ui, 0] += 0.5 / S_t[i]
     # ---- Gaussian log-density of the residuals and ∂/∂Σ
-    ll, k_f = banded_loglik(d, gam, k_R, tailS, rr, freeze, Lr[:, :d], D, y[:K + d], om[:K + d], q[:K + d],
-                                 Lbar[:, :d], Dbar, Sbar, w, wb, XY[:, :, :d + 1], gbar[:d + 1])
+    ll, k_f = banded_loglik(d, gam, k_R, tailS, rr, freeze, grad, Lr[:, :d], D, y[:K + d], om[:K + d], q[:K + d],
+                            Lbar[:, :d], Dbar, Sbar, w, wb, XY[:, :, :d + 1], gbar[:d + 1])
     if inn.shape[0] == K:
         for k in range(K):
             inn[k] = y[d + k] / math.sqrt(D[k])
+    if not grad:
+        out[0] = ll - K * math.log(om1)  # as below
+        for m in range(1, 6):
+            out[m] = np.nan
+        out[6] = k_R
+        out[7] = k_f
+        return
     # ---- adjoints of the MA coefficients, of 1/(2S) and of σ_m²
     s2bar = 0.0
     for j in range(d + 1):
@@ -261,7 +269,8 @@ def make_scratch(K, KM, dmax):
 
 
 @njit(cache=True, fastmath=False, error_model="python")
-def _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, c, nchunks, dmax, out, inn):
+def _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, grad, c, nchunks, dmax, out,
+           inn):
     """Segments c, c + nchunks, c + 2 nchunks, ... of a batch (:func:`batch_kernel`), with their own scratch."""
     n = u.shape[0]
     sc = make_scratch(u.shape[1], ua.shape[1], dmax)
@@ -269,7 +278,7 @@ def _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze,
     for i in range(c, n, nchunks):
         segment_kernel(A, b, fb[i], th[0, i], th[1, i], th[2, i], lag[0, i], lag[1, i], lag[2, i], lag[3, i],
                        sig[i], delay[i], tau0[i], dtau0[i, 0], dtau0[i, 1], x1[i], x2[i], r[i], u[i], ua[i],
-                       freeze, sc, res, inn[i])
+                       freeze, grad, sc, res, inn[i])
         for m in range(6):
             out[m, i] = res[m]
 
@@ -283,7 +292,7 @@ def _max_delay(delay):
 
 
 @njit(cache=True, parallel=True, fastmath=False, error_model="python")
-def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
+def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, grad, nchunks, out, inn):
     """Every segment of a batch, each on its own, in ``nchunks`` parallel chunks (``prange``).
 
     Arguments are C-contiguous float64 arrays (``delay`` int64): the wheel ``A`` (2, 2),
@@ -291,16 +300,18 @@ def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, f
     da/dτ_nm, dα/dτ_nm; ``sig`` (n,) σ_m; ``delay`` (n,); ``tau0`` (n,) and its tangents in
     (a, α) ``dtau0`` (n, 2); the arrays of a
     :class:`models.segment.SegmentBatch`; output ``out`` (6, n): log-likelihood, then
-    the gradient in q11, q22, R, τ_nm, σ_m; ``inn`` (n, K) receives the standardized
+    the gradient in q11, q22, R, τ_nm, σ_m (NaN with ``grad`` False: the value alone, the same number, without
+    the reverse sweeps; ``scioc bench --parts delayed`` times both); ``inn`` (n, K) receives the standardized
     innovations, or has shape (n, 0) to skip them.
     """
     dmax = _max_delay(delay)
     for c in prange(nchunks):
-        _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, c, nchunks, dmax, out, inn)
+        _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, grad, c, nchunks, dmax, out,
+               inn)
 
 
 @njit(cache=True, fastmath=False, error_model="python")
-def batch_kernel_serial(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, nchunks, out, inn):
+def batch_kernel_serial(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, grad, nchunks, out, inn):
     """:func:`batch_kernel` in the calling thread. A parallel region costs a wake-up of every thread and
     waits for the slowest, which on a busy machine measured 7 ms for a single 1500-step segment whose own
     work takes 0.15 ms (the optimizer calls it thousands of times).
@@ -313,7 +324,8 @@ def batch_kernel_serial(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u
     """
     dmax = _max_delay(delay)
     for c in range(nchunks):
-        _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, c, nchunks, dmax, out, inn)
+        _chunk(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, grad, c, nchunks, dmax, out,
+               inn)
 
 
 __all__ = ["batch_kernel", "batch_kernel_serial", "make_scratch", "segment_kernel"]

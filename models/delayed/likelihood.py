@@ -153,8 +153,9 @@ def _per_segment_tangents(value, n: int) -> np.ndarray:
 
 
 def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, delay, tau0, dtau0, freeze: bool,
-         params: WheelParameters, with_innovations: bool):
-    """Validate the parameters, call the batch kernel; (out (6, n), innovations (n, K or 0))."""
+         params: WheelParameters, with_innovations: bool, grad: bool = True):
+    """Validate the parameters, call the batch kernel; (out (6, n), innovations (n, K or 0)); ``grad`` False leaves
+    the gradient rows NaN (the kernel's value-only path)."""
     if not isinstance(batch, SegmentBatch):
         raise TypeError(f"batch must be a models.segment.SegmentBatch (prepare_batch); got {type(batch).__name__}")
     n = batch.n
@@ -181,7 +182,7 @@ def _run(theta, batch: SegmentBatch, plant: DiscretePlant, tau_nm, sigma_m, dela
     nchunks = max(1, min(n, get_num_threads()))
     kernel = batch_kernel if nchunks > 1 else batch_kernel_serial
     kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, lag, sig, d, t0, dt0, batch.x1,
-           batch.x2, batch.r, batch.u, batch.a, bool(freeze), nchunks, out, inn)
+           batch.x2, batch.r, batch.u, batch.a, bool(freeze), bool(grad), nchunks, out, inn)
     return out, inn
 
 
@@ -235,6 +236,14 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0,
     return DelayedLoglikGrad(out[0].copy(), out[1:].copy())
 
 
+def loglik(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0, sigma_m=0.0, delay=0, tau0=0.0,
+           freeze: bool = True, params: WheelParameters = WheelParameters()) -> np.ndarray:
+    """The log-likelihood of :func:`loglik_grad` alone, (n,): the same number, without the reverse sweeps that give
+    the gradient (the kernel stops after the log-density). Arguments as :func:`loglik_grad`."""
+    out, _ = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, 0.0, freeze, params, False, grad=False)
+    return out[0].copy()
+
+
 def innovations(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0, sigma_m=0.0, delay=0, tau0=0.0,
                 params: WheelParameters = WheelParameters()) -> np.ndarray:
     """Standardized innovations ``y_k / sqrt(D_k)`` of every segment: iid N(0, 1) if the model holds.
@@ -248,8 +257,8 @@ def innovations(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0,
     -------
     ndarray, shape (n, K)
     """
-    _, inn = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, 0.0, True, params, True)
+    _, inn = _run(theta, batch, plant, tau_nm, sigma_m, delay, tau0, 0.0, True, params, True, grad=False)
     return inn
 
 
-__all__ = ["DelayedLoglikGrad", "PARAMETERS", "innovations", "loglik_grad"]
+__all__ = ["DelayedLoglikGrad", "PARAMETERS", "innovations", "loglik", "loglik_grad"]

@@ -19,6 +19,7 @@ import time
 import numba
 import numpy as np
 
+from models.delayed import loglik as delayed_loglik
 from models.delayed import loglik_grad as delayed_loglik_grad
 from models.delayed import window_loglik
 from models.delayed.angles import START_SD
@@ -57,7 +58,8 @@ def bench_delayed(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m
     dict
         ``n``, ``K``, ``preview_steps``, ``maxent`` (timing dict of
         :func:`pipelines.bench.common.timeit`) and ``rows``: one per (delay, threads)
-        with ``min_s``, ``median_s`` and the ratio to the max-ent kernel.
+        with ``min_s``, ``median_s``, the ratio to the max-ent kernel and ``value_min_s``, the log-likelihood
+        alone (:func:`models.delayed.loglik`, without the gradient's reverse sweeps).
     """
     plant = discretize(DT_HUMAN)
     batch = prepare_batch(plant, [p.segment for p in study[preview]])
@@ -73,8 +75,9 @@ def bench_delayed(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m
                 numba.set_num_threads(t)
                 res = timeit(lambda: delayed_loglik_grad(theta, batch, plant, tau_nm=tau_nm, sigma_m=sigma_m,
                                                          delay=d))
+                value = timeit(lambda: delayed_loglik(theta, batch, plant, tau_nm=tau_nm, sigma_m=sigma_m, delay=d))
                 rows.append({"delay": int(d), "threads": int(t), "min_s": res["min_s"], "median_s": res["median_s"],
-                             "ratio_to_maxent": res["min_s"] / maxent["min_s"]})
+                             "ratio_to_maxent": res["min_s"] / maxent["min_s"], "value_min_s": value["min_s"]})
     finally:
         numba.set_num_threads(before)
     return {"n": batch.n, "K": batch.K, "preview_steps": int(batch.a.shape[1] - batch.K), "tau_nm": float(tau_nm),
@@ -87,11 +90,12 @@ def format_delayed(res: dict) -> str:
         f"Delayed human: log-likelihood with gradient, {res['n']} segments × K = {res['K']} "
         f"(+{res['preview_steps']} preview steps), τ_nm = {res['tau_nm']} s, σ_m = {res['sigma_m']} N·m",
         f"max-ent kernel on the same batch: {res['maxent']['min_s'] * 1e3:.2f} ms",
-        f"{'delay (samples)':>16} {'threads':>8} {'min (ms)':>9} {'median (ms)':>12} {'× max-ent':>10}",
+        f"{'delay (samples)':>16} {'threads':>8} {'min (ms)':>9} {'median (ms)':>12} {'× max-ent':>10} "
+        f"{'value alone, min (ms)':>22}",
     ]
     for r in res["rows"]:
         lines.append(f"{r['delay']:>16} {r['threads']:>8} {r['min_s'] * 1e3:>9.2f} {r['median_s'] * 1e3:>12.2f} "
-                     f"{r['ratio_to_maxent']:>10.1f}")
+                     f"{r['ratio_to_maxent']:>10.1f} {r['value_min_s'] * 1e3:>22.2f}")
     return "\n".join(lines)
 
 

@@ -11,6 +11,7 @@ import pytest
 from models.bayes.blocks import Parameterization
 from models.bayes.delayed_model import DelayedForm, build_delayed_model
 from models.bayes.delayed_op import DelayedLoglikOp
+from models.bayes.delayed_value import DelayedLoglikValueOp
 from models.bayes.delayed_windows import delayed_windows
 from models.bayes.hierarchical import build_model
 from models.cost import from_normalized
@@ -49,6 +50,9 @@ def test_pointwise_log_likelihood_is_the_kernels(plant, study):
     theta = from_normalized(np.exp(lt1[s, c]), t2[s, c], np.exp(lR[s, c]))
     ref = loglik_grad(theta, prepare_batch(plant, w.segments), plant, tau_nm=tau[s], sigma_m=sig[s], delay=w.delay)
     np.testing.assert_allclose(ll_fn(point), ref.loglik, rtol=RTOL)
+    # ... computed by the kernel's value alone: nothing in this graph reads the gradient (models/bayes/delayed_value.py)
+    ops = {type(n.op) for n in ll_fn.f.maker.fgraph.apply_nodes}
+    assert DelayedLoglikValueOp in ops and DelayedLoglikOp not in ops
     # Per-subject lag and noise: both levels of a subject share them.
     assert tau.shape == (3,) and sig.shape == (3,)
 

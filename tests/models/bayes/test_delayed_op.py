@@ -11,6 +11,7 @@ import pytest
 from models.bayes.delayed_lag import lag_nb, wheel_constants
 from models.bayes.delayed_op import (DELAYED_DATA_NAMES, DelayedLoglikDataOp, DelayedLoglikOp, delayed_loglik, pack_tau0,
                                     warm_samples)
+from models.bayes.delayed_value import DelayedLoglikValueOp
 from models.bayes.delayed_windows import delayed_windows
 from models.delayed import loglik_grad
 from models.delayed.lag import Warmup, lag_coefficients, window_tau0
@@ -215,3 +216,42 @@ def test_a_delay_input_replaces_the_bound_delays(plant, setup, mode):
     np.testing.assert_array_equal(dth, want_g[:3])
     assert not np.allclose(got, f(w.theta, tau, w.sigma_m, np.asarray(w.delay))[0])  # the delays matter
     assert not [m for m in msgs if OBJECT_MODE in m], msgs
+
+
+def test_the_kernels_value_alone_is_its_value_with_the_gradient_bit_for_bit(plant, setup):
+    w, batch, warm, tau = setup
+    op = DelayedLoglikOp(batch, plant, delay=w.delay, tau0=warm)
+    inputs = [w.theta, tau, w.sigma_m]
+    ll, g = op.values(inputs)
+    ll_alone, g_alone = op.values(inputs, grad=False)
+    assert np.array_equal(ll_alone, ll) and np.all(np.isfinite(g))
+    assert np.all(np.isnan(g_alone))  # not computed: NaN, so that no one reads it as a gradient
+
+
+# the rewrite runs in the optimizer's specialize phase: PyTensor's default (numba) and a Python linker (perform)
+@pytest.mark.parametrize("mode", ["NUMBA", pytensor.compile.mode.Mode(linker="py", optimizer="fast_run")])
+def test_a_graph_that_does_not_read_the_gradient_runs_the_value_alone(plant, setup, mode):
+    w, batch, warm, tau = setup
+    th, tt, ss = pt.dmatrix(), pt.dvector(), pt.dvector()
+    for op, args in [(DelayedLoglikOp(batch, plant, delay=w.delay, tau0=warm), ()),
+                     (DelayedLoglikOp(batch, plant, delay=w.delay, tau0=warm), (pt.lvector(),)),  # a sampled delay
+                     (DelayedLoglikDataOp(plant), tuple(
+                         pt.tensor(name, dtype="int64" if name in ("delay", "warm_start") else "float64",
+                                   shape=(None,) * (1 if name in ("delay", "warm_start", "tau_start") else 2))
+                         for name in DELAYED_DATA_NAMES))]:
+        ll, _ = op(th, tt, ss, *args)
+        logp = ll.sum()
+        f_value, msgs = _compile_quietly([th, tt, ss, *args], ll, mode)
+        f_both, _ = _compile_quietly([th, tt, ss, *args], [ll, pytensor.grad(logp, th)], mode)
+        ops_value = [type(n.op) for n in f_value.maker.fgraph.apply_nodes]
+        ops_both = [type(n.op) for n in f_both.maker.fgraph.apply_nodes]
+        assert DelayedLoglikValueOp in ops_value and type(op) not in ops_value
+        assert type(op) in ops_both and DelayedLoglikValueOp not in ops_both
+        assert not [m for m in msgs if OBJECT_MODE in m], msgs
+        values = {0: (), 1: (w.delay,),
+                  2: tuple([getattr(batch, name) for name in DELAYED_DATA_NAMES[:6]]
+                           + [w.delay, *pack_tau0(warm, batch.n)])}[len(args) if len(args) < 2 else 2]
+        value = f_value(w.theta, tau, w.sigma_m, *values)
+        with_grad, _ = f_both(w.theta, tau, w.sigma_m, *values)
+        np.testing.assert_allclose(value, with_grad, rtol=RTOL)
+        assert np.all(np.isfinite(value))

@@ -4,7 +4,7 @@ finite differences and itself (held steady state or not)."""
 import numpy as np
 import pytest
 
-from models.delayed import loglik_dense, loglik_grad, sample_delayed
+from models.delayed import loglik, loglik_dense, loglik_grad, sample_delayed
 from models.maxent import loglik_grad as maxent_loglik_grad
 from models.segment import Segment, prepare_batch
 from tests.conftest import random_segment, random_theta, random_window_inputs
@@ -205,8 +205,8 @@ def test_a_lag_whose_alpha_rounds_to_one_gives_minus_infinity_not_an_exception(p
     lag[0], lag[1] = 1.0, 1.0  # a = α = 1
     out = np.empty((6, n))
     batch_kernel_serial(plant.A, plant.b, batch.fb, theta, lag, np.full(n, 0.2), np.array([0, 5, 12]),
-                        np.zeros(n), np.zeros((n, 2)), batch.x1, batch.x2, batch.r, batch.u, batch.a, True, 1, out,
-                        np.empty((n, 0)))
+                        np.zeros(n), np.zeros((n, 2)), batch.x1, batch.x2, batch.r, batch.u, batch.a, True, True,
+                        1, out, np.empty((n, 0)))
     assert np.all(out[0] == -np.inf)
     assert np.all(out[1:] == 0.0)
     # the warm-up's arm-torque recursion, which runs before the kernel, does not raise either
@@ -217,8 +217,8 @@ def test_a_lag_whose_alpha_rounds_to_one_gives_minus_infinity_not_an_exception(p
     # a lag just short of α = 1 still gives a finite (very small) density
     lag[1] = 1.0 - 1e-15
     batch_kernel_serial(plant.A, plant.b, batch.fb, theta, lag, np.full(n, 0.2), np.array([0, 5, 12]),
-                        np.zeros(n), np.zeros((n, 2)), batch.x1, batch.x2, batch.r, batch.u, batch.a, True, 1, out,
-                        np.empty((n, 0)))
+                        np.zeros(n), np.zeros((n, 2)), batch.x1, batch.x2, batch.r, batch.u, batch.a, True, True,
+                        1, out, np.empty((n, 0)))
     assert np.all(np.isfinite(out[0]))
 
 
@@ -235,3 +235,16 @@ def test_extreme_motor_noise_equals_dense(plant, sigma_m):
     for freeze in (True, False):  # unheld, every column's D_k enters the product
         fast = loglik_grad(theta, prepare_batch(plant, [seg]), plant, freeze=freeze, **par)
         assert np.isfinite(fast.loglik[0]) and abs(fast.loglik[0] - dense.loglik) <= 1e-9 * abs(dense.loglik)
+
+
+@pytest.mark.parametrize("delay", [0, 7])
+def test_the_log_likelihood_alone_is_the_one_with_the_gradient_bit_for_bit(plant, delay):
+    rng = np.random.default_rng([31, delay])
+    segs = [window(rng, plant, 200, 30, mode, drawn=False) for mode in MODES]
+    batch = prepare_batch(plant, segs)
+    theta = np.column_stack([random_theta(rng, False) for _ in segs])
+    par = dict(tau_nm=0.06, sigma_m=0.2, delay=delay)
+    for freeze in (True, False):
+        both = loglik_grad(theta, batch, plant, freeze=freeze, **par)
+        assert np.array_equal(loglik(theta, batch, plant, freeze=freeze, **par), both.loglik)
+        assert np.all(np.isfinite(both.grad))

@@ -21,6 +21,7 @@ def test_bench_quick_writes_json(tmp_path, capsys):
     assert res["identify"]["preview_2s"]["converged"] == 4
     # The delayed likelihood of the torques, and of the encoder's angles beside its dense reference.
     assert {r["delay"] for r in res["delayed"]["rows"]} == {0, 10, 30}
+    assert all(0 < r["value_min_s"] for r in res["delayed"]["rows"])  # the log-likelihood alone, beside it
     ang = res["delayed_angles"]
     assert ang["n"] == 4 and ang["K"] == 1500 and [r["delay"] for r in ang["rows"]] == [0, 10, 30]
     assert all(r["dense_s"] > r["filter_s"] > 0 for r in ang["dense"])

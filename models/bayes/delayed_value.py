@@ -1,0 +1,81 @@
+"""The ``delayed`` log-likelihood without its gradient, wherever a graph does not read the gradient.
+
+A :class:`models.bayes.delayed_op.DelayedLoglikDataOp` node has two outputs, the per-segment log-likelihood and its
+gradient, and computes both whatever its graph reads. PyMC's pointwise log-likelihood
+(``pm.compute_log_likelihood``, :func:`pipelines.fit.sampling.add_log_likelihood`: every kept draw, 44 s of the
+full-size ``kbl`` fit at f484bf1) reads only the first. The rewrite :func:`local_delayed_loglik_value_only`
+(PyTensor's ``specialize`` phase, in every compiled function once this module is imported, as the model builders
+:mod:`models.bayes.delayed_model` and :mod:`models.bayes.unit_delayed` do) replaces such a node by a
+:class:`DelayedLoglikValueOp` on the same inputs, which runs the kernel's value-only path
+(:func:`models.delayed.kernel.batch_kernel` with ``grad`` False): the same operations up to the log-density, so the
+same number to the last bit, without the reverse sweeps. A graph that reads the gradient (the sampler's, the
+whitening's mode search) keeps the node as it is. ``scioc bench --parts delayed`` measures the value alone beside
+the value and gradient.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytensor.tensor as pt
+from pytensor.gradient import grad_not_implemented
+from pytensor.graph.basic import Apply
+from pytensor.graph.op import Op
+from pytensor.graph.rewriting.basic import node_rewriter
+from pytensor.link.numba.dispatch import basic as numba_basic
+from pytensor.link.numba.dispatch.basic import numba_funcify
+from pytensor.tensor.rewriting.basic import register_specialize
+
+from models.bayes.delayed_op import DelayedLoglikDataOp, numba_funcify_delayed_loglik
+
+
+class DelayedLoglikValueOp(Op):
+    """The first output of ``base`` (a :class:`models.bayes.delayed_op.DelayedLoglikDataOp`) alone, on its inputs.
+
+    Not differentiable: it only replaces nodes whose gradient output nothing reads, after the graph's gradients are
+    taken (:func:`local_delayed_loglik_value_only`).
+    """
+
+    __props__ = ("base",)
+
+    def __init__(self, base: DelayedLoglikDataOp):
+        if not isinstance(base, DelayedLoglikDataOp):
+            raise TypeError(f"DelayedLoglikValueOp wraps a DelayedLoglikDataOp; got {type(base).__name__}")
+        self.base = base
+
+    def make_node(self, *inputs):
+        n = getattr(self.base, "n", None)
+        return Apply(self, list(inputs), [pt.dvector(shape=(n,))])
+
+    def perform(self, node, inputs, output_storage):
+        output_storage[0][0] = self.base.values(inputs, grad=False)[0]
+
+    def infer_shape(self, node, input_shapes):
+        return [self.base.infer_shape(node, input_shapes)[0]]
+
+    def pullback(self, inputs, outputs, cotangents):
+        return [grad_not_implemented(self, j, v, "the value-only delayed likelihood") for j, v in enumerate(inputs)]
+
+
+@register_specialize
+@node_rewriter([DelayedLoglikDataOp])
+def local_delayed_loglik_value_only(fgraph, node):
+    """A delayed-likelihood node whose gradient output has no client -> :class:`DelayedLoglikValueOp`."""
+    if fgraph.clients.get(node.outputs[1]):
+        return None
+    value = DelayedLoglikValueOp(node.op)(*node.inputs)
+    return {node.outputs[0]: value}
+
+
+@numba_funcify.register(DelayedLoglikValueOp)
+def numba_funcify_delayed_value(op: DelayedLoglikValueOp, node=None, **kwargs):
+    """Numba implementation: the base Op's, on the kernel's value-only path, first output."""
+    both = numba_funcify_delayed_loglik(op.base, node=node, grad=False)
+
+    @numba_basic.numba_njit
+    def delayed_loglik_value(*args):
+        return both(*args)[0]
+
+    return delayed_loglik_value
+
+
+__all__ = ["DelayedLoglikValueOp", "local_delayed_loglik_value_only", "numba_funcify_delayed_value"]

@@ -49,7 +49,7 @@ from pipelines.fit.noise_arcs import noise_arcs
 from pipelines.fit.ppc import posterior_predictive, ppc_coverage
 from pipelines.fit.sampling import sample_model
 from pipelines.fit.start import scale_sources, start_point
-from pipelines.fit.warmup import pilot_runs, tree_depth_options
+from pipelines.fit.warmup import pilot_runs
 from pipelines.fit.whiten import sample_whitened
 from pipelines.io import InputDataError
 
@@ -235,8 +235,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
     adaptation = ADAPTATIONS[0] if adaptation is None else adaptation
     whiten = delay_mode == "profile" and adaptation in WHITENED_ADAPTATIONS
-    nuts = (nutpie_options(adaptation) | tree_depth_options(adaptation, delay_mode)
-            | ({} if target_accept is None else {"target_accept": float(target_accept)}))
+    nuts = nutpie_options(adaptation) | ({} if target_accept is None else {"target_accept": float(target_accept)})
     levels = prepared.settings.design.ordered_levels
     if log_R is not None and log_R not in LOG_R_FORMS:
         raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")

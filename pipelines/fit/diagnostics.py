@@ -152,8 +152,8 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
       chain at stationarity; a projection, rounded up to 100, not a promise).
     * R-hat above :data:`RHAT_MAX`: the chains disagree; a longer warm-up and more draws, then
       the verdict again. An R-hat that stays high means chains in different modes or regions.
-    * Kept draws at the largest tree depth (:data:`pipelines.fit.warmup.PILOT_MAX_TREE_DEPTH` in a fit with a
-      pilot run): their trajectories were cut short; valid draws, but less independent ones.
+    * Kept draws at the largest tree depth (nutpie's 10): their trajectories were cut short; valid draws, but less
+      independent ones.
     * μ_R or σ_R failing in a delayed fit whose subjects' baseline log R has a pooling factor of at
       least :data:`LOOSE_POOLING` (:func:`pooling_factor`; the data barely fix each subject's R, as
       where motor noise explains the variability that policy noise would): the policy-scale

@@ -6,17 +6,16 @@ in which each subject's block is near the identity, so it needs a shorter warm-u
 Hessian's coordinates: measured on the full-size ``kbl`` study (README, "Speed"), after the first tenth of its 300
 warm-up draws its trees were as deep as the kept draws'.
 
-Tree depth. After the pilot nutpie starts its adaptation again, and its first draws are costly: at full size
-(``scioc bench --parts fit_delayed --humans kbl`` at f484bf1) the first tenth of the kept run's warm-up took 168.6
-leapfrog steps per draw against 31-36 in the other nine, and the pilot's draws 66-82, while every kept draw was a
-tree of depth 5 (31 steps). So the pilot fit caps the trees at depth 6 (63 steps, :data:`PILOT_MAX_TREE_DEPTH`):
-that bounds what the early adaptation can spend and leaves the kept draws alone. A capped tree is still a valid
-NUTS transition, only a shorter one; the sidecar counts the kept draws that reached the cap
-(``draws_at_max_tree_depth``), and the convergence verdict judges the draws as before. Measured on the twelve
-subjects of :mod:`pipelines.fit.delayed_forms`' last table (``scioc fit h12/study.parquet --human-model delayed
---estimates h12/delayed/estimates.parquet --experiment h12/experiment.toml --chains 4 --draws 300 --adequacy-boot 19
---seed S --R-population policy_scale --rho-form folded_centred``, the cap set by a wrapper that added ``maxdepth``
-to nutpie's options; 2026-12-06; gradients of the pilot, the warm-up and the kept draws)::
+Tree depth. The pilot's draws only measure the coordinates, and on the Hessian's coordinates its trees are deep:
+at full size (``scioc bench --parts fit_delayed --humans kbl`` at f484bf1) 82 leapfrog steps per warm-up draw and 67
+per kept one, while every draw of the run after it was a tree of depth 5 (31 steps). So the pilot's trees stop at
+depth 6 (63 steps, :data:`PILOT_MAX_TREE_DEPTH`); a capped tree is still a valid NUTS transition, only a shorter
+one, and the kept run keeps nutpie's own limit (10). Measured on the twelve subjects of
+:mod:`pipelines.fit.delayed_forms`' last table (``scioc fit h12/study.parquet --human-model delayed --estimates
+h12/delayed/estimates.parquet --experiment h12/experiment.toml --chains 4 --draws 300 --adequacy-boot 19 --seed S
+--R-population policy_scale --rho-form folded_centred``, the cap set for the pilot and the kept run alike by a
+wrapper that added ``maxdepth`` to nutpie's options; 2026-12-06; gradients of the pilot, the warm-up and the kept
+draws)::
 
     seed  depth   pilot    warm-up  kept     total    kept steps  smallest ESS   largest R-hat  div
     1     10      15 825   37 445   33 856   87 126   28.2        σ_βR 331       1.014          0
@@ -26,10 +25,13 @@ to nutpie's options; 2026-12-06; gradients of the pilot, the warm-up and the kep
     3     10      15 281   37 924   32 880   86 085   27.4        σ_βR 340       1.018          0
     3     6       14 065   34 002   32 864   80 931   27.4        σ_βR 344       1.006          0
 
-8.6 % fewer gradients on average (the warm-up's first tenth 38-45 steps per draw against 71-98); the kept draws'
-steps, ESS and R-hat alike, and no kept draw of a capped run reached depth 6. The two divergent transitions of one
-capped run are within what these twelve show between seeds and settings (:data:`PILOT_TARGET_ACCEPT`). Depth 5 (seed
-1) saved 15 % but cut 7 kept draws short and its smallest ESS fell to 233. At full size: README, "Speed".
+The cap saved 8.6 % of the gradients, mostly in the first tenth of the kept run's warm-up (38-45 steps per draw
+against 71-98), where nutpie starts its adaptation again. But at full size, capped the same way (the bench above at
+66c842a), the ``kbl`` human's fit ended with 3 divergent transitions in 3 of its 4 chains (step sizes 0.151-0.168,
+against 0.139-0.158 uncapped and none divergent), which fails the convergence verdict; with the capped twelve's 2,
+that is 2 of 4 capped runs against 0 of 4. So only the pilot is capped: its divergences do not enter the verdict
+(its draws choose coordinates, not the law), and it took 19.0 k gradients at full size against 29.6 k. Depth 5 (the
+twelve, seed 1, both runs) saved 15 % but cut 7 kept draws short and its smallest ESS fell to 233.
 """
 
 from __future__ import annotations
@@ -54,29 +56,21 @@ PILOT_TARGET_ACCEPT = None
 #: the pilot's draws measured the coordinates and its last draw is where the chains start (README, "Speed").
 TUNE = 1000
 TUNE_AFTER_PILOT = 300
-#: nutpie's largest tree depth in a fit with a pilot run, pilot and kept run alike (module docstring, "Tree depth";
-#: nutpie's own is 10).
+#: nutpie's largest tree depth in the pilot run (module docstring, "Tree depth"; the kept run keeps nutpie's own 10).
 PILOT_MAX_TREE_DEPTH = 6
 
 
 def pilot_runs(adaptation: str | None, delay_mode: str, tune: int, draws: int, chains: int = PILOT_CHAINS
                ) -> tuple | None:
-    """The pilot runs of a delayed fit, as (tune, draws, chains, target_accept) for
+    """The pilot runs of a delayed fit, as (tune, draws, chains, target_accept, max_tree_depth) for
     :func:`pipelines.fit.whiten.sample_whitened`: :data:`PILOT_RUNS` for the ``pilot`` adaptation (the default) with
     profile delays, each no longer than the fit's own warm-up and draws (a small fit gets a small pilot; at least 2
-    draws), on :data:`PILOT_CHAINS` chains (at most the fit's) at :data:`PILOT_TARGET_ACCEPT`; None otherwise."""
+    draws), on :data:`PILOT_CHAINS` chains (at most the fit's) at :data:`PILOT_TARGET_ACCEPT`, its trees no deeper
+    than :data:`PILOT_MAX_TREE_DEPTH`; None otherwise."""
     if delay_mode != "profile" or (adaptation or ADAPTATIONS[0]) != PILOT:
         return None
-    return tuple((min(t, int(tune)), max(2, min(d, int(draws))), min(PILOT_CHAINS, int(chains)), PILOT_TARGET_ACCEPT)
-                 for t, d in PILOT_RUNS)
-
-
-def tree_depth_options(adaptation: str | None, delay_mode: str = "profile") -> dict:
-    """nutpie's ``maxdepth`` option, :data:`PILOT_MAX_TREE_DEPTH`, for a fit with a pilot run (:func:`pilot_runs`);
-    {} (nutpie's own) otherwise."""
-    if pilot_runs(adaptation, delay_mode, TUNE, TUNE) is None:
-        return {}
-    return {"maxdepth": PILOT_MAX_TREE_DEPTH}
+    return tuple((min(t, int(tune)), max(2, min(d, int(draws))), min(PILOT_CHAINS, int(chains)), PILOT_TARGET_ACCEPT,
+                  PILOT_MAX_TREE_DEPTH) for t, d in PILOT_RUNS)
 
 
 def default_tune(human_model: str | None, delay_mode: str = "profile", adaptation: str | None = None) -> int:
@@ -88,4 +82,4 @@ def default_tune(human_model: str | None, delay_mode: str = "profile", adaptatio
 
 
 __all__ = ["PILOT_CHAINS", "PILOT_MAX_TREE_DEPTH", "PILOT_RUNS", "PILOT_TARGET_ACCEPT", "TUNE", "TUNE_AFTER_PILOT",
-           "default_tune", "pilot_runs", "tree_depth_options"]
+           "default_tune", "pilot_runs"]

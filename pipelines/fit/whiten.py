@@ -175,17 +175,23 @@ def _target_accept(attrs) -> float | None:
 
 
 def _pilot_stage(stage, chains: int, nuts: dict | None):
-    """One pilot run's (tune, draws, chains, nutpie options) from (tune, draws[, chains[, target_accept]])."""
+    """One pilot run's (tune, draws, chains, nutpie options) from (tune, draws[, chains[, target_accept[,
+    max_tree_depth]]]); None for chains, target_accept or max_tree_depth: the fit's own."""
     stage = tuple(stage)
-    bad = ValueError(f"pilot needs (tune >= 0, draws >= 2[, chains >= 1[, target_accept]]) per run; got {stage!r}")
-    if not 2 <= len(stage) <= 4:
+    bad = ValueError("pilot needs (tune >= 0, draws >= 2[, chains >= 1[, target_accept[, max_tree_depth >= 1]]]) "
+                     f"per run; got {stage!r}")
+    if not 2 <= len(stage) <= 5:
         raise bad
     tune, draws = int(stage[0]), int(stage[1])
     p_chains = int(stage[2]) if len(stage) > 2 and stage[2] is not None else int(chains)
     accept = stage[3] if len(stage) > 3 else None
-    if tune < 0 or draws < 2 or p_chains < 1 or (accept is not None and not 0.0 < float(accept) < 1.0):
+    depth = stage[4] if len(stage) > 4 else None
+    if (tune < 0 or draws < 2 or p_chains < 1 or (accept is not None and not 0.0 < float(accept) < 1.0)
+            or (depth is not None and (int(depth) != depth or depth < 1))):
         raise bad
-    p_nuts = nuts if accept is None else {**(nuts or {}), "target_accept": float(accept)}
+    p_nuts = ({**(nuts or {}), **({} if accept is None else {"target_accept": float(accept)}),
+               **({} if depth is None else {"maxdepth": int(depth)})} if accept is not None or depth is not None
+              else nuts)
     return tune, draws, p_chains, p_nuts
 
 
@@ -198,8 +204,8 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     sample_stats with the warm-up's steps, log_likelihood); ``seconds`` adds ``whitening`` (steps 1-2);
     ``record`` says what the whitening found (for the sidecar).
 
-    ``pilot``: pilot runs, each (tune, draws) per chain or (tune, draws, chains, target_accept), None for the fit's
-    own, run one after the other, the first on the Hessian's
+    ``pilot``: pilot runs, each (tune, draws) per chain or (tune, draws, chains, target_accept[, max_tree_depth]),
+    None for the fit's own, run one after the other, the first on the Hessian's
     whitening, each later one on the whitening measured again on the draws of the one before
     (:func:`models.bayes.whiten_draws.draws_factors`), and the run whose draws are returned on the last one's
     (seeds :func:`pilot_seeds`); each run after a pilot starts (jittered) at the pilot's first chain's last draw,

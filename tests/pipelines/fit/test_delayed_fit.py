@@ -93,12 +93,12 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     for name in side["whitening"]["curved_along"]:
         scales = side["whitening"]["ridge"][name]["pivot_scale_range"]
         assert 0 < scales[0] <= scales[1]
-    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT,
-                                      "maxdepth": PILOT_MAX_TREE_DEPTH}
-    assert pilot["max_tree_depth"] == PILOT_MAX_TREE_DEPTH  # as nutpie recorded it, for the pilot and the kept run
+    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
+    # the pilot's trees capped (pipelines/fit/warmup.py, "Tree depth"), the kept run's at nutpie's own limit: as
+    # nutpie recorded them
+    assert pilot["max_tree_depth"] == PILOT_MAX_TREE_DEPTH
     stats = xr.open_datatree(delayed_fit["posterior"])["sample_stats"]
-    assert nutpie_setting(stats.attrs, "maxdepth") == PILOT_MAX_TREE_DEPTH
-    assert int(stats["depth"].values.max()) <= PILOT_MAX_TREE_DEPTH
+    assert nutpie_setting(stats.attrs, "maxdepth") > PILOT_MAX_TREE_DEPTH
     assert side["sampler"]["target_accept"] == WHITENED_TARGET_ACCEPT == 0.9
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
     assert "whitened coordinates" in side["start"]

@@ -1,16 +1,19 @@
 """The delayed fit's pilot run and default warm-up (pipelines/fit/warmup.py)."""
 
 from pipelines.fit.warmup import (PILOT_CHAINS, PILOT_MAX_TREE_DEPTH, PILOT_RUNS, PILOT_TARGET_ACCEPT, TUNE,
-                                  TUNE_AFTER_PILOT, default_tune, pilot_runs, tree_depth_options)
+                                  TUNE_AFTER_PILOT, default_tune, pilot_runs)
 
 
 def test_the_pilot_runs_on_at_most_its_own_chains_and_no_longer_than_the_fit():
     (tune, draws), = PILOT_RUNS
     # a full fit of 4 chains: the pilot on PILOT_CHAINS of them, as long as PILOT_RUNS says
-    assert pilot_runs("pilot", "profile", 300, 1000, 4) == ((tune, draws, min(PILOT_CHAINS, 4), PILOT_TARGET_ACCEPT),)
+    assert pilot_runs("pilot", "profile", 300, 1000, 4) == ((tune, draws, min(PILOT_CHAINS, 4), PILOT_TARGET_ACCEPT,
+                                                            PILOT_MAX_TREE_DEPTH),)
     assert PILOT_CHAINS < 4  # the pilot is cheaper than the fit's own chains on this 2-core machine
+    # its trees capped below nutpie's own 10, above the kept draws' depth 5 at full size (warmup.py, "Tree depth")
+    assert 5 < PILOT_MAX_TREE_DEPTH < 10
     # a fit of one chain gets a pilot of one chain; a short fit a short pilot (at least 2 draws)
-    assert pilot_runs(None, "profile", 10, 1, 1) == ((10, 2, 1, PILOT_TARGET_ACCEPT),)
+    assert pilot_runs(None, "profile", 10, 1, 1) == ((10, 2, 1, PILOT_TARGET_ACCEPT, PILOT_MAX_TREE_DEPTH),)
     # no pilot for the other adaptations or a sampled delay
     assert pilot_runs("curved", "profile", 300, 1000, 4) is None
     assert pilot_runs("pilot", "sampled", 300, 1000, 4) is None
@@ -22,10 +25,3 @@ def test_the_default_warm_up_is_shorter_only_after_a_pilot():
     assert default_tune("delayed", delay_mode="sampled") == TUNE
     assert default_tune("maxent") == TUNE
 
-
-def test_the_trees_are_capped_only_in_a_fit_with_a_pilot_run():
-    # the kept draws of the full-size fits were trees of depth 5: the cap leaves them room and bounds the restart
-    assert tree_depth_options("pilot") == tree_depth_options(None) == {"maxdepth": PILOT_MAX_TREE_DEPTH}
-    assert 5 < PILOT_MAX_TREE_DEPTH < 10  # nutpie's own is 10
-    assert tree_depth_options("curved") == {}
-    assert tree_depth_options("pilot", "sampled") == {}

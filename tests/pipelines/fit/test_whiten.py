@@ -13,7 +13,7 @@ import pymc as pm
 import pytest
 
 from models.bayes.whiten import WHITE, to_unconstrained
-from pipelines.fit.whiten import posterior_of, sample_whitened, whitening
+from pipelines.fit.whiten import nutpie_setting, posterior_of, sample_whitened, whitening
 
 N = 6
 Y = np.linspace(-1.0, 2.0, N)
@@ -290,16 +290,19 @@ def test_pilot_runs_change_the_coordinates_not_the_posterior():
     assert _banana_failures(idata["posterior"]) == []
     with pytest.raises(ValueError, match="pilot needs"):
         sample_whitened(_banana(), None, seed=4, chains=2, draws=10, tune=10, cores=1, pilot=[(10, 1)])
-    for bad in [(10, 10, 0), (10, 10, 1, 1.0), (10, 10, 1, 0.8, 3), (10,)]:
+    for bad in [(10, 10, 0), (10, 10, 1, 1.0), (10, 10, 1, 0.8, 0), (10, 10, 1, 0.8, 2.5), (10, 10, 1, 0.8, 3, 1),
+                (10,)]:
         with pytest.raises(ValueError, match="pilot needs"):
             sample_whitened(_banana(), None, seed=4, chains=2, draws=10, tune=10, cores=1, pilot=[bad])
 
 
-def test_a_pilot_runs_on_its_own_chains_and_target_acceptance():
-    # (tune, draws, chains, target_accept): what nutpie itself recorded for the pilot, not what was asked
-    _, _, record = sample_whitened(_banana(), None, seed=4, chains=2, draws=20, tune=20, cores=1,
-                                   nuts={"adaptation": "diag", "target_accept": 0.9},
-                                   pivots=[("v", np.zeros(2, bool))], pilot=[(20, 20, 1, 0.7), (20, 20)])
+def test_a_pilot_runs_on_its_own_chains_target_acceptance_and_tree_depth():
+    # (tune, draws, chains, target_accept, max_tree_depth): what nutpie itself recorded for the pilot, not what was
+    # asked; the kept run keeps the fit's own
+    idata, _, record = sample_whitened(_banana(), None, seed=4, chains=2, draws=20, tune=20, cores=1,
+                                       nuts={"adaptation": "diag", "target_accept": 0.9},
+                                       pivots=[("v", np.zeros(2, bool))], pilot=[(20, 20, 1, 0.7, 3), (20, 20)])
     first, second = record["pilot"]
-    assert (first["chains"], first["target_accept"]) == (1, 0.7)
+    assert (first["chains"], first["target_accept"], first["max_tree_depth"]) == (1, 0.7, 3)
     assert (second["chains"], second["target_accept"]) == (2, 0.9)  # None: the fit's own
+    assert second["max_tree_depth"] == nutpie_setting(idata["sample_stats"].attrs, "maxdepth") > 3

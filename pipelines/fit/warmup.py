@@ -6,11 +6,11 @@ in which each subject's block is near the identity, so it needs a shorter warm-u
 Hessian's coordinates: measured on the full-size ``kbl`` study (README, "Speed"), after the first tenth of its 300
 warm-up draws its trees were as deep as the kept draws'.
 
-Tree depth. The pilot's draws only measure the coordinates, and on the Hessian's coordinates its trees are deep:
-at full size (``scioc bench --parts fit_delayed --humans kbl`` at f484bf1) 82 leapfrog steps per warm-up draw and 67
-per kept one, while every draw of the run after it was a tree of depth 5 (31 steps). So the pilot's trees stop at
-depth 6 (63 steps, :data:`PILOT_MAX_TREE_DEPTH`); a capped tree is still a valid NUTS transition, only a shorter
-one, and the kept run keeps nutpie's own limit (10). Measured on the twelve subjects of
+Tree depth (tried, not the default). On the Hessian's coordinates the pilot's trees are deep: at full size (``scioc
+bench --parts fit_delayed --humans kbl`` at f484bf1) 82 leapfrog steps per warm-up draw and 67 per kept one, while
+every draw of the run after it was a tree of depth 5 (31 steps); and the first tenth of that run's warm-up took 169
+steps per draw, where nutpie starts its adaptation again. A cap on the trees' depth (nutpie's ``maxdepth``; a capped
+tree is still a valid NUTS transition, only a shorter one) bounds both. Measured on the twelve subjects of
 :mod:`pipelines.fit.delayed_forms`' last table (``scioc fit h12/study.parquet --human-model delayed --estimates
 h12/delayed/estimates.parquet --experiment h12/experiment.toml --chains 4 --draws 300 --adequacy-boot 19 --seed S
 --R-population policy_scale --rho-form folded_centred``, the cap set for the pilot and the kept run alike by a
@@ -25,13 +25,14 @@ draws)::
     3     10      15 281   37 924   32 880   86 085   27.4        σ_βR 340       1.018          0
     3     6       14 065   34 002   32 864   80 931   27.4        σ_βR 344       1.006          0
 
-The cap saved 8.6 % of the gradients, mostly in the first tenth of the kept run's warm-up (38-45 steps per draw
-against 71-98), where nutpie starts its adaptation again. But at full size, capped the same way (the bench above at
-66c842a), the ``kbl`` human's fit ended with 3 divergent transitions in 3 of its 4 chains (step sizes 0.151-0.168,
-against 0.139-0.158 uncapped and none divergent), which fails the convergence verdict; with the capped twelve's 2,
-that is 2 of 4 capped runs against 0 of 4. So only the pilot is capped: its divergences do not enter the verdict
-(its draws choose coordinates, not the law), and it took 19.0 k gradients at full size against 29.6 k. Depth 5 (the
-twelve, seed 1, both runs) saved 15 % but cut 7 kept draws short and its smallest ESS fell to 233.
+8.6 % fewer gradients, mostly in the first tenth of the kept run's warm-up (38-45 steps per draw against 71-98).
+At full size (the bench above, ``kbl`` human, seed 2018): capped at 6 for both runs (66c842a), 183 k gradients
+against 209 k, but 3 divergent transitions in 3 of the 4 chains (step sizes 0.151-0.168 against 0.139-0.158), which
+fails the convergence verdict; the pilot alone capped (b435019: its draws only choose coordinates), 197 k gradients
+and 0 divergent, but R-hat 1.014 for σ_β, which fails it too. Each is one run, and the uncapped default passed in
+one (R-hat 1.005): whether the cap or chance failed them is not known, so :data:`PILOT_MAX_TREE_DEPTH` is None
+(nutpie's own 10) until a cap passes at full size. Depth 5 (the twelve, seed 1) saved 15 % but cut 7 kept draws
+short, and its smallest ESS fell to 233.
 """
 
 from __future__ import annotations
@@ -56,8 +57,9 @@ PILOT_TARGET_ACCEPT = None
 #: the pilot's draws measured the coordinates and its last draw is where the chains start (README, "Speed").
 TUNE = 1000
 TUNE_AFTER_PILOT = 300
-#: nutpie's largest tree depth in the pilot run (module docstring, "Tree depth"; the kept run keeps nutpie's own 10).
-PILOT_MAX_TREE_DEPTH = 6
+#: nutpie's largest tree depth in the pilot run; None: nutpie's own (10), as the kept run's (module docstring, "Tree
+#: depth": a cap of 6 was measured, and both full-size fits with it failed the convergence verdict).
+PILOT_MAX_TREE_DEPTH = None
 
 
 def pilot_runs(adaptation: str | None, delay_mode: str, tune: int, draws: int, chains: int = PILOT_CHAINS
@@ -66,7 +68,7 @@ def pilot_runs(adaptation: str | None, delay_mode: str, tune: int, draws: int, c
     :func:`pipelines.fit.whiten.sample_whitened`: :data:`PILOT_RUNS` for the ``pilot`` adaptation (the default) with
     profile delays, each no longer than the fit's own warm-up and draws (a small fit gets a small pilot; at least 2
     draws), on :data:`PILOT_CHAINS` chains (at most the fit's) at :data:`PILOT_TARGET_ACCEPT`, its trees no deeper
-    than :data:`PILOT_MAX_TREE_DEPTH`; None otherwise."""
+    than :data:`PILOT_MAX_TREE_DEPTH` (None: the fit's own); None otherwise."""
     if delay_mode != "profile" or (adaptation or ADAPTATIONS[0]) != PILOT:
         return None
     return tuple((min(t, int(tune)), max(2, min(d, int(draws))), min(PILOT_CHAINS, int(chains)), PILOT_TARGET_ACCEPT,

@@ -94,11 +94,10 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
         scales = side["whitening"]["ridge"][name]["pivot_scale_range"]
         assert 0 < scales[0] <= scales[1]
     assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
-    # the pilot's trees capped (pipelines/fit/warmup.py, "Tree depth"), the kept run's at nutpie's own limit: as
+    # the pilot's trees as deep as the kept run's, nutpie's own limit (pipelines/fit/warmup.py, "Tree depth"): as
     # nutpie recorded them
-    assert pilot["max_tree_depth"] == PILOT_MAX_TREE_DEPTH
     stats = xr.open_datatree(delayed_fit["posterior"])["sample_stats"]
-    assert nutpie_setting(stats.attrs, "maxdepth") > PILOT_MAX_TREE_DEPTH
+    assert PILOT_MAX_TREE_DEPTH is None and pilot["max_tree_depth"] == nutpie_setting(stats.attrs, "maxdepth") >= 10
     assert side["sampler"]["target_accept"] == WHITENED_TARGET_ACCEPT == 0.9
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
     assert "whitened coordinates" in side["start"]

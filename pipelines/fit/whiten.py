@@ -189,10 +189,9 @@ def _pilot_stage(stage, chains: int, nuts: dict | None):
     if (tune < 0 or draws < 2 or p_chains < 1 or (accept is not None and not 0.0 < float(accept) < 1.0)
             or (depth is not None and (int(depth) != depth or depth < 1))):
         raise bad
-    p_nuts = ({**(nuts or {}), **({} if accept is None else {"target_accept": float(accept)}),
-               **({} if depth is None else {"maxdepth": int(depth)})} if accept is not None or depth is not None
-              else nuts)
-    return tune, draws, p_chains, p_nuts
+    own = {**({} if accept is None else {"target_accept": float(accept)}),
+           **({} if depth is None else {"maxdepth": int(depth)})}
+    return tune, draws, p_chains, ({**(nuts or {}), **own} if own else nuts)
 
 
 def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws: int, tune: int,

@@ -7,15 +7,15 @@ full-size ``kbl`` fit at f484bf1) reads only the first. The rewrite :func:`local
 (PyTensor's ``specialize`` phase, in every compiled function once this module is imported, as the model builders
 :mod:`models.bayes.delayed_model` and :mod:`models.bayes.unit_delayed` do) replaces such a node by a
 :class:`DelayedLoglikValueOp` on the same inputs, which runs the kernel's value-only path
-(:func:`models.delayed.kernel.batch_kernel` with ``grad`` False): the same operations up to the log-density, so the
-same number to the last bit, without the reverse sweeps. A graph that reads the gradient (the sampler's, the
+(:func:`models.delayed.kernel.batch_kernel` with ``grad`` False): the same operations up to the log-density, without
+the reverse sweeps (the same number to the last bit through :func:`models.delayed.loglik`; compiled into a graph of
+its own, to rounding: tests/models/bayes/test_delayed_op.py). A graph that reads the gradient (the sampler's, the
 whitening's mode search) keeps the node as it is. ``scioc bench --parts delayed`` measures the value alone beside
 the value and gradient.
 """
 
 from __future__ import annotations
 
-import numpy as np
 import pytensor.tensor as pt
 from pytensor.gradient import grad_not_implemented
 from pytensor.graph.basic import Apply

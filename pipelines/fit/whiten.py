@@ -228,9 +228,9 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
         white = whitened_model(logp, flat, x_hat, groups)
         init = {WHITE: to_white(x[0, -1], x_hat, groups)}  # the next run starts where the first chain ended
         refit_s += time.perf_counter() - t2
+        attrs = {**first["posterior"].attrs, **stats.attrs}
         runs.append({"tune": p_tune, "draws": p_draws, "chains": int(first["posterior"].sizes["chain"]),
-                     "target_accept": _target_accept({**first["posterior"].attrs, **stats.attrs}),
-                     "max_tree_depth": nutpie_setting({**first["posterior"].attrs, **stats.attrs}, "maxdepth"),
+                     "target_accept": _target_accept(attrs), "max_tree_depth": nutpie_setting(attrs, "maxdepth"),
                      "sample_s": sec["sample"],
                      "tuning_leapfrog_steps": int(stats.attrs.get("tuning_leapfrog_steps", 0)),
                      "leapfrog_steps": int(stats["n_steps"].values.sum()),

@@ -255,3 +255,51 @@ def test_a_graph_that_does_not_read_the_gradient_runs_the_value_alone(plant, set
         with_grad, _ = f_both(w.theta, tau, w.sigma_m, *values)
         np.testing.assert_allclose(value, with_grad, rtol=RTOL)
         assert np.all(np.isfinite(value))
+
+
+def test_inside_kernel_threads_the_python_path_runs_the_parallel_kernel(plant, setup, monkeypatch):
+    """Inside kernel_threads the Ops' perform runs the batch in the parallel kernel: the same values on one thread and
+    on two, bit for bit, and the serial path's to rounding; value alone and with gradient as outside; the setting and
+    numba's thread count restored after it, also after an error; a compiled function's perform follows it."""
+    import numba
+
+    import models.bayes.delayed_op as delayed_op
+    from models.delayed.kernel import kernel_threads
+
+    calls = []
+    real = delayed_op.batch_kernel
+    monkeypatch.setattr(delayed_op, "batch_kernel", lambda *a: calls.append(a[-3]) or real(*a))
+    w, batch, warm, tau = setup
+    op = DelayedLoglikOp(batch, plant, delay=w.delay, tau0=warm)
+    inputs = [w.theta, tau, w.sigma_m]
+    serial = op.values(inputs)
+    before = numba.get_num_threads()
+    got = {}
+    for threads in (1, 2):
+        with kernel_threads(threads):
+            assert kernel_threads.current() == threads
+            assert numba.get_num_threads() == min(threads, numba.config.NUMBA_NUM_THREADS)
+            got[threads] = op.values(inputs), op.values(inputs, grad=False)
+        assert kernel_threads.current() is None and numba.get_num_threads() == before
+    assert calls == [1, 1, 2, 2]  # chunks: min(segments, threads)
+    (ll1, g1), (v1, _) = got[1]
+    (ll2, g2), (v2, n2) = got[2]
+    assert np.array_equal(ll1, ll2) and np.array_equal(g1, g2) and np.array_equal(v1, v2) and np.array_equal(v2, ll2)
+    assert np.all(np.isnan(n2))
+    np.testing.assert_allclose(ll2, serial[0], rtol=RTOL)
+    np.testing.assert_allclose(g2, serial[1], rtol=RTOL)
+    th, tt, ss = pt.dmatrix(), pt.dvector(), pt.dvector()
+    ll, g = op(th, tt, ss)
+    f, _ = _compile_quietly([th, tt, ss], [ll, g], pytensor.compile.mode.Mode(linker="py", optimizer="fast_run"))
+    with kernel_threads(2):
+        in_f = f(*inputs)
+    assert np.array_equal(in_f[0], ll2) and np.array_equal(in_f[1], g2) and len(calls) == 5
+    f(*inputs)  # outside: the serial path
+    assert len(calls) == 5
+    with pytest.raises(RuntimeError, match="inside"):
+        with kernel_threads(2):
+            raise RuntimeError("inside")
+    assert kernel_threads.current() is None and numba.get_num_threads() == before
+    with pytest.raises(ValueError, match="threads must be >= 1"):
+        with kernel_threads(0):
+            pass

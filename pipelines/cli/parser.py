@@ -131,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=nonnegative_int, default=2018, help="sampler seed (default 2018)")
     p.add_argument("--chains", type=positive_int, default=4, help="Markov chains (default 4)")
     p.add_argument("--draws", type=positive_int, default=1000, help="draws kept per chain (default 1000)")
-    p.add_argument("--tune", type=nonnegative_int, default=None, help="warm-up draws per chain (default 1000; 300 "
+    p.add_argument("--tune", type=nonnegative_int, default=None, help="warm-up draws per chain (default 1000; 150 "
                    "after the pilot run of the delayed fit's default --adaptation pilot, itself 100 + 100 on 2 chains)")
     p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
     p.add_argument("--cores", type=positive_int, help="chains sampled in parallel (default: all CPUs)")

@@ -182,7 +182,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         Root seed (split into the samplers' and the predictive draws' seeds).
     chains, draws, tune : int
         nutpie chains, and draws kept per chain after ``tune`` warm-up draws (default
-        :func:`pipelines.fit.warmup.default_tune`: 1000, 300 after the delayed fit's pilot run).
+        :func:`pipelines.fit.warmup.default_tune`: 1000, 150 after the delayed fit's pilot run).
     settings : IdentifySettings
         Window, preview and reconstruction, as for ``scioc identify``, and the experiment
         (``settings.design``: wheel, sample time, levels, assistants).

@@ -32,7 +32,6 @@ computes the lag's coefficients (:func:`models.bayes.delayed_lag.lag_nb`), the w
 and the batch in the calling thread (the serial kernel: nutpie already runs one chain
 per thread, and a parallel region inside each would oversubscribe the cores), and
 allocates its outputs and scratch per call, so concurrent calls share nothing they write.
-So does the Python path (``perform``), except inside :func:`models.delayed.kernel.kernel_threads`.
 
 :class:`DelayedLoglikDataOp` takes the data as inputs (a model compiled once refits new
 data of the same shape); :class:`DelayedLoglikOp` binds one batch.
@@ -44,7 +43,7 @@ import math
 
 import numpy as np
 import pytensor.tensor as pt
-from numba import get_num_threads, njit
+from numba import njit
 from pytensor.gradient import DisconnectedType, disconnected_type, grad_not_implemented
 from pytensor.graph.basic import Apply
 from pytensor.graph.op import Op
@@ -53,7 +52,7 @@ from pytensor.link.numba.dispatch.basic import numba_funcify
 
 from models.bayes.delayed_lag import lag_nb, wheel_constants
 from models.bayes.op import DATA_NAMES
-from models.delayed.kernel import batch_kernel, batch_kernel_serial, kernel_threads
+from models.delayed.kernel import batch_kernel_serial
 from models.delayed.lag import Warmup, arm_torque_recursion, check_wheel
 from models.design import WheelParameters
 from models.plant import DiscretePlant
@@ -84,9 +83,9 @@ def warm_samples(a, alpha):
 
 
 @njit(cache=True, fastmath=False, error_model="python")
-def _lag_tau0(dt, A_c, b_w, Pb, b1, poles, tau_nm, warm, wstart, tstart):
-    """Each segment's lag (4, n) (a, α and their τ_nm-derivatives) and τ_0 (n,) with its tangents (n, 2)."""
-    n = tau_nm.shape[0]
+def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, wstart,
+              tstart, grad=True):
+    n = u.shape[0]
     J = warm.shape[1]
     lag = np.empty((4, n))
     t0 = np.empty(n)
@@ -113,32 +112,9 @@ def _lag_tau0(dt, A_c, b_w, Pb, b1, poles, tau_nm, warm, wstart, tstart):
         t0[i] = tau[J]
         dt0[i, 0] = dtau[J, 0]
         dt0[i, 1] = dtau[J, 1]
-    return lag, t0, dt0
-
-
-@njit(cache=True, fastmath=False, error_model="python")
-def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, wstart,
-              tstart, grad=True):
-    n = u.shape[0]
-    lag, t0, dt0 = _lag_tau0(dt, A_c, b_w, Pb, b1, poles, tau_nm, warm, wstart, tstart)
     out = np.empty((6, n))
     batch_kernel_serial(A, b, fb, theta, lag, sigma_m, delay, t0, dt0, x1, x2, r, u, a, True, grad, 1, out,
                         np.empty((n, 0)))
-    return out[0].copy(), out[1:].copy()
-
-
-def _values(A, b, wheel, theta, tau_nm, sigma_m, data, grad: bool):
-    """The Ops' Python path: :func:`_evaluate`, or inside :func:`models.delayed.kernel.kernel_threads` the parallel
-    kernel."""
-    threads = kernel_threads.current()
-    if threads is None:
-        return _evaluate(A, b, *wheel, theta, tau_nm, sigma_m, *data, grad)
-    x1, x2, r, u, a, fb, delay, warm, wstart, tstart = data
-    lag, t0, dt0 = _lag_tau0(*wheel, tau_nm, warm, wstart, tstart)
-    n = u.shape[0]
-    out = np.empty((6, n))
-    batch_kernel(A, b, fb, theta, lag, sigma_m, delay, t0, dt0, x1, x2, r, u, a, True, grad,
-                 max(1, min(n, threads, get_num_threads())), out, np.empty((n, 0)))
     return out[0].copy(), out[1:].copy()
 
 
@@ -237,7 +213,7 @@ class DelayedLoglikDataOp(Op):
         theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:3])
         data = inputs[3:] or self.bound
         data = [np.ascontiguousarray(v, dtype=np.int64 if j in (6, 8) else np.float64) for j, v in enumerate(data)]
-        return _values(self.A, self.b, self.wheel, theta, tau_nm, sigma_m, data, grad)
+        return _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data, grad)
 
     def perform(self, node, inputs, output_storage):
         ll, g = self.values(inputs)
@@ -333,7 +309,7 @@ class DelayedLoglikOp(DelayedLoglikDataOp):
         if len(inputs) > N_PARAMETER_INPUTS:
             data[6] = np.ascontiguousarray(inputs[N_PARAMETER_INPUTS], dtype=np.int64)
         theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:N_PARAMETER_INPUTS])
-        return _values(self.A, self.b, self.wheel, theta, tau_nm, sigma_m, data, grad)
+        return _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data, grad)
 
     def infer_shape(self, node, input_shapes):
         return [(self.n,), (5, self.n)]

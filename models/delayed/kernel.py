@@ -35,11 +35,9 @@ contracted into fused multiply-adds (:data:`models.FASTMATH` says why).
 from __future__ import annotations
 
 import math
-import threading
-from contextlib import contextmanager
 
 import numpy as np
-from numba import config, get_num_threads, njit, prange, set_num_threads
+from numba import njit, prange
 
 from models import FASTMATH
 from models.delayed.innovations import U, banded_loglik
@@ -330,37 +328,4 @@ def batch_kernel_serial(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u
                inn)
 
 
-class _KernelThreads(threading.local):
-    """``kernel_threads(n)``: inside this context the ``delayed`` Ops' Python path (``perform``, as in PyMC's pointwise
-    log-likelihood and the whitening's mode search, :func:`pipelines.fit.whiten.whitening`) runs its batch in
-    :func:`batch_kernel` on up to n (>= 1) threads; outside it, and always in the Ops' numba implementation (nutpie's,
-    one chain per thread), in :func:`batch_kernel_serial` (:mod:`models.bayes.delayed_op`). :func:`batch_kernel` runs
-    there whatever n is, so the values do not depend on the machine's cores (each segment on its own; one and two
-    threads agree bit for bit); they are the serial path's to rounding (the kernel compiled into another caller).
-    The setting belongs to the calling thread, as numba's thread count does. ``kernel_threads.current()``: n inside
-    the context, None outside."""
-
-    threads = None
-
-    def current(self):
-        return self.threads
-
-    @contextmanager
-    def __call__(self, threads: int):
-        threads = int(threads)
-        if threads < 1:
-            raise ValueError(f"threads must be >= 1; got {threads}")
-        before, before_numba = self.threads, get_num_threads()
-        self.threads = threads
-        set_num_threads(min(threads, config.NUMBA_NUM_THREADS))
-        try:
-            yield
-        finally:
-            self.threads = before
-            set_num_threads(before_numba)
-
-
-kernel_threads = _KernelThreads()
-
-
-__all__ = ["batch_kernel", "batch_kernel_serial", "kernel_threads", "make_scratch", "segment_kernel"]
+__all__ = ["batch_kernel", "batch_kernel_serial", "make_scratch", "segment_kernel"]

@@ -12,8 +12,6 @@ import time
 
 import numpy as np
 
-from models.delayed.kernel import kernel_threads
-
 
 def child_seeds(seed: int) -> dict:
     """The fit's four seeds from ``SeedSequence(seed).spawn(4)``: both samplers, the predictive draws, LOSO."""
@@ -83,25 +81,15 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     keep_tuning_steps(idata)
     t1 = time.perf_counter()
     if log_likelihood:
-        add_log_likelihood(idata, model, cores)
+        add_log_likelihood(idata, model)
     t2 = time.perf_counter()
     attrs = idata["sample_stats" if steps else "posterior"].attrs  # PyMC's own sampler records it there
     return idata, {"compile_and_sample": t1 - t0, "sample": float(attrs.get("sampling_time", t1 - t0)),
                    "log_likelihood": t2 - t1}
 
 
-def likelihood_threads(cores: int | None) -> int:
-    """Threads for a ``delayed`` likelihood run outside the sampler (:func:`models.delayed.kernel.kernel_threads`):
-    the fit's ``cores`` if given, else numba's thread count (the machine's cores unless ``NUMBA_NUM_THREADS``)."""
-    import numba
-
-    return max(1, int(cores) if cores else numba.get_num_threads())
-
-
-def add_log_likelihood(idata, model, threads: int | None = None) -> None:
-    """Add the pointwise log-likelihood of ``model`` at ``idata``'s posterior draws (group ``log_likelihood``), a
-    ``delayed`` likelihood's batch on :func:`likelihood_threads` threads (the sampler has finished: the cores are
-    free)."""
+def add_log_likelihood(idata, model) -> None:
+    """Add the pointwise log-likelihood of ``model`` at ``idata``'s posterior draws (group ``log_likelihood``)."""
     import pymc as pm
 
     # PyMC cannot rebuild a model with initial values (the folded ρ's of delayed_blocks.py) for the
@@ -109,8 +97,7 @@ def add_log_likelihood(idata, model, threads: int | None = None) -> None:
     initvals = dict(model.rvs_to_initial_values)
     model.rvs_to_initial_values.update(dict.fromkeys(initvals))
     try:
-        with kernel_threads(likelihood_threads(threads)):
-            pm.compute_log_likelihood(idata, model=model, progressbar=False)
+        pm.compute_log_likelihood(idata, model=model, progressbar=False)
     finally:
         model.rvs_to_initial_values.update(initvals)
 

@@ -55,6 +55,21 @@ same command with ``--tune T``, no wrapper, 2026-12-06; two fits at a time, so b
 (σ_β: sigma_beta_log_theta1; σ_βR: sigma_beta_log_R.) 150 warm-up draws took 45-51 % fewer warm-up gradients
 than 300, with as many steps per kept draw and no worse mixing over the three seeds, so
 :data:`TUNE_AFTER_PILOT` is 150. At full size: README, "Speed".
+
+The target acceptance rate after the pilot (tried, not the default). nutpie's 0.8 instead of the delayed fit's 0.9
+(:data:`models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`, chosen before the pilot existed) on the twelve subjects
+(the same command with ``--target-accept 0.8``, which the pilot follows too; 300 warm-up draws; 2026-12-07)::
+
+    seed  rate  pilot    warm-up  kept     total    kept steps  step size    smallest ESS  largest R-hat  div
+    1     0.8   13 771   30 367   20 804   64 942   17.3        0.25-0.28    σ_βR 133      1.026          9
+    2     0.8   17 019   32 373   19 440   68 832   16.2        0.24-0.27    σ_βR 290      1.010          1
+    3     0.8   15 081   28 775   18 899   62 755   15.8        0.24-0.29    σ_βR 196      1.011          12
+
+against the 0.9 rows above (27.0-28.2 steps per kept draw at steps of 0.18-0.22, no divergent transition). The
+larger step makes most kept trees one level shallower (15 leapfrog steps instead of 31), 40 % fewer kept gradients,
+but every run diverged: in seed 1, 5 of the 9 in one chain, at draws in one subject's tail (its ρ above its 98th
+percentile, its θ2 below its 2nd; read ad hoc from the posterior). The convergence verdict fails on one, so the
+rate stays 0.9; what those tails need is the lead (README, "Speed").
 """
 
 from __future__ import annotations

@@ -35,8 +35,7 @@ import numpy as np
 from models.bayes.whiten import (WHITE, block_column, block_hessian, coordinate_scales, nearest_fold,
                                  ridge_curvature, subject_blocks, to_unconstrained, whitened_model, whitening_factors)
 from models.bayes.whiten_draws import draws_factors, to_white
-from models.delayed.kernel import kernel_threads
-from pipelines.fit.sampling import add_log_likelihood, likelihood_threads, sample_model
+from pipelines.fit.sampling import add_log_likelihood, sample_model
 from pipelines.fit.start import held_mask
 
 #: Most L-BFGS iterations of the search for x̂ (the 12-subject ``kbl`` study took 229).
@@ -213,8 +212,7 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     ``record["pilot"]`` each pilot's draws and leapfrog steps.
     """
     t0 = time.perf_counter()
-    with kernel_threads(likelihood_threads(cores)):  # nothing else runs on the cores until the sampler starts
-        logp, flat, x_hat, groups, info, record, folds = whitening(model, start, pivots)
+    logp, flat, x_hat, groups, info, record, folds = whitening(model, start, pivots)
     white = whitened_model(logp, flat, x_hat, groups)
     t1 = time.perf_counter()
     pilot = [_pilot_stage(stage, chains, nuts) for stage in (pilot or ())]
@@ -249,7 +247,7 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
     posterior.attrs.update(attrs)
     idata["posterior"] = posterior
     t2 = time.perf_counter()
-    add_log_likelihood(idata, model, likelihood_threads(cores))
+    add_log_likelihood(idata, model)
     sec = {**sec, "whitening": t1 - t0 + refit_s, "log_likelihood": time.perf_counter() - t2}
     return idata, sec, record
 

@@ -111,22 +111,3 @@ def test_target_accept_reaches_the_sampler_and_changes_its_step_size():
         step[ta] = float(idata["sample_stats"]["step_size"].values[0, -1])
     assert step[None] == step[0.8]  # nutpie's default is 0.8
     assert step[0.99] < 0.7 * step[0.8]
-
-
-def test_the_pointwise_log_likelihood_runs_inside_kernel_threads(monkeypatch):
-    """add_log_likelihood runs PyMC's pointwise log-likelihood inside kernel_threads (the fit's cores, else numba's
-    thread count), so a delayed likelihood's batch runs on the cores the sampler has left; outside, none."""
-    import numba
-    import pymc as pm
-
-    from models.delayed.kernel import kernel_threads
-    from pipelines.fit.sampling import add_log_likelihood, likelihood_threads
-
-    seen = []
-    monkeypatch.setattr(pm, "compute_log_likelihood", lambda *a, **k: seen.append(kernel_threads.current()))
-    with pm.Model() as model:
-        pm.Normal("x")
-    add_log_likelihood(None, model, 3)
-    add_log_likelihood(None, model)
-    assert seen == [3, numba.get_num_threads()] and kernel_threads.current() is None
-    assert likelihood_threads(None) == numba.get_num_threads() and likelihood_threads(2) == 2

@@ -67,9 +67,10 @@ The target acceptance rate after the pilot (tried, not the default). nutpie's 0.
 
 against the 0.9 rows above (27.0-28.2 steps per kept draw at steps of 0.18-0.22, no divergent transition). The
 larger step makes most kept trees one level shallower (15 leapfrog steps instead of 31), 40 % fewer kept gradients,
-but every run diverged: in seed 1, 5 of the 9 in one chain, at draws in one subject's tail (its ρ above its 98th
-percentile, its θ2 below its 2nd; read ad hoc from the posterior). The convergence verdict fails on one, so the
-rate stays 0.9; what those tails need is the lead (README, "Speed").
+but every run diverged: at each of the 22 divergent draws one subject's ρ and τ_nm were both above their 95th
+percentiles (28-33 % of all draws have such a subject; read ad hoc from the posteriors), the far end of its ridge
+between ρ² and τ_nm. The convergence verdict fails on one, so the rate stays 0.9; coordinates that follow that ridge
+to its end are the lead (README, "Speed").
 """
 
 from __future__ import annotations

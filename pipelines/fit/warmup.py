@@ -38,7 +38,7 @@ The warm-up after the pilot. The run whose draws are kept starts inside the post
 which each subject's block is near the identity, so nutpie's adaptation has less to learn than from the mode; its
 schedule (a first 30 % with the mass matrix re-estimated every few draws, windows of 80 draws after it, the last
 15 % for the step size alone) fits in 150 draws with one full window. Measured on the twelve subjects above (the
-same command with ``--tune T``, no wrapper, 2026-12-06; two fits at a time, so by gradients, not seconds; the
+same command with ``--tune T``, no wrapper, 2026-12-06 and 07; two fits at a time, so by gradients, not seconds; the
 ``300`` rows are the table above's depth-10 rows, the same command at its commit)::
 
     seed  tune   pilot    warm-up  kept     total    kept steps  smallest ESS   largest R-hat  div

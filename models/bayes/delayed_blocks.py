@@ -95,7 +95,7 @@ import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 
-from models.bayes.blocks import Parameterization, unit_block
+from models.bayes.blocks import Parameterization, theta2_block, unit_block
 from models.bayes.hierarchical import Priors
 from models.bayes.noise_blocks import (NOISE_A, NOISE_B, mixed_half_normal_block, polar_noise_block,
                                       squared_half_normal_block)
@@ -284,11 +284,7 @@ def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: d
     tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
     log_theta1 = unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc, n_levels)
     log_R = unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form_R, form.R_sc, n_levels)
-    if form.theta2 == "centred":
-        theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))
-    else:
-        theta2 = pm.Deterministic("theta2", tau * pm.HalfNormal("z_theta2", 1.0, dims=("subject", "condition")),
-                                  dims=("subject", "condition"))
+    theta2 = theta2_block(tau, form.theta2)
     pm.Deterministic("theta1", pt.exp(log_theta1), dims=("subject", "condition"))
     R = pm.Deterministic("R", pt.exp(log_R), dims=("subject", "condition"))
     return log_theta1, log_R, theta2, R

@@ -119,7 +119,7 @@ import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
-from models.bayes.blocks import Parameterization, pooled_block, unit_block
+from models.bayes.blocks import Parameterization, pooled_block, theta2_block, unit_block
 from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp
 from models.design import CONDITIONS, Design
 from models.maxent import sample_maxent
@@ -339,11 +339,7 @@ def build_model(
         else:
             log_theta1 = pooled_block("log_theta1", mu, sigma, form.theta1_mc, L)
         log_R = unit_block("log_R", mu_R, beta_R, sigma_R, sigma_bR, form.R_mc, form.R_sc, L)
-        if form.theta2 == "centred":
-            theta2 = pm.HalfNormal("theta2", tau, dims=("subject", "condition"))
-        else:
-            z2 = pm.HalfNormal("z_theta2", 1.0, dims=("subject", "condition"))
-            theta2 = pm.Deterministic("theta2", tau * z2, dims=("subject", "condition"))
+        theta2 = theta2_block(tau, form.theta2)
         pm.Deterministic("theta1", pt.exp(log_theta1), dims=("subject", "condition"))
         R = pm.Deterministic("R", pt.exp(log_R), dims=("subject", "condition"))
 

@@ -73,6 +73,8 @@ import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.replace import graph_replace
 
+from models.bayes.pivot_tails import tail_log_slope, tail_map
+
 #: Eigenvalues of |H_i| below this fraction of its largest are raised to it (a direction the data and
 #: prior leave flat at x̂ gets a finite scale; its own diagonal mass-matrix entry adapts it).
 EIGEN_FLOOR = 1e-6
@@ -285,26 +287,37 @@ def newton_steps(grad, x: np.ndarray, blocks: np.ndarray, scale: np.ndarray) -> 
     return step
 
 
+def pivot_curve(curve):
+    """(pivot, a (n, k), b (n,) or None) of a curved group's third entry, (pivot, a) or (pivot, a, b) with b the
+    pivot's tail scales (:mod:`models.bayes.pivot_tails`; None or absent: the affine pivot)."""
+    pivot, a, *rest = curve
+    b = rest[0] if rest else None
+    return int(pivot), a, (None if b is None else np.asarray(b, dtype=float))
+
+
 def to_unconstrained(w: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
     """x of the module docstring from w (..., D): the inverse of the reparametrization, on draws.
 
-    ``groups``: (blocks (n, k), L (n, k, k)) pairs on disjoint coordinates, or (blocks, L, (pivot, a (n, k)))
-    with each subject's ridge curvature (:func:`ridge_curvature`); every other coordinate is x̂ + w.
+    ``groups``: (blocks (n, k), L (n, k, k)) pairs on disjoint coordinates, or (blocks, L, (pivot, a (n, k)[, b
+    (n,)])) with each subject's ridge curvature (:func:`ridge_curvature`) and its pivot's tail scale
+    (:mod:`models.bayes.pivot_tails`: δ = f_b(m_p)); every other coordinate is x̂ + w.
     """
     w = np.asarray(w, dtype=float)
     x = w + x_hat
     for blocks, L, *curve in groups:
         moved = np.einsum("ijk,...ik->...ij", L, w[..., blocks])
         if curve:
-            pivot, a = curve[0]
+            pivot, a, b = pivot_curve(curve[0])
+            if b is not None:
+                moved[..., pivot] = tail_map(moved[..., pivot], b)
             moved = moved + a * moved[..., pivot:pivot + 1] ** 2
         x[..., blocks] = x_hat[blocks] + moved
     return x
 
 
 def whitened_model(logp, flat, x_hat: np.ndarray, groups) -> pm.Model:
-    """A model in w alone whose log density is ``logp`` at x(w) (module docstring; ``groups`` as
-    :func:`to_unconstrained`'s).
+    """A model in w alone whose log density is ``logp`` at x(w), plus the log Jacobian of a pivot's tail map where a
+    group has one (module docstring; ``groups`` as :func:`to_unconstrained`'s).
 
     ``logp``: the original model's log density (with its transforms' Jacobians) as a graph of
     ``flat``, its unconstrained coordinates joined into one vector
@@ -314,17 +327,22 @@ def whitened_model(logp, flat, x_hat: np.ndarray, groups) -> pm.Model:
     with pm.Model() as model:
         w = pm.Flat(WHITE, shape=x_hat.shape[0])
         x = pt.as_tensor(x_hat) + w
+        log_jacobian = pt.as_tensor(0.0)
         for blocks, L, *curve in groups:
             wb = w[blocks]
             moved = pt.sum(pt.as_tensor(L) * wb[:, None, :], axis=-1)
             if curve:
-                pivot, a = curve[0]
+                pivot, a, b = pivot_curve(curve[0])
+                if b is not None:
+                    m = moved[:, pivot]
+                    log_jacobian = log_jacobian + pt.sum(tail_log_slope(m, pt.as_tensor(b), pt))
+                    moved = pt.set_subtensor(moved[:, pivot], tail_map(m, pt.as_tensor(b), pt))
                 moved = moved + pt.as_tensor(a) * moved[:, pivot:pivot + 1] ** 2
             x = pt.set_subtensor(x[blocks], pt.as_tensor(x_hat[blocks]) + moved)
-        pm.Potential("logp", graph_replace(logp, {flat: x}, strict=False))
+        pm.Potential("logp", graph_replace(logp, {flat: x}, strict=False) + log_jacobian)
     return model
 
 
 __all__ = ["EIGEN_FLOOR", "RIDGE_HALVINGS", "RIDGE_MAX_ITER", "RIDGE_TOL", "WHITE", "block_column", "block_hessian",
-           "conditional_modes", "coordinate_scales", "nearest_fold", "newton_steps", "ridge_curvature",
+           "conditional_modes", "coordinate_scales", "nearest_fold", "newton_steps", "pivot_curve", "ridge_curvature",
            "subject_blocks", "to_unconstrained", "whitened_model", "whitening_factors"]

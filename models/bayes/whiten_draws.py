@@ -33,7 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.bayes.whiten import EIGEN_FLOOR
+from models.bayes.pivot_tails import tail_inverse, tail_scale
+from models.bayes.whiten import EIGEN_FLOOR, pivot_curve
 
 
 def covariance_factor(cov: np.ndarray, floor: float = EIGEN_FLOOR) -> np.ndarray | None:
@@ -49,7 +50,8 @@ def covariance_factor(cov: np.ndarray, floor: float = EIGEN_FLOOR) -> np.ndarray
     return np.linalg.cholesky((V * lam) @ V.T)
 
 
-def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds) -> tuple[np.ndarray, list, int]:
+def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds, tails: bool = True
+                  ) -> tuple[np.ndarray, list, int]:
     """(x̂, groups, kept): ``groups`` (as :func:`models.bayes.whiten.to_unconstrained` takes them) measured again on
     posterior draws ``x`` (..., D) (module docstring); ``kept`` counts the blocks whose draws did not move, which
     keep their factor and centre from ``x_hat`` and ``groups``.
@@ -66,8 +68,10 @@ def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds) -> tuple[np.n
     out, kept = [], 0
     for (blocks, L, *curve), fold in zip(groups, folds):
         L = np.array(L, dtype=float)
-        pivot = curve[0][0] if curve else None
-        a = np.array(curve[0][1], dtype=float) if curve else None
+        if curve:
+            pivot, a, b = pivot_curve(curve[0])
+            a = np.array(a, dtype=float)
+            b = np.full(blocks.shape[0], np.inf) if b is None else np.array(b, dtype=float)
         for i, cols in enumerate(blocks):
             xi = X[:, cols]
             c = xi.mean(axis=0)
@@ -83,7 +87,9 @@ def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds) -> tuple[np.n
                 coef = np.linalg.lstsq(np.column_stack([np.ones_like(delta), delta, delta**2]), xi, rcond=None)[0]
                 c, ai = coef[0].copy(), coef[2].copy()
                 c[pivot], ai[pivot] = c_p, 0.0
+                bi = tail_scale(delta)[0] if tails else np.inf
                 xi = xi - np.outer(delta**2, ai)
+                xi[:, pivot] = c_p + tail_inverse(delta, bi)  # the pivot's affine coordinate m
             factor = covariance_factor(np.cov(xi, rowvar=False))
             if factor is None:
                 kept += 1
@@ -91,21 +97,24 @@ def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds) -> tuple[np.n
             L[i] = factor
             centre[cols] = c
             if curve:
-                a[i] = ai
-        out.append((blocks, L, (pivot, a)) if curve else (blocks, L))
+                a[i], b[i] = ai, bi
+        out.append((blocks, L, (pivot, a, b)) if curve else (blocks, L))
     return centre, out, kept
 
 
 def to_white(x: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
     """w from x (..., D): the inverse of :func:`models.bayes.whiten.to_unconstrained` (δ read off the pivot's x,
-    then w = L⁻¹ (x - x̂ - a δ²) per block)."""
+    m = f_b⁻¹(δ) in its place, then w = L⁻¹ (x - x̂ - a δ²) per block)."""
     x = np.asarray(x, dtype=float)
     w = x - x_hat
     for blocks, L, *curve in groups:
         dx = x[..., blocks] - x_hat[blocks]
         if curve:
-            pivot, a = curve[0]
-            dx = dx - a * dx[..., pivot:pivot + 1] ** 2
+            pivot, a, b = pivot_curve(curve[0])
+            delta = dx[..., pivot:pivot + 1]
+            dx = dx - a * delta ** 2
+            if b is not None:
+                dx[..., pivot] = tail_inverse(delta[..., 0], b)
         w[..., blocks] = np.linalg.solve(L, dx[..., None])[..., 0]
     return w
 

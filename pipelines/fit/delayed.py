@@ -42,7 +42,8 @@ from models.segment import prepare_batch
 from pipelines.adequacy import assess_study, not_checked
 from pipelines.fit.checks import mixedlm_check, motor_truth, posterior_point, truth_check, unit_theta
 from pipelines.fit.contrasts import contrasts
-from pipelines.fit.delayed_forms import LOG_R_FORMS, choose_R_population, choose_delayed_form, log_R_form
+from pipelines.fit.delayed_forms import (LOG_R_FORMS, THETA2_FORM, choose_R_population, choose_delayed_form,
+                                        log_R_form)
 from pipelines.fit.diagnostics import diagnostics
 from pipelines.fit.loo import psis_summary
 from pipelines.fit.noise_arcs import noise_arcs
@@ -218,7 +219,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     ``delayed_priors``: None chooses the population of R by the data
     (:func:`pipelines.fit.delayed_forms.choose_R_population`), the other priors their defaults.
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
-    chose them; the log R blocks take ``log_R`` (:data:`pipelines.fit.delayed_forms.LOG_R_FORMS`),
+    chose them; θ2's is :data:`pipelines.fit.delayed_forms.THETA2_FORM`; the log R blocks take ``log_R`` (:data:`pipelines.fit.delayed_forms.LOG_R_FORMS`),
     by default :func:`pipelines.fit.delayed_forms.log_R_form`'s choice by the data.
     ``delay_mode`` (:data:`DELAY_MODES`): ``profile`` conditions on ``delays``; ``sampled``
     samples one delay per subject (``delays`` then only supplies the lag and noise estimates
@@ -251,7 +252,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     else:
         form_reason = "given"
     log_R, R_reason = log_R_form(delayed_form) if log_R is None else (log_R, "given")
-    form = replace(form, R_mc=log_R, R_sc=log_R)
+    form = replace(form, R_mc=log_R, R_sc=log_R, theta2=THETA2_FORM)
     arcs = None
     if rho_form is not None:
         if rho_form == "mixed" and len(delayed_form.rho_pinned) != len(subjects):

@@ -258,6 +258,9 @@ CENTRED_Z = 3.0
 LOOSE_FORM = {"tau_nm": "noncentred", "sigma_m": "folded_centred"}
 #: The forms the baseline log R blocks may take (``scioc fit --log-R-form``; default: :func:`log_R_form`).
 LOG_R_FORMS = ("centred", "noncentred")
+#: θ2's form in the delayed fit (:func:`models.bayes.blocks.theta2_block`: the recorded torque leaves θ2 at its prior,
+#: which is a standard normal in this form; measured: :mod:`pipelines.fit.warmup`, "The pivot's tails").
+THETA2_FORM = "quantile"
 
 
 def choose_delayed_form(estimates: pd.DataFrame | None, subjects=None) -> tuple[DelayedForm, str]:
@@ -352,5 +355,5 @@ def log_R_form(delayed_form: DelayedForm) -> tuple[str, str]:
                           "trades off against, leaving R loose per unit")
 
 
-__all__ = ["CENTRED_Z", "LOG_R_FORMS", "LOOSE_FORM", "choose_R_population", "choose_delayed_form", "log_R_form",
+__all__ = ["CENTRED_Z", "LOG_R_FORMS", "LOOSE_FORM", "THETA2_FORM", "choose_R_population", "choose_delayed_form", "log_R_form",
            "rho_pinned"]

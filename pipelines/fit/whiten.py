@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from models.bayes.whiten import (WHITE, block_column, block_hessian, coordinate_scales, nearest_fold,
+from models.bayes.whiten import (WHITE, block_column, block_hessian, coordinate_scales, nearest_fold, pivot_curve,
                                  ridge_curvature, subject_blocks, to_unconstrained, whitened_model, whitening_factors)
 from models.bayes.whiten_draws import draws_factors, to_white
 from pipelines.fit.sampling import add_log_likelihood, sample_model
@@ -124,6 +124,12 @@ def whitening(model, start: dict | None, pivots=None):
     groups = block_groups + ([(others, S)] if others.size else [])
     folds = folds + ([None] if others.size else [])
     return logp, flat, x_hat, groups, raveled.point_map_info, record, folds
+
+
+def tail_count(groups) -> int:
+    """How many subjects' pivots have a tail map (a finite b, :mod:`models.bayes.pivot_tails`) in ``groups``."""
+    return sum(int(np.sum(np.isfinite(pivot_curve(curve[0])[2]))) for _, _, *curve in groups
+               if curve and pivot_curve(curve[0])[2] is not None)
 
 
 def posterior_of(model, x: np.ndarray, point_map_info):
@@ -234,7 +240,8 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
                      "sample_s": sec["sample"],
                      "tuning_leapfrog_steps": int(stats.attrs.get("tuning_leapfrog_steps", 0)),
                      "leapfrog_steps": int(stats["n_steps"].values.sum()),
-                     "divergences": int(stats["diverging"].values.sum()), "blocks_kept_from_before": kept})
+                     "divergences": int(stats["diverging"].values.sum()), "blocks_kept_from_before": kept,
+                     "pivots_with_tail_map": tail_count(groups)})
     if runs:
         record["pilot"] = runs
         record["method"] += (f"; then measured again on the draws of {len(runs)} pilot run(s), each on the last's "
@@ -253,4 +260,4 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
 
 
 __all__ = ["HESSIAN_STEP", "MODE_MAX_ITER", "nutpie_setting", "pilot_seeds", "posterior_of", "sample_whitened",
-           "whitening"]
+           "tail_count", "whitening"]

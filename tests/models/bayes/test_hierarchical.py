@@ -23,6 +23,7 @@ FORMS = [
     Parameterization("centred", "centred", "centred", "centred", "centred"),
     Parameterization("noncentred", "noncentred", "noncentred", "noncentred", "noncentred"),
     Parameterization("mean", "centred", "mean", "noncentred", "noncentred"),
+    Parameterization(theta2="quantile"),
 ]
 
 
@@ -71,7 +72,10 @@ def _raw_point(rng, n_subj, form: Parameterization):
             v[f"z_{name}_MC"] = rng.standard_normal(n_subj)
         else:
             v[f"{name}_MC" if f_mc == "centred" else f"{name}_mean"] = centre + 0.4 * rng.standard_normal(n_subj)
-    v["theta2" if form.theta2 == "centred" else "z_theta2"] = np.abs(0.2 * rng.standard_normal((n_subj, 2)))
+    if form.theta2 == "quantile":
+        v["n_theta2"] = rng.standard_normal((n_subj, 2))
+    else:
+        v["theta2" if form.theta2 == "centred" else "z_theta2"] = np.abs(0.2 * rng.standard_normal((n_subj, 2)))
     return v
 
 
@@ -120,6 +124,9 @@ def _by_hand(v, priors: Priors, form: Parameterization, index, batch, plant):
     if form.theta2 == "centred":
         theta2 = v["theta2"]
         lp += HN(theta2, scale=v["tau_theta2"]).sum()
+    elif form.theta2 == "quantile":  # n ~ N(0, 1), θ2 = τ F⁻¹(Φ(n)), F the half-normal's
+        lp += N(v["n_theta2"]).sum()
+        theta2 = v["tau_theta2"] * stats.halfnorm.ppf(stats.norm.cdf(v["n_theta2"]))
     else:
         lp += HN(v["z_theta2"]).sum()
         theta2 = v["tau_theta2"] * v["z_theta2"]
@@ -130,7 +137,8 @@ def _by_hand(v, priors: Priors, form: Parameterization, index, batch, plant):
 
 
 @pytest.mark.parametrize(
-    "form, M", [(f, 0) for f in FORMS] + [(FORMS[0], 90)], ids=["default", "centred", "noncentred", "mean", "preview"]
+    "form, M", [(f, 0) for f in FORMS] + [(FORMS[0], 90)],
+    ids=["default", "centred", "noncentred", "mean", "quantile", "preview"]
 )
 def test_log_density_is_priors_plus_likelihood(plant, form, M):
     subjects, conditions, segs = small_study(plant, M=M)
@@ -348,3 +356,29 @@ def test_population_parameters_are_the_models_scalar_free_variables(plant, condi
     expected = [n for n in POPULATION_PARAMETERS if condition_effects or n not in ("beta", "sigma_beta")]
     assert scalars == expected
 
+
+
+def test_half_normal_quantile_is_the_half_normals_quantile_of_the_normal_probability_with_finite_gradients():
+    import pytensor
+    import pytensor.tensor as pt
+
+    from models.bayes.blocks import half_normal_quantile
+
+    n = pt.dvector("n")
+    h = half_normal_quantile(n)
+    f = pytensor.function([n], [h, pt.grad(pt.sum(pt.log(h)), n)])
+    moderate = np.linspace(-5.0, 5.0, 201)
+    np.testing.assert_allclose(f(moderate)[0], stats.halfnorm.ppf(stats.norm.cdf(moderate)), rtol=1e-7)
+    # far out (where scipy's composition under- or overflows) the value and the gradient of log h stay finite,
+    # increasing, and agree with central differences
+    wide = np.linspace(-30.0, 30.0, 241)
+    value, slope = f(wide)
+    assert np.all(np.isfinite(value)) and np.all(value > 0) and np.all(np.diff(value) > 0)
+    step = 1e-6
+    numeric = (np.log(f(wide + step)[0]) - np.log(f(wide - step)[0])) / (2 * step)
+    np.testing.assert_allclose(slope, numeric, rtol=1e-5)
+    # the form's prior on θ2 is HalfNormal(τ): the quartiles of n map to the half-normal's
+    np.testing.assert_allclose(f(stats.norm.ppf([0.25, 0.5, 0.75]))[0], stats.halfnorm.ppf([0.25, 0.5, 0.75]),
+                               rtol=1e-12)
+    with pytest.raises(ValueError, match="theta2"):
+        Parameterization(theta2="mean")

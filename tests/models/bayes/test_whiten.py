@@ -182,6 +182,52 @@ def test_ridge_curvature_is_exact_on_a_banana_and_its_curved_map_is_a_standard_n
     assert np.ptp(values) > 1.0
 
 
+def _tailed_banana(b, c=(4.0, -2.0, 9.0), s=(0.5, 0.3, 0.2), t=0.05):
+    """Per subject v = f_b(m) with m ~ N(0, s_i) (models/bayes/pivot_tails.py; v's density written out, f_b⁻¹ in
+    closed form) and y ~ N(c_i v², t): a pivot with quartic walls, on a parabola."""
+    import pytensor.tensor as pt
+
+    from models.bayes.pivot_tails import tail_log_slope
+
+    with pm.Model(coords={"subject": [f"s{i}" for i in range(len(c))]}) as model:
+        v = pm.Flat("v", dims="subject")
+        r = v**2 / (2.0 * b**2)
+        m = pt.sign(v) * pt.abs(v) * pt.sqrt(r + pt.sqrt(1.0 + r**2))
+        pm.Potential("v_law", pt.sum(pm.logp(pm.Normal.dist(0.0, np.asarray(s)), m) - tail_log_slope(m, b, pt)))
+        pm.Normal("y", np.asarray(c) * v**2, t, dims="subject")
+    return model
+
+
+def test_a_pivots_tail_map_and_its_jacobian_make_a_walled_banana_a_standard_normal():
+    # x = x̂ + (f_b(m), L w) + a δ², m the pivot's row of L w: with L = diag(s_i, t), a = c and the law's own b, the
+    # density of w is exactly -½|w|² + const, which needs both the map and its log Jacobian Σ log f_b'(m)
+    b, c, s, t = 0.15, np.array([4.0, -2.0, 9.0]), np.array([0.5, 0.3, 0.2]), 0.05
+    model = _tailed_banana(b, c, s, t)
+    point, raveled, dims = _flat(model)
+    blocks = subject_blocks(raveled.point_map_info, dims, 3)
+    [logp], flat = join_nonshared_inputs(point, [model.logp()], model.value_vars)
+    x_hat = np.zeros(raveled.data.size)
+    L = np.array([np.diag([si, t]) for si in s])
+    a = np.column_stack([np.zeros(3), c])
+    groups = [(blocks, L, (0, a, np.full(3, b)))]
+    white = whitened_model(logp, flat, x_hat, groups).compile_logp()
+    rng = np.random.default_rng(9)
+    ws = rng.normal(size=(6, x_hat.size)) * 2.0
+    values = [white({"w": w}) + 0.5 * w @ w for w in ws]
+    np.testing.assert_allclose(values, values[0], rtol=1e-9)
+    # to_unconstrained is the same map: the pivot is f_b of its affine coordinate
+    x = to_unconstrained(ws, x_hat, groups)
+    from models.bayes.pivot_tails import tail_map
+    np.testing.assert_allclose(x[:, blocks[:, 0]], tail_map(ws[:, blocks[:, 0]] * s, b), rtol=1e-13)
+    # negative controls: the affine pivot (no tail map), and the map without its Jacobian, are not standard normals
+    affine = whitened_model(logp, flat, x_hat, [(blocks, L, (0, a))]).compile_logp()
+    assert np.ptp([affine({"w": w}) + 0.5 * w @ w for w in ws]) > 1.0
+    no_jacobian = [white({"w": w}) + 0.5 * w @ w
+                   - float(np.sum(np.log1p(0.5 * (w[blocks[:, 0]] * s / b) ** 2)
+                                  - 1.25 * np.log1p((w[blocks[:, 0]] * s / b) ** 2))) for w in ws]
+    assert np.ptp(no_jacobian) > 1.0
+
+
 def test_ridge_curvature_refuses_a_pivot_outside_the_block_and_block_column_a_shared_variable():
     model = _model(4)
     point, raveled, dims = _flat(model)

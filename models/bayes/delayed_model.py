@@ -242,16 +242,21 @@ CURVED_ADAPTATIONS = (PILOT, CURVED, CURVED_LOW_RANK)
 
 #: nutpie's target acceptance rate on the whitened coordinates (module docstring, "Whitened"; nutpie's default 0.8).
 WHITENED_TARGET_ACCEPT = 0.9
+#: The same with a pilot run (:data:`PILOT`), whose draws also give each subject's pivot its tail map
+#: (:mod:`models.bayes.pivot_tails`), which removed the divergences that had kept the rate at 0.9; measured:
+#: :mod:`pipelines.fit.warmup`, "The pivot's tails", and README, "Speed".
+PILOT_ADAPTATION_TARGET_ACCEPT = 0.8
 
 
 def nutpie_options(adaptation: str) -> dict:
     """nutpie's options for a delayed fit with this :data:`ADAPTATIONS` entry (whitened, curved or not: its diagonal
-    mass matrix, or the low-rank one with :data:`CURVED_LOW_RANK`, and :data:`WHITENED_TARGET_ACCEPT`)."""
+    mass matrix, or the low-rank one with :data:`CURVED_LOW_RANK`, and :data:`WHITENED_TARGET_ACCEPT`, or
+    :data:`PILOT_ADAPTATION_TARGET_ACCEPT` with the pilot run)."""
     if adaptation not in ADAPTATIONS:
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}; got {adaptation!r}")
     if adaptation in WHITENED_ADAPTATIONS:
         return {"adaptation": "low_rank" if adaptation == CURVED_LOW_RANK else "diag",
-                "target_accept": WHITENED_TARGET_ACCEPT}
+                "target_accept": PILOT_ADAPTATION_TARGET_ACCEPT if adaptation == PILOT else WHITENED_TARGET_ACCEPT}
     return {"adaptation": adaptation}
 
 
@@ -389,5 +394,5 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
 
 __all__ = ["ADAPTATIONS", "CURVED", "CURVED_ADAPTATIONS", "CURVED_LOW_RANK", "DELAY_INDEX", "DELAYED_NUTS",
            "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors",
-           "NUTPIE_ADAPTATIONS", "PILOT", "R_POPULATIONS", "WHITENED", "WHITENED_ADAPTATIONS", "WHITENED_TARGET_ACCEPT",
-           "build_delayed_model", "delay_step", "nutpie_options"]
+           "NUTPIE_ADAPTATIONS", "PILOT", "PILOT_ADAPTATION_TARGET_ACCEPT", "R_POPULATIONS", "WHITENED",
+           "WHITENED_ADAPTATIONS", "WHITENED_TARGET_ACCEPT", "build_delayed_model", "delay_step", "nutpie_options"]

@@ -71,6 +71,41 @@ but every run diverged: at each of the 22 divergent draws one subject's ρ and �
 percentiles (28-33 % of all draws have such a subject; read ad hoc from the posteriors), the far end of its ridge
 between ρ² and τ_nm. The convergence verdict fails on one, so the rate stays 0.9; coordinates that follow that ridge
 to its end are the lead (README, "Speed").
+
+The pivot's tails, and θ2's form (2026-12-07). Where the divergences at 0.8 start was then read from nutpie's own
+record (``store_divergences``, set by a wrapper that also saved each run's whitened draws and coordinates; ad hoc):
+on seeds 1 and 3 (θ2 already in the quantile form below), four of the five divergent trajectories ended on one
+subject's pivot (S04's ρ̃) beyond the largest |ρ̃| among its 1200 draws (0.52-0.54), at |ρ̃| of 0.81-1.69, their last
+step moving ρ̃ by 0.3-2.4 (its draws span about 1.05), with energy errors of 4·10³-4·10¹⁰; the fifth at the
+population's β_R and σ_βR, 5-7 of their scales out. That is the wall at the ridge's end, where the data hold ρ²
+(:mod:`models.bayes.pivot_tails`), rather than a bend that the parabola misses. In the same draws each
+unit's log z = log(θ2/τ) had its prior's quantiles, and the whitened coordinates' excess kurtosis was 1-10 for the
+two θ2 coordinates and log σ_m of every subject, against about 0 for the rest. Two changes followed: θ2 in the
+``quantile`` form (:func:`models.bayes.blocks.theta2_block`, :data:`pipelines.fit.delayed_forms.THETA2_FORM`), and
+the pivot's tail map, its b chosen on the pilot's draws (:func:`models.bayes.pivot_tails.tail_scale`). The same
+command as above with ``--target-accept R`` (three runs' code differs from any commit, as said; two fits at a time,
+so by gradients; the 0.9 rows without either are the table above's tune-150 rows)::
+
+    seed  rate  θ2 form     pivot        pilot    warm-up  kept     total    kept steps  step size    smallest ESS  R-hat  div
+    1     0.9   log z       affine       15 825   20 957   34 336   71 118   28.6        -            σ_β 288       1.006  0
+    1     0.8   log z       affine       13 618   19 633   19 878   53 129   16.6        0.22-0.28    σ_βR 189      1.028  2
+    1     0.8   quantile    affine       15 054   13 627   18 334   47 015   15.3        0.25-0.30    σ_β 198       1.022  4
+    1     0.8   quantile    b ≥ SD/4     15 054   22 387   37 200   74 641   31.0        0.14-0.18    σ_βR 244      1.011  0
+    1     0.8   quantile    b ≥ SD       15 054   14 417   19 280   48 751   16.1        0.25-0.27    β_R 156       1.028  0
+    1     0.9   quantile    b ≥ SD       18 834   16 731   27 824   63 389   23.2        0.19-0.26    σ_βR 217      1.009  0
+    3     0.9   log z       affine       16 917   19 143   31 732   67 792   26.4        -            σ_βR 292      1.008  0
+    3     0.8   log z       affine       12 024   17 111   22 359   51 494   18.6        0.21-0.24    σ_βR 97       1.018  3
+    3     0.8   quantile    affine       12 863   15 568   18 091   46 522   15.1        0.24-0.28    σ_βR 209      1.010  1
+    3     0.8   quantile    b ≥ SD/4     12 863   21 314   33 696   67 873   28.1        0.16-0.23    σ_βR 143      1.039  0
+    3     0.8   quantile    b ≥ SD       12 863   13 543   18 120   44 526   15.1        0.25-0.29    σ_βR 182      1.036  0
+    3     0.9   quantile    b ≥ SD       14 747   15 644   26 672   57 063   22.2        0.19-0.23    σ_βR 288      1.016  0
+
+(log z: the ``noncentred`` form before; "quantile, affine": the quantile form without the tail map, an edit of
+0e997e7; "b ≥ SD/4": :data:`models.bayes.pivot_tails.TAIL_GRID` with 0.5 and 0.25 added, where the likelihood chose
+0.25 for all 24 subject-runs, the map's bend then inside the bulk, the steps smaller and the trees as deep as at
+0.9; "b ≥ SD": the grid as it is, which chose 1 for all 24.) The quantile form took 10-12 % fewer gradients at 0.8
+and the tail map removed the divergences (0 in both seeds against 4 and 1) at as few gradients. With 300 kept draws
+per chain the smaller ESS and larger R-hat at 0.8 are within the spread of these runs; at full size: README, "Speed".
 """
 
 from __future__ import annotations

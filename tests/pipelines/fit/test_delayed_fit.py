@@ -11,7 +11,8 @@ import pytest
 import xarray as xr
 
 from models.bayes.delayed_blocks import SIGNED_FORMS, motor_coordinate
-from models.bayes.delayed_model import WHITENED_TARGET_ACCEPT, DelayedForm, DelayedPriors
+from models.bayes.delayed_model import (PILOT_ADAPTATION_TARGET_ACCEPT, WHITENED_TARGET_ACCEPT, DelayedForm,
+                                        DelayedPriors)
 from models.design import STUDY
 from models.plant import discretize
 from pipelines.fit import fit_to_dir, format_fit
@@ -88,17 +89,21 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     # on its own chains (at most the fit's), at the fit's target acceptance rate unless the pilot has its own: as
     # nutpie recorded them
     assert pilot["chains"] == min(PILOT_CHAINS, TINY["chains"])
-    assert pilot["target_accept"] == (PILOT_TARGET_ACCEPT or WHITENED_TARGET_ACCEPT)
+    assert pilot["target_accept"] == (PILOT_TARGET_ACCEPT or PILOT_ADAPTATION_TARGET_ACCEPT)
+    # how many subjects' pivots its draws gave a tail map (models/bayes/pivot_tails.py), and θ2's form
+    assert 0 <= pilot["pivots_with_tail_map"] <= len(side["whitening"]["pivot_by_subject"])
+    assert side["delayed_parameterization"]["theta2"] == "quantile"
     assert pilot["leapfrog_steps"] > 0 and "pilot run" in side["start"]
     for name in side["whitening"]["curved_along"]:
         scales = side["whitening"]["ridge"][name]["pivot_scale_range"]
         assert 0 < scales[0] <= scales[1]
-    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": WHITENED_TARGET_ACCEPT}
+    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": PILOT_ADAPTATION_TARGET_ACCEPT}
     # the pilot's trees as deep as the kept run's, nutpie's own limit (pipelines/fit/warmup.py, "Tree depth"): as
     # nutpie recorded them
     stats = xr.open_datatree(delayed_fit["posterior"])["sample_stats"]
     assert PILOT_MAX_TREE_DEPTH is None and pilot["max_tree_depth"] == nutpie_setting(stats.attrs, "maxdepth") >= 10
-    assert side["sampler"]["target_accept"] == WHITENED_TARGET_ACCEPT == 0.9
+    # with the pilot's tail maps at 0.8 (models/bayes/delayed_model.py), without a pilot at 0.9
+    assert side["sampler"]["target_accept"] == PILOT_ADAPTATION_TARGET_ACCEPT == 0.8 and WHITENED_TARGET_ACCEPT == 0.9
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
     assert "whitened coordinates" in side["start"]
     assert side["seconds"]["condition"]["whitening_s"] > 0

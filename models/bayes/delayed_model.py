@@ -152,7 +152,8 @@ instead, the ridge there being an arch over it, or with σ_m's signed too, per s
 its mode is nearest (:func:`models.bayes.delayed_blocks.ridge_pivots`).
 
 Its target acceptance rate is 0.9 (:data:`WHITENED_TARGET_ACCEPT`), not nutpie's 0.8: the
-convergence verdict fails on a single divergent transition, and the smaller steps left fewer.
+convergence verdict fails on a single divergent transition, and the smaller steps left fewer. With the pilot run
+and a signed ρ it is 0.8 again (:data:`PILOT_ADAPTATION_TARGET_ACCEPT`).
 Measured on 12 subjects of each human (those of :mod:`pipelines.fit.delayed_forms`' table, the same
 command without ``--log-R-form``, the kernel with its reverse-mode plan, alone on the machine; the
 rate set by patching ``nutpie_options`` in a wrapper script, as ``scioc fit`` has no option for it)::
@@ -242,21 +243,22 @@ CURVED_ADAPTATIONS = (PILOT, CURVED, CURVED_LOW_RANK)
 
 #: nutpie's target acceptance rate on the whitened coordinates (module docstring, "Whitened"; nutpie's default 0.8).
 WHITENED_TARGET_ACCEPT = 0.9
-#: The same with a pilot run (:data:`PILOT`), whose draws also give each subject's pivot its tail map
-#: (:mod:`models.bayes.pivot_tails`), which removed the divergences that had kept the rate at 0.9; measured:
-#: :mod:`pipelines.fit.warmup`, "The pivot's tails", and README, "Speed".
+#: With a pilot run (:data:`PILOT`) and ρ signed: the pilot gives each pivot a tail map (models/bayes/pivot_tails.py),
+#: which removed the divergences at ρ̃'s wall that kept 0.9; not with lognormal R (0.8 failed, R-hat 1.011, there).
+#: Measured: :mod:`pipelines.fit.warmup`, "The pivot's tails", and README, "Speed".
 PILOT_ADAPTATION_TARGET_ACCEPT = 0.8
 
 
-def nutpie_options(adaptation: str) -> dict:
+def nutpie_options(adaptation: str, rho_signed: bool = False) -> dict:
     """nutpie's options for a delayed fit with this :data:`ADAPTATIONS` entry (whitened, curved or not: its diagonal
     mass matrix, or the low-rank one with :data:`CURVED_LOW_RANK`, and :data:`WHITENED_TARGET_ACCEPT`, or
-    :data:`PILOT_ADAPTATION_TARGET_ACCEPT` with the pilot run)."""
+    :data:`PILOT_ADAPTATION_TARGET_ACCEPT` with the pilot run where ρ's coordinate is signed, ``rho_signed``)."""
     if adaptation not in ADAPTATIONS:
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}; got {adaptation!r}")
     if adaptation in WHITENED_ADAPTATIONS:
         return {"adaptation": "low_rank" if adaptation == CURVED_LOW_RANK else "diag",
-                "target_accept": PILOT_ADAPTATION_TARGET_ACCEPT if adaptation == PILOT else WHITENED_TARGET_ACCEPT}
+                "target_accept": PILOT_ADAPTATION_TARGET_ACCEPT if adaptation == PILOT and rho_signed
+                else WHITENED_TARGET_ACCEPT}
     return {"adaptation": adaptation}
 
 

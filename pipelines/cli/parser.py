@@ -162,7 +162,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own; "
                    "curved_low_rank: curved, with nutpie's low-rank mass matrix)")
     p.add_argument("--target-accept", type=acceptance, help="the sampler's target acceptance rate (default 0.9 for "
-                   "the delayed model's whitened fit, else nutpie's 0.8); raise it where transitions diverge")
+                   "the delayed model's whitened fit, 0.8 with its pilot run, else nutpie's 0.8); raise it where "
+                   "transitions diverge")
     p.add_argument("--compare-to", metavar="MAXENT_FIT", help="with --human-model delayed: a finished max-ent fit of "
                    "the same study and settings; then leave-one-subject-out between the two human models, beside "
                    "each one's adequacy verdict (OUT/human_models.json)")

@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_blocks import ridge_pivots
+from models.bayes.delayed_blocks import SIGNED_FORMS, ridge_pivots
 from models.bayes.delayed_model import (ADAPTATIONS, CURVED_ADAPTATIONS, DELAY_INDEX, DELAYED_POPULATION_PARAMETERS,
                                         WHITENED_ADAPTATIONS, DelayedForm, DelayedPriors, build_delayed_model,
                                         delay_step, nutpie_options)
@@ -236,7 +236,6 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
     adaptation = ADAPTATIONS[0] if adaptation is None else adaptation
     whiten = delay_mode == "profile" and adaptation in WHITENED_ADAPTATIONS
-    nuts = nutpie_options(adaptation) | ({} if target_accept is None else {"target_accept": float(target_accept)})
     levels = prepared.settings.design.ordered_levels
     if log_R is not None and log_R not in LOG_R_FORMS:
         raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")
@@ -262,6 +261,9 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
             ks, arcs = noise_arcs(prepared, plant, ml, delays.samples, tau0_function(prepared, plant), subjects)
             delayed_form = replace(delayed_form, polar_k=ks)
         delayed_form = replace(delayed_form, rho=rho_form)
+    rho_signed = delayed_priors.R_population == "policy_scale" and delayed_form.rho in SIGNED_FORMS
+    nuts = (nutpie_options(adaptation, rho_signed)
+            | ({} if target_accept is None else {"target_accept": float(target_accept)}))
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
     n_subjects = len(subjects)

@@ -225,7 +225,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         The posterior point of the adequacy check (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
     target_accept : float, optional
         The sampler's target acceptance rate, in (0, 1) (None: the fit's own, recorded in the
-        sidecar: nutpie's 0.8, the delayed model's whitened fit 0.9).
+        sidecar: nutpie's 0.8, the delayed model's whitened fit 0.9, 0.8 with its pilot run).
 
     Returns
     -------

@@ -56,8 +56,9 @@ same command with ``--tune T``, no wrapper, 2026-12-06 and 07; two fits at a tim
 than 300, with as many steps per kept draw and no worse mixing over the three seeds, so
 :data:`TUNE_AFTER_PILOT` is 150. At full size: README, "Speed".
 
-The target acceptance rate after the pilot (tried, not the default). nutpie's 0.8 instead of the delayed fit's 0.9
-(:data:`models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`, chosen before the pilot existed) on the twelve subjects
+The target acceptance rate after the pilot (tried then; the default since 41cd710, with the pivots' tail maps
+below). nutpie's 0.8 instead of the delayed fit's 0.9 (:data:`models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`,
+chosen before the pilot existed) on the twelve subjects
 (the same command with ``--target-accept 0.8``, which the pilot follows too; 300 warm-up draws; 2026-12-07)::
 
     seed  rate  pilot    warm-up  kept     total    kept steps  step size    smallest ESS  largest R-hat  div
@@ -69,7 +70,7 @@ against the 0.9 rows above (27.0-28.2 steps per kept draw at steps of 0.18-0.22,
 larger step makes most kept trees one level shallower (15 leapfrog steps instead of 31), 40 % fewer kept gradients,
 but every run diverged: at each of the 22 divergent draws one subject's ρ and τ_nm were both above their 95th
 percentiles (28-33 % of all draws have such a subject; read ad hoc from the posteriors), the far end of its ridge
-between ρ² and τ_nm. The convergence verdict fails on one, so the rate stays 0.9; coordinates that follow that ridge
+between ρ² and τ_nm. The convergence verdict fails on one, so the rate stayed 0.9 then; coordinates that follow that ridge
 to its end are the lead (README, "Speed").
 
 The pivot's tails, and θ2's form (2026-12-07). Where the divergences at 0.8 start was then read from nutpie's own
@@ -122,9 +123,9 @@ PILOT_RUNS = ((100, 100),)
 #: pilot's gradients fell from 30.8 k to 15.8 k; the kept draws' steps (28.3 and 28.2 per draw) and the smallest
 #: population ESS (327 and 331, σ_βR) stayed.
 PILOT_CHAINS = 2
-#: The pilot's NUTS target acceptance rate (None: the fit's own). 0.8 on two chains (the same command through the
-#: wrapper) took 34.4 steps per pilot draw against 39.6 but left 3 divergent transitions in the kept run (0 at the
-#: fit's own 0.9).
+#: The pilot's NUTS target acceptance rate (None: the fit's own, 0.8 since 41cd710, module docstring). Before the
+#: tail maps, 0.8 for the pilot alone on two chains (the same command through the wrapper) took 34.4 steps per pilot
+#: draw against 39.6 but left 3 divergent transitions in the kept run (0 at the fit's own 0.9 then).
 PILOT_TARGET_ACCEPT = None
 #: Warm-up draws per chain of a fit without a pilot run (``scioc fit --tune``'s default), and of the run after it:
 #: the pilot's draws measured the coordinates and its last draw is where the chains start (README, "Speed"; 150

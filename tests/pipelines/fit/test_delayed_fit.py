@@ -89,7 +89,11 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     # on its own chains (at most the fit's), at the fit's target acceptance rate unless the pilot has its own: as
     # nutpie recorded them
     assert pilot["chains"] == min(PILOT_CHAINS, TINY["chains"])
-    assert pilot["target_accept"] == (PILOT_TARGET_ACCEPT or PILOT_ADAPTATION_TARGET_ACCEPT)
+    # the fit's rate: 0.8 with the pilot where ρ is signed (its pivots' tail maps), else 0.9 (models/bayes/delayed_model.py)
+    rho_signed = (side["delayed_priors"]["R_population"] == "policy_scale"
+                  and side["delayed_form"]["rho"] in ("folded", "folded_centred"))
+    rate = PILOT_ADAPTATION_TARGET_ACCEPT if rho_signed else WHITENED_TARGET_ACCEPT
+    assert pilot["target_accept"] == (PILOT_TARGET_ACCEPT or rate)
     # how many subjects' pivots its draws gave a tail map (models/bayes/pivot_tails.py), and θ2's form
     assert 0 <= pilot["pivots_with_tail_map"] <= len(side["whitening"]["pivot_by_subject"])
     assert side["delayed_parameterization"]["theta2"] == "quantile"
@@ -97,13 +101,12 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     for name in side["whitening"]["curved_along"]:
         scales = side["whitening"]["ridge"][name]["pivot_scale_range"]
         assert 0 < scales[0] <= scales[1]
-    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": PILOT_ADAPTATION_TARGET_ACCEPT}
+    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": rate}
     # the pilot's trees as deep as the kept run's, nutpie's own limit (pipelines/fit/warmup.py, "Tree depth"): as
     # nutpie recorded them
     stats = xr.open_datatree(delayed_fit["posterior"])["sample_stats"]
     assert PILOT_MAX_TREE_DEPTH is None and pilot["max_tree_depth"] == nutpie_setting(stats.attrs, "maxdepth") >= 10
-    # with the pilot's tail maps at 0.8 (models/bayes/delayed_model.py), without a pilot at 0.9
-    assert side["sampler"]["target_accept"] == PILOT_ADAPTATION_TARGET_ACCEPT == 0.8 and WHITENED_TARGET_ACCEPT == 0.9
+    assert side["sampler"]["target_accept"] == rate and (PILOT_ADAPTATION_TARGET_ACCEPT, WHITENED_TARGET_ACCEPT) == (0.8, 0.9)
     assert side["whitening"]["coordinates_per_subject"] == 8 and side["whitening"]["mode_used"]
     assert "whitened coordinates" in side["start"]
     assert side["seconds"]["condition"]["whitening_s"] > 0
@@ -501,3 +504,14 @@ def test_nutpies_own_low_rank_fit_has_the_same_variables_and_repeats_with_its_se
         np.testing.assert_array_equal(a["posterior"][v].values, b["posterior"][v].values)
     res = json.loads(open(paths[0]["contrasts"]).read())
     assert "beta" in res and res["adequacy"]["verdict"] in ("pass", "fail")
+
+
+def test_the_whitened_fits_rate_is_08_only_with_the_pilot_and_a_signed_rho():
+    from models.bayes.delayed_model import ADAPTATIONS, PILOT, nutpie_options
+
+    assert nutpie_options(PILOT, rho_signed=True)["target_accept"] == 0.8
+    assert nutpie_options(PILOT, rho_signed=False)["target_accept"] == 0.9
+    assert nutpie_options(PILOT)["target_accept"] == 0.9
+    for adaptation in ADAPTATIONS:
+        if adaptation != PILOT:
+            assert nutpie_options(adaptation, rho_signed=True).get("target_accept") in (0.9, None)

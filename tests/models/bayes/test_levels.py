@@ -70,7 +70,7 @@ def test_two_levels_keep_todays_names_and_dims(plant, condition_effects, expecte
     assert _free(relabelled) == expected and relabelled.coords["condition"] == ("off", "on")
 
 
-@pytest.mark.parametrize("form", FORMS, ids=["default", "centred", "noncentred", "mean"])
+@pytest.mark.parametrize("form", FORMS, ids=["default", "centred", "noncentred", "mean", "quantile"])
 def test_three_levels_have_a_contrast_dim(plant, form):
     subjects, conditions, segs = three_level_study()
     model = build_model(subjects, conditions, segs, plant, levels=LEVELS, parameterization=form)
@@ -105,7 +105,10 @@ def _raw_point(rng, n, form: Parameterization, L: int):
             v[f"{name}_contrast"] = centre - 0.3 + 0.4 * rng.standard_normal((n, C))
         key = {"noncentred": f"z_{name}_baseline", "centred": f"{name}_baseline", "mean": f"{name}_mean"}[f_mc]
         v[key] = (0.0 if f_mc == "noncentred" else centre) + 0.4 * rng.standard_normal(n)
-    v["theta2" if form.theta2 == "centred" else "z_theta2"] = np.abs(0.2 * rng.standard_normal((n, L)))
+    if form.theta2 == "quantile":
+        v["n_theta2"] = rng.standard_normal((n, L))
+    else:
+        v["theta2" if form.theta2 == "centred" else "z_theta2"] = np.abs(0.2 * rng.standard_normal((n, L)))
     return v
 
 
@@ -155,6 +158,9 @@ def _by_hand(v, priors: Priors, form: Parameterization, index, batch, plant, L):
     if form.theta2 == "centred":
         theta2 = v["theta2"]
         lp += HN(theta2, scale=v["tau_theta2"]).sum()
+    elif form.theta2 == "quantile":  # n ~ N(0, 1), θ2 = τ F⁻¹(Φ(n)), F the half-normal's
+        lp += N(v["n_theta2"]).sum()
+        theta2 = v["tau_theta2"] * stats.halfnorm.ppf(stats.norm.cdf(v["n_theta2"]))
     else:
         lp += HN(v["z_theta2"]).sum()
         theta2 = v["tau_theta2"] * v["z_theta2"]
@@ -164,7 +170,7 @@ def _by_hand(v, priors: Priors, form: Parameterization, index, batch, plant, L):
     return lp + loglik_grad(theta, batch, plant).loglik.sum(), units
 
 
-@pytest.mark.parametrize("form", FORMS, ids=["default", "centred", "noncentred", "mean"])
+@pytest.mark.parametrize("form", FORMS, ids=["default", "centred", "noncentred", "mean", "quantile"])
 def test_three_level_log_density_is_priors_plus_likelihood(plant, form):
     subjects, conditions, segs = three_level_study(M=20)
     batch = prepare_batch(plant, segs)

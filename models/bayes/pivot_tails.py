@@ -32,8 +32,8 @@ import numpy as np
 TAIL_GRID = (np.inf, 8.0, 4.0, 2.0, 1.0)
 
 
-def tail_map(m, b, xp=np):
-    """δ = f_b(m) (module docstring), elementwise; ``xp``: numpy or ``pytensor.tensor``."""
+def tail_map(m, b):
+    """δ = f_b(m) (module docstring), elementwise, on numpy arrays or pytensor tensors alike."""
     return m * (1.0 + (m / b) ** 2) ** -0.25
 
 

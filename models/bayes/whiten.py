@@ -336,7 +336,7 @@ def whitened_model(logp, flat, x_hat: np.ndarray, groups) -> pm.Model:
                 if b is not None:
                     m = moved[:, pivot]
                     log_jacobian = log_jacobian + pt.sum(tail_log_slope(m, pt.as_tensor(b), pt))
-                    moved = pt.set_subtensor(moved[:, pivot], tail_map(m, pt.as_tensor(b), pt))
+                    moved = pt.set_subtensor(moved[:, pivot], tail_map(m, pt.as_tensor(b)))
                 moved = moved + pt.as_tensor(a) * moved[:, pivot:pivot + 1] ** 2
             x = pt.set_subtensor(x[blocks], pt.as_tensor(x_hat[blocks]) + moved)
         pm.Potential("logp", graph_replace(logp, {flat: x}, strict=False) + log_jacobian)

@@ -219,8 +219,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     ``delayed_priors``: None chooses the population of R by the data
     (:func:`pipelines.fit.delayed_forms.choose_R_population`), the other priors their defaults.
     ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
-    chose them; θ2's is :data:`pipelines.fit.delayed_forms.THETA2_FORM`; the log R blocks take ``log_R`` (:data:`pipelines.fit.delayed_forms.LOG_R_FORMS`),
-    by default :func:`pipelines.fit.delayed_forms.log_R_form`'s choice by the data.
+    chose them; θ2's is :data:`pipelines.fit.delayed_forms.THETA2_FORM`; the log R blocks take ``log_R``
+    (:data:`pipelines.fit.delayed_forms.LOG_R_FORMS`), by default :func:`pipelines.fit.delayed_forms.log_R_form`'s choice by the data.
     ``delay_mode`` (:data:`DELAY_MODES`): ``profile`` conditions on ``delays``; ``sampled``
     samples one delay per subject (``delays`` then only supplies the lag and noise estimates
     that choose the blocks' forms), and the returned fit's delays are the posterior modes.

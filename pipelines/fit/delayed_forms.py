@@ -355,5 +355,5 @@ def log_R_form(delayed_form: DelayedForm) -> tuple[str, str]:
                           "trades off against, leaving R loose per unit")
 
 
-__all__ = ["CENTRED_Z", "LOG_R_FORMS", "LOOSE_FORM", "THETA2_FORM", "choose_R_population", "choose_delayed_form", "log_R_form",
-           "rho_pinned"]
+__all__ = ["CENTRED_Z", "LOG_R_FORMS", "LOOSE_FORM", "THETA2_FORM", "choose_R_population", "choose_delayed_form",
+           "log_R_form", "rho_pinned"]

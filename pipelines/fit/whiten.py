@@ -128,8 +128,8 @@ def whitening(model, start: dict | None, pivots=None):
 
 def tail_count(groups) -> int:
     """How many subjects' pivots have a tail map (a finite b, :mod:`models.bayes.pivot_tails`) in ``groups``."""
-    return sum(int(np.sum(np.isfinite(pivot_curve(curve[0])[2]))) for _, _, *curve in groups
-               if curve and pivot_curve(curve[0])[2] is not None)
+    tails = [pivot_curve(curve[0])[2] for _, _, *curve in groups if curve]
+    return sum(int(np.sum(np.isfinite(b))) for b in tails if b is not None)
 
 
 def posterior_of(model, x: np.ndarray, point_map_info):

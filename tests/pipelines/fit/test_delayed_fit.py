@@ -91,7 +91,7 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     assert pilot["chains"] == min(PILOT_CHAINS, TINY["chains"])
     # the fit's rate: 0.8 with the pilot where ρ is signed (its pivots' tail maps), else 0.9 (models/bayes/delayed_model.py)
     rho_signed = (side["delayed_priors"]["R_population"] == "policy_scale"
-                  and side["delayed_form"]["rho"] in ("folded", "folded_centred"))
+                  and side["delayed_form"]["rho"] in SIGNED_FORMS)
     rate = PILOT_ADAPTATION_TARGET_ACCEPT if rho_signed else WHITENED_TARGET_ACCEPT
     assert pilot["target_accept"] == (PILOT_TARGET_ACCEPT or rate)
     # how many subjects' pivots its draws gave a tail map (models/bayes/pivot_tails.py), and θ2's form

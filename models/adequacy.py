@@ -15,7 +15,7 @@ reconstruction (or, for recorded torques, the same exact measurement):
     Autocorrelation of the standardized policy residuals ``z_k = v_k √(2 S_k)`` at lags
     from one sample to :data:`WHITENESS_SECONDS` (1..10 at 100 Hz; a portmanteau
     statistic). ``v_k`` is the deviation of the torque from the optimal law at the state driven by the observed torques
-    (:mod:`models.maxent`), so under the model and for the true torque the z_k are iid
+    (:mod:`scioc.models.maxent`), so under the model and for the true torque the z_k are iid
     N(0, 1). A reconstructed torque is smoothed, which makes z autocorrelated even under
     the model (lag 1 about 0.3 on the default study); that is why the null comes from the
     bootstrap and the statistic is the standardized distance of the autocorrelation
@@ -50,7 +50,7 @@ combined p-value is ≤ :data:`STUDY_ALPHA` / (number of statistics) (Bonferroni
 family-wise false-alarm rate ≤ 1 %). Fisher's χ² reference is conservative for p-values
 on a grid (their mean −log is below 1).
 
-The acquisition chain and its shortcuts are in :mod:`models.bootstrap`.
+The acquisition chain and its shortcuts are in :mod:`scioc.models.bootstrap`.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import stats as sps
 
-from models.bootstrap import Records
+from scioc.models.bootstrap import Records
 
 #: Autocorrelation lags of the residuals, s (10 lags of 10 ms at 100 Hz; the lag count scales with the rate).
 WHITENESS_SECONDS = 0.1

@@ -7,7 +7,7 @@ gives the prediction grid, not how often the real-time loop re-solves; we re-sol
 every 10-ms sample of the 100-Hz loop (``period=0.01``, receding horizon). The
 assistant then acts on the wheel as a time-invariant state feedback plus a feedforward
 from the reference, which a human who knows it feels as a changed wheel (an added
-spring and damper) and which the human model of :mod:`models.maxent` can plan with
+spring and damper) and which the human model of :mod:`scioc.models.maxent` can plan with
 exactly. ``period=0.02`` (compute every 20 ms, hold for two samples) is available for
 the simulator.
 
@@ -18,7 +18,7 @@ and of the previewed reference::
     u_A(t) = -gain @ x(t) + preview_weights @ [r(t + T_C), ..., r(t + N_P T_C)]
 
 :func:`design_assistant` computes ``gain`` and ``preview_weights`` once with the
-Riccati recursion of :mod:`models.lq`; solving the quadratic program at every sample
+Riccati recursion of :mod:`scioc.models.lq`; solving the quadratic program at every sample
 gives the same torque (tested against the dense solution).
 """
 
@@ -27,14 +27,21 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from models.cost import validate_theta
-from models.design import (ASSISTANT_HORIZON, DT_ASSISTANT, DT_HUMAN, THETA_ASSISTANT, AssistantSpec, Design,
-                           WheelParameters)
-from models.lq import lq_policy
-from models.plant import DiscretePlant, discretize
-from models.segment import Feedback
+from scioc.models.cost import validate_theta
+from scioc.models.design import (
+    ASSISTANT_HORIZON,
+    DT_ASSISTANT,
+    DT_HUMAN,
+    THETA_ASSISTANT,
+    AssistantSpec,
+    Design,
+    WheelParameters,
+)
+from scioc.models.lq import lq_policy
+from scioc.models.plant import DiscretePlant, discretize
+from scioc.models.runtime import njit
+from scioc.models.segment import Feedback
 
 
 class MPCAssistant(NamedTuple):
@@ -192,7 +199,7 @@ def feedforward(assistant: MPCAssistant, angle_ref) -> np.ndarray:
 
 
 def human_feedback(assistant: MPCAssistant, angle_ref) -> Feedback:
-    """The assistant as the human who knows it plans with it (:class:`models.segment.Feedback`).
+    """The assistant as the human who knows it plans with it (:class:`scioc.models.segment.Feedback`).
 
     Parameters
     ----------

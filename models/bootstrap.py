@@ -1,6 +1,6 @@
 """Parametric bootstrap through the acquisition chain: data sets drawn from a fitted max-ent model.
 
-For the adequacy checks (:mod:`models.adequacy`) a segment's recorded data and ``B`` data
+For the adequacy checks (:mod:`scioc.models.adequacy`) a segment's recorded data and ``B`` data
 sets drawn from the fitted model must pass through the *same* chain: the same reference
 and assistant (in closed loop: the assistant reacts to each replicate's own state), the
 same encoder and the same reconstruction (or, for a recorded torque, the same exact
@@ -34,9 +34,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from models.reconstruct import apply_reconstruction
+from scioc.models.reconstruct import apply_reconstruction
+from scioc.models.runtime import njit
 
 
 class Records(NamedTuple):
@@ -86,7 +86,7 @@ class Chain(NamedTuple):
         Angle reference, rad.
     w0, K : int
     recon : tuple or None
-        ``(F, Kg, Sv, C)`` of a :class:`models.reconstruct.FixedReconstruction`, or None
+        ``(F, Kg, Sv, C)`` of a :class:`scioc.models.reconstruct.FixedReconstruction`, or None
         when velocity and u_H were recorded.
     resolution : float
         Encoder increment, rad (0: not quantized).
@@ -122,7 +122,7 @@ def measure_span(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, angle_
     """One data set of a span through the acquisition chain: what the statistics see of its window.
 
     With ``recon_on`` the angle ``y`` (encoder) goes through the reconstruction with its
-    variances fixed (:func:`models.reconstruct.apply_reconstruction`, a linear smoother);
+    variances fixed (:func:`scioc.models.reconstruct.apply_reconstruction`, a linear smoother);
     otherwise ``y``, ``vel`` and ``uh`` are the measured angle, velocity and torque. Writes
     the window's encoder angle, tracking error and torque into the out rows and returns
     ``(angle, velocity, u_H)`` over the whole span (shape (n,) each), from which a human

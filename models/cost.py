@@ -121,7 +121,7 @@ def from_log_normalized(log_theta1, theta2, log_R) -> np.ndarray:
     """``[exp(log θ1 + log R), θ2 exp(log R), exp(log R)]``: θ from log θ1, θ2 and log R.
 
     The same θ as :func:`from_normalized` of ``exp(log θ1), θ2, exp(log R)``, but q11 is one
-    exp of a sum, as the PyTensor models of :mod:`models.bayes` write it in their graphs
+    exp of a sum, as the PyTensor models of :mod:`scioc.models.bayes` write it in their graphs
     and the simulator draws it; the two differ in the last bit.
 
     Parameters

@@ -3,7 +3,7 @@
 Every literal of the paper's experiment (Inga et al., SMC 2018, Section IV) lives here
 once, as the defaults of :class:`Design`; the module constants below are aliases of
 those defaults for the code that needs only one of them. A lab describes its own
-experiment in an ``experiment.toml`` (:mod:`pipelines.experiment` reads it into a
+experiment in an ``experiment.toml`` (:mod:`scioc.pipelines.experiment` reads it into a
 :class:`Design`); without one, every command uses :data:`STUDY`.
 
 =====================  ==========================  ==========================================
@@ -94,10 +94,10 @@ class AssistantSpec:
 
     ``kind = "mpc"``: the paper's model-predictive assistant (Eq. 19) with cost ``theta``
     = θ_A, ``horizon`` prediction steps of ``step_s`` seconds, re-solved every
-    ``period_s`` seconds (:func:`models.assistant.design_assistant`).
+    ``period_s`` seconds (:func:`scioc.models.assistant.design_assistant`).
 
     ``kind = "linear"``: ``u_A = -gain[0]·angle - gain[1]·velocity + reference_gain·angle_ref``
-    at every sample (:func:`models.assistant.linear_assistant`).
+    at every sample (:func:`scioc.models.assistant.linear_assistant`).
 
     The fields of the other kind keep their defaults and are not used.
     """

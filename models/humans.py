@@ -1,13 +1,13 @@
 """Simulated humans that are not the max-ent LQ agent: negative controls for model adequacy.
 
-The likelihood of :mod:`models.maxent` assumes a human who sees the wheel's state
+The likelihood of :mod:`scioc.models.maxent` assumes a human who sees the wheel's state
 now, plans an LQ-optimal torque on the wheel (closed by the assistant's feedback in
 SC) and varies it with white Gaussian max-ent noise that is the only randomness.
 Each human here breaks that in one named way, with magnitudes from the
 manual-control literature:
 
 ``maxent``
-    The paper's agent, as :func:`models.simulate.simulate_run` draws it.
+    The paper's agent, as :func:`scioc.models.simulate.simulate_run` draws it.
 ``delay``
     Perceptual delay of 0.12 s with prediction, plus white motor noise the human does
     not know. The human sees the state d = 12 samples late and predicts the present
@@ -19,7 +19,7 @@ manual-control literature:
     state at rest, z_0.
 ``lag``
     Neuromuscular lag, tau_nm = 0.06 s. The human plans knowing the lag
-    (:func:`models.lq.lq_tracking_policy` on :func:`models.plant.discretize_lagged`);
+    (:func:`scioc.models.lq.lq_tracking_policy` on :func:`scioc.models.plant.discretize_lagged`);
     its max-ent noise enters before the lag, so the torque the wheel feels is
     low-passed, not white.
 ``coloured``
@@ -92,8 +92,8 @@ ZOH-equivalent torque that reproduces the velocity x_{k+1}[1] from x_k with the
 torques stay within 1e-4 rad of the truth over 4 minutes, less than one encoder
 increment (tested). The lag's torque starts at 0. The assistant acts on
 the true state every sample: ``u_A,k = -gain @ x_k + feedforward_k``
-(:func:`models.assistant.human_feedback`). The LQ humans use the exact finite-horizon
-recursion over the whole run, as :func:`models.simulate.simulate_run` does.
+(:func:`scioc.models.assistant.human_feedback`). The LQ humans use the exact finite-horizon
+recursion over the whole run, as :func:`scioc.models.simulate.simulate_run` does.
 """
 
 from __future__ import annotations
@@ -101,14 +101,14 @@ from __future__ import annotations
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
-from numba import njit
 
-from models.assistant import ClosedLoop, MPCAssistant, human_feedback
-from models.cost import validate_theta
-from models.design import MANUAL, SHARED
-from models.lq import lq_tracking_policy
-from models.maxent import maxent_noise
-from models.plant import DiscretePlant, WheelParameters, discretize, discretize_lagged
+from scioc.models.assistant import ClosedLoop, MPCAssistant, human_feedback
+from scioc.models.cost import validate_theta
+from scioc.models.design import MANUAL, SHARED
+from scioc.models.lq import lq_tracking_policy
+from scioc.models.maxent import maxent_noise
+from scioc.models.plant import DiscretePlant, WheelParameters, discretize, discretize_lagged
+from scioc.models.runtime import njit
 
 #: Perceptual delay of the ``delay`` and ``combined`` humans, s.
 DELAY_S = 0.12
@@ -321,7 +321,7 @@ def simulate_human(
         The level's assistant; it must re-solve every sample.
     rng : numpy.random.Generator
         The only source of randomness. An LQ human draws its max-ent noise first
-        (:func:`models.maxent.maxent_noise`, as :func:`models.simulate.simulate_run` does), then
+        (:func:`scioc.models.maxent.maxent_noise`, as :func:`scioc.models.simulate.simulate_run` does), then
         the motor noise (the remnant of the crossover operator) as
         ``rng.standard_normal(K)`` if ``motor_sd > 0``.
     x0 : array_like, shape (2,)

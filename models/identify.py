@@ -23,10 +23,10 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import minimize
 
-from models.cost import from_normalized
-from models.maxent import loglik_grad
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch
+from scioc.models.cost import from_normalized
+from scioc.models.maxent import loglik_grad
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import SegmentBatch
 
 #: Grid of θ1 = q11/R (1/rad²) for the starting point.
 START_GRID = np.geomspace(0.3, 3e4, 21)
@@ -142,7 +142,7 @@ def identify_unit(batches, plant: DiscretePlant, *, maxiter: int = 200) -> Estim
     ----------
     batches : sequence of SegmentBatch
         Every row of every batch is a trial of the same unit (batches group trials of
-        equal length, from :func:`models.segment.prepare_batch`); the log-likelihood is
+        equal length, from :func:`scioc.models.segment.prepare_batch`); the log-likelihood is
         their sum.
     plant : DiscretePlant
     maxiter : int

@@ -22,7 +22,7 @@ one step back gives
 and the optimal policy is ``u_k = -L_k x_k + f_k``. Completing the square step by
 step gives ``J(u) - min J = sum_k S_k (u_k + L_k x_k - f_k)²`` with ``x_k`` driven by
 the given ``u``: this is what makes the max-ent likelihood linear in K
-(see :mod:`models.maxent`).
+(see :mod:`scioc.models.maxent`).
 
 The scalar helpers are compiled with numba and written out element by element for
 the 2-state plant so that the batched likelihood kernel can vectorize across
@@ -34,10 +34,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from models.cost import validate_theta
-from models.plant import DiscretePlant
+from scioc.models.cost import validate_theta
+from scioc.models.plant import DiscretePlant
+from scioc.models.runtime import njit
 
 
 @njit(cache=True, inline="always", error_model="numpy", fastmath=False)
@@ -241,7 +241,7 @@ def lq_tracking_policy(A, b_c, b_a, Q, R: float, x_ref, a) -> Policy:
     One backward step: ``S_k = R + b_cᵀ P b_c``, ``L_k = b_cᵀ P A / S_k``,
     ``w = s_{k+1} - P b_a a_k``, ``f_k = b_cᵀ w / S_k``, ``M_k = A - b_c L_k``,
     ``s_k = Q x_ref_k + M_kᵀ w``, ``P_k = Q + R L_kᵀ L_k + M_kᵀ P M_k``. Used for the
-    human with a neuromuscular lag (:func:`models.plant.discretize_lagged`, n = 3); with
+    human with a neuromuscular lag (:func:`scioc.models.plant.discretize_lagged`, n = 3); with
     ``b_c = b_a = b`` and n = 2 it is :func:`lq_policy`.
 
     Parameters

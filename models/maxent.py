@@ -7,9 +7,9 @@ optimal torques u* and precision the Hessian H = 2 (BᵀQB + R) (Eq. 16)::
     log p(u) = -½ gᵀ H⁻¹ g + ½ log|H| - K/2 log 2π        (Eq. 8, g from Eq. 15)
 
 The dense formula (Eq. 11-16 literally: lifted matrices, Cholesky, O(K³)) lives in
-:mod:`models.maxent_dense`, as the reference this module is tested against.
+:mod:`scioc.models.maxent_dense`, as the reference this module is tested against.
 
-:func:`loglik_grad` is exact and O(K). Dynamic programming (see :mod:`models.lq`)
+:func:`loglik_grad` is exact and O(K). Dynamic programming (see :mod:`scioc.models.lq`)
 gives ``J(u) - min J = sum_k S_k v_k²`` with ``v_k = u_k + L_k x_k - f_k`` the
 deviation from the optimal feedback law at the state x_k driven by the observed
 torques, and ``log|H| = sum_k log(2 S_k)`` (the map u -> v is unit lower
@@ -18,7 +18,7 @@ triangular). Hence the max-ent model is a time-varying linear-Gaussian policy::
     log p(u) = sum_k [ -S_k v_k² + ½ log(2 S_k) - ½ log 2π ].
 
 Because the states are propagated from x_0 with the observed torques, they do not
-depend on θ: they are computed once per data set (:func:`models.segment.prepare_batch`).
+depend on θ: they are computed once per data set (:func:`scioc.models.segment.prepare_batch`).
 The gradient with respect to θ comes from forward tangents carried through the same
 single backward sweep.
 
@@ -44,12 +44,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from models.cost import validate_theta
-from models.lq import Policy, lq_policy, riccati_gains, riccati_update, rollout
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch, prepare_batch
+from scioc.models.cost import validate_theta
+from scioc.models.lq import Policy, lq_policy, riccati_gains, riccati_update, rollout
+from scioc.models.plant import DiscretePlant
+from scioc.models.runtime import njit
+from scioc.models.segment import SegmentBatch, prepare_batch
 
 #: ½ log 2π, the Gaussian normalization per observed torque.
 HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
@@ -275,8 +275,8 @@ def batch_kernel(A, b, fb, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
     """Log-likelihood and θ-gradient of every segment of a batch, written into ``ll`` and ``g``.
 
     The compiled entry point shared by :func:`loglik_grad` and the PyTensor Op
-    (:mod:`models.bayes.op`). Arguments are C-contiguous float64 arrays: the plant's
-    ``A`` (2, 2) and ``b`` (2,); the arrays of a :class:`models.segment.SegmentBatch`
+    (:mod:`scioc.models.bayes.op`). Arguments are C-contiguous float64 arrays: the plant's
+    ``A`` (2, 2) and ``b`` (2,); the arrays of a :class:`scioc.models.segment.SegmentBatch`
     (``fb`` (n, 2), ``x1``, ``x2`` (n, K + 1), ``r`` (n, K + M + 1), ``u`` (n, K),
     ``a`` (n, K + M)); ``th`` (3, n) with rows q11, q22, R; ``freeze`` as for
     :func:`loglik_grad`; outputs ``ll`` (n,) and ``g`` (3, n); scratch ``wbuf``
@@ -303,7 +303,7 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: boo
     theta : array_like, shape (3,) or (3, n)
         ``[q11, q22, R]``, one for all segments or one column per segment.
     batch : SegmentBatch
-        From :func:`models.segment.prepare_batch` (same plant).
+        From :func:`scioc.models.segment.prepare_batch` (same plant).
     plant : DiscretePlant
         The 0.01-s wheel discretization.
     freeze : bool
@@ -395,14 +395,14 @@ def maxent_noise(policy: Policy, rng: np.random.Generator) -> np.ndarray:
     factorization of Eq. 8 used by :func:`loglik_grad`). Every simulator of the max-ent
     human draws its ε here, as ``rng.standard_normal(K) / sqrt(2 S_k)`` in step order,
     and then runs them through its own loop: :func:`sample_maxent` (known input),
-    :func:`models.simulate.simulate_run` (the MPC assistant reacting to the state) and
-    :func:`models.humans.simulate_human` (delays and lags). The same generator state
+    :func:`scioc.models.simulate.simulate_run` (the MPC assistant reacting to the state) and
+    :func:`scioc.models.humans.simulate_human` (delays and lags). The same generator state
     therefore gives the same deviations in each.
 
     Parameters
     ----------
     policy : Policy
-        From :func:`models.lq.lq_policy` or :func:`models.lq.lq_tracking_policy`; ``S`` (K,)
+        From :func:`scioc.models.lq.lq_policy` or :func:`scioc.models.lq.lq_tracking_policy`; ``S`` (K,)
         in 1/(N·m)².
     rng : numpy.random.Generator
 
@@ -418,7 +418,7 @@ def forward_optimal_control(theta, x0, angle_ref, u_A, plant: DiscretePlant) -> 
 
     The mean of the max-ent distribution: ``u_k = -L_k x_k + f_k`` against the known
     assistant torque sequence ``u_A``. For a human who plans with the assistant's law pass
-    the wheel and known input of :func:`models.segment.plan_inputs`; the states are then those of the
+    the wheel and known input of :func:`scioc.models.segment.plan_inputs`; the states are then those of the
     closed loop with the assistant.
 
     Parameters
@@ -454,7 +454,7 @@ def sample_maxent(theta, x0, angle_ref, u_A, plant: DiscretePlant, rng: np.rando
     x0 : array_like, shape (2,)
     angle_ref : array_like, shape (K + 1,)
     u_A : array_like, shape (K,)
-        Known assistant torques (an open-loop sequence); with :func:`models.segment.plan_inputs`, the
+        Known assistant torques (an open-loop sequence); with :func:`scioc.models.segment.plan_inputs`, the
         assistant's feedforward on the closed wheel (a draw in closed loop).
     plant : DiscretePlant
     rng : numpy.random.Generator

@@ -9,7 +9,7 @@ lifted system ``x = Φ x0 + Γ (u_H + u_A)`` of Eq. 11-12::
 
 :func:`loglik_dense` evaluates this with a Cholesky factorization of H: O(K²) memory and
 O(K³) time. It exists only as the reference the linear-time kernel of
-:mod:`models.maxent` is tested against, and for the benchmark; nothing else uses it.
+:mod:`scioc.models.maxent` is tested against, and for the benchmark; nothing else uses it.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
-from models.cost import validate_theta
-from models.maxent import HALF_LOG_2PI
-from models.plant import DiscretePlant
-from models.segment import Segment, check_segment, plan_inputs
+from scioc.models.cost import validate_theta
+from scioc.models.maxent import HALF_LOG_2PI
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import Segment, check_segment, plan_inputs
 
 
 def lifted_matrices(plant: DiscretePlant, K: int) -> tuple[np.ndarray, np.ndarray]:
@@ -66,7 +66,7 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bo
     The reference implementation: O(K²) memory and O(K³) time. Used by the tests and
     the benchmark, nowhere else. With :class:`Feedback` it plans on the closed wheel
     with the feedforward as the known input, and so also propagates the states that
-    way: it equals :func:`models.maxent.loglik_grad` when the recorded u_A follows the law exactly.
+    way: it equals :func:`scioc.models.maxent.loglik_grad` when the recorded u_A follows the law exactly.
 
     Parameters
     ----------

@@ -7,7 +7,7 @@ input vector, so ``B_H = B_A``)::
     d/dt [phi, phi_dot] = [[0, 1], [-c/J, -d/J]] [phi, phi_dot] + [0, 1/J] (u_H + u_A)
 
 State ``x = (phi, phi_dot)`` in (rad, rad/s). The parameters and sample times are the
-study design's (:mod:`models.design`).
+study design's (:mod:`scioc.models.design`).
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from scipy.linalg import expm
 
-from models.design import DT_HUMAN, WheelParameters
+from scioc.models.design import DT_HUMAN, WheelParameters
+from scioc.models.runtime import njit
 
 
 class DiscretePlant(NamedTuple):

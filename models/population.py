@@ -1,9 +1,9 @@
 """The population the simulated subjects' costs are drawn from, per condition level.
 
-The simulator (:mod:`models.simulate`) draws each subject's θ = [q11, q22, R] per
+The simulator (:mod:`scioc.models.simulate`) draws each subject's θ = [q11, q22, R] per
 condition level from :class:`Population` with :func:`draw_subjects`. R is given at the
-paper's 100 Hz (:data:`models.design.REFERENCE_DT`); the simulator converts θ to the
-recording's sample time (see :mod:`models.design` on how θ transforms with the rate).
+paper's 100 Hz (:data:`scioc.models.design.REFERENCE_DT`); the simulator converts θ to the
+recording's sample time (see :mod:`scioc.models.design` on how θ transforms with the rate).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from models.cost import from_log_normalized
+from scioc.models.cost import from_log_normalized
 
 
 @dataclass(frozen=True)

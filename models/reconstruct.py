@@ -28,13 +28,13 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from scipy.optimize import minimize
 
-from models.design import ENCODER_STEP
-from models.plant import DiscretePlant
+from scioc.models.design import ENCODER_STEP
+from scioc.models.plant import DiscretePlant
+from scioc.models.runtime import njit
 
-#: Encoder increment of the study's wheel (:data:`models.design.ENCODER_STEP`), rad.
+#: Encoder increment of the study's wheel (:data:`scioc.models.design.ENCODER_STEP`), rad.
 DEFAULT_RESOLUTION = ENCODER_STEP
 
 

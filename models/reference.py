@@ -3,7 +3,7 @@
 One smooth trajectory, the same for every subject and both conditions: a 4-minute
 run at 100 Hz whose analysis window starts at 3:30 and lasts 15 s, followed by 15 s
 that are not analysed (the run and the window are the study design's,
-:mod:`models.design`).
+:mod:`scioc.models.design`).
 
 The paper does not publish the trajectory, only that a point of it crosses the
 visualization window in 2 s (so the subject previews 2 s of it). We use a sum of
@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from models.design import DT_HUMAN, RUN_SECONDS, WINDOW_SECONDS, WINDOW_START
+from scioc.models.design import DT_HUMAN, RUN_SECONDS, WINDOW_SECONDS, WINDOW_START
 
 #: Target RMS of the reference angle, rad.
 RMS_ANGLE = 0.2

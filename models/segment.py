@@ -3,7 +3,7 @@
 A :class:`Segment` is one subject × condition window: the initial state, the reference,
 the observed human torques u_H,0..u_H,K-1 and the assistant's torques, optionally with
 the assistant's feedback law (:class:`Feedback`) when the human plans with it. The
-max-ent likelihood (:mod:`models.maxent`) needs, besides θ, only the states driven from
+max-ent likelihood (:mod:`scioc.models.maxent`) needs, besides θ, only the states driven from
 x_0 by the *observed* torques (paper Eq. 11 with u = u_H + u_A): they do not depend on θ,
 so :func:`prepare_batch` computes them once per data set and lays equal-length segments
 out as the arrays of a :class:`SegmentBatch`.
@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from models.plant import DiscretePlant, propagate
+from scioc.models.plant import DiscretePlant, propagate
 
 
 class Feedback(NamedTuple):
@@ -27,7 +27,7 @@ class Feedback(NamedTuple):
 
     ``u_A,k = -gain @ x_k + feedforward[k]``: to the human the assistant is part of the
     wheel (closed by ``-gain``, an added spring and damper) plus a known input, the
-    feedforward. :func:`models.assistant.human_feedback` builds it for the MPC assistant.
+    feedforward. :func:`scioc.models.assistant.human_feedback` builds it for the MPC assistant.
 
     Attributes
     ----------
@@ -174,7 +174,7 @@ def plan_inputs(segment: Segment, plant: DiscretePlant) -> tuple[DiscretePlant, 
 
 
 def prepare_batch(plant: DiscretePlant, segments) -> SegmentBatch:
-    """Lay out equal-length segments for :func:`models.maxent.loglik_grad` (θ-independent, done once).
+    """Lay out equal-length segments for :func:`scioc.models.maxent.loglik_grad` (θ-independent, done once).
 
     Parameters
     ----------

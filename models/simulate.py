@@ -1,20 +1,20 @@
 """A faithful simulator of the paper's experiment (Section IV) standing in for its unpublished data.
 
 Each subject performs two 4-minute runs at 100 Hz, manual control (MC) and shared control
-(SC), in random order, tracking the same reference (:mod:`models.reference`). The
-simulated human is the max-ent LQ agent of :mod:`models.maxent` with its own θ per
+(SC), in random order, tracking the same reference (:mod:`scioc.models.reference`). The
+simulated human is the max-ent LQ agent of :mod:`scioc.models.maxent` with its own θ per
 subject and condition, drawn from :class:`Population`.
 
 Shared control closes two loops. The assistant re-solves its MPC every sample, so it
 acts as a fixed state feedback plus a feedforward from the reference
-(:func:`models.assistant.human_feedback`). The simulated human knows it, as a
+(:func:`scioc.models.assistant.human_feedback`). The simulated human knows it, as a
 practised subject feels the assistant's pull as part of the wheel: it plans its
 optimal torque on the wheel closed by the assistant's feedback, with the feedforward
 as a known input. The run samples the human's max-ent variability from the
 linear-Gaussian policy of that plan (``u_H,k = -L_k x_k + f_k + ε_k``,
 ``ε_k ~ N(0, 1 / 2 S_k)``) while the assistant reacts to the actual state, so every
 SC torque sequence is an exact draw of the max-ent model with
-:class:`models.segment.Feedback`. The paper's model, in which the human takes the
+:class:`scioc.models.segment.Feedback`. The paper's model, in which the human takes the
 recorded u_A as a known sequence, is then misspecified in SC: the recorded u_A
 reacts to the human's own variability. The recorded angle is quantized by the
 encoder (40000 increments per revolution).
@@ -29,16 +29,24 @@ from typing import NamedTuple
 
 import numpy as np
 
-from models.assistant import MPCAssistant, design_assistant, human_feedback, simulate_closed_loop
-from models.assistant import build_assistant
-from models.design import ENCODER_STEP, MANUAL, PREVIEW_SECONDS, RUN_SECONDS, SHARED, STUDY, WINDOW_SECONDS, Design
-from models.humans import HUMANS, HumanSpec, simulate_human
-from models.lq import lq_policy
-from models.maxent import maxent_noise
-from models.plant import DT_HUMAN, DiscretePlant, discretize
-from models.population import Population, draw_subjects
-from models.reference import reference_trajectory
-from models.segment import Segment, planning_plant
+from scioc.models.assistant import MPCAssistant, build_assistant, design_assistant, human_feedback, simulate_closed_loop
+from scioc.models.design import (
+    ENCODER_STEP,
+    MANUAL,
+    PREVIEW_SECONDS,
+    RUN_SECONDS,
+    SHARED,
+    STUDY,
+    WINDOW_SECONDS,
+    Design,
+)
+from scioc.models.humans import HUMANS, HumanSpec, simulate_human
+from scioc.models.lq import lq_policy
+from scioc.models.maxent import maxent_noise
+from scioc.models.plant import DT_HUMAN, DiscretePlant, discretize
+from scioc.models.population import Population, draw_subjects
+from scioc.models.reference import reference_trajectory
+from scioc.models.segment import Segment, planning_plant
 
 
 class Run(NamedTuple):
@@ -149,12 +157,12 @@ def simulate_human_run(human: str, theta, condition: str, angle_ref, plant: Disc
                        assistant: MPCAssistant | None, rng: np.random.Generator, *,
                        encoder_step: float = ENCODER_STEP, design: Design = STUDY,
                        subject: HumanSpec | None = None) -> Run:
-    """One run of the named human of :data:`models.humans.HUMANS`, recorded like :func:`simulate_run`.
+    """One run of the named human of :data:`scioc.models.humans.HUMANS`, recorded like :func:`simulate_run`.
 
     ``maxent`` is :func:`simulate_run` itself (the paper's agent, bit for bit); every other
     name is a human the max-ent likelihood does not describe (negative controls).
     ``design`` gives the wheel of the lagged humans. ``subject`` is the subject's own draw
-    of a human that varies between subjects (:meth:`models.humans.HumanSpec.for_subject`).
+    of a human that varies between subjects (:meth:`scioc.models.humans.HumanSpec.for_subject`).
     """
     spec = HUMANS.get(human)
     if spec is None:
@@ -191,7 +199,7 @@ def simulate_study(
     seconds : float
         Length of each run, s (240: 4 minutes).
     human : str
-        Which simulated human (:data:`models.humans.HUMANS`); ``maxent`` is the paper's
+        Which simulated human (:data:`scioc.models.humans.HUMANS`); ``maxent`` is the paper's
         agent, the others are negative controls the likelihood does not describe.
     design : Design
         The experiment: sample time, wheel, encoder, levels with their assistants, and

@@ -3,7 +3,7 @@
 A *unit* is one subject in one condition level (by default MC, manual, and SC, shared
 control; an experiment file may name two or more levels with a baseline). Several
 segments (trials) of one unit are replicates of it. The models that compare the
-conditions (:mod:`models.bayes.hierarchical`) need every subject in every level;
+conditions (:mod:`scioc.models.bayes.hierarchical`) need every subject in every level;
 :func:`index_study` checks that where the labels enter and maps each segment to its unit.
 """
 
@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from models.design import CONDITIONS
+from scioc.models.design import CONDITIONS
 
 
 class StudyIndex(NamedTuple):

@@ -1,12 +1,12 @@
 """Model adequacy of a fitted study: per-segment bootstrap checks and the study verdict.
 
 Glue between the prepared segments of ``scioc identify``/``scioc fit`` and the
-mathematics in :mod:`models.adequacy`: for each segment it builds the acquisition chain
+mathematics in :mod:`scioc.models.adequacy`: for each segment it builds the acquisition chain
 (the fitted model's policy over the reconstruction span, the assistant as the human
 model assumes it, the encoder and the reconstruction with the segment's variances),
 draws the bootstrap, and combines the segments into one verdict. The bootstrap draws
-from the human model the segments were fitted with: ``maxent`` (:mod:`models.bootstrap`)
-or ``delayed`` (:mod:`models.delayed.bootstrap`, z its standardized innovations); the
+from the human model the segments were fitted with: ``maxent`` (:mod:`scioc.models.bootstrap`)
+or ``delayed`` (:mod:`scioc.models.delayed.bootstrap`, z its standardized innovations); the
 statistics and their calibration are the same for both, and the summary records which. The verdict judges the
 *human model*, not the sampler or the optimizer: "pass" means no check found the data
 unlike the model's own data; "fail" means the identified costs, and any difference
@@ -18,14 +18,14 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from models import adequacy as adq
-from models.assistant import human_feedback
-from models.bootstrap import Chain, bootstrap_records
-from models.delayed.bootstrap import DelayedChain, delayed_records
-from models.design import WheelParameters
-from models.lq import lq_policy
-from models.segment import planning_plant
-from pipelines.prepare import IdentifySettings, assistant_law
+from scioc.models import adequacy as adq
+from scioc.models.assistant import human_feedback
+from scioc.models.bootstrap import Chain, bootstrap_records
+from scioc.models.delayed.bootstrap import DelayedChain, delayed_records
+from scioc.models.design import WheelParameters
+from scioc.models.lq import lq_policy
+from scioc.models.segment import planning_plant
+from scioc.pipelines.prepare import IdentifySettings, assistant_law
 
 #: What each check asks, for the CLI and the report.
 CHECK_TEXT = {
@@ -78,7 +78,7 @@ def _acquisition(p, assistant):
 
 
 def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chain:
-    """The acquisition chain of one prepared segment (:class:`pipelines.prepare.PreparedSegment`) at θ.
+    """The acquisition chain of one prepared segment (:class:`scioc.pipelines.prepare.PreparedSegment`) at θ.
 
     The policy over the span is the fitted model's plan (horizon: the window plus its
     preview); steps after that horizon, if the reconstruction span reaches past it, follow
@@ -119,7 +119,7 @@ def delayed_segment_chain(p, theta, plant, *, tau_nm: float, sigma_m: float, del
     The same span, assistant, encoder and reconstruction as :func:`segment_chain`; the
     replicates are drawn at the fitted θ, τ_nm (s), σ_m (N·m), delay (samples) with the
     arm torque ``tau0`` (N·m) at the window's start, and at the policy noise the model
-    states (:mod:`models.delayed.bootstrap` says why not the reconstruction's σ_ε).
+    states (:mod:`scioc.models.delayed.bootstrap` says why not the reconstruction's σ_ε).
     """
     d = p.data
     j0, j1 = p.span.start, p.span.stop
@@ -143,7 +143,7 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings, *, delayed
     Parameters
     ----------
     prepared : list of PreparedSegment
-        As :func:`pipelines.prepare.prepare_segment` made them with ``settings`` (each
+        As :func:`scioc.pipelines.prepare.prepare_segment` made them with ``settings`` (each
         segment carries the human's model of the assistant).
     thetas : array_like, shape (n, 3)
         [q11, q22, R] per segment.
@@ -166,7 +166,7 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings, *, delayed
         ``adequacy_p_<check>``. With several trials per unit, one row per unit instead
         (:func:`_per_unit`), in order of first appearance.
     summary : dict
-        The verdict (:func:`models.adequacy.study_verdict`) with the flagged segments and
+        The verdict (:func:`scioc.models.adequacy.study_verdict`) with the flagged segments and
         settings (no timings: the same seed gives the same summary).
     """
     n_boot, seed, design = settings.adequacy_boot, settings.adequacy_seed, settings.design
@@ -235,7 +235,7 @@ def _check_delayed(delayed: dict, n: int) -> dict:
 
 
 def _per_unit(cols: pd.DataFrame, keys: list):
-    """Combine the trials of each unit: every p is Fisher's combination of its trials' (:func:`models.adequacy.fisher`).
+    """Combine the trials of each unit: every p is Fisher's combination of its trials' (:func:`scioc.models.adequacy.fisher`).
 
     The trials of a unit are independent given its θ, so the combination is a valid
     p-value (conservative for the bootstrap's discrete p-values), and the study verdict

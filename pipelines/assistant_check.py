@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.assistant import design_assistant, simulate_closed_loop
-from models.plant import DT_HUMAN, discretize
-from models.reference import reference_trajectory, window_slice
+from scioc.models.assistant import design_assistant, simulate_closed_loop
+from scioc.models.plant import DT_HUMAN, discretize
+from scioc.models.reference import reference_trajectory, window_slice
 
 
 def assistant_alone(seconds: float = 240.0) -> dict:

@@ -20,23 +20,23 @@ listed with its reason.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict
-from pathlib import Path
-
 import math
 import os
+from dataclasses import asdict
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from models.adequacy import STATISTICS, study_verdict
-from models.design import CONDITIONS, STUDY
-from models.identify import PLAUSIBLE_THETA1
-from pipelines.adequacy import CHECK_TEXT, CHECK_TEXT_DELAYED, format_adequacy, not_checked
-from pipelines.experiment import parse_experiment, sidecar
-from pipelines.io import StudyFileError, read_table
-from pipelines.signed_rank import ALPHA, holm, wilcoxon_signed_rank
-from pipelines.storage import write_text_atomic
+from scioc.models.adequacy import STATISTICS, study_verdict
+from scioc.models.design import CONDITIONS, STUDY
+from scioc.models.identify import PLAUSIBLE_THETA1
+from scioc.pipelines.adequacy import CHECK_TEXT, CHECK_TEXT_DELAYED, format_adequacy, not_checked
+from scioc.pipelines.experiment import parse_experiment, sidecar
+from scioc.pipelines.io import StudyFileError, read_table
+from scioc.pipelines.signed_rank import ALPHA, holm, wilcoxon_signed_rank
+from scioc.pipelines.storage import write_text_atomic
+
 
 def _converged(values: pd.Series) -> np.ndarray:
     """``converged`` as booleans, whether stored as bool (Parquet) or text (CSV)."""
@@ -201,7 +201,7 @@ def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_
 def adequacy_of_estimates(estimates: pd.DataFrame, path="<table>") -> dict:
     """The model-adequacy verdict of the segments in an estimates table (its ``adequacy_p_*`` columns).
 
-    The same combination as ``scioc identify`` (:func:`models.adequacy.study_verdict`), so
+    The same combination as ``scioc identify`` (:func:`scioc.models.adequacy.study_verdict`), so
     the test's result is never shown without the verdict on the model behind it.
 
     Raises

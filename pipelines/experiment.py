@@ -1,12 +1,12 @@
 """The experiment file, ``experiment.toml``: a study's rig and protocol as data (issue 12).
 
 It lies beside the study file or is named with ``--experiment PATH``; it is read with
-:mod:`tomllib` and validated here, once, into a :class:`models.design.Design`. Every error is
-an :class:`ExperimentFileError` (an :class:`~pipelines.io.InputDataError`: ``scioc`` exits with
+:mod:`tomllib` and validated here, once, into a :class:`scioc.models.design.Design`. Every error is
+an :class:`ExperimentFileError` (an :class:`~scioc.pipelines.io.InputDataError`: ``scioc`` exits with
 status 3) naming the file, the dotted key (``conditions.assistant.strong.gain``), what was given
 and what is allowed; a TOML syntax error names tomllib's line and column. Every key is
 optional; the defaults are the paper's study, so an empty file, or none, gives exactly
-:data:`models.design.STUDY`. Unknown sections and keys are refused. An "integer" key refuses
+:data:`scioc.models.design.STUDY`. Unknown sections and keys are refused. An "integer" key refuses
 40000.0; a number key takes integers; a boolean is never a number. ``[simulation]`` is
 read by ``scioc simulate`` and ``scioc run`` only.
 
@@ -64,9 +64,9 @@ import re
 import tomllib
 from pathlib import Path
 
-from models.design import ASSISTANT_KINDS, PAPER_ASSISTANT, STUDY, AssistantSpec, Design, WheelParameters
-from pipelines.io import InputDataError
-from pipelines.storage import write_text_atomic
+from scioc.models.design import ASSISTANT_KINDS, PAPER_ASSISTANT, STUDY, AssistantSpec, Design, WheelParameters
+from scioc.pipelines.io import InputDataError
+from scioc.pipelines.storage import write_text_atomic
 
 #: The name of the experiment file beside a study file.
 EXPERIMENT_FILE = "experiment.toml"

@@ -1,10 +1,10 @@
 """``scioc identify``: per subject × condition maximum-likelihood θ, like the paper (Section IV-F).
 
 Each segment is cut to its analysis window and, where the file lacks u_H,
-reconstructed from the angle by the shared preparation step (:mod:`pipelines.prepare`,
+reconstructed from the angle by the shared preparation step (:mod:`scioc.pipelines.prepare`,
 which also says how the SC human models the assistant); then the max-ent likelihood is
-maximized (:mod:`models.identify`) and the model's adequacy checked
-(:mod:`pipelines.adequacy`).
+maximized (:mod:`scioc.models.identify`) and the model's adequacy checked
+(:mod:`scioc.pipelines.adequacy`).
 
 It also computes the model validation of Fig. 6: the trajectories that forward optimal
 control generates with θ_MC and with θ_SC of the same subject, and the RMSE of angle
@@ -15,14 +15,14 @@ share one θ: the likelihood maximized is their sum (Eq. 17 with d > 1), and the
 one estimate (with a ``trials`` column).
 
 The human model (``settings.human_model``, column ``human_model``): ``maxent``, the paper's
-(:func:`models.identify.identify_unit`), or ``delayed`` (:func:`models.delayed.identify_unit_delayed`:
+(:func:`scioc.models.identify.identify_unit`), or ``delayed`` (:func:`scioc.models.delayed.identify_unit_delayed`:
 θ of the command cost, the neuromuscular lag τ_nm, the motor noise σ_m and the perceptual
-delay profiled over :data:`models.delayed.DELAY_GRID_S`; columns ``delay_s``, ``tau_nm``,
+delay profiled over :data:`scioc.models.delayed.DELAY_GRID_S`; columns ``delay_s``, ``tau_nm``,
 ``sigma_m``, ``se_tau_nm``, ``se_sigma_m`` and ``profile_loglik``, the profile
 log-likelihood at each delay of the grid; each window's arm torque at its start from the
-torques before it, :func:`pipelines.prepare.prepare_segment`). A unit whose torques are
+torques before it, :func:`scioc.pipelines.prepare.prepare_segment`). A unit whose torques are
 reconstructed from the encoder (no torque sensor) is identified from its recorded angles
-instead (:mod:`models.delayed.angles`: the encoder inside the model; the reconstruction's
+instead (:mod:`scioc.models.delayed.angles`: the encoder inside the model; the reconstruction's
 smoothing would otherwise read as lag), column ``likelihood`` says which. The adequacy
 bootstrap then draws from the fitted delayed model. ``identify.json`` records the model and the grid.
 
@@ -43,19 +43,33 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.delayed import (DELAY_GRID_S, AngleWindow, delay_grid, forward_delayed, identify_unit_delayed,
-                            lag_coefficients, window_tau0)
-from models.identify import PLAUSIBLE_THETA1, identify_unit
-from models.maxent import forward_optimal_control
-from models.plant import discretize
-from models.segment import plan_inputs, prepare_batch
-from pipelines.adequacy import assess_study, format_adequacy, not_checked
-from pipelines.experiment import sidecar
-from pipelines.io import Study, load_study
-from pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
-from pipelines.progress import progress
-from pipelines.provenance import versions
-from pipelines.storage import check_output_dir, refuse_inputs_inside, staged_dir, write_table_atomic, write_text_atomic
+from scioc.models.delayed import (
+    DELAY_GRID_S,
+    AngleWindow,
+    delay_grid,
+    forward_delayed,
+    identify_unit_delayed,
+    lag_coefficients,
+    window_tau0,
+)
+from scioc.models.identify import PLAUSIBLE_THETA1, identify_unit
+from scioc.models.maxent import forward_optimal_control
+from scioc.models.plant import discretize
+from scioc.models.runtime import configure
+from scioc.models.segment import plan_inputs, prepare_batch
+from scioc.pipelines.adequacy import assess_study, format_adequacy, not_checked
+from scioc.pipelines.experiment import sidecar
+from scioc.pipelines.io import Study, load_study
+from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
+from scioc.pipelines.progress import progress
+from scioc.pipelines.provenance import versions
+from scioc.pipelines.storage import (
+    check_output_dir,
+    refuse_inputs_inside,
+    staged_dir,
+    write_table_atomic,
+    write_text_atomic,
+)
 
 
 class Identification(NamedTuple):
@@ -72,7 +86,7 @@ class Identification(NamedTuple):
     timing : dict
         Seconds spent reconstructing, optimizing and checking adequacy.
     adequacy : dict
-        The model-adequacy verdict (:func:`pipelines.adequacy.assess_study`).
+        The model-adequacy verdict (:func:`scioc.pipelines.adequacy.assess_study`).
     """
 
     estimates: pd.DataFrame
@@ -86,7 +100,7 @@ def identify_study(study: Study, settings: IdentifySettings = IdentifySettings()
                    show_progress: bool = True) -> Identification:
     """Identify θ for every segment of a study, check the model's adequacy, cross-predict the conditions.
 
-    Prepares the study (:func:`pipelines.prepare.prepare_study`) and runs
+    Prepares the study (:func:`scioc.pipelines.prepare.prepare_study`) and runs
     :func:`identify_prepared` on it.
     """
     return identify_prepared(prepare_study(study, settings, show_progress=show_progress), show_progress=show_progress)
@@ -161,7 +175,7 @@ def _from_angles(prepared, idx) -> bool:
 
 
 def angle_windows(prepared, idx) -> list[AngleWindow]:
-    """The unit's windows as the encoder recorded them, for the angle likelihood (:mod:`models.delayed.angles`)."""
+    """The unit's windows as the encoder recorded them, for the angle likelihood (:mod:`scioc.models.delayed.angles`)."""
     out = []
     for i in idx:
         p = prepared[i]
@@ -185,7 +199,7 @@ def _identify_unit(prepared, idx, plant, settings):
 
 def _delayed_parameters(prepared, fitted, plant, settings) -> dict:
     """Per segment, the fitted delayed human's τ_nm, σ_m, delay and arm torque at the window's start
-    (:func:`pipelines.adequacy.assess_study`'s ``delayed``)."""
+    (:func:`scioc.pipelines.adequacy.assess_study`'s ``delayed``)."""
     tau0 = np.array([_arm_torque_at_start(p, e.tau_nm, plant.dt, settings.design.wheel)
                      for p, e in zip(prepared, fitted)])
     return {"tau_nm": np.array([e.tau_nm for e in fitted]), "sigma_m": np.array([e.sigma_m for e in fitted]),
@@ -199,7 +213,7 @@ def _delay_grid(dt: float) -> dict:
 
 def _arm_torque_at_start(p, tau_nm: float, dt: float, wheel) -> float:
     """The delayed human's arm torque at the start of prepared segment ``p``'s window, for lag ``tau_nm``: where the
-    recorded torques before the window leave it (:func:`models.delayed.window_tau0`)."""
+    recorded torques before the window leave it (:func:`scioc.models.delayed.window_tau0`)."""
     lag = lag_coefficients(tau_nm, dt, wheel)
     return float(window_tau0([p.warmup], lag.a, lag.alpha)[0][0])
 
@@ -222,7 +236,7 @@ def _cross_predict(prepared, est: pd.DataFrame, plant, levels, wheel=None):
     """Each segment's measured trajectories beside each level's θ's mean behaviour, and their RMSEs.
 
     ``wheel``: the estimates are the ``delayed`` human's (with a ``tau_nm`` column), whose mean behaviour
-    (:func:`models.delayed.forward_delayed`) plans on the lagged wheel; None for the max-ent human's.
+    (:func:`scioc.models.delayed.forward_delayed`) plans on the lagged wheel; None for the max-ent human's.
     """
     theta = {(r.subject, r.condition): np.array([r.q11, r.q22, r.R]) if wheel is None
              else (np.array([r.q11, r.q22, r.R]), float(r.tau_nm)) for r in est.itertuples()}
@@ -266,15 +280,16 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
                     experiment_file: str | None = None) -> dict:
     """Run :func:`identify_study` on a file and write its artifacts into ``out`` as a whole.
 
-    ``out`` is written through :func:`pipelines.storage.staged_dir`: it holds this run's
+    ``out`` is written through :func:`scioc.pipelines.storage.staged_dir`: it holds this run's
     artifacts and nothing else, or, if the run fails or is interrupted, what it held
     before. An existing non-empty ``out`` is replaced only with ``force``.
 
     ``prepared``: the study file already prepared with ``settings``
-    (:func:`pipelines.prepare.prepare_study`; ``scioc run`` shares it with the fit), so
+    (:func:`scioc.pipelines.prepare.prepare_study`; ``scioc run`` shares it with the fit), so
     that it is not reconstructed again. ``experiment_file``: where ``settings.design``
     came from (recorded in ``identify.json`` beside the resolved experiment and its hash).
     """
+    configure()
     refuse_inputs_inside(out, study_path)
     check_output_dir(out, force=force)  # before the work, not after
     if prepared is None:

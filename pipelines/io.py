@@ -1,7 +1,7 @@
-"""Reading and validating study files in the data convention (writing results: :mod:`pipelines.storage`).
+"""Reading and validating study files in the data convention (writing results: :mod:`scioc.pipelines.storage`).
 
 The data convention (README "Data format"): a long table, one row per sample of the
-experiment's rate (:class:`models.design.Design`, 100 Hz without an experiment file),
+experiment's rate (:class:`scioc.models.design.Design`, 100 Hz without an experiment file),
 with columns ``subject``, ``condition`` (one of the experiment's levels, MC or SC by
 default), ``t`` (s), ``angle`` (rad), ``angle_ref`` (rad), ``u_A`` (N·m) and optionally
 ``trial``, ``velocity`` (rad/s) and ``u_H`` (N·m). Parquet, or CSV on input. Rows
@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.design import STUDY, Design
+from scioc.models.design import STUDY, Design
 
 REQUIRED = ("subject", "condition", "t", "angle", "angle_ref", "u_A")
 OPTIONAL = ("trial", "velocity", "u_H")

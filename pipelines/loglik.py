@@ -4,41 +4,40 @@ Each trial is evaluated whole, with the plan ending where the trial ends, unless
 experiment file's ``[analysis]`` sets a window or a preview; then the segments are cut
 as ``scioc identify`` cuts them. The file must hold the human torque ``u_H`` (measured,
 or reconstructed beforehand); a missing ``velocity`` follows from the plant
-(:mod:`pipelines.prepare`).
+(:mod:`scioc.pipelines.prepare`).
 
-The human model is the paper's max-ent human (:func:`models.maxent.loglik_segments`) or
+The human model is the paper's max-ent human (:func:`scioc.models.maxent.loglik_segments`) or
 the ``delayed`` human with a perceptual delay, a neuromuscular lag and motor noise
-(:func:`models.delayed.loglik_grad`), whose arm torque at a window's start follows from
+(:func:`scioc.models.delayed.loglik_grad`), whose arm torque at a window's start follows from
 the measured torques before it (at rest at a trial's start).
 
 ``likelihood="angles"`` evaluates instead the ``delayed`` human's likelihood of the
-encoder's recorded angles, log p(y_1..y_K | y_0) (:func:`models.delayed.window_loglik`),
+encoder's recorded angles, log p(y_1..y_K | y_0) (:func:`scioc.models.delayed.window_loglik`),
 the one ``scioc identify`` uses for units without a recorded torque: the file then needs
 no ``u_H`` (the torques before each window, which set the arm torque at its start, are
 reconstructed where none were recorded). The angle's noise is the encoder's quantization
-(:attr:`models.design.Design.encoder_sd`).
+(:attr:`scioc.models.design.Design.encoder_sd`).
 """
 
 from __future__ import annotations
 
+import tomllib
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
-import tomllib
-
-from models.cost import validate_theta
-from models.delayed import DELAY_GRID_S, lag_coefficients, window_loglik, window_tau0
-from models.delayed import loglik_grad as delayed_loglik_grad
-from models.delayed.search import TAU_NM_MAX
-from models.design import STUDY, Design
-from models.maxent import loglik_segments
-from models.plant import discretize
-from models.segment import prepare_batch
-from pipelines.identify import angle_windows
-from pipelines.io import StudyFileError, load_study
-from pipelines.prepare import IdentifySettings, check_human_model, prepare_study
+from scioc.models.cost import validate_theta
+from scioc.models.delayed import DELAY_GRID_S, lag_coefficients, window_loglik, window_tau0
+from scioc.models.delayed import loglik_grad as delayed_loglik_grad
+from scioc.models.delayed.search import TAU_NM_MAX
+from scioc.models.design import STUDY, Design
+from scioc.models.maxent import loglik_segments
+from scioc.models.plant import discretize
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.identify import angle_windows
+from scioc.pipelines.io import StudyFileError, load_study
+from scioc.pipelines.prepare import IdentifySettings, check_human_model, prepare_study
 
 
 class NonFiniteLoglik(ArithmeticError):
@@ -82,8 +81,8 @@ def delayed_human(human_model: str, dt: float, delay_s=None, tau_nm=None, sigma_
     """Check the human model and its parameters (ValueError naming the option); None for ``maxent``.
 
     ``delay_s`` must be a whole number of samples of ``dt`` within the identification's
-    grid (0 to :data:`models.delayed.DELAY_GRID_S`'s last, 0.3 s), ``tau_nm`` within
-    [0, :data:`models.delayed.search.TAU_NM_MAX`] s and ``sigma_m`` finite and >= 0.
+    grid (0 to :data:`scioc.models.delayed.DELAY_GRID_S`'s last, 0.3 s), ``tau_nm`` within
+    [0, :data:`scioc.models.delayed.search.TAU_NM_MAX`] s and ``sigma_m`` finite and >= 0.
     """
     check_human_model(human_model)
     given = [v is not None for v in (delay_s, tau_nm, sigma_m)]
@@ -133,7 +132,7 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
     theta : array_like, shape (3,)
         [q11, q22, R].
     assistant_model : {"feedback", "exogenous"}
-        How the human on an assisted level models the assistant (:mod:`pipelines.prepare`).
+        How the human on an assisted level models the assistant (:mod:`scioc.pipelines.prepare`).
     design : Design
         The experiment (rate, wheel, levels and their assistants).
     experiment_file : str, optional

@@ -1,6 +1,6 @@
 """``scioc power``: how often the adequacy verdict fails, per simulated human, and what the paper's test says.
 
-For each simulated human (:data:`models.humans.HUMANS`) it simulates ``studies`` studies of
+For each simulated human (:data:`scioc.models.humans.HUMANS`) it simulates ``studies`` studies of
 the default design (42 subjects, MC and SC, 4-minute runs, encoder angles only), runs
 ``scioc identify`` on each (with its adequacy checks) and the paper's Wilcoxon test, and
 records the verdict beside the test. On ``maxent`` (the model's own human) the verdict's
@@ -24,23 +24,25 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.adequacy import N_BOOT
-from models.design import MANUAL, SHARED
-from models.humans import HUMANS
-from models.simulate import Population, simulate_study
-from pipelines.compare import compare_estimates
-from pipelines.identify import identify_study
-from pipelines.io import InputDataError, validate_table
-from pipelines.prepare import IdentifySettings
-from pipelines.provenance import versions
-from pipelines.simulate import study_table
-from pipelines.storage import write_table_atomic, write_text_atomic
+from scioc.models.adequacy import N_BOOT
+from scioc.models.design import MANUAL, SHARED
+from scioc.models.humans import HUMANS
+from scioc.models.runtime import configure
+from scioc.models.simulate import Population, simulate_study
+from scioc.pipelines.compare import compare_estimates
+from scioc.pipelines.identify import identify_study
+from scioc.pipelines.io import InputDataError, validate_table
+from scioc.pipelines.prepare import IdentifySettings
+from scioc.pipelines.provenance import versions
+from scioc.pipelines.simulate import study_table
+from scioc.pipelines.storage import write_table_atomic, write_text_atomic
 
 DEFAULT_HUMANS = tuple(HUMANS)
 
 
 def one_study(human: str, i: int, seed: int, n_subjects: int, beta: float, n_boot: int) -> dict:
     """Simulate study ``i`` with ``human``, identify it, test it; a JSON-ready row."""
+    configure()  # may run in a worker process
     t0 = time.perf_counter()
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), int(i)]))
     t, segs = simulate_study(int(n_subjects), rng, Population(beta=beta), 240.0, human=human)

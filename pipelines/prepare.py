@@ -2,28 +2,28 @@
 
 For each recorded segment: take the analysis window (the experiment's, by default the
 paper's 15 s from 3:30; any window or the whole trial on request), reconstruct velocity
-and u_H from the angle where the file lacks the torque (:mod:`models.reconstruct`, over
+and u_H from the angle where the file lacks the torque (:mod:`scioc.models.reconstruct`, over
 the window plus a margin), and cut the arrays the max-ent likelihood needs
-(:class:`models.segment.Segment`), with the ``preview`` seconds the human's plan looks
+(:class:`scioc.models.segment.Segment`), with the ``preview`` seconds the human's plan looks
 past the window (default 2 s, the time a point of the reference takes to cross the
 screen; 0 is the paper's horizon). A measured u_H is used as measured; where the file
 has no velocity beside it, the initial state is fitted to the angles with the measured
-torques (:func:`models.reconstruct.initial_state`) and the velocity follows from the plant.
+torques (:func:`scioc.models.reconstruct.initial_state`) and the velocity follows from the plant.
 
 On an assisted level the human may model the assistant two ways (``assistant_model``).
 ``feedback`` (default): the human knows the assistant's law (the experiment's
 ``[conditions.assistant]`` entry; the paper's MPC, Section IV-D, by default) and plans on
 the wheel it closes, with its reference feedforward as the known input
-(:class:`models.segment.Feedback`); the simulator's humans do this. The recorded u_A must
+(:class:`scioc.models.segment.Feedback`); the simulator's humans do this. The recorded u_A must
 then follow that law (:func:`check_assistant_law`). ``exogenous`` is the paper's
 Eq. 15-16: the recorded u_A is a known input sequence. In closed loop the recorded u_A
 reacts to the human's own torque noise, which the exogenous model lets the human
 anticipate; on the simulated study, from the true torques, it puts log θ1 in SC about
 0.55 too low (measured in the report's ground-truth section).
 
-The ``delayed`` human (``human_model``, :mod:`models.delayed`) has an arm torque that
+The ``delayed`` human (``human_model``, :mod:`scioc.models.delayed`) has an arm torque that
 lags its commands; at a window's start it follows from the torques before the window, so
-each prepared segment keeps them (:class:`models.delayed.lag.Warmup`; see
+each prepared segment keeps them (:class:`scioc.models.delayed.lag.Warmup`; see
 :func:`_warmup` for which segments have them and from where).
 
 :func:`prepare_study` does this once per study; ``scioc run`` passes its result to both
@@ -38,21 +38,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.adequacy import N_BOOT
-from models.assistant import MPCAssistant, build_assistant, human_feedback
-from models.delayed.lag import Warmup
-from models.design import CONDITIONS, PREVIEW_SECONDS, STUDY, WINDOW_SECONDS, WINDOW_START, Design
-from models.plant import discretize, propagate
-from models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, initial_state, reconstruct
-from models.segment import Segment
-from models.units import index_study
-from pipelines.io import InputDataError, SegmentData, Study, StudyFileError
-from pipelines.progress import progress
+from scioc.models.adequacy import N_BOOT
+from scioc.models.assistant import MPCAssistant, build_assistant, human_feedback
+from scioc.models.delayed.lag import Warmup
+from scioc.models.design import CONDITIONS, PREVIEW_SECONDS, STUDY, WINDOW_SECONDS, WINDOW_START, Design
+from scioc.models.plant import discretize, propagate
+from scioc.models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, initial_state, reconstruct
+from scioc.models.segment import Segment
+from scioc.models.units import index_study
+from scioc.pipelines.io import InputDataError, SegmentData, Study, StudyFileError
+from scioc.pipelines.progress import progress
 
 #: How the human on an assisted level may model the assistant (see the module docstring).
 ASSISTANT_MODELS = ("feedback", "exogenous")
 #: The human models (README "The model"): the paper's max-ent agent, and the ``delayed``
-#: human with perceptual delay, neuromuscular lag and motor noise (:mod:`models.delayed`).
+#: human with perceptual delay, neuromuscular lag and motor noise (:mod:`scioc.models.delayed`).
 HUMAN_MODELS = ("maxent", "delayed")
 #: Measurement resolution the reconstruction assumes for an angle that is not quantized
 #: (``encoder.counts_per_rev = 0``), rad: a sensor's noise floor, far below any encoder's step.
@@ -100,7 +100,7 @@ class IdentifySettings:
         ``exogenous`` (the recorded u_A is a known input, the paper's Eq. 15-16).
     adequacy_boot : int
         Bootstrap data sets per segment for the model-adequacy checks
-        (:mod:`pipelines.adequacy`; default 49; 0 skips them and the verdict reads
+        (:mod:`scioc.pipelines.adequacy`; default 49; 0 skips them and the verdict reads
         "not checked").
     adequacy_seed : int
         Root seed of the adequacy bootstrap.
@@ -109,7 +109,7 @@ class IdentifySettings:
         neuromuscular lag and motor noise; :data:`HUMAN_MODELS`).
     design : Design
         The experiment: sample time, wheel, levels and their assistants
-        (:data:`models.design.STUDY` without an experiment file). :meth:`for_design`
+        (:data:`scioc.models.design.STUDY` without an experiment file). :meth:`for_design`
         takes the window, preview and encoder resolution from it too.
     """
 
@@ -161,7 +161,7 @@ class IdentifySettings:
 
 @functools.lru_cache(maxsize=16)
 def assistant_law(design: Design, level: str) -> MPCAssistant | None:
-    """The assistant of ``level`` in ``design`` (:func:`models.assistant.build_assistant`), built once; None if unassisted."""
+    """The assistant of ``level`` in ``design`` (:func:`scioc.models.assistant.build_assistant`), built once; None if unassisted."""
     spec = design.assistant(level)
     return None if spec is None else build_assistant(spec, design)
 
@@ -193,7 +193,7 @@ def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start:
 
 
 def check_assistant_law(seg: SegmentData, segment: Segment, angle, velocity, path) -> None:
-    """Raise :class:`pipelines.io.StudyFileError` unless the recorded u_A follows the law the human plans with.
+    """Raise :class:`scioc.pipelines.io.StudyFileError` unless the recorded u_A follows the law the human plans with.
 
     Compared over the window on the recorded (or reconstructed) states: the RMS of
     ``u_A - (-gain @ x + feedforward)`` must be at most ``LAW_RTOL · RMS(u_A) + LAW_ATOL``.
@@ -310,7 +310,7 @@ def _warmup(before, from_start: bool) -> Warmup | None:
     reconstructed torque exists only over the reconstruction's margin before the window;
     the arm torque at the margin's start is then taken as that first torque (a held
     torque passes the lag unchanged), and its error decays through the arm-torque
-    recursion by |p| per sample (:mod:`models.delayed.lag`: below 3e-3 after the default
+    recursion by |p| per sample (:mod:`scioc.models.delayed.lag`: below 3e-3 after the default
     1-s margin for τ_nm <= 0.1 s, and the residual ``u - τ`` it starts from is itself
     small where the lag is slow).
     """
@@ -363,10 +363,10 @@ class PreparedStudy:
 
 
 def check_design(path, subjects, conditions, levels=CONDITIONS) -> None:
-    """Raise :class:`pipelines.io.InputDataError` unless every subject has every level.
+    """Raise :class:`scioc.pipelines.io.InputDataError` unless every subject has every level.
 
     ``levels``: baseline first (default MC, SC). The message is that of
-    :func:`models.units.index_study` (a subject without one of the levels, or a level
+    :func:`scioc.models.units.index_study` (a subject without one of the levels, or a level
     with no segment at all), prefixed with the file ``path``.
     """
     try:

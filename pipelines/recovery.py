@@ -19,9 +19,9 @@ import numpy as np
 import pandas as pd
 from scipy.stats import spearmanr
 
-from pipelines.compare import estimates_design, human_model_of
-from pipelines.io import read_table
-from pipelines.simulate import BODY_COLUMNS, read_truth
+from scioc.pipelines.compare import estimates_design, human_model_of
+from scioc.pipelines.io import read_table
+from scioc.pipelines.simulate import BODY_COLUMNS, read_truth
 
 #: Tolerance for "the delay is exact", s (delays are whole samples).
 DELAY_EXACT_S = 1e-9

@@ -10,9 +10,9 @@ fails its adequacy checks, :func:`default_human_models`), the run adds its own i
 (``identify_delayed/``) and Wilcoxon tests (``compare_delayed.json``) and, when the
 experiment records the torque, its fit (``fit_delayed/``) and the leave-one-subject-out
 comparison of the two fits (``human_models.json``,
-:func:`pipelines.fit.human_models.compare_human_models`), all from the one prepared study.
+:func:`scioc.pipelines.fit.human_models.compare_human_models`), all from the one prepared study.
 Without a torque sensor the delayed model is identified from the encoder's angles and has
-no hierarchical fit (:data:`pipelines.report.human_models.ANGLE_ONLY`).
+no hierarchical fit (:data:`scioc.pipelines.report.human_models.ANGLE_ONLY`).
 """
 
 from __future__ import annotations
@@ -24,16 +24,17 @@ from pathlib import Path
 
 import pandas as pd
 
-from models.design import STUDY, Design
-from models.simulate import Population
-from pipelines.compare import compare_to_file
-from pipelines.identify import format_identify, identify_study, identify_to_dir
-from pipelines.io import load_study, validate_table
-from pipelines.prepare import IdentifySettings, prepare_study
-from pipelines.report import build_report
-from pipelines.report.human_models import ANGLE_ONLY, RUN_FILE
-from pipelines.simulate import DEFAULT_SEED, simulate_to_dir
-from pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
+from scioc.models.design import STUDY, Design
+from scioc.models.runtime import configure
+from scioc.models.simulate import Population
+from scioc.pipelines.compare import compare_to_file
+from scioc.pipelines.identify import format_identify, identify_study, identify_to_dir
+from scioc.pipelines.io import load_study, validate_table
+from scioc.pipelines.prepare import IdentifySettings, prepare_study
+from scioc.pipelines.report import build_report
+from scioc.pipelines.report.human_models import ANGLE_ONLY, RUN_FILE
+from scioc.pipelines.simulate import DEFAULT_SEED, simulate_to_dir
+from scioc.pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
 
 DEFAULT_NAME = "default-study"
 
@@ -65,7 +66,7 @@ def default_human_models(design: Design, maxent_verdict: str | None) -> tuple[tu
     :func:`run_verdicts`' ``maxent``; a fail, or not checked). A max-ent model that fits
     needs no second model, and the delayed model adds some 30-40 minutes at the paper's size
     (README "Human models"). Without a torque sensor the delayed model is identified from
-    the angles, without a hierarchical fit (:data:`pipelines.report.human_models.ANGLE_ONLY`).
+    the angles, without a hierarchical fit (:data:`scioc.pipelines.report.human_models.ANGLE_ONLY`).
     """
     verdict = maxent_verdict or "not checked"
     if verdict == "pass":
@@ -100,16 +101,17 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     """Run every stage on the simulated study; returns the report's path.
 
     ``fit=False`` skips the hierarchical Bayesian fits (minutes) for quick looks. ``human``
-    and ``population`` choose the simulated study (:func:`pipelines.simulate.simulate_to_dir`):
+    and ``population`` choose the simulated study (:func:`scioc.pipelines.simulate.simulate_to_dir`):
     a negative-control human shows what the report says when the model does not fit.
     ``design`` is the experiment simulated and analysed (the paper's study by default;
     ``data/experiment.toml`` holds it); ``settings`` default to its ``[analysis]``. The study is
-    reconstructed once (:func:`pipelines.prepare.prepare_study`) and shared by the
+    reconstructed once (:func:`scioc.pipelines.prepare.prepare_study`) and shared by the
     identifications and the fits. ``human_models``: ``("maxent",)`` or ``("maxent", "delayed")``
     (default: chosen by :func:`default_human_models` after the max-ent identification; the
-    choice and its reason go to ``run.json``, :data:`pipelines.report.human_models.RUN_FILE`);
+    choice and its reason go to ``run.json``, :data:`scioc.pipelines.report.human_models.RUN_FILE`);
     ``settings.human_model`` is ignored, each model takes its own.
     """
+    configure()
     design = STUDY if design is None else design
     settings = IdentifySettings.for_design(design) if settings is None else settings
     if settings.design != design:
@@ -172,14 +174,14 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
             log(f"{at('compare delayed')} Wilcoxon matched-pairs tests of the delayed model's estimates")
             compare_to_file(tmp / "identify_delayed" / "estimates.parquet", tmp / "compare_delayed.json")
         if fit:
-            from pipelines.fit import fit_to_dir  # imports PyMC (seconds): not for --skip-fit
+            from scioc.pipelines.fit import fit_to_dir  # imports PyMC (seconds): not for --skip-fit
 
             log(f"{at('fit')} hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
             fit_to_dir(sim["study"], tmp / "fit", seed=seed, settings=settings, truth_dir=tmp / "data",
                        estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared,
                        experiment_file=source)
         if fit and delayed and sensor:
-            from pipelines.fit.human_models import compare_human_models, format_human_models
+            from scioc.pipelines.fit.human_models import compare_human_models, format_human_models
 
             log(f"{at('fit delayed')} hierarchical Bayesian fit of the delayed human model (nutpie, 4 chains)")
             fit_to_dir(sim["study"], tmp / "fit_delayed", seed=seed, settings=delayed_prepared.settings,

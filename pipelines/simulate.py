@@ -5,7 +5,7 @@ Artifacts in ``--out DIR``:
 * ``study.parquet`` — what a lab records: subject, condition (and trial, with several trials
   per subject × condition), t, angle (encoder), angle_ref, u_A; with a torque sensor
   (``[simulation] torque_sensor``) also u_H.
-* ``experiment.toml`` — the experiment simulated (:mod:`pipelines.experiment`): every
+* ``experiment.toml`` — the experiment simulated (:mod:`scioc.pipelines.experiment`): every
   command finds it beside the study file.
 * ``truth.parquet`` — one row per subject × condition: run order, true q11, q22, R, θ1, θ2 and
   the human's own delay, lag and motor noise (``delay_s``, ``tau_nm``, ``motor_sd``; 0 for the
@@ -23,15 +23,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.design import STUDY, Design
-from models.humans import HUMANS
-from models.reference import reference_trajectory
-from models.simulate import Population, simulate_study
-from pipelines.assistant_check import assistant_alone
-from pipelines.experiment import EXPERIMENT_FILE, resolved, sidecar, write_experiment
-from pipelines.io import read_table
-from pipelines.provenance import versions
-from pipelines.storage import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
+from scioc.models.design import STUDY, Design
+from scioc.models.humans import HUMANS
+from scioc.models.reference import reference_trajectory
+from scioc.models.runtime import configure
+from scioc.models.simulate import Population, simulate_study
+from scioc.pipelines.assistant_check import assistant_alone
+from scioc.pipelines.experiment import EXPERIMENT_FILE, resolved, sidecar, write_experiment
+from scioc.pipelines.io import read_table
+from scioc.pipelines.provenance import versions
+from scioc.pipelines.storage import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 
 DEFAULT_SEED = 2018
 DEFAULT_SUBJECTS = 42
@@ -95,11 +96,11 @@ def simulate_to_dir(
     seconds : float, optional
         Length of each run, s (default: the design's ``run_seconds``, 240 for the paper's).
     human : str
-        The simulated human (:data:`models.humans.HUMANS`): ``maxent`` is the paper's
+        The simulated human (:data:`scioc.models.humans.HUMANS`): ``maxent`` is the paper's
         agent; the others are negative controls the likelihood does not describe. The
         crossover operator has no cost θ: its truth rows carry NaN.
     force : bool
-        Replace an existing non-empty ``out`` as a whole (:func:`pipelines.storage.staged_dir`);
+        Replace an existing non-empty ``out`` as a whole (:func:`scioc.pipelines.storage.staged_dir`);
         without it such a folder is refused.
     design : Design, optional
         The experiment to simulate (default the paper's study); written as
@@ -110,6 +111,7 @@ def simulate_to_dir(
     dict
         Paths of the written files.
     """
+    configure()
     design = STUDY if design is None else design
     n_subjects = design.subjects if n_subjects is None else n_subjects
     seconds = design.run_seconds if seconds is None else seconds

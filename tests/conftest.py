@@ -1,8 +1,12 @@
 import numpy as np
 import pytest
 
-from models.plant import discretize
-from models.segment import Feedback, Segment
+import scioc
+
+scioc.configure()  # before any kernel compiles: numba's cache, PyTensor's fast-math off
+
+from scioc.models.plant import discretize
+from scioc.models.segment import Feedback, Segment
 
 
 @pytest.fixture(scope="session")

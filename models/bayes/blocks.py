@@ -87,13 +87,13 @@ def theta2_block(tau, form: Form, dims=UNIT_DIMS):
     """θ2 of every unit, HalfNormal(τ), declared in ``form`` (:class:`Parameterization`).
 
     Why ``quantile``. θ2 is the cost's weight on the rate error, which the recorded torque often barely
-    constrains: on the twelve ``kbl`` subjects of :mod:`pipelines.fit.warmup` (the delayed fit at a target
+    constrains: on the twelve ``kbl`` subjects of :mod:`scioc.pipelines.fit.warmup` (the delayed fit at a target
     acceptance of 0.8, seed 1, ad hoc) each unit's posterior of log z (``noncentred``, z = θ2/τ on PyMC's log scale)
     had about the prior's quantiles (2.5 %, 50 %, 97.5 %: -4.2 to -2.5, -0.7 to 0.0, 0.65 to 0.92 over the 24 units,
     against the prior's -3.5, -0.4, 0.8). Under that law log z has an exponential tail towards 0 (log density ≈
     log z) and a wall above it (-z²/2, whose curvature grows as z²): the whitened coordinates of θ2 had excess
     kurtosis 1-10. In n, whose prior is N(0, 1), the same law is a standard normal. Measured
-    (:mod:`pipelines.fit.warmup`, "The pivot's tails"): 10-12 % fewer gradients on those subjects.
+    (:mod:`scioc.pipelines.fit.warmup`, "The pivot's tails"): 10-12 % fewer gradients on those subjects.
     """
     if form == "centred":
         return pm.HalfNormal("theta2", tau, dims=dims)

@@ -1,7 +1,7 @@
 """Exact sampling of discrete perceptual delays beside NUTS: a Metropolis-within-Gibbs step per group.
 
 The ``delayed`` human's delay d is a whole number of samples on a grid
-(:func:`models.delayed.identify.delay_grid`, 0-300 ms). Its posterior is not smooth in d
+(:func:`scioc.models.delayed.identify.delay_grid`, 0-300 ms). Its posterior is not smooth in d
 (a few nats between neighbours) and, on windows of seconds, wide: on 6-s windows the
 likelihood at the true parameters is within 2 nats over 100 ms of delays, and on the
 default study each subject (two 15-s windows) keeps a median of 25 of the 31 grid delays

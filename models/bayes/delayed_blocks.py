@@ -1,10 +1,10 @@
 """Population blocks of the ``delayed`` model: its hyperpriors, the forms of its blocks, and the blocks.
 
-:mod:`models.bayes.delayed_model` builds the model from these: the max-ent cost blocks
-(:func:`cost_blocks`, :mod:`models.bayes.blocks`), with the subjects' baseline R either
+:mod:`scioc.models.bayes.delayed_model` builds the model from these: the max-ent cost blocks
+(:func:`cost_blocks`, :mod:`scioc.models.bayes.blocks`), with the subjects' baseline R either
 log-normal, as the max-ent model's, or through its policy-noise scale ρ = R^(-1/2)
 (:class:`DelayedPriors`), and the per-subject lag and motor noise (:func:`motor_blocks`).
-Why these forms: :mod:`models.bayes.delayed_model`, "Geometry"; the measurements of the
+Why these forms: :mod:`scioc.models.bayes.delayed_model`, "Geometry"; the measurements of the
 population of R follow.
 
 σ_R's prior (measured 2026-12-02 with the half-normal τ_nm population, as
@@ -83,7 +83,7 @@ verdict's 400 at full size. The inverse gamma's density vanishes at 0 faster tha
 s_m stays where the subjects' σ_m put it, and with σ_m's block then centred (folded centred,
 :func:`half_normal_block`) s_m mixes freely: ESS 1110 and 1667 of 600 draws on 12 subjects
 against 30 and 37 with the Gamma, at the same leapfrog steps (table and reasons in
-:mod:`pipelines.fit.delayed_forms`, "The motor-noise scale's prior"). Where the data find
+:mod:`scioc.pipelines.fit.delayed_forms`, "The motor-noise scale's prior"). Where the data find
 motor noise (the ``kbl`` human, σ_m about 0.25 N·m) s_m is fixed by the data under any of them.
 """
 
@@ -95,10 +95,15 @@ import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 
-from models.bayes.blocks import Parameterization, theta2_block, unit_block
-from models.bayes.hierarchical import Priors
-from models.bayes.noise_blocks import (NOISE_A, NOISE_B, mixed_half_normal_block, polar_noise_block,
-                                      squared_half_normal_block)
+from scioc.models.bayes.blocks import Parameterization, theta2_block, unit_block
+from scioc.models.bayes.hierarchical import Priors
+from scioc.models.bayes.noise_blocks import (
+    NOISE_A,
+    NOISE_B,
+    mixed_half_normal_block,
+    polar_noise_block,
+    squared_half_normal_block,
+)
 
 #: Population parameters of the lag and motor-noise blocks (and of ρ, with ``R_population="policy_scale"``).
 DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
@@ -144,7 +149,7 @@ class DelayedPriors:
         the scale of the subject's max-ent (policy) noise at given gains, ρ[i] ~
         HalfNormal(s_ρ) (``rho``, ``rho_scale``), so that a human without policy noise
         (ρ = 0, R = ∞, as KBL's) is inside the population and the direction the data do not
-        fix (policy against motor noise, :mod:`models.bayes.delayed_model` "Geometry") is bounded.
+        fix (policy against motor noise, :mod:`scioc.models.bayes.delayed_model` "Geometry") is bounded.
         ``unpooled``: no population, each subject's baseline log R ~ N(m, s) on its own, with
         the lognormal population's marginal centre and spread (:meth:`unpooled_log_R_prior`),
         so that no between-subject SD of log R (σ_R, the quantity that did not mix) exists;
@@ -206,7 +211,7 @@ class DelayedForm:
     ``folded`` samples z[i] ~ N(0, 1), unconstrained, and sets s_τ |z[i]| (s_m |z[i]|): the same
     law; ``folded_centred`` samples v[i] ~ N(0, s_τ) (N(0, s_m)), unconstrained, and sets |v[i]|:
     the same law again, centred, chosen for σ_m where the data find no motor noise
-    (:mod:`pipelines.fit.delayed_forms`, "Motor noise" and "The motor-noise scale's prior").
+    (:mod:`scioc.pipelines.fit.delayed_forms`, "Motor noise" and "The motor-noise scale's prior").
     ``rho`` is the form of ρ = R^(-1/2) with ``DelayedPriors(R_population="policy_scale")``
     (unused otherwise): ``centred``, ``noncentred``, ``folded`` (default), z[i] ~ N(0, 1) and
     ρ[i] = s_ρ |z[i]| (the same half-normal law, with z unconstrained where the log transform of
@@ -214,11 +219,11 @@ class DelayedForm:
     and ρ[i] = |ρ̃[i]| (the same law again, centred: for subjects whose data fix ρ, where
     ``folded`` ties z to s_ρ); measured in the module docstring. ``mixed``: centred for the
     subjects of ``rho_pinned`` (one flag per subject, in the model's order), folded centred for
-    the others (:func:`mixed_half_normal_block`; :func:`pipelines.fit.delayed_forms.choose_delayed_form`
+    the others (:func:`mixed_half_normal_block`; :func:`scioc.pipelines.fit.delayed_forms.choose_delayed_form`
     flags the subjects whose estimates fix ρ). ``polar``: ρ and σ_m of each subject with a k in ``polar_k`` (one
-    per subject, NaN for none) in polar coordinates, the others folded centred (:mod:`models.bayes.noise_blocks`;
-    ``sigma_m``'s form then does not apply; :func:`pipelines.fit.noise_arcs.noise_arcs` chooses k). ``squared``:
-    ρ = u², u unconstrained and signed (:func:`models.bayes.noise_blocks.squared_half_normal_block`).
+    per subject, NaN for none) in polar coordinates, the others folded centred (:mod:`scioc.models.bayes.noise_blocks`;
+    ``sigma_m``'s form then does not apply; :func:`scioc.pipelines.fit.noise_arcs.noise_arcs` chooses k). ``squared``:
+    ρ = u², u unconstrained and signed (:func:`scioc.models.bayes.noise_blocks.squared_half_normal_block`).
     """
 
     tau_nm: str = "centred"
@@ -260,7 +265,7 @@ def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedF
 
 def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict, delayed_priors: DelayedPriors,
                 delayed_form: DelayedForm):
-    """The population parameters and unit blocks of θ, as :func:`models.bayes.hierarchical.build_model` has them
+    """The population parameters and unit blocks of θ, as :func:`scioc.models.bayes.hierarchical.build_model` has them
     (σ_R Gamma(shape, rate) instead of half-normal with ``sigma_log_R_gamma``; the baseline log R from a
     half-normal ρ = R^(-1/2) with ``R_population="policy_scale"``, or each subject's own normal prior with
     ``R_population="unpooled"``: :class:`DelayedPriors`)."""
@@ -319,7 +324,7 @@ def motor_blocks(priors: DelayedPriors, form: DelayedForm):
 def motor_coordinate(name: str, form: str) -> str:
     """The free variable that holds each subject's ``name`` in ``form`` of :data:`MOTOR_FORMS` (as
     :func:`half_normal_block` names it): the coordinate a whitened fit curves each subject's ridge along
-    (:func:`models.bayes.whiten.ridge_curvature`)."""
+    (:func:`scioc.models.bayes.whiten.ridge_curvature`)."""
     if form not in MOTOR_FORMS:
         raise ValueError(f"unknown form {form!r}; one of {MOTOR_FORMS}")
     return {"centred": name, "noncentred": f"z_{name}", "folded": f"z_{name}", "folded_centred": f"{name}_signed"}[form]
@@ -330,21 +335,21 @@ SIGNED_FORMS = ("folded", "folded_centred")
 
 
 def ridge_pivots(priors: DelayedPriors, form: DelayedForm, n_subjects: int) -> tuple[tuple[str, np.ndarray], ...]:
-    """The free variables a curved whitening may bend each subject's block along (:func:`models.bayes.whiten.
+    """The free variables a curved whitening may bend each subject's block along (:func:`scioc.models.bayes.whiten.
     ridge_curvature`), each with the subjects (n_subjects,) in which its coordinate is signed; per subject the
-    signed one whose fold its mode is nearest, else the last (:func:`models.bayes.whiten.nearest_fold`). ρ's
+    signed one whose fold its mode is nearest, else the last (:func:`scioc.models.bayes.whiten.nearest_fold`). ρ's
     coordinate comes first where ρ = R^(-1/2) has one (``R_population="policy_scale"``; signed in
     :data:`SIGNED_FORMS`, and for ``mixed`` in the subjects not ``rho_pinned``); σ_m's (:func:`motor_coordinate`)
     always, last.
 
     Why. The policy noise (variance ∝ ρ²) and the motor noise (∝ σ_m²) share the torque's variability, so each
     subject's posterior follows a ridge ρ² + k σ_m² ≈ c. Along σ_m's coordinate that ridge is log R ≈ c' + k' σ_m²,
-    the parabola :mod:`models.bayes.whiten` ("Curved") bends along. With ρ's coordinate signed (ρ = |ρ̃|) the ridge
+    the parabola :mod:`scioc.models.bayes.whiten` ("Curved") bends along. With ρ's coordinate signed (ρ = |ρ̃|) the ridge
     is an arch over it: σ_m largest where ρ̃ = 0 and falling as |ρ̃| grows, on both sides, which a subject whose
     data leave ρ near 0 crosses (ρ̃ changes sign). ρ̃ as a function of σ_m has two branches, which no bend along σ_m
     follows; σ_m as a function of ρ̃ is one symmetric curve, a parabola at its top, so the bend is along ρ̃. Where
     the data leave σ_m near 0 instead (no motor noise), the arch tops in σ_m, and so the bend is along the signed
-    coordinate whose fold the subject's mode is nearest. Measured: :mod:`pipelines.fit.delayed_forms`, "The
+    coordinate whose fold the subject's mode is nearest. Measured: :mod:`scioc.pipelines.fit.delayed_forms`, "The
     ridge's pivot with a signed ρ" and "The form of ρ". With ``rho="polar"`` the candidates are the polar block's
     a (signed where a subject is not in polar coordinates: a = ρ̃) and b (φ, or σ̃): a subject in polar coordinates
     bends along φ, what is left of its arc where k is not its ellipse's. With ``rho="squared"`` ρ's candidate is its

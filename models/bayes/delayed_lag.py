@@ -1,13 +1,13 @@
-"""The neuromuscular lag's coefficients inside compiled code: :func:`models.delayed.lag.lag_coefficients` in numba.
+"""The neuromuscular lag's coefficients inside compiled code: :func:`scioc.models.delayed.lag.lag_coefficients` in numba.
 
-The ``delayed`` likelihood Op (:mod:`models.bayes.delayed_op`) needs the pole a, the mixing
+The ``delayed`` likelihood Op (:mod:`scioc.models.bayes.delayed_op`) needs the pole a, the mixing
 α and their τ_nm-derivatives at every evaluation, for every segment, inside the numba
-function nutpie calls; :func:`models.delayed.lag.lag_coefficients` is NumPy/SciPy code.
+function nutpie calls; :func:`scioc.models.delayed.lag.lag_coefficients` is NumPy/SciPy code.
 :func:`lag_nb` computes the same numbers (tested equal to rounding on both of its
 branches) from the wheel's constants (:func:`wheel_constants`, once per Op):
 
 * where ``A_c + μ I`` (μ = 1/τ_nm) is well conditioned (the criterion of
-  :func:`models.delayed.lag.lag_coefficients`: every pole λ of the wheel at relative
+  :func:`scioc.models.delayed.lag.lag_coefficients`: every pole λ of the wheel at relative
   distance > 5 % from -μ) the closed form ``v = (A_c + μ I)⁻¹ (Φ - a I) b_w``,
   ``dv/dμ = (A_c + μ I)⁻¹ (dt a b_w - v)``, by the explicit 2 × 2 inverse;
 * otherwise (a wheel with a real pole near -μ; never for the paper's wheel, whose poles
@@ -33,10 +33,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from models.design import WheelParameters
-from models.plant import continuous_matrices, discretize
+from scioc.models.design import WheelParameters
+from scioc.models.plant import continuous_matrices, discretize
+from scioc.models.runtime import njit
 
 #: Taylor terms of the series branch (at norm <= 1/2: 0.5^24 / 24! is far below rounding).
 _TERMS = 24

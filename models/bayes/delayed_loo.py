@@ -1,8 +1,8 @@
 """Leave-one-subject-out of the ``delayed`` hierarchical model: its terms in the integrated importance sampling.
 
-:func:`models.bayes.subject_loo.subject_loglik` integrates each subject's unit parameters
+:func:`scioc.models.bayes.subject_loo.subject_loglik` integrates each subject's unit parameters
 out by importance sampling, one proposal per subject, and PSIS then reweights the
-population draws. For :mod:`models.bayes.delayed_model` a subject has, besides the cost
+population draws. For :mod:`scioc.models.bayes.delayed_model` a subject has, besides the cost
 blocks (log θ1, log R, θ2 per level), its own lag and motor noise: :class:`DelayedSubjectTerms`
 adds them, as ``extra``:
 
@@ -12,7 +12,7 @@ adds them, as ``extra``:
   draws, with the log-Jacobians τ_nm σ_m in the weights; and τ_nm, for half the points, drawn
   from its population, HalfNormal(s) with s on a geometric grid of :data:`SCALE_GRID` points
   spanning the posterior draws of s_τ (the defensive mixture of
-  :func:`models.bayes.subject_loo.subject_loglik`). Where the data leave τ_nm near 0
+  :func:`scioc.models.bayes.subject_loo.subject_loglik`). Where the data leave τ_nm near 0
   the likelihood is flat below a ceiling and the target under a population draw is its
   half-normal, with a sharp upper cutoff at that draw's s_τ; the t, fitted to draws pooled over
   all s_τ (spanning orders of magnitude), spends most of its points above the cutoffs of many
@@ -21,11 +21,11 @@ adds them, as ``extra``:
   the ESS the comparison now reaches);
 * to the conditional prior: ``τ_nm ~ HalfNormal(s_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
   population draw (the model's, whatever form the sampler used), and, for a model whose
-  baseline R has the ``policy_scale`` population (:class:`models.bayes.delayed_model.DelayedPriors`),
+  baseline R has the ``policy_scale`` population (:class:`scioc.models.bayes.delayed_model.DelayedPriors`),
   ``R^(-1/2) ~ HalfNormal(s_ρ)`` in place of N(μ_R, σ_R) on log R, and for an ``unpooled`` one
   the subject's own fixed N(m, s) (``baseline_log_R_prior``);
 * and the segments' log-likelihood is the delayed one
-  (:func:`models.delayed.likelihood.loglik_grad`) at the segment's plug-in delay, with
+  (:func:`scioc.models.delayed.likelihood.loglik_grad`) at the segment's plug-in delay, with
   τ_0 fixed or following the warm-up at each proposed τ_nm (as the Op computes it).
 
 The elpd of a subject under the two human models is then comparable: both are densities
@@ -37,22 +37,21 @@ from __future__ import annotations
 import numpy as np
 from scipy import special
 
-from models.bayes.delayed_op import pack_tau0, warmups_of
-from models.bayes.subject_loo import halfnorm_logpdf
-from models.cost import from_normalized
-from models.delayed.lag import arm_torque, lag_coefficients
-from models.design import WheelParameters
-from models.delayed.likelihood import loglik_grad
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch
-
+from scioc.models.bayes.delayed_op import pack_tau0, warmups_of
+from scioc.models.bayes.subject_loo import halfnorm_logpdf
+from scioc.models.cost import from_normalized
+from scioc.models.delayed.lag import arm_torque, lag_coefficients
+from scioc.models.delayed.likelihood import loglik_grad
+from scioc.models.design import WheelParameters
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import SegmentBatch
 
 #: Points of the geometric grid of the population scale s_τ in the proposal's population half.
 SCALE_GRID = 64
 
 
 class DelayedSubjectTerms:
-    """The lag and motor-noise terms of :func:`models.bayes.subject_loo.subject_loglik` (``extra``).
+    """The lag and motor-noise terms of :func:`scioc.models.bayes.subject_loo.subject_loglik` (``extra``).
 
     Parameters
     ----------
@@ -65,13 +64,13 @@ class DelayedSubjectTerms:
     delay : array_like of int, shape (n_segments,)
         The plug-in delay of each segment, samples.
     tau0 : float, array_like (n,) or sequence of Warmup or None
-        As the model was built with (:func:`models.bayes.delayed_op.pack_tau0`).
+        As the model was built with (:func:`scioc.models.bayes.delayed_op.pack_tau0`).
     params : WheelParameters
     chunk : int
         Points per kernel call.
     baseline_log_R_prior : (float, float), optional
         (m, s) of a model fitted with ``DelayedPriors(R_population="unpooled")``: each subject's
-        baseline log R ~ N(m, s) (:meth:`models.bayes.delayed_blocks.DelayedPriors.unpooled_log_R_prior`),
+        baseline log R ~ N(m, s) (:meth:`scioc.models.bayes.delayed_blocks.DelayedPriors.unpooled_log_R_prior`),
         which its posterior draws do not hold.
     """
 

@@ -1,9 +1,9 @@
 """Hierarchical Bayesian model of the ``delayed`` human: the max-ent cost blocks plus lag and motor noise.
 
-The cost part is :mod:`models.bayes.hierarchical`'s, block for block (log θ1 and log R per
+The cost part is :mod:`scioc.models.bayes.hierarchical`'s, block for block (log θ1 and log R per
 subject × level with condition effects, θ2 >= 0 with a learned half-normal scale; the same
-:class:`models.bayes.hierarchical.Priors` and :class:`models.bayes.blocks.Parameterization`);
-θ = [q11, q22, R] is now the cost of the *commands* (:mod:`models.delayed.likelihood`).
+:class:`scioc.models.bayes.hierarchical.Priors` and :class:`scioc.models.bayes.blocks.Parameterization`);
+θ = [q11, q22, R] is now the cost of the *commands* (:mod:`scioc.models.delayed.likelihood`).
 Added, per subject i (kept in every level: the lag and the motor noise are the person's,
 as the simulated ``kbl`` human's are)::
 
@@ -22,8 +22,8 @@ finished its 600 draws per chain after 30 min where the delayed human's took 20)
 A half-normal puts mass at 0 and, with the data of a delayed human (SE of τ_nm about
 0.006 s at 0.06 s, of σ_m 0.02-0.03 N·m at 0.25), shrinks its values negligibly.
 
-Prior predictive check (:func:`models.bayes.prior_predictive.delayed_prior_predictive_summary`,
-as the max-ent model's: the default study's 84 segments (:func:`pipelines.bench.common.default_study_segments`,
+Prior predictive check (:func:`scioc.models.bayes.prior_predictive.delayed_prior_predictive_summary`,
+as the max-ent model's: the default study's 84 segments (:func:`scioc.pipelines.bench.common.default_study_segments`,
 2-s preview), every one with delay 12 samples and its warm-up, 200 joint prior draws,
 ``default_rng(1)``), with the default priors (s_m² ~ InvGamma(1, 0.03), since the last change of
 2026-12-05)::
@@ -47,15 +47,15 @@ law: 0.008 0.048 0.122 0.265 0.651 N·m in 2·10⁶ Monte Carlo draws.)
 
 The delay d is *data*: fixed per subject at the maximum of its profile likelihood
 (:func:`build_delayed_model` takes a delay per segment; ``scioc fit`` chooses it,
-:func:`pipelines.fit.delayed.unit_delays`). Why, and what else was measured:
+:func:`scioc.pipelines.fit.delayed.unit_delays`). Why, and what else was measured:
 
 The delay: a plug-in, one per subject
 -------------------------------------
 How sharply do the data fix the delay? ``scioc bench --parts fit_delayed``
-(:func:`pipelines.bench.fit_delayed.bench_delay_profile`): 6 subjects × MC, SC drawn from
-the delayed model (:func:`models.bayes.delayed_windows.delayed_windows`; K = 1500 with
+(:func:`scioc.pipelines.bench.fit_delayed.bench_delay_profile`): 6 subjects × MC, SC drawn from
+the delayed model (:func:`scioc.models.bayes.delayed_windows.delayed_windows`; K = 1500 with
 2-s preview, delay 12 samples, τ_nm 0.06 s, σ_m 0.25 N·m, θ of the default population),
-each unit's ML profile over 0-300 ms (:func:`models.delayed.identify.identify_unit_delayed`);
+each unit's ML profile over 0-300 ms (:func:`scioc.models.delayed.identify.identify_unit_delayed`);
 drop of the profile log-likelihood from its maximum::
 
                 ±1 sample: median (range)     ±2 samples: median (range)    argmax - truth
@@ -92,7 +92,7 @@ log R 3.4 at the ML lag, 7.7 or 15 at a lag 20 % shorter, for 2.6 and 3.9 nats).
 per unit is barely identified and strongly tied to the subject's lag and noise, while
 τ_nm and σ_m are well identified.
 
-Measured (12 subjects × MC, SC of :func:`models.bayes.delayed_windows.delayed_windows`, true
+Measured (12 subjects × MC, SC of :func:`scioc.models.bayes.delayed_windows.delayed_windows`, true
 torques and delays, 2 chains × 300 draws after 300 tuning, nutpie, sampler seed 1, on a
 machine shared with other jobs; minimum over the population parameters of the bulk ESS,
 and the parameter)::
@@ -115,8 +115,8 @@ takes the within-subject correlations (steps 41 -> 29). σ_R, the between-subjec
 log R, stays slow in every form (ESS 15-28 of 600): R is the nuisance the data cannot
 separate from the motor noise, and β, θ1, τ_nm and σ_m mix well (ESS 500-1300). The
 population of τ_nm is now half-normal (above), with the same forms; on data without lag
-or motor noise they are non-centred (:func:`pipelines.fit.delayed_forms.choose_delayed_form`),
-and so is log R centred there (:func:`pipelines.fit.delayed_forms.log_R_form`: without motor noise
+or motor noise they are non-centred (:func:`scioc.pipelines.fit.delayed_forms.choose_delayed_form`),
+and so is log R centred there (:func:`scioc.pipelines.fit.delayed_forms.log_R_form`: without motor noise
 the policy noise alone fixes each unit's R, measured in that module).
 
 At full size (42 subjects of the ``kbl`` human, 4 chains × 1000 draws; README "Human
@@ -126,14 +126,14 @@ mixed well (R-hat <= 1.006, bulk ESS >= 3906), and the sampler needed 32.5 leapf
 per draw (102-152 minutes with other jobs on the machine, against the 15-minute goal).
 
 Other populations of R (a Gamma prior on σ_R; the policy-noise scale ρ in place of log R) are
-measured in :mod:`models.bayes.delayed_blocks`.
+measured in :mod:`scioc.models.bayes.delayed_blocks`.
 
 Whitened
 --------
 Given the population, the subjects are independent, so what a diagonal or low-rank mass matrix
 cannot hold (each subject's log R tied to its τ_nm and σ_m, above) is block diagonal: eight
 coordinates per subject. ``scioc fit`` therefore samples, by default (:data:`ADAPTATIONS`), on each
-subject's whitened coordinates (:mod:`models.bayes.whiten`, :mod:`pipelines.fit.whiten`: the mode with
+subject's whitened coordinates (:mod:`scioc.models.bayes.whiten`, :mod:`scioc.pipelines.fit.whiten`: the mode with
 the population scales held, each subject's Hessian block there, x_i = x̂_i + L_i w_i), with nutpie's
 diagonal mass matrix on w. On 12 subjects (README "On each subject's whitened coordinates", two seeds
 each) it needed 40-46 k gradients against the low-rank matrix's 99-100 k and the diagonal one's 79-82
@@ -145,16 +145,16 @@ subject's tail of σ_m towards 0). The affine map cannot straighten the subjects
 and σ_m; they set the trees' depth.
 
 Since 2026-12-05 the default (:data:`CURVED`) also bends each subject's coordinates along its ridge in σ_m
-(:mod:`models.bayes.whiten`, "Curved"): with σ_m's block folded centred, σ_m = |v| and log R grows with v², a
+(:mod:`scioc.models.bayes.whiten`, "Curved"): with σ_m's block folded centred, σ_m = |v| and log R grows with v², a
 parabola through the mode v = 0 that no affine map straightens. Measured: README, "Speed". With a signed
 ρ = R^(-1/2) (``R_population="policy_scale"``, ρ folded or folded centred) it bends along ρ's coordinate
 instead, the ridge there being an arch over it, or with σ_m's signed too, per subject along the one whose fold
-its mode is nearest (:func:`models.bayes.delayed_blocks.ridge_pivots`).
+its mode is nearest (:func:`scioc.models.bayes.delayed_blocks.ridge_pivots`).
 
 Its target acceptance rate is 0.9 (:data:`WHITENED_TARGET_ACCEPT`), not nutpie's 0.8: the
 convergence verdict fails on a single divergent transition, and the smaller steps left fewer. With the pilot run
 and a signed ρ it is 0.8 again (:data:`PILOT_ADAPTATION_TARGET_ACCEPT`).
-Measured on 12 subjects of each human (those of :mod:`pipelines.fit.delayed_forms`' table, the same
+Measured on 12 subjects of each human (those of :mod:`scioc.pipelines.fit.delayed_forms`' table, the same
 command without ``--log-R-form``, the kernel with its reverse-mode plan, alone on the machine; the
 rate set by patching ``nutpie_options`` in a wrapper script, as ``scioc fit`` has no option for it)::
 
@@ -177,13 +177,13 @@ Pilot
 The Hessian at the mode describes some subjects' posteriors badly (the ``kbl`` human's log σ_m, whose tail
 towards 0 it does not see): on the twelve that sample worst, the curved fit's draws had SDs of 0.75 to 28 in
 w and, within subjects, correlations that nutpie's diagonal mass matrix cannot take
-(:mod:`models.bayes.whiten_draws`). Since 2026-12-06 the default (:data:`PILOT`) therefore measures the same
-coordinates again on the draws of a pilot run (:mod:`pipelines.fit.warmup`: 100 + 100 draws per chain) and
+(:mod:`scioc.models.bayes.whiten_draws`). Since 2026-12-06 the default (:data:`PILOT`) therefore measures the same
+coordinates again on the draws of a pilot run (:mod:`scioc.pipelines.fit.warmup`: 100 + 100 draws per chain) and
 starts the kept run at the pilot's last draw. On those twelve (2 chains × (300 + 300) draws, seed 1, policy-scale
 R, ρ folded centred; the pilot 100 + 100): 26.8 leapfrog steps per kept draw against the curved fit's 58.0
-(:mod:`pipelines.fit.delayed_forms`' table), 29.0 per warm-up draw, the pilot 37.9 per draw; the smallest ESS
+(:mod:`scioc.pipelines.fit.delayed_forms`' table), 29.0 per warm-up draw, the pilot 37.9 per draw; the smallest ESS
 of a population parameter 204 (σ_β) against 84. At full size: README, "Speed". The pilot runs on 2 chains (at
-most the fit's; :data:`pipelines.fit.warmup.PILOT_CHAINS` says what that saved).
+most the fit's; :data:`scioc.pipelines.fit.warmup.PILOT_CHAINS` says what that saved).
 """
 
 from __future__ import annotations
@@ -195,25 +195,31 @@ import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
-from models.bayes.blocks import Parameterization
-from models.bayes.delay_step import DelayMetropolis
-from models.bayes.delayed_blocks import (DELAYED_POPULATION_PARAMETERS, R_POPULATIONS, DelayedForm, DelayedPriors,
-                                         cost_blocks, motor_blocks)
-from models.bayes.delayed_op import DelayedLoglikOp, pack_tau0, warmups_of
-from models.bayes.delayed_value import DelayedLoglikValueOp  # noqa: F401 (registers its rewrite)
-from models.bayes.hierarchical import Priors
-from models.delayed import sample_delayed
-from models.delayed.lag import lag_coefficients, window_tau0
-from models.design import CONDITIONS, WheelParameters
-from models.plant import DiscretePlant
-from models.segment import Feedback, as_batch
-from models.units import index_study
+from scioc.models.bayes.blocks import Parameterization
+from scioc.models.bayes.delay_step import DelayMetropolis
+from scioc.models.bayes.delayed_blocks import (
+    DELAYED_POPULATION_PARAMETERS,
+    R_POPULATIONS,
+    DelayedForm,
+    DelayedPriors,
+    cost_blocks,
+    motor_blocks,
+)
+from scioc.models.bayes.delayed_op import DelayedLoglikOp, pack_tau0, warmups_of
+from scioc.models.bayes.delayed_value import DelayedLoglikValueOp  # noqa: F401 (registers its rewrite)
+from scioc.models.bayes.hierarchical import Priors
+from scioc.models.delayed import sample_delayed
+from scioc.models.delayed.lag import lag_coefficients, window_tau0
+from scioc.models.design import CONDITIONS, WheelParameters
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import Feedback, as_batch
+from scioc.models.units import index_study
 
 #: Name of the sampled delays' grid indices (dims ``subject``) in a model built with ``delay=None``.
 DELAY_INDEX = "delay_index"
 #: The cost blocks' forms for the delayed human (module docstring, "Geometry"): log R non-centred,
 #: the rest as the max-ent model's default (``scioc fit`` chooses log R's by the data:
-#: :func:`pipelines.fit.delayed_forms.log_R_form`).
+#: :func:`scioc.pipelines.fit.delayed_forms.log_R_form`).
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
 #: nutpie's own mass matrices for this model (module docstring, "Geometry"): low rank and diagonal.
 NUTPIE_ADAPTATIONS = ("low_rank", "diag")
@@ -228,11 +234,11 @@ CURVED = "curved"
 #: The name in :data:`ADAPTATIONS` of the curved whitened sampling with nutpie's low-rank mass matrix on top.
 CURVED_LOW_RANK = "curved_low_rank"
 #: The name in :data:`ADAPTATIONS` of the curved whitening measured again on a pilot run's draws
-#: (:mod:`models.bayes.whiten_draws`; module docstring, "Pilot").
+#: (:mod:`scioc.models.bayes.whiten_draws`; module docstring, "Pilot").
 PILOT = "pilot"
 #: The mass matrices a delayed fit with profile delays may use (``scioc fit --adaptation``), the default first:
 #: nutpie's diagonal one on each subject's whitened coordinates curved along its ridge, measured on a pilot run's
-#: draws, then measured at the Hessian alone, then on the affine whitened ones (:mod:`models.bayes.whiten`; module
+#: draws, then measured at the Hessian alone, then on the affine whitened ones (:mod:`scioc.models.bayes.whiten`; module
 #: docstring, "Whitened", "Curved"), then nutpie's own, then its low-rank one on the curved coordinates
 #: (:data:`CURVED_LOW_RANK`).
 ADAPTATIONS = (PILOT, CURVED, WHITENED, *NUTPIE_ADAPTATIONS, CURVED_LOW_RANK)
@@ -245,7 +251,7 @@ CURVED_ADAPTATIONS = (PILOT, CURVED, CURVED_LOW_RANK)
 WHITENED_TARGET_ACCEPT = 0.9
 #: With a pilot run (:data:`PILOT`) and ρ signed: the pilot gives each pivot a tail map (models/bayes/pivot_tails.py),
 #: which removed the divergences at ρ̃'s wall that kept 0.9; not with lognormal R (0.8 failed, R-hat 1.011, there).
-#: Measured: :mod:`pipelines.fit.warmup`, "The pivot's tails", and README, "Speed".
+#: Measured: :mod:`scioc.pipelines.fit.warmup`, "The pivot's tails", and README, "Speed".
 PILOT_ADAPTATION_TARGET_ACCEPT = 0.8
 
 
@@ -288,16 +294,16 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
     Parameters
     ----------
     subjects, conditions, segments, plant, priors, parameterization, segment_ids, levels
-        As :func:`models.bayes.hierarchical.build_model` (condition effects always on).
+        As :func:`scioc.models.bayes.hierarchical.build_model` (condition effects always on).
     delay : int, array_like of int (n,), or None
         Perceptual delay of each segment, samples: data, not a parameter. None samples it:
         one delay per subject, ``delay_index`` (dims ``subject``) uniform over
-        ``delay_grid``, updated by :class:`models.bayes.delay_step.DelayMetropolis`
+        ``delay_grid``, updated by :class:`scioc.models.bayes.delay_step.DelayMetropolis`
         (:func:`delay_step`); the continuous draws are then delay-marginal.
     delay_grid : array_like of int, optional
         The grid of a sampled delay, samples (required with ``delay=None``).
     tau0 : float, array_like (n,), or sequence of Warmup or None (n)
-        The arm torque at each window's start (:func:`models.bayes.delayed_op.pack_tau0`).
+        The arm torque at each window's start (:func:`scioc.models.bayes.delayed_op.pack_tau0`).
     delayed_priors : DelayedPriors
     delayed_form : DelayedForm
     params : WheelParameters
@@ -306,7 +312,7 @@ def build_delayed_model(subjects: Sequence, conditions: Sequence, segments, plan
     Returns
     -------
     pymc.Model
-        The variables of :func:`models.bayes.hierarchical.build_model`'s condition model, plus
+        The variables of :func:`scioc.models.bayes.hierarchical.build_model`'s condition model, plus
         ``tau_nm_scale``, ``sigma_m_scale``, the per-subject ``tau_nm``, ``sigma_m`` (dims
         ``subject``; ``z_tau_nm``, ``z_sigma_m`` when non-centred or folded). Observed ``u_H`` (segment, step),
         one log-likelihood per segment.

@@ -1,34 +1,34 @@
 """The batched ``delayed`` log-likelihood as a PyTensor Op, with a numba implementation.
 
 One node computes, in one call of the numba kernel
-(:data:`models.delayed.kernel.batch_kernel_serial`),
+(:data:`scioc.models.delayed.kernel.batch_kernel_serial`),
 
 * ``loglik`` (n,): the exact log-likelihood of each segment under the ``delayed`` human
-  (:mod:`models.delayed.likelihood`), nats, and
+  (:mod:`scioc.models.delayed.likelihood`), nats, and
 * ``grad`` (5, n): its derivatives in that segment's ``q11, q22, R`` (rows 0-2), ``τ_nm``
-  (row 3) and ``σ_m`` (row 4), in the order of :data:`models.delayed.PARAMETERS`.
+  (row 3) and ``σ_m`` (row 4), in the order of :data:`scioc.models.delayed.PARAMETERS`.
 
 The differentiable inputs are θ (3, n), τ_nm (n,) and σ_m (n,). The delay (whole samples
-per segment) is data: the hierarchical model fixes it per unit (:mod:`models.bayes.delayed_model`
+per segment) is data: the hierarchical model fixes it per unit (:mod:`scioc.models.bayes.delayed_model`
 says why). So is what fixes the arm torque at each window's start, τ_0: either a number
 per segment (held fixed), or the observed torques before the window
-(:class:`models.delayed.lag.Warmup`), from which τ_0 follows by the arm's recursion
-(:func:`models.delayed.lag.arm_torque_recursion`) at the current τ_nm, with its
-tangents, exactly as :func:`models.delayed.identify.identify_unit_delayed` treats it.
+(:class:`scioc.models.delayed.lag.Warmup`), from which τ_0 follows by the arm's recursion
+(:func:`scioc.models.delayed.lag.arm_torque_recursion`) at the current τ_nm, with its
+tangents, exactly as :func:`scioc.models.delayed.identify.identify_unit_delayed` treats it.
 Warm-ups are stored right-aligned in one (n, J) array with each row's first index
 (:func:`pack_tau0`). A measured torque's warm-up is the whole run before the window (up
 to 21000 samples, 0.7 ms of recursion each: 56 ms per evaluation of 84 segments, four
 times the likelihood's own cost). The recursion forgets its start as |p|^k, p = a - (1 -
-a) α / (1 - α) (:mod:`models.delayed.lag`: |p| = 0.92 at τ_nm = 0.06 s, 0.97 at 1 s), so
+a) α / (1 - α) (:mod:`scioc.models.delayed.lag`: |p| = 0.92 at τ_nm = 0.06 s, 0.97 at 1 s), so
 only its last :func:`warm_samples` samples are run (about 560 at 0.06 s, 1500 at 1 s),
 started from the torque just before them (a held torque passes the lag unchanged): the
 older samples and that guess weigh less than :data:`WARM_EPS` = 1e-20 of τ_0 and its
 tangents, far below rounding (tested against the whole warm-up).
 
-As :mod:`models.bayes.op` for the max-ent likelihood: the pullback multiplies the
+As :mod:`scioc.models.bayes.op` for the max-ent likelihood: the pullback multiplies the
 kernel's gradient by the cotangent, so a compiled logp-and-gradient function runs the
 kernel once per evaluation; second derivatives are refused. The numba implementation
-computes the lag's coefficients (:func:`models.bayes.delayed_lag.lag_nb`), the warm-ups
+computes the lag's coefficients (:func:`scioc.models.bayes.delayed_lag.lag_nb`), the warm-ups
 and the batch in the calling thread (the serial kernel: nutpie already runs one chain
 per thread, and a parallel region inside each would oversubscribe the cores), and
 allocates its outputs and scratch per call, so concurrent calls share nothing they write.
@@ -43,20 +43,20 @@ import math
 
 import numpy as np
 import pytensor.tensor as pt
-from numba import njit
 from pytensor.gradient import DisconnectedType, disconnected_type, grad_not_implemented
 from pytensor.graph.basic import Apply
 from pytensor.graph.op import Op
 from pytensor.link.numba.dispatch import basic as numba_basic
 from pytensor.link.numba.dispatch.basic import numba_funcify
 
-from models.bayes.delayed_lag import lag_nb, wheel_constants
-from models.bayes.op import DATA_NAMES
-from models.delayed.kernel import batch_kernel_serial
-from models.delayed.lag import Warmup, arm_torque_recursion, check_wheel
-from models.design import WheelParameters
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch
+from scioc.models.bayes.delayed_lag import lag_nb, wheel_constants
+from scioc.models.bayes.op import DATA_NAMES
+from scioc.models.delayed.kernel import batch_kernel_serial
+from scioc.models.delayed.lag import Warmup, arm_torque_recursion, check_wheel
+from scioc.models.design import WheelParameters
+from scioc.models.plant import DiscretePlant
+from scioc.models.runtime import njit
+from scioc.models.segment import SegmentBatch
 
 #: The data inputs after θ, τ_nm and σ_m: the batch's arrays, the delay and the packed τ_0 (:func:`pack_tau0`).
 DELAYED_DATA_NAMES = (*DATA_NAMES, "delay", "warm", "warm_start", "tau_start")
@@ -64,7 +64,7 @@ DELAYED_DATA_NAMES = (*DATA_NAMES, "delay", "warm", "warm_start", "tau_start")
 N_PARAMETER_INPUTS = 3
 
 
-#: The warm-up's arm-torque recursion forgets its start as |p|^k (:mod:`models.delayed.lag`): only
+#: The warm-up's arm-torque recursion forgets its start as |p|^k (:mod:`scioc.models.delayed.lag`): only
 #: the last samples whose start weighs more than this are run.
 WARM_EPS = 1e-20
 
@@ -134,7 +134,7 @@ def pack_tau0(tau0, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ----------
     tau0 : float, array_like (n,), or sequence of Warmup or None (n)
         A fixed arm torque at each window's start (N·m; J = 0), or per segment the
-        torques before the window (:class:`models.delayed.lag.Warmup`; None: at rest,
+        torques before the window (:class:`scioc.models.delayed.lag.Warmup`; None: at rest,
         τ_0 = 0).
     n : int
         Segments.
@@ -180,9 +180,9 @@ class DelayedLoglikDataOp(Op):
     -----
     Inputs: ``theta`` (3, n) rows q11, q22, R; ``tau_nm`` (n,), s; ``sigma_m`` (n,), N·m;
     then :data:`DELAYED_DATA_NAMES`: ``x1, x2, r, u, a, fb`` of a
-    :class:`models.segment.SegmentBatch`, ``delay`` (n,) int64 samples, and ``warm``,
+    :class:`scioc.models.segment.SegmentBatch`, ``delay`` (n,) int64 samples, and ``warm``,
     ``warm_start``, ``tau_start`` from :func:`pack_tau0`. Outputs ``loglik`` (n,) and
-    ``grad`` (5, n), as :func:`models.delayed.loglik_grad` returns them. Parameters are not
+    ``grad`` (5, n), as :func:`scioc.models.delayed.loglik_grad` returns them. Parameters are not
     validated in the graph (the sampler proposes what its transforms allow); a non-finite
     value gives a non-finite log-likelihood, which the sampler rejects.
     """
@@ -209,7 +209,7 @@ class DelayedLoglikDataOp(Op):
 
     def values(self, inputs, grad: bool = True):
         """(log-likelihood (n,), gradient (5, n)) at a node's input values; with ``grad`` False the gradient is NaN
-        and the log-likelihood the same number in less time (:func:`models.delayed.kernel.batch_kernel`)."""
+        and the log-likelihood the same number in less time (:func:`scioc.models.delayed.kernel.batch_kernel`)."""
         theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:3])
         data = inputs[3:] or self.bound
         data = [np.ascontiguousarray(v, dtype=np.int64 if j in (6, 8) else np.float64) for j, v in enumerate(data)]
@@ -246,7 +246,7 @@ class DelayedLoglikOp(DelayedLoglikDataOp):
     Parameters
     ----------
     batch : SegmentBatch
-        From :func:`models.segment.prepare_batch` with ``plant``.
+        From :func:`scioc.models.segment.prepare_batch` with ``plant``.
     plant : DiscretePlant
     delay : int or array_like of int (n,)
         Perceptual delay per segment, samples (>= 0); a fourth input ``delay`` (n,) int64,
@@ -318,7 +318,7 @@ class DelayedLoglikOp(DelayedLoglikDataOp):
 @numba_funcify.register(DelayedLoglikDataOp)
 def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, grad: bool = True, **kwargs):
     """Numba implementation of both Ops: the lag, the warm-ups and the serial batch kernel, no object mode (``grad``
-    False: the gradient NaN, for :mod:`models.bayes.delayed_value`)."""
+    False: the gradient NaN, for :mod:`scioc.models.bayes.delayed_value`)."""
     A, b = op.A, op.b
     dt, A_c, b_w, Pb, b1, poles = op.wheel
     evaluate = _evaluate

@@ -1,14 +1,14 @@
 """The ``delayed`` log-likelihood without its gradient, wherever a graph does not read the gradient.
 
-A :class:`models.bayes.delayed_op.DelayedLoglikDataOp` node has two outputs, the per-segment log-likelihood and its
+A :class:`scioc.models.bayes.delayed_op.DelayedLoglikDataOp` node has two outputs, the per-segment log-likelihood and its
 gradient, and computes both whatever its graph reads. PyMC's pointwise log-likelihood
-(``pm.compute_log_likelihood``, :func:`pipelines.fit.sampling.add_log_likelihood`: every kept draw, 44 s of the
+(``pm.compute_log_likelihood``, :func:`scioc.pipelines.fit.sampling.add_log_likelihood`: every kept draw, 44 s of the
 full-size ``kbl`` fit at f484bf1) reads only the first. The rewrite :func:`local_delayed_loglik_value_only`
 (PyTensor's ``specialize`` phase, in every compiled function once this module is imported, as the model builders
-:mod:`models.bayes.delayed_model` and :mod:`models.bayes.unit_delayed` do) replaces such a node by a
+:mod:`scioc.models.bayes.delayed_model` and :mod:`scioc.models.bayes.unit_delayed` do) replaces such a node by a
 :class:`DelayedLoglikValueOp` on the same inputs, which runs the kernel's value-only path
-(:func:`models.delayed.kernel.batch_kernel` with ``grad`` False): the same operations up to the log-density, without
-the reverse sweeps (the same number to the last bit through :func:`models.delayed.loglik`; compiled into a graph of
+(:func:`scioc.models.delayed.kernel.batch_kernel` with ``grad`` False): the same operations up to the log-density, without
+the reverse sweeps (the same number to the last bit through :func:`scioc.models.delayed.loglik`; compiled into a graph of
 its own, to rounding: tests/models/bayes/test_delayed_op.py). A graph that reads the gradient (the sampler's, the
 whitening's mode search) keeps the node as it is. ``scioc bench --parts delayed`` measures the value alone beside
 the value and gradient.
@@ -25,11 +25,11 @@ from pytensor.link.numba.dispatch import basic as numba_basic
 from pytensor.link.numba.dispatch.basic import numba_funcify
 from pytensor.tensor.rewriting.basic import register_specialize
 
-from models.bayes.delayed_op import DelayedLoglikDataOp, numba_funcify_delayed_loglik
+from scioc.models.bayes.delayed_op import DelayedLoglikDataOp, numba_funcify_delayed_loglik
 
 
 class DelayedLoglikValueOp(Op):
-    """The first output of ``base`` (a :class:`models.bayes.delayed_op.DelayedLoglikDataOp`) alone, on its inputs.
+    """The first output of ``base`` (a :class:`scioc.models.bayes.delayed_op.DelayedLoglikDataOp`) alone, on its inputs.
 
     Not differentiable: it only replaces nodes whose gradient output nothing reads, after the graph's gradients are
     taken (:func:`local_delayed_loglik_value_only`).

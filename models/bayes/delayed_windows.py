@@ -1,14 +1,14 @@
 """Small studies of the ``delayed`` human straight from its generative model, for tests and benchmarks.
 
-:func:`delayed_windows` draws each subject's θ per level from :class:`models.population.Population`
-(as :func:`models.simulate.simulate_windows` does for the max-ent human), gives every
+:func:`delayed_windows` draws each subject's θ per level from :class:`scioc.models.population.Population`
+(as :func:`scioc.models.simulate.simulate_windows` does for the max-ent human), gives every
 subject one perceptual delay, neuromuscular lag and motor-noise SD (kept in every level:
 the human does not change between conditions, as the simulated ``kbl`` human of
-:mod:`models.humans`), and draws each window exactly from the model the likelihood
-assumes (:func:`models.delayed.sample_delayed`): MC on the open wheel, SC with the
+:mod:`scioc.models.humans`), and draws each window exactly from the model the likelihood
+assumes (:func:`scioc.models.delayed.sample_delayed`): MC on the open wheel, SC with the
 assistant's law, the true torques (no encoder, no reconstruction), the arm torque at
 rest at the window's start (τ_0 = 0, known). The window runs from the start of the
-study reference, like :func:`models.simulate.simulate_windows`. Nothing here is fitted:
+study reference, like :func:`scioc.models.simulate.simulate_windows`. Nothing here is fitted:
 it is the truth the fits are checked against.
 """
 
@@ -18,12 +18,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from models.assistant import design_assistant, human_feedback
-from models.delayed import sample_delayed
-from models.design import DT_HUMAN, MANUAL, PREVIEW_SECONDS, SHARED, WINDOW_SECONDS
-from models.plant import discretize
-from models.population import Population, draw_subjects
-from models.reference import reference_trajectory
+from scioc.models.assistant import design_assistant, human_feedback
+from scioc.models.delayed import sample_delayed
+from scioc.models.design import DT_HUMAN, MANUAL, PREVIEW_SECONDS, SHARED, WINDOW_SECONDS
+from scioc.models.plant import discretize
+from scioc.models.population import Population, draw_subjects
+from scioc.models.reference import reference_trajectory
 
 
 class DelayedWindows(NamedTuple):
@@ -64,7 +64,7 @@ def delayed_windows(n_subjects: int, rng: np.random.Generator, population: Popul
     ----------
     n_subjects : int
     rng : numpy.random.Generator
-        θ of every subject first (:func:`models.population.draw_subjects`), then per
+        θ of every subject first (:func:`scioc.models.population.draw_subjects`), then per
         subject its delay, lag and motor noise, then its two windows in order MC, SC.
     population : Population
         θ per subject and level (R at 100 Hz).

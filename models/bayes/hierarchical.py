@@ -2,7 +2,7 @@
 
 One *unit* is a subject i in a condition level c: by default the paper's MC (manual
 control, the baseline) and SC (shared control); an experiment may have L >= 2 levels, the
-baseline first (:class:`models.design.Design`). Its cost θ = [q11, q22, R] (paper Eq. 6)
+baseline first (:class:`scioc.models.design.Design`). Its cost θ = [q11, q22, R] (paper Eq. 6)
 enters the max-ent likelihood (paper Eq. 8) only through
 
 * θ1 = q11 / R and θ2 = q22 / R, which fix the optimal policy (scaling J keeps the
@@ -20,7 +20,7 @@ so the model is written in (θ1, θ2, R)::
     u_H[segment] ~ max-ent(q11 = θ1 R, q22 = θ2 R, R | x0, angle_ref, u_A)
 
 (on an assisted level the max-ent human plans with the assistant's feedback law when the
-segment carries :class:`models.segment.Feedback`, as ``scioc fit`` does by default, or with
+segment carries :class:`scioc.models.segment.Feedback`, as ``scioc fit`` does by default, or with
 the recorded u_A as a known input, the paper's model).
 
 More levels. With levels 0 (the baseline), 1, ..., L-1 every non-baseline level c gets
@@ -28,7 +28,7 @@ its own change of each subject against the baseline, b_ic ~ N(0, σ_β,c) with i
 β_c, and likewise for log R (β_R,c, σ_βR,c); a subject's changes are independent across
 levels. β, σ_β, β_R and σ_βR then have dims ``contrast`` (the non-baseline levels), and
 with L = 2 the model is exactly the one above (scalar β; the names of
-:mod:`models.bayes.blocks`). Each level's own σ_β rather than one shared: the
+:mod:`scioc.models.bayes.blocks`). Each level's own σ_β rather than one shared: the
 between-subject spread of the response to a weak and to a strong assistant need not be
 alike, and a shared σ_β would pull the smaller spread up and the larger one down,
 widening or narrowing the per-subject contrasts of both. The marginal model of the
@@ -47,7 +47,7 @@ Priors (:class:`Priors`; units: θ1, θ2 in rad⁻² and (rad/s)⁻² per (N·m)
 
 (each β_c, σ_β,c, β_R,c, σ_βR,c with the prior of β, σ_β, β_R, σ_βR above).
 
-R is a per-sample precision and scales with the sample time (:mod:`models.design`), θ1 and
+R is a per-sample precision and scales with the sample time (:mod:`scioc.models.design`), θ1 and
 θ2 do not: μ_R's prior is stated at the paper's 100 Hz and :meth:`Priors.for_design`
 shifts its centre by log(dt / 0.01) (``Design.r_scale``), so that the prior says the same
 about the human at any rate; at 100 Hz it is exactly :class:`Priors` ``()``.
@@ -58,7 +58,7 @@ given the state the torque of one 10-ms step has SD 1 / √(2 S_k), and S_k = 1.
 θ1 = 20, θ2 = 0 (``models.lq.lq_policy`` on the study window), so log R = 3 ± 2 is a jitter
 of 0.06-0.41 N·m per sample around 0.15 N·m.
 
-The priors pass a prior predictive check on the default study; :mod:`models.bayes.prior_predictive`
+The priors pass a prior predictive check on the default study; :mod:`scioc.models.bayes.prior_predictive`
 holds the check, its numbers and why the first priors were replaced.
 
 Pooled model (``build_model(..., condition_effects=False)``), the alternative for the
@@ -119,13 +119,13 @@ import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.basic import Constant
 
-from models.bayes.blocks import Parameterization, pooled_block, theta2_block, unit_block
-from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp
-from models.design import CONDITIONS, Design
-from models.maxent import sample_maxent
-from models.plant import DiscretePlant
-from models.segment import as_batch, planning_plant
-from models.units import index_study
+from scioc.models.bayes.blocks import Parameterization, pooled_block, theta2_block, unit_block
+from scioc.models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp
+from scioc.models.design import CONDITIONS, Design
+from scioc.models.maxent import sample_maxent
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import as_batch, planning_plant
+from scioc.models.units import index_study
 
 #: The population parameters of the condition model, as the model names them. The pooled
 #: model (``condition_effects=False``) has all but ``beta`` and ``sigma_beta``.
@@ -176,7 +176,7 @@ class Priors:
     def for_design(cls, design: Design, **overrides) -> "Priors":
         """The priors at ``design``'s sample time: μ_R's centre + log(dt / 0.01), the rest as stated.
 
-        R ∝ dt (:mod:`models.design`), so the prior centre of log R at 100 Hz moves by
+        R ∝ dt (:mod:`scioc.models.design`), so the prior centre of log R at 100 Hz moves by
         ``log(design.r_scale)``; its SD and every other prior are rate-free. At 100 Hz
         ``log(1.0) = 0.0`` and the priors are exactly ``Priors()``.
 
@@ -225,8 +225,8 @@ def build_model(
         Labels of the ``segment`` coordinate (default 0..n-1).
     data_containers : bool
         Put the data in ``pm.Data`` containers ``x1, x2, r, u, a`` (a
-        :class:`models.segment.SegmentBatch`'s arrays) and the likelihood in a potential
-        (:class:`models.bayes.op.MaxEntLoglikDataOp`), so that one compiled
+        :class:`scioc.models.segment.SegmentBatch`'s arrays) and the likelihood in a potential
+        (:class:`scioc.models.bayes.op.MaxEntLoglikDataOp`), so that one compiled
         model refits new data of the same shape (``with_data``); used by
         simulation-based calibration. No observed variable then, hence no pointwise
         log-likelihood and no predictive draws.
@@ -252,14 +252,14 @@ def build_model(
         in the chosen form (by default ``log_theta1_mean``, ``z_log_theta1_SC``,
         ``log_R_MC``, ``log_R_SC``, ``z_theta2``; with more levels ``log_theta1_mean``,
         ``z_log_theta1_contrast``, ``log_R_baseline``, ``log_R_contrast``, ``z_theta2``:
-        :mod:`models.bayes.blocks`). Deterministics ``log_theta1``, ``log_R``, ``theta1``,
+        :mod:`scioc.models.bayes.blocks`). Deterministics ``log_theta1``, ``log_R``, ``theta1``,
         ``R``, ``theta2`` (subject, condition). Observed ``u_H`` (segment, step),
         whose element-wise log density is one log-likelihood per segment.
 
     Raises
     ------
     ValueError
-        See :func:`models.units.index_study`; also if the number of segments does not match the
+        See :func:`scioc.models.units.index_study`; also if the number of segments does not match the
         labels.
 
     Examples

@@ -5,15 +5,15 @@ The first two are documented at their functions; the rest of this docstring is t
 
 Why. The policy noise (variance ∝ ρ², ρ = R^(-1/2)) and the motor noise (∝ σ_m²) share a
 subject's torque variability, so where the data fix both only through their sum the
-posterior follows the ridge ρ² + k σ_m² ≈ c (:func:`models.bayes.delayed_blocks.ridge_pivots`).
+posterior follows the ridge ρ² + k σ_m² ≈ c (:func:`scioc.models.bayes.delayed_blocks.ridge_pivots`).
 With ρ and σ_m folded centred (ρ = |ρ̃|, σ_m = |σ̃|, both signed) that ridge is an ellipse in
 (ρ̃, σ̃), and a subject whose data fix ρ away from 0 (the ``kbl`` human's "pinned" subjects)
 has its posterior on a long arc of it: on the full-size ``kbl`` study, with θ, τ_nm and the delay
-held at the ML estimates (:mod:`pipelines.fit.noise_arcs`, read ad hoc), the maximizing σ_m² of 9
+held at the ML estimates (:mod:`scioc.pipelines.fit.noise_arcs`, read ad hoc), the maximizing σ_m² of 9
 subjects fell from 1.3-1.8 to 0.16-0.66 times its ML value as ρ² went from half to twice its own.
 No affine map, and no quadratic bend about one point, straightens an arc that long; NUTS then needs
 small steps across it and long trajectories along it. (With τ_nm free the posterior's main
-trade-off turned out to be ρ² against τ_nm, not σ_m²: :mod:`pipelines.fit.delayed_forms`, "Polar,
+trade-off turned out to be ρ² against τ_nm, not σ_m²: :mod:`scioc.pipelines.fit.delayed_forms`, "Polar,
 squared, and the low-rank mass matrix", where what polar coordinates bought is measured.)
 
 In polar coordinates::
@@ -38,7 +38,7 @@ across ρ̃'s sign in the folded forms; ρ = |ρ̃| and σ_m = |σ̃| are the sa
 
 Per subject. k > 0 puts a subject in polar coordinates; NaN leaves it in the folded centred
 ones, a = ρ̃ and b = σ̃ (for a subject without such an arc: ρ near 0, or σ_m fixed by the data
-whatever ρ). :func:`pipelines.fit.noise_arcs.noise_arcs` chooses k from the ML estimates.
+whatever ρ). :func:`scioc.pipelines.fit.noise_arcs.noise_arcs` chooses k from the ML estimates.
 
 PyMC. The joint density of (a, b) is b's log-density, with a as its parameter; a's own is 0. The
 model's density is their sum, the one above. Drawn ancestrally (``pm.draw``, the prior predictive
@@ -143,7 +143,7 @@ def mixed_half_normal_block(name: str, scale, pinned: np.ndarray, *, start: floa
 
     Why per subject: a centred block stretches ρ -> 0 into log ρ's infinite tail, where subjects whose data leave
     ρ near 0 stall; a folded centred one gives a subject whose data fix ρ far from 0 two modes ±ρ, joined only over
-    its ridge's arch, which the sampler crosses with deep trees (:mod:`pipelines.fit.delayed_forms`, "The form of
+    its ridge's arch, which the sampler crosses with deep trees (:mod:`scioc.pipelines.fit.delayed_forms`, "The form of
     ρ"). A study of the ``kbl`` human has both kinds of subject.
     """
     pinned = np.asarray(pinned, dtype=bool)

@@ -1,6 +1,6 @@
 """The batched max-ent log-likelihood (paper Eq. 8) as a PyTensor Op, with a numba implementation.
 
-One Op wraps the linear-time kernel :func:`models.maxent.batch_kernel` for use in a PyMC
+One Op wraps the linear-time kernel :func:`scioc.models.maxent.batch_kernel` for use in a PyMC
 model. One node computes, in one kernel call, both
 
 * ``loglik`` (n,): the log-likelihood of each segment, nats, and
@@ -11,7 +11,7 @@ logp-and-gradient function (what nutpie evaluates at every leapfrog step) contai
 node once and runs the kernel once per evaluation: there is no second pass for the
 gradient. Second derivatives are not implemented (NUTS needs none).
 
-The data are the θ-independent arrays of a :class:`models.segment.SegmentBatch`
+The data are the θ-independent arrays of a :class:`scioc.models.segment.SegmentBatch`
 (:data:`DATA_NAMES`) and the plant matrices. They enter in one of two ways:
 
 * :class:`MaxEntLoglikDataOp` takes them as graph inputs after θ. With the data in
@@ -34,18 +34,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytensor.tensor as pt
-from numba import njit
 from pytensor.gradient import DisconnectedType, disconnected_type, grad_not_implemented
 from pytensor.graph.basic import Apply
 from pytensor.graph.op import Op
 from pytensor.link.numba.dispatch import basic as numba_basic
 from pytensor.link.numba.dispatch.basic import numba_funcify
 
-from models.maxent import batch_kernel
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch
+from scioc.models.maxent import batch_kernel
+from scioc.models.plant import DiscretePlant
+from scioc.models.runtime import njit
+from scioc.models.segment import SegmentBatch
 
-#: The data inputs after θ, in order: the arrays of a :class:`models.segment.SegmentBatch`.
+#: The data inputs after θ, in order: the arrays of a :class:`scioc.models.segment.SegmentBatch`.
 DATA_NAMES = ("x1", "x2", "r", "u", "a", "fb")
 
 
@@ -80,9 +80,9 @@ class MaxEntLoglikDataOp(Op):
     -----
     Inputs: ``theta`` (3, n), rows ``[q11, q22, R]`` (1/rad², 1/(rad/s)², 1/(N·m)²), one
     column per segment; then ``x1``, ``x2`` (n, K + 1), ``r`` (n, K + M + 1), ``u`` (n, K),
-    ``a`` (n, K + M), ``fb`` (n, 2) as in :class:`models.segment.SegmentBatch`.
+    ``a`` (n, K + M), ``fb`` (n, 2) as in :class:`scioc.models.segment.SegmentBatch`.
     Outputs: ``loglik`` (n,) and ``grad`` (3, n), exactly as
-    :func:`models.maxent.loglik_grad` returns them. θ is not validated inside the graph
+    :func:`scioc.models.maxent.loglik_grad` returns them. θ is not validated inside the graph
     (a sampler proposes only what its transforms allow); an R <= 0 or a non-finite θ
     gives a non-finite log-likelihood, which the sampler rejects.
     """
@@ -135,7 +135,7 @@ class MaxEntLoglikOp(MaxEntLoglikDataOp):
     Parameters
     ----------
     batch : SegmentBatch
-        From :func:`models.segment.prepare_batch`; n segments of K observed steps, whose
+        From :func:`scioc.models.segment.prepare_batch`; n segments of K observed steps, whose
         plan may look M >= 0 steps further (u_A and the reference of length K + M).
     plant : DiscretePlant
         The 0.01-s wheel discretization the batch was prepared with.
@@ -193,7 +193,7 @@ class MaxEntLoglikOp(MaxEntLoglikDataOp):
 
 @numba_funcify.register(MaxEntLoglikDataOp)
 def numba_funcify_maxent_loglik(op: MaxEntLoglikDataOp, node=None, **kwargs):
-    """Numba implementation of both Ops: :func:`models.maxent.batch_kernel`, no object mode.
+    """Numba implementation of both Ops: :func:`scioc.models.maxent.batch_kernel`, no object mode.
 
     Bound data become globals of the compiled function (numba embeds small ones as
     constants and references large ones by address; the Op keeps them alive). The

@@ -1,12 +1,12 @@
 """The curved whitening's pivot with its tails drawn in: a smooth odd map that grows like a square root far out.
 
-Why. In the curved whitening (:mod:`models.bayes.whiten`, "Curved") each subject's pivot p is an affine coordinate.
+Why. In the curved whitening (:mod:`scioc.models.bayes.whiten`, "Curved") each subject's pivot p is an affine coordinate.
 Where p is ρ's signed coordinate ρ̃ (ρ = R^(-1/2), the policy noise's scale), the data hold the policy noise's
 variance, ρ², so beyond the ridge's end the log density falls about like -(ρ̃² - c)² / 2v: a wall whose
-curvature grows as ρ̃², which no affine map removes. On the twelve ``kbl`` subjects of :mod:`pipelines.fit.warmup`
+curvature grows as ρ̃², which no affine map removes. On the twelve ``kbl`` subjects of :mod:`scioc.pipelines.fit.warmup`
 at nutpie's target acceptance 0.8, four of five divergent trajectories ended on one subject's pivot beyond the
 largest |ρ̃| of its draws (read ad hoc with nutpie's ``store_divergences``, 2026-12-07; measured: module
-:mod:`pipelines.fit.warmup`, "The pivot's tails"), and the trajectory's last step moved ρ̃ by a third of its draws'
+:mod:`scioc.pipelines.fit.warmup`, "The pivot's tails"), and the trajectory's last step moved ρ̃ by a third of its draws'
 range or more, with energy errors of 10³-10¹⁰.
 
 What. With m the pivot's affine coordinate (the p-th of L_i w_i) the pivot's deviation from its centre is::
@@ -15,13 +15,13 @@ What. With m the pivot's affine coordinate (the p-th of L_i w_i) the pivot's dev
 
 odd, increasing, f_b(m) ≈ m for |m| ≪ b and ≈ sign(m) √(b |m|) for |m| ≫ b, so that a quartic wall in δ is a
 quadratic one in m; b = ∞ is the identity (the affine pivot). The map w -> x then has the Jacobian determinant
-det L_i f_b'(m_i) per subject, whose log the sampled model adds (:func:`models.bayes.whiten.whitened_model`): the
+det L_i f_b'(m_i) per subject, whose log the sampled model adds (:func:`scioc.models.bayes.whiten.whitened_model`): the
 posterior is still exactly the model's. b is chosen per subject from posterior draws of δ (a pilot run's,
-:func:`models.bayes.whiten_draws.draws_factors`), by maximum likelihood of the law "m normal, δ = f_b(m)" over the
+:func:`scioc.models.bayes.whiten_draws.draws_factors`), by maximum likelihood of the law "m normal, δ = f_b(m)" over the
 grid :data:`TAIL_GRID` (in units of δ's SD): the map that makes the pivot's draws most normal, the identity among
 them. The grid stops at δ's SD: with b down to a quarter of it (where the likelihood went for every subject, as
 ρ̃'s draws have two modes), the map's bend lay inside the bulk, and the kept trees were as deep as without the map
-at 0.9 (:mod:`pipelines.fit.warmup`, "The pivot's tails").
+at 0.9 (:mod:`scioc.pipelines.fit.warmup`, "The pivot's tails").
 """
 
 from __future__ import annotations

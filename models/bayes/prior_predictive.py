@@ -1,11 +1,11 @@
-"""Prior predictive check of the hierarchical model (:mod:`models.bayes.hierarchical`).
+"""Prior predictive check of the hierarchical model (:mod:`scioc.models.bayes.hierarchical`).
 
 :func:`prior_predictive_summary` draws all unit parameters jointly from the model's prior,
 simulates every segment of a study exactly from the max-ent human the likelihood
 assumes, and summarizes the RMS torque and RMS tracking error against the observed ones,
 per condition level. It works for any design: pass the levels (baseline first), the wheel
 discretized at the recording's sample time and the priors at that rate
-(:meth:`models.bayes.hierarchical.Priors.for_design`).
+(:meth:`scioc.models.bayes.hierarchical.Priors.for_design`).
 
 Prior predictive check: :func:`prior_predictive_summary` on the default study of ``scioc run``
 (``reports/default-study/data/study.parquet``, seed 2018, 42 subjects; every segment through
@@ -31,11 +31,11 @@ rad (MC) and 0.20 rad (SC) RMS error, i.e. as bad as or worse than not steering 
 (the reference itself has an RMS of 0.2 rad): those priors are rejected by the check.
 
 The first priors, μ ~ N(log 50, 1) and μ_R ~ N(0, 1), were chosen for an earlier
-stand-in simulator whose R was about 1; on the simulated study of :mod:`models.simulate`,
+stand-in simulator whose R was about 1; on the simulated study of :mod:`scioc.models.simulate`,
 R about 20, the observed RMS torque lies at or below the 5 % quantile of their prior
 predictive, through the same call: 5-95 % 0.37-1.70 N·m in MC against 0.27-0.32
 observed, 0.25-1.94 in SC against 0.12-0.19. Hence the priors of
-:class:`models.bayes.hierarchical.Priors`.
+:class:`scioc.models.bayes.hierarchical.Priors`.
 """
 
 from __future__ import annotations
@@ -46,17 +46,17 @@ from typing import NamedTuple
 import numpy as np
 import pymc as pm
 
-from models.bayes.delayed_model import DelayedPriors, build_delayed_model
-from models.bayes.delayed_op import pack_tau0, warmups_of
-from models.bayes.hierarchical import Priors, build_model
-from models.cost import from_normalized
-from models.delayed import sample_delayed
-from models.delayed.lag import lag_coefficients, window_tau0
-from models.design import CONDITIONS, WheelParameters
-from models.maxent import sample_maxent
-from models.plant import DiscretePlant
-from models.segment import Feedback, as_batch, planning_plant
-from models.units import index_study
+from scioc.models.bayes.delayed_model import DelayedPriors, build_delayed_model
+from scioc.models.bayes.delayed_op import pack_tau0, warmups_of
+from scioc.models.bayes.hierarchical import Priors, build_model
+from scioc.models.cost import from_normalized
+from scioc.models.delayed import sample_delayed
+from scioc.models.delayed.lag import lag_coefficients, window_tau0
+from scioc.models.design import CONDITIONS, WheelParameters
+from scioc.models.maxent import sample_maxent
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import Feedback, as_batch, planning_plant
+from scioc.models.units import index_study
 
 
 class PriorPredictive(NamedTuple):
@@ -95,15 +95,15 @@ def prior_predictive_summary(
     """Simulate the study's segments under prior draws and summarize torques and errors.
 
     Each draw takes all unit parameters jointly from the prior
-    (:func:`models.bayes.hierarchical.build_model`) and simulates every segment exactly
-    from the max-ent model with :func:`models.maxent.sample_maxent`
+    (:func:`scioc.models.bayes.hierarchical.build_model`) and simulates every segment exactly
+    from the max-ent model with :func:`scioc.models.maxent.sample_maxent`
     (x0, angle_ref and the segment's known input and plan, preview included); states follow
     from the drawn torques, and both are summarized over the K observed steps.
 
     Parameters
     ----------
     subjects, conditions, segments, plant
-        As for :func:`models.bayes.hierarchical.build_model` (``plant`` at the
+        As for :func:`scioc.models.bayes.hierarchical.build_model` (``plant`` at the
         recording's sample time).
     rng : numpy.random.Generator
     draws : int
@@ -179,13 +179,13 @@ def delayed_prior_predictive_summary(subjects: Sequence, conditions: Sequence, s
                                      priors: Priors = Priors(), delayed_priors: DelayedPriors = DelayedPriors(),
                                      levels: Sequence = CONDITIONS,
                                      params: WheelParameters = WheelParameters()) -> DelayedPriorPredictive:
-    """:func:`prior_predictive_summary` for :func:`models.bayes.delayed_model.build_delayed_model`.
+    """:func:`prior_predictive_summary` for :func:`scioc.models.bayes.delayed_model.build_delayed_model`.
 
     Each draw takes all unit parameters (θ per unit, τ_nm and σ_m per subject) jointly from
     the model's prior and simulates every segment from the ``delayed`` human
-    (:func:`models.delayed.sample_delayed`, the physical arm) at the segment's plug-in
+    (:func:`scioc.models.delayed.sample_delayed`, the physical arm) at the segment's plug-in
     ``delay`` (samples) and arm torque ``tau0`` at its start (a number per segment, or
-    warm-ups: :func:`models.bayes.delayed_op.pack_tau0`, evaluated at the drawn τ_nm).
+    warm-ups: :func:`scioc.models.bayes.delayed_op.pack_tau0`, evaluated at the drawn τ_nm).
     Also the prior quantiles of τ_nm and σ_m themselves.
     """
     batch = as_batch(segments, plant)

@@ -28,7 +28,7 @@ sample size, min over ψ_s, so a poor proposal shows.
 Unit parameters per subject, with L levels (baseline first; MC, SC by default): condition
 model (log θ1 of each level, log R of each level, θ2 of each level: 3L); pooled model
 (log θ1 shared, then the same: 2L + 1). The conditional prior of a non-baseline level c is
-N(baseline value + β_c, σ_β,c), as :mod:`models.bayes.hierarchical` states it (whatever form
+N(baseline value + β_c, σ_β,c), as :mod:`scioc.models.bayes.hierarchical` states it (whatever form
 the sampler used: the forms are the same model). Trials are further segments of their
 unit: their log-likelihoods add.
 """
@@ -40,10 +40,10 @@ from typing import NamedTuple
 import numpy as np
 from scipy import special, stats
 
-from models.cost import from_normalized
-from models.maxent import loglik_grad
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch
+from scioc.models.cost import from_normalized
+from scioc.models.maxent import loglik_grad
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import SegmentBatch
 
 #: Student-t degrees of freedom of the proposals.
 NU = 4.0
@@ -158,7 +158,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         The segments the model was fitted to.
     subject_idx, condition_idx : array_like of int, shape (n_segments,)
         Each segment's subject and level (0 = the baseline), as in
-        :func:`models.units.index_study`; several segments of one unit are its trials.
+        :func:`scioc.models.units.index_study`; several segments of one unit are its trials.
     plant : DiscretePlant
     rng : numpy.random.Generator
         For the proposal points.
@@ -168,7 +168,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         Proposal points per subject.
     extra : SubjectTerms, optional
         Further per-subject parameters of another human model and its likelihood
-        (:class:`models.bayes.delayed_loo.DelayedSubjectTerms`): their posterior draws
+        (:class:`scioc.models.bayes.delayed_loo.DelayedSubjectTerms`): their posterior draws
         join the Student-t block, their conditional prior joins the weights, and the
         segments' log-likelihood is theirs; one with ``grid_columns`` (indices into its columns),
         ``prior_grid_draw`` (rng, M) -> (M, len(grid_columns)) and ``prior_grid_logpdf`` (M,

@@ -1,12 +1,12 @@
 """Bayesian model of one unit of the ``delayed`` human: the per-unit posterior that unit-level SBC checks.
 
-The max-ent unit model (:mod:`models.bayes.unit_model`) with the lag and the motor noise
-of :mod:`models.delayed.likelihood`::
+The max-ent unit model (:mod:`scioc.models.bayes.unit_model`) with the lag and the motor noise
+of :mod:`scioc.models.delayed.likelihood`::
 
     log θ1 ~ N(log 20, 0.75)      θ2 ~ HalfNormal(0.05)      log R ~ N(log 20, 0.5)
     log τ_nm ~ N(log 0.06, 0.5)   τ_nm in s: 0.02-0.16 s (central 95 %)
     σ_m ~ HalfNormal(0.3)         motor-noise SD, N·m per sample
-    d ~ uniform on the delay grid (0-300 ms, :func:`models.delayed.identify.delay_grid`)
+    d ~ uniform on the delay grid (0-300 ms, :func:`scioc.models.delayed.identify.delay_grid`)
     u_H ~ delayed(θ, τ_nm, σ_m, d | x0, angle_ref, assistant, τ_0)
 
 θ is the cost of the commands. The cost priors are the max-ent unit's (R at 100 Hz,
@@ -14,17 +14,17 @@ shifted by log(dt / 0.01) for another rate as :meth:`DelayedUnitPrior.for_design
 τ_nm's covers the neuromuscular time constants of the manual-control literature
 (McRuer & Jex 1967, Kleinman, Baron & Levison 1970: about 0.1 s; a firm grip faster),
 σ_m's the motor noise of KBL's -25 dB (0.25 N·m per 10-ms sample on the study's torques,
-:mod:`models.humans`) with room on both sides.
+:mod:`scioc.models.humans`) with room on both sides.
 
 The delay is sampled (``delay=None``): an integer ``delay_index`` uniform over the grid,
-updated by :class:`models.bayes.delay_step.DelayMetropolis` beside NUTS
+updated by :class:`scioc.models.bayes.delay_step.DelayMetropolis` beside NUTS
 (:class:`UnitDelayedSampler`), so the continuous parameters' draws are their posterior with
 the delay marginalized. Given a number instead, the model conditions on that delay: the
 ``no-delay`` negative control conditions on 0, and a plug-in delay (the maximum of the
 profile likelihood) was measured to miscalibrate R, τ_nm and σ_m (README "Human models").
 
 The data, the delay and the arm torque at the window's start enter through ``pm.Data``
-containers (:data:`models.bayes.delayed_op.DELAYED_DATA_NAMES`), so one compiled model
+containers (:data:`scioc.models.bayes.delayed_op.DELAYED_DATA_NAMES`), so one compiled model
 serves every data set of the same shape.
 """
 
@@ -37,15 +37,15 @@ import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 
-from models.bayes.delay_step import DelayMetropolis
-from models.bayes.delayed_op import DELAYED_DATA_NAMES, DelayedLoglikDataOp, pack_tau0
-from models.bayes.delayed_value import DelayedLoglikValueOp  # noqa: F401 (registers its rewrite)
-from models.bayes.op import DATA_NAMES
-from models.cost import from_normalized
-from models.delayed.identify import delay_grid
-from models.design import Design, WheelParameters
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch
+from scioc.models.bayes.delay_step import DelayMetropolis
+from scioc.models.bayes.delayed_op import DELAYED_DATA_NAMES, DelayedLoglikDataOp, pack_tau0
+from scioc.models.bayes.delayed_value import DelayedLoglikValueOp  # noqa: F401 (registers its rewrite)
+from scioc.models.bayes.op import DATA_NAMES
+from scioc.models.cost import from_normalized
+from scioc.models.delayed.identify import delay_grid
+from scioc.models.design import Design, WheelParameters
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import SegmentBatch
 
 #: Names of the parameters SBC ranks.
 UNIT_DELAYED_PARAMETERS = ("theta1", "theta2", "R", "tau_nm", "sigma_m")
@@ -116,7 +116,7 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
         it); None samples it (``delay_index`` uniform over ``prior.delays()``, all segments
         one delay; sample with :class:`UnitDelayedSampler`).
     tau0 : float, array_like (n,) or sequence of Warmup
-        The arm torque at each window's start, as :func:`models.bayes.delayed_op.pack_tau0` takes it.
+        The arm torque at each window's start, as :func:`scioc.models.bayes.delayed_op.pack_tau0` takes it.
     params : WheelParameters
         The wheel ``plant`` was discretized from.
 
@@ -126,7 +126,7 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
         Free variables ``log_theta1``, ``theta2``, ``log_R``, ``log_tau_nm``, ``sigma_m``
         (and ``delay_index`` if ``delay`` is None);
         deterministics ``theta1``, ``R``, ``tau_nm``; data of
-        :data:`models.bayes.delayed_op.DELAYED_DATA_NAMES`; the likelihood as a potential.
+        :data:`scioc.models.bayes.delayed_op.DELAYED_DATA_NAMES`; the likelihood as a potential.
     """
     op = DelayedLoglikDataOp(plant, params)
     values = unit_delayed_data(batch, delay, tau0)
@@ -157,7 +157,7 @@ class UnitDelayedSampler:
 
     Builds :func:`build_unit_delayed_model` with ``delay=None`` on ``batch`` (its data are
     placeholders) and compiles its two steps once: PyMC's NUTS for the continuous
-    parameters and :class:`models.bayes.delay_step.DelayMetropolis` for the delay, both
+    parameters and :class:`scioc.models.bayes.delay_step.DelayMetropolis` for the delay, both
     compiled by numba (measured: half the time of PyTensor's default C backend, whose
     Python-level ``perform`` of the likelihood Op dominates on 6-s windows). Compiling them
     took about 18 s of every 50-s replication on 6-s windows when each replication built

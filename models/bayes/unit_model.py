@@ -8,11 +8,11 @@ normalized parameters of the paper (Section V-A)::
     log R  ~ N(log 20, 0.5)       R, 1/(N·m)²
     u_H    ~ max-ent(θ | x0, angle_ref, u_A)          (paper Eq. 8)
 
-The prior is centred on the simulated study's population (:class:`models.simulate.Population`)
+The prior is centred on the simulated study's population (:class:`scioc.models.simulate.Population`)
 and wide enough to cover it: θ1 from about 5 to 90 and R from 7 to 55 (central 95 %),
 i.e. torque variability per sample from about 0.1 to 0.27 N·m. R is stated at 100 Hz;
 :meth:`UnitPrior.for_design` shifts log R's centre by log(dt / 0.01) for another sample
-time (R ∝ dt, :mod:`models.design`). The data enter through
+time (R ∝ dt, :mod:`scioc.models.design`). The data enter through
 ``pm.Data`` containers, so a model compiled once serves any data set of the same shape.
 """
 
@@ -25,11 +25,11 @@ import numpy as np
 import pymc as pm
 import pytensor.tensor as pt
 
-from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp
-from models.cost import from_normalized
-from models.design import Design
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch
+from scioc.models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp
+from scioc.models.cost import from_normalized
+from scioc.models.design import Design
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import SegmentBatch
 
 #: Names of the parameters SBC ranks.
 UNIT_PARAMETERS = ("theta1", "theta2", "R")

@@ -1,7 +1,7 @@
 """Per-subject whitening of a hierarchical model's unconstrained space: a fixed affine reparametrization for NUTS.
 
 Why. In the ``delayed`` model each subject's baseline log R is tied to its log τ_nm and σ_m
-(correlations -0.86 and 0.6, :mod:`models.bayes.delayed_model`, "Geometry"), one such
+(correlations -0.86 and 0.6, :mod:`scioc.models.bayes.delayed_model`, "Geometry"), one such
 direction per subject. nutpie's diagonal mass matrix cannot hold those correlations, and its
 low-rank one learns them only after more warm-up draws than the model has dimensions (README,
 "Which part of the warm-up"). But the subjects are independent given the population: the
@@ -40,7 +40,7 @@ Where σ_m's coordinate is v (σ_m = |v|, the folded centred form), the mode is 
 parabola is symmetric about it: no linear map of v removes it, and each tree of NUTS has to turn
 along it. So, given a ``pivot`` coordinate p in each block (σ_m's; ρ's where ρ = R^(-1/2) is signed, whose
 ridge is an arch over it; with both signed, per subject the one whose fold the mode is nearest,
-:func:`nearest_fold`, :func:`models.bayes.delayed_blocks.ridge_pivots`), the map is::
+:func:`nearest_fold`, :func:`scioc.models.bayes.delayed_blocks.ridge_pivots`), the map is::
 
     x_i = x̂_i + L_i w_i + a_i δ_i²,   δ_i = (L_i w_i)_p,   a_ip = 0
 
@@ -51,7 +51,7 @@ w is still p(x(w)) times a constant. The map is one-to-one: δ is read off x_p, 
 x - x̂ - a δ². On a banana whose ridge is exactly quadratic it is exact (the density of w is a
 standard normal). Measured on the full-size study: README, "Speed".
 
-x̂ and H are computed by :mod:`pipelines.fit.whiten` (the conditional mode with the
+x̂ and H are computed by :mod:`scioc.pipelines.fit.whiten` (the conditional mode with the
 population's scales held, central differences of the exact gradient). H_i comes from one
 difference per column of a block, for all subjects at once (:func:`block_hessian`): subject
 j's gradient does not depend on subject i's coordinates, so 2k gradients give every block.
@@ -73,7 +73,7 @@ import pymc as pm
 import pytensor.tensor as pt
 from pytensor.graph.replace import graph_replace
 
-from models.bayes.pivot_tails import tail_log_slope, tail_map
+from scioc.models.bayes.pivot_tails import tail_log_slope, tail_map
 
 #: Eigenvalues of |H_i| below this fraction of its largest are raised to it (a direction the data and
 #: prior leave flat at x̂ gets a finite scale; its own diagonal mass-matrix entry adapts it).
@@ -184,7 +184,7 @@ def nearest_fold(x: np.ndarray, blocks: np.ndarray, L: np.ndarray, pivots, signe
     is signed in that subject (``signed`` (n, len(pivots)) bool: its law symmetric about 0, the fold), the one
     whose value at ``x`` is nearest 0 in its own scale, |x_p| / sqrt((L_i L_iᵀ)_pp), the first on a tie; the last
     pivot where none is signed. The ridge a signed pair shares is an arch that tops where one of them is 0
-    (:func:`models.bayes.delayed_blocks.ridge_pivots`), and the subject's mode lies near that top."""
+    (:func:`scioc.models.bayes.delayed_blocks.ridge_pivots`), and the subject's mode lies near that top."""
     pivots = np.asarray(pivots, dtype=int)
     n, k = blocks.shape
     if pivots.ndim != 1 or pivots.size == 0 or np.any((pivots < 0) | (pivots >= k)):
@@ -289,7 +289,7 @@ def newton_steps(grad, x: np.ndarray, blocks: np.ndarray, scale: np.ndarray) -> 
 
 def pivot_curve(curve):
     """(pivot, a (n, k), b (n,) or None) of a curved group's third entry, (pivot, a) or (pivot, a, b) with b the
-    pivot's tail scales (:mod:`models.bayes.pivot_tails`; None or absent: the affine pivot)."""
+    pivot's tail scales (:mod:`scioc.models.bayes.pivot_tails`; None or absent: the affine pivot)."""
     pivot, a, *rest = curve
     b = rest[0] if rest else None
     return int(pivot), a, (None if b is None else np.asarray(b, dtype=float))
@@ -300,7 +300,7 @@ def to_unconstrained(w: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
 
     ``groups``: (blocks (n, k), L (n, k, k)) pairs on disjoint coordinates, or (blocks, L, (pivot, a (n, k)[, b
     (n,)])) with each subject's ridge curvature (:func:`ridge_curvature`) and its pivot's tail scale
-    (:mod:`models.bayes.pivot_tails`: δ = f_b(m_p)); every other coordinate is x̂ + w.
+    (:mod:`scioc.models.bayes.pivot_tails`: δ = f_b(m_p)); every other coordinate is x̂ + w.
     """
     w = np.asarray(w, dtype=float)
     x = w + x_hat

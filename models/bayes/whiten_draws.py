@@ -1,8 +1,8 @@
-"""The per-subject whitening of :mod:`models.bayes.whiten` measured on posterior draws instead of at a Hessian.
+"""The per-subject whitening of :mod:`scioc.models.bayes.whiten` measured on posterior draws instead of at a Hessian.
 
 Why. The whitening's factors L_i come from the Hessian at x̂, the mode with the population's
 scales held. Where a subject's posterior is far from Gaussian there, they describe it badly. On
-the twelve subjects of the ``kbl`` human that sample worst (:mod:`pipelines.fit.delayed_forms`,
+the twelve subjects of the ``kbl`` human that sample worst (:mod:`scioc.pipelines.fit.delayed_forms`,
 "Polar, squared, and the low-rank mass matrix"), the curved fit's draws in the whitened
 coordinates w (saved ad hoc by a wrapper; 2 chains × 300 kept draws, seed 1) had SDs from 0.75
 to 28 (log σ_m's tail towards 0, which the Hessian at the mode does not see), and within a subject correlations whose matrix had eigenvalues from 0.0095 to 4.8:
@@ -13,7 +13,7 @@ autocorrelated draws of an identity give. The subjects are independent given the
 nothing between blocks is left for a dense matrix to learn. Measured: README, "Speed".
 
 What. :func:`draws_factors` takes draws x of the posterior (a short pilot run on the Hessian's
-whitening, :func:`pipelines.fit.whiten.sample_whitened`) and gives each block of the same groups
+whitening, :func:`scioc.pipelines.fit.whiten.sample_whitened`) and gives each block of the same groups
 a new centre, factor and, where curved, curvature:
 
 * an affine block: its draws' mean and the Cholesky factor of their covariance;
@@ -22,7 +22,7 @@ a new centre, factor and, where curved, curvature:
   exact for the posterior and halves the Monte Carlo error of the even moments) and its mean
   otherwise. With δ = x_p - centre, every other coordinate is regressed on (1, δ, δ²): the
   intercept is its centre, the δ² coefficient its curvature a, so that x - centre - a δ² is what the
-  affine factor L must hold (:func:`models.bayes.whiten.to_unconstrained`'s map, with x̂ the centre).
+  affine factor L must hold (:func:`scioc.models.bayes.whiten.to_unconstrained`'s map, with x̂ the centre).
 
 The map stays one-to-one with a constant Jacobian (a_p = 0), so the sampled posterior is still
 exactly the model's, whatever the pilot's draws were: they choose coordinates, not the law. A block
@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.bayes.pivot_tails import tail_inverse, tail_scale
-from models.bayes.whiten import EIGEN_FLOOR, pivot_curve
+from scioc.models.bayes.pivot_tails import tail_inverse, tail_scale
+from scioc.models.bayes.whiten import EIGEN_FLOOR, pivot_curve
 
 
 def covariance_factor(cov: np.ndarray, floor: float = EIGEN_FLOOR) -> np.ndarray | None:
@@ -52,7 +52,7 @@ def covariance_factor(cov: np.ndarray, floor: float = EIGEN_FLOOR) -> np.ndarray
 
 def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds, tails: bool = True
                   ) -> tuple[np.ndarray, list, int]:
-    """(x̂, groups, kept): ``groups`` (as :func:`models.bayes.whiten.to_unconstrained` takes them) measured again on
+    """(x̂, groups, kept): ``groups`` (as :func:`scioc.models.bayes.whiten.to_unconstrained` takes them) measured again on
     posterior draws ``x`` (..., D) (module docstring); ``kept`` counts the blocks whose draws did not move, which
     keep their factor and centre from ``x_hat`` and ``groups``.
 
@@ -103,7 +103,7 @@ def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds, tails: bool =
 
 
 def to_white(x: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
-    """w from x (..., D): the inverse of :func:`models.bayes.whiten.to_unconstrained` (δ read off the pivot's x,
+    """w from x (..., D): the inverse of :func:`scioc.models.bayes.whiten.to_unconstrained` (δ read off the pivot's x,
     m = f_b⁻¹(δ) in its place, then w = L⁻¹ (x - x̂ - a δ²) per block)."""
     x = np.asarray(x, dtype=float)
     w = x - x_hat

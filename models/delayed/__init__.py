@@ -18,16 +18,24 @@ module                     what it holds
 :mod:`.identify`           maximum likelihood: θ, τ_nm, σ_m, and the delay by profile
 =========================  ===========================================================
 
-With delay, lag and motor noise at zero the model is the paper's (:mod:`models.maxent`).
+With delay, lag and motor noise at zero the model is the paper's (:mod:`scioc.models.maxent`).
 """
 
-from models.delayed.angles import AngleWindow, angle_loglik, window_loglik
-from models.delayed.dense import DelayedDense, loglik_dense
-from models.delayed.identify import DELAY_GRID_S, DelayedEstimate, delay_grid, identify_unit_delayed
-from models.delayed.lag import (ArmTorque, LagCoefficients, LaggedPlanningPlant, Warmup, arm_torque, lag_coefficients,
-                                lagged_planning_plant, window_tau0)
-from models.delayed.likelihood import PARAMETERS, DelayedLoglikGrad, innovations, loglik, loglik_grad
-from models.delayed.sample import DelayedDraw, closed_loop, forward_delayed, sample_delayed
+from scioc.models.delayed.angles import AngleWindow, angle_loglik, window_loglik
+from scioc.models.delayed.dense import DelayedDense, loglik_dense
+from scioc.models.delayed.identify import DELAY_GRID_S, DelayedEstimate, delay_grid, identify_unit_delayed
+from scioc.models.delayed.lag import (
+                                ArmTorque,
+                                LagCoefficients,
+                                LaggedPlanningPlant,
+                                Warmup,
+                                arm_torque,
+                                lag_coefficients,
+                                lagged_planning_plant,
+                                window_tau0,
+)
+from scioc.models.delayed.likelihood import PARAMETERS, DelayedLoglikGrad, innovations, loglik, loglik_grad
+from scioc.models.delayed.sample import DelayedDraw, closed_loop, forward_delayed, sample_delayed
 
 __all__ = [
     "AngleWindow",

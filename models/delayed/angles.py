@@ -2,7 +2,7 @@
 
 Why a second likelihood
 -----------------------
-:mod:`models.delayed.likelihood` is the density of the human's *torques*. The paper's rig
+:mod:`scioc.models.delayed.likelihood` is the density of the human's *torques*. The paper's rig
 records only the wheel angle (an encoder of q rad per count); scioc then reconstructs the
 torque, and that reconstruction smooths it. The delayed model reads the smoothing as
 neuromuscular lag (on angle-only ``kbl`` data τ_nm ran to its 1-s bound in 81 of 84 units,
@@ -12,17 +12,17 @@ describe the angles themselves, with the encoder inside it. This module does tha
 
 The model
 ---------
-The closed loop of :func:`models.delayed.sample.closed_loop` (physically lagged wheel, as
-:func:`models.delayed.sample.sample_delayed` draws it), with z = (angle, velocity, arm
+The closed loop of :func:`scioc.models.delayed.sample.closed_loop` (physically lagged wheel, as
+:func:`scioc.models.delayed.sample.sample_delayed` draws it), with z = (angle, velocity, arm
 torque), the human's plan (L_k, f_k, S_k) for the command cost θ on its planning plant
-(Ā, b_c, b_a) (:func:`models.delayed.sample.delayed_setup`; with the assistant's law Ā
+(Ā, b_c, b_a) (:func:`scioc.models.delayed.sample.delayed_setup`; with the assistant's law Ā
 contains it), white policy noise ε_k ~ N(0, 1/(2 S_k)) and white motor noise
 m_k ~ N(0, σ_m²) that the human does not know. The truth moves as
 ``z_{k+1} = Ā z_k + b_c (c_k + m_k) + b_a κ_k`` (κ the known input: the assistant's
 feedforward with its law, or its recorded torque), and the human, seeing z_{k-d} and
 predicting with its own commands, acts on ``ẑ_k = z_k - e_k``,
 ``e_k = Σ_{j=1..d} G_j m_{k-j}``, ``G_j = Ā^{j-1} b_c`` (derived in
-:mod:`models.delayed.likelihood`). With ``c_k = -L_k ẑ_k + f_k + ε_k``::
+:mod:`scioc.models.delayed.likelihood`). With ``c_k = -L_k ẑ_k + f_k + ε_k``::
 
     z_{k+1} = (Ā - b_c L_k) z_k + b_c (Σ_{j=1..d} h_{k,j} m_{k-j} + ε_k + m_k + f_k) + b_a κ_k,
     h_{k,j} = L_k G_j   (the MA coefficients of the torque likelihood).
@@ -51,7 +51,7 @@ is stationary (all of a window but its last steps when the plan looks past it) i
 converges: once it moves by at most :data:`FREEZE_RTOL` in a step, it and the filter's
 gain are held and only the mean moves, O(d) per step, until the plan moves again (tested:
 equal to the unheld filter to rounding). Against O(K³) for the dense joint Gaussian
-(:func:`models.delayed.dense.angle_loglik_dense`, the reference of the tests).
+(:func:`scioc.models.delayed.dense.angle_loglik_dense`, the reference of the tests).
 """
 
 from __future__ import annotations
@@ -59,14 +59,14 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from models.delayed.lag import Warmup, lag_coefficients, window_tau0
-from models.delayed.sample import delayed_setup
-from models.design import WheelParameters
-from models.maxent import HALF_LOG_2PI
-from models.plant import DiscretePlant
-from models.segment import Feedback
+from scioc.models.delayed.lag import Warmup, lag_coefficients, window_tau0
+from scioc.models.delayed.sample import delayed_setup
+from scioc.models.design import WheelParameters
+from scioc.models.maxent import HALF_LOG_2PI
+from scioc.models.plant import DiscretePlant
+from scioc.models.runtime import njit
+from scioc.models.segment import Feedback
 
 
 class AngleLoglik(NamedTuple):
@@ -245,7 +245,7 @@ def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn, freez
 
 
 def angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params):
-    """The plan and the loop of one window (:func:`models.delayed.sample.delayed_setup`, physically lagged)."""
+    """The plan and the loop of one window (:func:`scioc.models.delayed.sample.delayed_setup`, physically lagged)."""
     return delayed_setup(theta, angle_ref, plant, u_A=u_A, feedback=feedback, tau_nm=tau_nm, params=params,
                          physical=True)
 

@@ -1,14 +1,14 @@
 """Parametric bootstrap through the acquisition chain, drawing from a fitted ``delayed`` human.
 
-The adequacy checks (:mod:`models.adequacy`) compare a segment's recorded data with ``B``
+The adequacy checks (:mod:`scioc.models.adequacy`) compare a segment's recorded data with ``B``
 data sets drawn from the fitted human model through the *same* chain. This module is
-:mod:`models.bootstrap` for the ``delayed`` human (:mod:`models.delayed.likelihood`):
+:mod:`scioc.models.bootstrap` for the ``delayed`` human (:mod:`scioc.models.delayed.likelihood`):
 the statistics, their calibration, min-P and Fisher are those of every human model; what
 changes is where the replicates come from and what the residual series z is.
 
 What is drawn
 -------------
-Each replicate runs the delayed human's closed loop (:func:`models.delayed.sample.closed_loop`)
+Each replicate runs the delayed human's closed loop (:func:`scioc.models.delayed.sample.closed_loop`)
 over the chain's span (the reconstruction span where the torque is reconstructed from the
 angle, else the window) at the fitted θ, τ_nm, σ_m and delay d: the human plans on the
 lagged wheel (closed by the assistant's law with ``feedback``, else with the recorded
@@ -16,14 +16,14 @@ u_A as a known input), sees the state d samples late and predicts it with its ow
 commands; max-ent noise ``ε_k ~ N(0, 1 / (2 S_k))`` (times ``noise_scale``) and motor
 noise ``m_k ~ N(0, σ_m²)`` enter the command; the assistant acts on the true state every
 sample (``u_A = -gain·x + feedforward``) or plays the recorded u_A. The plan's horizon is
-the likelihood's (window plus preview), as in :mod:`models.bootstrap`. The motor noises
+the likelihood's (window plus preview), as in :mod:`scioc.models.bootstrap`. The motor noises
 before the span are drawn from their prior, as the likelihood assumes before its window.
 Replicates start at the span's first state: the reconstructed (or measured) angle and
 velocity, and the arm torque τ_s below. The true state moves on the physically lagged
-wheel (the arm torque acts continuously within each sample, :func:`models.plant.discretize_lagged`),
+wheel (the arm torque acts continuously within each sample, :func:`scioc.models.plant.discretize_lagged`),
 as a real arm's does, and the replicate's u_H is its ZOH-equivalent torque; the likelihood
 moves the angle with that torque held over the sample, about 1e-5 rad per step apart
-(:mod:`models.humans`). Replicates in the likelihood's convention instead made segments of
+(:mod:`scioc.models.humans`). Replicates in the likelihood's convention instead made segments of
 the physically lagged ``kbl`` and ``combined`` humans at their true parameters look unlike
 their replicates once the angle-only data had passed the reconstruction (16-20 of 84
 flagged; 9 and 6 of 84 with physical replicates).
@@ -32,9 +32,9 @@ What is measured
 ----------------
 Every data set, the recorded one included, goes through the same encoder (replicates
 are quantized when the torque is reconstructed) and the same fixed reconstruction
-filter (:func:`models.bootstrap.measure_span`), and its z is the standardized
+filter (:func:`scioc.models.bootstrap.measure_span`), and its z is the standardized
 innovations of the delayed model at the fitted parameters over the window
-(:func:`models.delayed.likelihood.innovations`, iid N(0, 1) under the model for the true
+(:func:`scioc.models.delayed.likelihood.innovations`, iid N(0, 1) under the model for the true
 torque): the analogue of the max-ent residuals. The recorded row's window starts at
 ``x0_window``, the state its likelihood starts from; replicates start at their own
 measured state at the window start.
@@ -44,12 +44,12 @@ The arm torque at the window start, τ_0
 The likelihood conditions on τ_0, which the identification supplies for the recorded
 data (``tau0``). Each replicate needs its own, estimated the way the recorded one was.
 The arm torque after the span's first w0 torques is the recursion
-``τ_{k+1} = a τ_k + (1 - a) (u_k - α τ_k) / (1 - α)`` (:func:`models.delayed.lag.arm_torque`), affine
+``τ_{k+1} = a τ_k + (1 - a) (u_k - α τ_k) / (1 - α)`` (:func:`scioc.models.delayed.lag.arm_torque`), affine
 in the torques with the same coefficient ``p^{w0}``, p = (a - α) / (1 - α), on its start for
 every data set. So
 the replicates get ``τ_0,i = tau0 + T(u_i) - T(u_rec)``, T the recursion over the span
 before the window from any common start: if the recorded tau0 is that recursion from the
-arm torque at the span start (a :class:`models.delayed.lag.Warmup` of the span's torques), every
+arm torque at the span start (a :class:`scioc.models.delayed.lag.Warmup` of the span's torques), every
 replicate gets the same recursion from the same start, whatever that start was; the
 difference does not depend on it. A measured torque's span is the window (w0 = 0): every
 data set then has τ_0 = tau0, and the replicates start there, exactly the conditioning of
@@ -79,11 +79,11 @@ delayed fit on reconstructed torques is itself biased is the identification's qu
 if it is, the same measurement with fitted instead of true parameters shows it.
 
 With delay, lag and motor noise at zero the replicates are the max-ent bootstrap's on the
-same random draws and the statistics agree with :func:`models.bootstrap.bootstrap_records`'
+same random draws and the statistics agree with :func:`scioc.models.bootstrap.bootstrap_records`'
 to rounding (the two plans and residual passes sum in different orders; tested).
 
 numba caches :func:`_measure_rows` with the code of what it calls from other files
-(:func:`models.bootstrap.measure_span`, :func:`models.delayed.lag.arm_torque_recursion`)
+(:func:`scioc.models.bootstrap.measure_span`, :func:`scioc.models.delayed.lag.arm_torque_recursion`)
 and does not see their changes: after editing those, delete this module's cache files in
 ``models/delayed/__pycache__``.
 """
@@ -93,18 +93,18 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from models.bootstrap import Records, measure_span
-from models.cost import validate_theta
-from models.delayed.lag import arm_torque, arm_torque_recursion, lag_coefficients, lagged_planning_plant
-from models.delayed.likelihood import innovations
-from models.delayed.sample import closed_loop
-from models.design import WheelParameters
-from models.lq import lq_tracking_policy
-from models.plant import DiscretePlant, discretize_lagged
-from models.segment import SegmentBatch
-from models.simulate import quantize
+from scioc.models.bootstrap import Records, measure_span
+from scioc.models.cost import validate_theta
+from scioc.models.delayed.lag import arm_torque, arm_torque_recursion, lag_coefficients, lagged_planning_plant
+from scioc.models.delayed.likelihood import innovations
+from scioc.models.delayed.sample import closed_loop
+from scioc.models.design import WheelParameters
+from scioc.models.lq import lq_tracking_policy
+from scioc.models.plant import DiscretePlant, discretize_lagged
+from scioc.models.runtime import njit
+from scioc.models.segment import SegmentBatch
+from scioc.models.simulate import quantize
 
 
 class DelayedChain(NamedTuple):
@@ -141,11 +141,11 @@ class DelayedChain(NamedTuple):
     x0_window : ndarray, shape (2,)
         State the recorded window's likelihood starts from.
     angle, velocity, u_H, u_A : ndarray, shape (n,)
-        The recorded span as in :class:`models.bootstrap.Chain` (velocity and u_H only
+        The recorded span as in :class:`scioc.models.bootstrap.Chain` (velocity and u_H only
         without reconstruction; u_A's last entry unused).
     w0, K, M : int
     recon : tuple or None
-        ``(F, Kg, Sv, C)`` of a :class:`models.reconstruct.FixedReconstruction`, or None.
+        ``(F, Kg, Sv, C)`` of a :class:`scioc.models.reconstruct.FixedReconstruction`, or None.
     resolution : float
         Encoder increment, rad (applied to replicates only with ``recon``).
     noise_scale : float
@@ -249,7 +249,7 @@ def delayed_records(chain: DelayedChain, n_boot: int, rng: np.random.Generator) 
         B >= 1.
     rng : numpy.random.Generator
         The replicates' only source of randomness: the max-ent noises (shape (B, n - 1),
-        drawn first, as :func:`models.bootstrap.bootstrap_records` draws its noise), then
+        drawn first, as :func:`scioc.models.bootstrap.bootstrap_records` draws its noise), then
         the motor noises m_{-d}..m_{n-2} (shape (B, n - 1 + d)).
 
     Returns

@@ -1,6 +1,6 @@
 """The dense reference of the ``delayed`` likelihood: the joint Gaussian of the observed torques.
 
-The generative closed loop (:func:`models.delayed.sample.closed_loop`) is affine in the
+The generative closed loop (:func:`scioc.models.delayed.sample.closed_loop`) is affine in the
 noises ξ = (ε_0..ε_{K-1}, m_{-d}..m_{K-1}): ``u_H = μ + G ξ``. μ is the loop with every
 noise zero; the columns of G are the loop with every offset zero (initial state,
 reference, feedforward or recorded u_A) driven by one unit impulse each. With
@@ -13,12 +13,12 @@ What this conditions on is what the fast kernel conditions on: the initial state
 sequence, or its law acting on the simulated state), θ, and the pre-window motor noises
 at their prior, independent of z_0. It never uses the recorded states: with the law,
 the fast kernel's observed states come from the recorded u_A, so the two agree when the
-recorded u_A follows the law (as in a draw of :func:`models.delayed.sample.sample_delayed`).
+recorded u_A follows the law (as in a draw of :func:`scioc.models.delayed.sample.sample_delayed`).
 
 O(K²) memory and O(K³) time (and O(K² d) for the loop); for tests and the benchmark only.
 
 :func:`angle_loglik_dense` is the same for the encoder's angles, the reference of
-:mod:`models.delayed.angles`.
+:mod:`scioc.models.delayed.angles`.
 """
 
 from __future__ import annotations
@@ -28,12 +28,12 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
-from models.delayed.angles import angle_setup, check_angles
-from models.delayed.sample import closed_loop, delayed_setup
-from models.design import WheelParameters
-from models.maxent import HALF_LOG_2PI
-from models.plant import DiscretePlant
-from models.segment import Feedback, Segment, check_segment
+from scioc.models.delayed.angles import angle_setup, check_angles
+from scioc.models.delayed.sample import closed_loop, delayed_setup
+from scioc.models.design import WheelParameters
+from scioc.models.maxent import HALF_LOG_2PI
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import Feedback, Segment, check_segment
 
 
 class DelayedDense(NamedTuple):
@@ -62,11 +62,11 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, tau_nm: float
     ----------
     theta : array_like, shape (3,)
     segment : Segment
-        With :class:`models.segment.Feedback` the assistant is its law (the recorded u_A
+        With :class:`scioc.models.segment.Feedback` the assistant is its law (the recorded u_A
         is not used); otherwise the recorded u_A is a given input.
     plant : DiscretePlant
     tau_nm, sigma_m, delay, tau0 : float, float, int, float
-        As :func:`models.delayed.likelihood.loglik_grad`.
+        As :func:`scioc.models.delayed.likelihood.loglik_grad`.
     params : WheelParameters
 
     Returns
@@ -124,7 +124,7 @@ def angle_loglik_dense(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=No
                        sigma_y: float, z0_mean, z0_cov, params: WheelParameters = WheelParameters()) -> AngleDense:
     """The dense reference of :func:`angle_loglik`: the angles' joint Gaussian from the generative loop.
 
-    The loop (:func:`models.delayed.sample.closed_loop`, physically lagged) is affine in
+    The loop (:func:`scioc.models.delayed.sample.closed_loop`, physically lagged) is affine in
     z_0 and the noises: its mean is the loop at z0_mean with every noise zero, and its
     covariance comes from the loop with every offset zero driven by the columns of
     z0_cov's square root, by each ε_k and each m_k (k = -d..K-1) as unit impulses; the

@@ -4,10 +4,10 @@ The continuous parameters are searched, for each delay d of a grid, in::
 
     z = (log θ1, θ2 >= 0, w = R_0 / R > 0, τ_nm in [0, 1 s], σ_m >= 0)
 
-(θ1 = q11/R and θ2 = q22/R as in :mod:`models.identify`; R_0 the max-ent estimate's R)
-with L-BFGS-B and the exact gradient of :func:`models.delayed.likelihood.loglik_grad`,
+(θ1 = q11/R and θ2 = q22/R as in :mod:`scioc.models.identify`; R_0 the max-ent estimate's R)
+with L-BFGS-B and the exact gradient of :func:`scioc.models.delayed.likelihood.loglik_grad`,
 whose τ_nm-derivative includes the arm torque at each window's start when it follows
-from the torques before the window (:class:`models.delayed.lag.Warmup`). The delay is
+from the torques before the window (:class:`scioc.models.delayed.lag.Warmup`). The delay is
 discrete, so it is profiled: the log-likelihood maximized over z at every grid delay
 (:data:`DELAY_GRID_S`, 0-300 ms in steps of 10 ms, rounded to whole samples:
 :func:`delay_grid`), and the estimate is the grid delay of the largest one (the
@@ -16,7 +16,7 @@ smallest such delay on a tie, :data:`PROFILE_TIE`).
 Choices
 -------
 * Starts. At every delay two searches: from the max-ent estimate
-  (:func:`models.identify.identify_unit`) with τ_nm = :data:`START_TAU_NM` and
+  (:func:`scioc.models.identify.identify_unit`) with τ_nm = :data:`START_TAU_NM` and
   σ_m = :data:`START_SIGMA_M`, and from the previous delay's optimum; the better one is
   kept. Either alone misses the maximum on some data (measured: the chained search
   stuck at σ_m = 0 on 8 SC trials with a 0.12-s delay, 16 nats below; the fresh one
@@ -27,7 +27,7 @@ Choices
   noise explains all of it the likelihood is largest at R = ∞. In log R that is a
   plateau at infinite distance, where the gradient vanishes: a search that drifts onto
   it stays there at the next delays too (measured: a profile 10 nats too low past the
-  true delay). In w it is the bound w = 0 (here :data:`models.delayed.search.R_SPAN`:
+  true delay). In w it is the bound w = 0 (here :data:`scioc.models.delayed.search.R_SPAN`:
   R at most 1e6 R_0), reached with a finite slope and left when the slope turns.
 * σ_m at d = 0. Without a delay the motor noise enters the residual as
   ``ε_k + m_k``, two white noises: the likelihood depends on 1/(2 S_k) + σ_m², which
@@ -36,11 +36,11 @@ Choices
   At every d, σ_m = 0 gives the d = 0 likelihood (the delay is invisible without
   unknown noise), so the profile never falls below its d = 0 value. σ_m = 0 is a
   stationary point at every d; a search that ends there checks the slope beside it
-  (:data:`models.delayed.search.SADDLE_PROBE`).
-* τ_nm's upper bound :data:`models.delayed.search.TAU_NM_MAX` keeps the search where
+  (:data:`scioc.models.delayed.search.SADDLE_PROBE`).
+* τ_nm's upper bound :data:`scioc.models.delayed.search.TAU_NM_MAX` keeps the search where
   α = 1 - O(dt/τ_nm) is well away from 1.
 * Scaling: the objective is the log-likelihood per torque sample, and τ_nm and σ_m
-  enter the optimizer in units of :data:`models.delayed.search.Z_SCALE` (0.1 s and
+  enter the optimizer in units of :data:`scioc.models.delayed.search.Z_SCALE` (0.1 s and
   0.1 N·m), so every coordinate moves by O(1) over its plausible range.
 * One thread (numba and BLAS) while it runs: units are independent, so parallel work
   belongs a level up.
@@ -49,7 +49,7 @@ Choices
   between neighbours), so a coarse grid can miss the maximum.
 
 Standard errors at the chosen delay come from the observed information in z (central
-differences of the exact gradient, as in :mod:`models.identify`), over the coordinates
+differences of the exact gradient, as in :mod:`scioc.models.identify`), over the coordinates
 not at a bound; a coordinate at its bound (θ2 = 0, τ_nm = 0, σ_m = 0, σ_m at d = 0,
 and R at its upper bound) gets NaN; ``se_log_R = se_w / w``. They are conditional on
 the delay.
@@ -63,11 +63,20 @@ import numpy as np
 from numba import get_num_threads, set_num_threads
 from threadpoolctl import threadpool_limits
 
-from models.delayed.search import (LAG_NOISE_TOL, SearchUnit, at_bound, limits, loglik_grad_z, maximize,
-                                   observed_information, projected, theta_from_z)
-from models.design import WheelParameters
-from models.identify import PLAUSIBLE_THETA1, identify_unit
-from models.plant import DiscretePlant
+from scioc.models.delayed.search import (
+    LAG_NOISE_TOL,
+    SearchUnit,
+    at_bound,
+    limits,
+    loglik_grad_z,
+    maximize,
+    observed_information,
+    projected,
+    theta_from_z,
+)
+from scioc.models.design import WheelParameters
+from scioc.models.identify import PLAUSIBLE_THETA1, identify_unit
+from scioc.models.plant import DiscretePlant
 
 #: The delays profiled, s: 0 to 300 ms in steps of 10 ms (rounded to whole samples by :func:`delay_grid`).
 DELAY_GRID_S = tuple(round(0.01 * i, 2) for i in range(31))
@@ -121,10 +130,10 @@ class DelayedEstimate(NamedTuple):
         Norm of the projected gradient in z per torque sample at the solution.
     message : str
     implausible : bool
-        θ1 outside :data:`models.identify.PLAUSIBLE_THETA1`, or ``lag_at_bound``: the estimate
+        θ1 outside :data:`scioc.models.identify.PLAUSIBLE_THETA1`, or ``lag_at_bound``: the estimate
         is at the edge of the search, not a measurement.
     lag_at_bound : bool
-        τ_nm on its upper bound :data:`models.delayed.search.TAU_NM_MAX`: the likelihood still
+        τ_nm on its upper bound :data:`scioc.models.delayed.search.TAU_NM_MAX`: the likelihood still
         rose with τ_nm there, as it does for a torque smoother than the human's (one
         reconstructed from encoder angles: a smoothed torque looks like a slow lag).
     """
@@ -178,7 +187,7 @@ def identify_unit_delayed(batches, plant: DiscretePlant, *, params: WheelParamet
     ----------
     batches : sequence of SegmentBatch
         Every row of every batch is a trial of the same unit
-        (:func:`models.segment.prepare_batch`); the log-likelihood is their sum.
+        (:func:`scioc.models.segment.prepare_batch`); the log-likelihood is their sum.
     plant : DiscretePlant
         The wheel at the recording's sample time.
     params : WheelParameters
@@ -186,14 +195,14 @@ def identify_unit_delayed(batches, plant: DiscretePlant, *, params: WheelParamet
     delays : array_like of int, optional
         The delays to profile, samples (default :func:`delay_grid` of ``plant.dt``).
     tau0 : sequence, optional
-        Per batch, a sequence with one :class:`models.delayed.lag.Warmup` (the torques
+        Per batch, a sequence with one :class:`scioc.models.delayed.lag.Warmup` (the torques
         before that window; τ_0 then follows the lag) or None (at rest, τ_0 = 0) per
         row. Default: every window starts at rest.
     maxiter : int
         L-BFGS-B iterations per delay.
     angles : sequence of AngleWindow, optional
-        The unit's windows as recorded by the encoder (:class:`models.delayed.angles.AngleWindow`):
-        the likelihood is then that of the angles (:func:`models.delayed.angles.window_loglik`,
+        The unit's windows as recorded by the encoder (:class:`scioc.models.delayed.angles.AngleWindow`):
+        the likelihood is then that of the angles (:func:`scioc.models.delayed.angles.window_loglik`,
         gradient by central differences), and ``batches`` (the reconstructed torques) only
         give the max-ent start and R_0. For recordings without a torque sensor.
     sigma_y : float

@@ -1,6 +1,6 @@
 """Exact Gaussian log-density of a residual sequence with banded covariance, and its reverse mode (numba).
 
-The residuals r of the ``delayed`` model (:mod:`models.delayed.likelihood`) are Gaussian
+The residuals r of the ``delayed`` model (:mod:`scioc.models.delayed.likelihood`) are Gaussian
 with a covariance Σ of bandwidth d. Its factorization ``Σ = L D Lᵀ`` (L unit lower
 triangular, bandwidth d) gives the innovations ``y = L⁻¹ r`` with variances D: these
 are exactly the innovations and innovation variances of the Kalman filter over the
@@ -19,7 +19,7 @@ not (the plan's last steps).
   Chandrasekhar form of the Kalman filter). The generator is all the state there is. Its
   y part decays (the reflection coefficients ρ = y_1 / x_0 of a moving average go to
   zero) and changes x only at second order (``x' - x = O(ρ²) x + O(ρ) y``), so once
-  d + 1 consecutive columns agree to :data:`models.maxent.FREEZE_RTOL` and
+  d + 1 consecutive columns agree to :data:`scioc.models.maxent.FREEZE_RTOL` and
   ``|y| <= Y_RTOL |x|`` (the filter's steady state, at step k_f) every later column is
   the same to rounding and is not computed again. The solves run by columns there; in both
   solves (y = L⁻¹ r forward, ω backward) the term of the neighbouring row is carried in a
@@ -53,11 +53,9 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
-from models import FASTMATH
-from models.delayed.schur import U, schur_step, schur_step_adjoint
-from models.maxent import FREEZE_RTOL, HALF_LOG_2PI, PROD_HUGE, PROD_TINY
+from scioc.models.delayed.schur import U, schur_step, schur_step_adjoint
+from scioc.models.maxent import FREEZE_RTOL, HALF_LOG_2PI, PROD_HUGE, PROD_TINY
+from scioc.models.runtime import FASTMATH, njit
 
 #: The Schur columns count as stationary once d + 1 consecutive steps change x by at most
 #: FREEZE_RTOL relative and y (which drives every later change of x, to second order) is below

@@ -1,21 +1,21 @@
 """The ``delayed`` likelihood of one segment and of a batch: assembly and chain rule (numba).
 
-One segment (see :mod:`models.delayed.likelihood` for the model and its derivation):
+One segment (see :mod:`scioc.models.delayed.likelihood` for the model and its derivation):
 
-1. the plan (:func:`models.delayed.riccati.plan_recursion`): S_k, L_k, f_k, and the tape
+1. the plan (:func:`scioc.models.delayed.riccati.plan_recursion`): S_k, L_k, f_k, and the tape
    of its non-stationary steps for the reverse sweep of step 5;
 2. the data: the arm torque τ_k and the effective command c̃_k from the observed
-   torques (tangents in a and α, :func:`models.delayed.lag.arm_torque_recursion`, seeded
+   torques (tangents in a and α, :func:`scioc.models.delayed.lag.arm_torque_recursion`, seeded
    with τ_0's own tangents), the residual ``r_k = c̃_k + L_k z_k - f_k``;
 3. the MA coefficients ``c_{k,0} = 1``, ``c_{k,j} = L_k g_j`` with ``g_j = Ā^{j-1} b_c``,
    and the band of Σ = diag(1/(2 S_k)) + σ_m² C Cᵀ::
 
        Σ_{i, i-t} = [t = 0] / (2 S_i) + σ_m² sum_{j=t..d} c_{i,j} c_{i-t, j-t};
 
-4. log N(r; 0, Σ), ω = Σ⁻¹ r and ∂/∂Σ (:func:`models.delayed.innovations.banded_loglik`);
+4. log N(r; 0, Σ), ω = Σ⁻¹ r and ∂/∂Σ (:func:`scioc.models.delayed.innovations.banded_loglik`);
 5. the chain rule back to (q11, q22, R, τ_nm, σ_m): F's adjoints of f_k, S_k and L_k go
-   back through the plan in reverse mode (:func:`models.delayed.riccati.plan_adjoint` over
-   the stationary steps, then :func:`models.delayed.reverse.plan_reverse` over the recorded
+   back through the plan in reverse mode (:func:`scioc.models.delayed.riccati.plan_adjoint` over
+   the stationary steps, then :func:`scioc.models.delayed.reverse.plan_reverse` over the recorded
    ones) to q11, q22 and the lag's (a, α); R by homogeneity (L and f do not change when θ is
    scaled, S scales with it, so ``θ · ∇_θ log p = sum_k S_k ∂/∂S_k``).
 
@@ -24,12 +24,12 @@ before they enter the reverse sweep at the step whose values they hold. The batc
 (``prange``), each with its own scratch, and every segment on its own: its result does
 not depend on the batch it is in.
 
-The kernel (this module, :mod:`models.delayed.riccati`, :mod:`models.delayed.reverse` and
-:mod:`models.delayed.innovations`) is written for numba: no array views in inner loops
+The kernel (this module, :mod:`scioc.models.delayed.riccati`, :mod:`scioc.models.delayed.reverse` and
+:mod:`scioc.models.delayed.innovations`) is written for numba: no array views in inner loops
 (each costs reference counting), unsigned indices where LLVM should vectorize. numba's
-on-disk cache lives in a folder named by a hash of every source of ``models`` (:mod:`models`),
+on-disk cache lives in a folder named by a hash of every source of ``models`` (:mod:`scioc.models`),
 so an edited callee is never served stale. The kernels' sums may be reassociated but not
-contracted into fused multiply-adds (:data:`models.FASTMATH` says why).
+contracted into fused multiply-adds (:data:`scioc.models.FASTMATH` says why).
 """
 
 from __future__ import annotations
@@ -37,13 +37,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from models import FASTMATH
-from models.delayed.innovations import U, banded_loglik
-from models.delayed.lag import arm_torque_recursion
-from models.delayed.reverse import plan_reverse
-from models.delayed.riccati import SEED, TAPE, plan_adjoint, plan_recursion
+from scioc.models.delayed.innovations import U, banded_loglik
+from scioc.models.delayed.lag import arm_torque_recursion
+from scioc.models.delayed.reverse import plan_reverse
+from scioc.models.delayed.riccati import SEED, TAPE, plan_adjoint, plan_recursion
+from scioc.models.runtime import FASTMATH, njit
 
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -299,7 +299,7 @@ def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, f
     ``b`` (2,); ``fb`` (n, 2); ``th`` (3, n) rows q11, q22, R; ``lag`` (4, n) rows a, α,
     da/dτ_nm, dα/dτ_nm; ``sig`` (n,) σ_m; ``delay`` (n,); ``tau0`` (n,) and its tangents in
     (a, α) ``dtau0`` (n, 2); the arrays of a
-    :class:`models.segment.SegmentBatch`; output ``out`` (6, n): log-likelihood, then
+    :class:`scioc.models.segment.SegmentBatch`; output ``out`` (6, n): log-likelihood, then
     the gradient in q11, q22, R, τ_nm, σ_m (NaN with ``grad`` False: the value alone, the same number, without
     the reverse sweeps; ``scioc bench --parts delayed`` times both); ``inn`` (n, K) receives the standardized
     innovations, or has shape (n, 0) to skip them.

@@ -1,8 +1,8 @@
 """The neuromuscular lag as the ``delayed`` human model sees it: pole a, mixing α, and the planning plant.
 
-The simulated human (:func:`models.humans.simulate_human`) drives the wheel through a
+The simulated human (:func:`scioc.models.humans.simulate_human`) drives the wheel through a
 first-order lag with time constant τ_nm, discretized exactly with a zero-order hold
-(:func:`models.plant.discretize_lagged`): the arm torque τ follows the held command
+(:func:`scioc.models.plant.discretize_lagged`): the arm torque τ follows the held command
 c̃ (command plus motor noise). Recorded torques are ZOH-equivalent: u_k is the torque
 that, held over the sample, gives the velocity x_{k+1}[1] on the 2-state wheel. From the
 velocity row of the lagged plant::
@@ -11,14 +11,14 @@ velocity row of the lagged plant::
 
 with ``a = exp(-dt / τ_nm)``, ``α = A_lag[1, 2] / b[1]`` and ``1 - α = b_c,lag[1] / b[1]``
 (a held constant torque passes the lag unchanged, hence the two weights sum to one;
-tested against :func:`models.plant.discretize_lagged`). τ_nm = 0 is no lag: a = α = 0.
+tested against :func:`scioc.models.plant.discretize_lagged`). τ_nm = 0 is no lag: a = α = 0.
 
 Closed form of α. The arm torque decays as ``exp(-μ s)``, μ = 1/τ_nm, over the sample,
 so the velocity it adds at the sample's end is the second entry of::
 
     ∫_0^dt e^{A_c (dt - s)} b_w e^{-μ s} ds = (A_c + μ I)⁻¹ (Φ - a I) b_w,   Φ = e^{A_c dt},
 
-with (A_c, b_w) the continuous wheel (:func:`models.plant.continuous_matrices`) and
+with (A_c, b_w) the continuous wheel (:func:`scioc.models.plant.continuous_matrices`) and
 Φ = the discrete wheel's A. Its τ_nm-derivative follows by differentiating in μ:
 ``dv/dμ = (A_c + μ I)⁻¹ (dt a b_w - v)``. When A_c + μ I is (nearly) singular, possible
 only for a wheel with real poles at τ_nm = -1/λ (within 5 %), the block matrix exponential and its
@@ -27,14 +27,14 @@ Fréchet derivative are used instead (:func:`scipy.linalg.expm_frechet`). As τ_
 ``da/dτ_nm -> 0``.
 
 The human plans on z = (angle, velocity, arm torque) with the command c as input (see
-:mod:`models.delayed.likelihood`)::
+:mod:`scioc.models.delayed.likelihood`)::
 
     z_{k+1} = A_z z_k + b_c c_k + b_a u_A,k,
     A_z = [[A, α b], [0, a]],  b_c = [(1 - α) b; 1 - a],  b_a = [b; 0].
 
 This is the ZOH-equivalent description of the lagged wheel: its velocity row is exact,
 its angle row differs from the lagged plant's by the within-sample shape of the torque
-(about 1e-5 rad per step, see :mod:`models.humans`).
+(about 1e-5 rad per step, see :mod:`scioc.models.humans`).
 
 The arm torque from the observed torques (:func:`arm_torque`). Eliminating c̃ gives
 ``τ_{k+1} = p τ_k + (1 - a) / (1 - α) u_k`` with ``p = a - (1 - a) α / (1 - α)``: a
@@ -42,7 +42,7 @@ stable recursion (p = -0.92 for τ_nm = 0.06 s at 100 Hz, -0.97 at 1 s; |p| < 1 
 every τ_nm, approaching -1 as the lag slows), so the arm torque at a window's start
 follows from the torques before it, run from the arm at rest at the recording's start.
 It depends on τ_nm through (a, α); its tangents in (a, α) carry that into the
-likelihood's gradient (:func:`models.delayed.likelihood.loglik_grad`'s ``dtau0``).
+likelihood's gradient (:func:`scioc.models.delayed.likelihood.loglik_grad`'s ``dtau0``).
 The start's influence decays as |p|^k: started from a guess instead of rest, after
 1 s it is 3e-4 of the guess's error at τ_nm = 0.06 s, 3e-3 at 0.1 s.
 """
@@ -53,12 +53,11 @@ from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from scipy.linalg import expm_frechet
 
-from models import FASTMATH
-from models.design import DT_HUMAN, WheelParameters
-from models.plant import DiscretePlant, continuous_matrices, discretize
+from scioc.models.design import DT_HUMAN, WheelParameters
+from scioc.models.plant import DiscretePlant, continuous_matrices, discretize
+from scioc.models.runtime import FASTMATH, njit
 
 
 class LagCoefficients(NamedTuple):
@@ -223,7 +222,7 @@ def arm_torque_recursion(u, a, al, tau, dtau, dct):
 
     Fills ``tau`` (K + 1,), ``dtau`` (K + 1, 2) and ``dct`` (>= K, 2), the tangents of the
     effective command ``c̃_k = (u_k - α τ_k) / (1 - α)`` in (a, α). The likelihood's kernel
-    (:mod:`models.delayed.kernel`) and :func:`arm_torque` share it.
+    (:mod:`scioc.models.delayed.kernel`) and :func:`arm_torque` share it.
 
     Written as ``τ_{k+1} = p τ_k + q u_k`` with p = a - (1 - a) α / (1 - α), q = (1 - a) / (1 - α),
     and its tangents ``∂τ_{k+1}/∂a = τ_k - c̃_k + p ∂τ_k/∂a``, ``∂τ_{k+1}/∂α = q (c̃_k - τ_k) + p ∂τ_k/∂α``
@@ -330,7 +329,7 @@ class Warmup(NamedTuple):
 
 
 def window_tau0(warmups, a: float, alpha: float) -> tuple[np.ndarray, np.ndarray]:
-    """τ_0 of each window and its tangents in (a, α), for :func:`models.delayed.likelihood.loglik_grad`.
+    """τ_0 of each window and its tangents in (a, α), for :func:`scioc.models.delayed.likelihood.loglik_grad`.
 
     Parameters
     ----------

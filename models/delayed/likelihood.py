@@ -3,10 +3,10 @@
 The model
 ---------
 Sample time dt; wheel x_k = (angle, velocity), ``x_{k+1} = A x_k + b (u_k + u_A,k)``
-(:func:`models.plant.discretize`); u_k is the observed human torque, acting from t_k to
+(:func:`scioc.models.plant.discretize`); u_k is the observed human torque, acting from t_k to
 t_{k+1}.
 
-*Lag* (:mod:`models.delayed.lag`). The human issues commands c_k; the effective command
+*Lag* (:mod:`scioc.models.delayed.lag`). The human issues commands c_k; the effective command
 is ``c̃_k = c_k + m_k`` with motor noise m_k. The arm torque τ follows
 ``τ_{k+1} = a τ_k + (1 - a) c̃_k`` and the observed (ZOH-equivalent) torque is
 ``u_k = α τ_k + (1 - α) c̃_k``. Given the data, τ_k is a recursion of observed torques
@@ -20,10 +20,10 @@ A_z = [[A, α b], [0, a]], b_c = [(1 - α) b; 1 - a], b_a = [b; 0], and the pape
 cost with the command in place of the torque: ``J = sum_{k=1..K+M} e_kᵀ Q e_k +
 sum_k R c_k²``, e = (angle - ref, velocity), Q = diag(q11, q22) on the wheel states
 only, over the window and M preview steps. With the assistant's law (a segment with
-:class:`models.segment.Feedback`) it plans on ``Ā = A_z - b_a [gainᵀ, 0]`` with the
+:class:`scioc.models.segment.Feedback`) it plans on ``Ā = A_z - b_a [gainᵀ, 0]`` with the
 feedforward as known input, otherwise on Ā = A_z with the recorded u_A as known input;
-the recursion is :func:`models.lq.lq_tracking_policy`'s (:mod:`models.delayed.riccati`).
-Max-ent over the commands (as :mod:`models.maxent` over torques): given the state the
+the recursion is :func:`scioc.models.lq.lq_tracking_policy`'s (:mod:`scioc.models.delayed.riccati`).
+Max-ent over the commands (as :mod:`scioc.models.maxent` over torques): given the state the
 human acts on, ``c_k = -L_k ẑ_k + f_k + ε_k``, ``ε_k ~ N(0, 1 / (2 S_k))``,
 ``S_k = R + b_cᵀ P_{k+1} b_c``.
 
@@ -42,11 +42,11 @@ What is conditioned on. The density is of u_0..u_{K-1} given the initial state z
 feedforward) and the parameters. The motor noises before the window, m_{-d}..m_{-1},
 enter r_0..r_{d-1}; they are taken independent of z_0 with their prior N(0, σ_m²)
 (the human's view of z_0 from before the window is the true z_0 minus their
-propagated effect; see :func:`models.delayed.sample.closed_loop`). The observed states
+propagated effect; see :func:`scioc.models.delayed.sample.closed_loop`). The observed states
 z_k (x_k propagated from x_0 with the observed torques, as
-:func:`models.segment.prepare_batch` does, and τ_k from the recursion) depend on θ only
+:func:`scioc.models.segment.prepare_batch` does, and τ_k from the recursion) depend on θ only
 through (a, α) in τ_k. A window that starts inside a run has τ_0 = the arm torque
-after the torques before it (:func:`models.delayed.lag.arm_torque`, from rest at the
+after the torques before it (:func:`scioc.models.delayed.lag.arm_torque`, from rest at the
 recording's start), which depends on (a, α) as well; ``dtau0`` passes those tangents in
 and the recursion carries them on.
 
@@ -57,18 +57,18 @@ u_{<k} only) with diagonal 1/(1 - α), hence::
 
     log p(u) = log N(r; 0, Σ) - K log(1 - α).
 
-With d = 0, τ_nm = 0 and σ_m = 0 this is :func:`models.maxent.loglik_grad`'s
+With d = 0, τ_nm = 0 and σ_m = 0 this is :func:`scioc.models.maxent.loglik_grad`'s
 ``sum_k [-S_k v_k² + ½ log(2 S_k) - ½ log 2π]`` (tested to rounding).
 
 Computation
 -----------
 Per segment, in O(K d) plus O(d²) for each row after the plan's stationary part:
 
-* the plan (:mod:`models.delayed.riccati`): the LQ recursion backward, recording its steps
-  until P is stationary to :data:`models.maxent.FREEZE_RTOL` (a few hundred steps from the
+* the plan (:mod:`scioc.models.delayed.riccati`): the LQ recursion backward, recording its steps
+  until P is stationary to :data:`scioc.models.maxent.FREEZE_RTOL` (a few hundred steps from the
   plan's end); from there on only the s-recursion runs;
 * the data: τ_k and c̃_k by their recursions, with tangents in a and α;
-* log N(r; 0, Σ) in innovations form, ``Σ = L D Lᵀ`` (:mod:`models.delayed.innovations`;
+* log N(r; 0, Σ) in innovations form, ``Σ = L D Lᵀ`` (:mod:`scioc.models.delayed.innovations`;
   the innovations of a Kalman filter over the last d + 1 motor noises, without its
   covariance state). Where the plan is stationary Σ is Toeplitz and the Schur algorithm
   gives its factor column by column in O(d); once the columns are stationary (the
@@ -78,8 +78,8 @@ Per segment, in O(K d) plus O(d²) for each row after the plan's stationary part
   O(d²) each;
 * the gradient: reverse mode through the factorization (∂/∂Σ for those rows, ∂/∂γ for the
   Toeplitz ones, back through the Schur steps), then the chain rule through the MA
-  coefficients, the data recursion and the plan (:mod:`models.delayed.kernel`; the plan's
-  part in :mod:`models.delayed.riccati` and :mod:`models.delayed.reverse`): one reverse
+  coefficients, the data recursion and the plan (:mod:`scioc.models.delayed.kernel`; the plan's
+  part in :mod:`scioc.models.delayed.riccati` and :mod:`scioc.models.delayed.reverse`): one reverse
   sweep for all parameters, where forward tangents would cost five passes through an O(d²)
   filter. R comes from homogeneity.
 
@@ -97,12 +97,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import get_num_threads
 
-from models.cost import validate_theta
-from models.delayed.kernel import batch_kernel, batch_kernel_serial
-from models.delayed.lag import check_wheel, lag_coefficients
-from models.design import WheelParameters
-from models.plant import DiscretePlant
-from models.segment import SegmentBatch
+from scioc.models.cost import validate_theta
+from scioc.models.delayed.kernel import batch_kernel, batch_kernel_serial
+from scioc.models.delayed.lag import check_wheel, lag_coefficients
+from scioc.models.design import WheelParameters
+from scioc.models.plant import DiscretePlant
+from scioc.models.segment import SegmentBatch
 
 #: Parameter order of the gradient.
 PARAMETERS = ("q11", "q22", "R", "tau_nm", "sigma_m")
@@ -195,7 +195,7 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0,
     theta : array_like, shape (3,) or (3, n)
         ``[q11, q22, R]`` of the command cost, one for all segments or one column each.
     batch : SegmentBatch
-        From :func:`models.segment.prepare_batch` with the same plant.
+        From :func:`scioc.models.segment.prepare_batch` with the same plant.
     plant : DiscretePlant
         The wheel at the human's sample time.
     tau_nm : float or array_like (n,)
@@ -207,9 +207,9 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, tau_nm=0.0,
     tau0 : float or array_like (n,)
         Arm torque at each segment's start, N·m (0 at rest).
     dtau0 : 0.0 or array_like (2,) or (n, 2)
-        d tau0 / d[a, α] (:class:`models.delayed.lag.LagCoefficients`): τ_0's own dependence
+        d tau0 / d[a, α] (:class:`scioc.models.delayed.lag.LagCoefficients`): τ_0's own dependence
         on the lag when it is the arm torque after the torques before the window
-        (:func:`models.delayed.lag.arm_torque`); the τ_nm-derivative then includes it.
+        (:func:`scioc.models.delayed.lag.arm_torque`); the τ_nm-derivative then includes it.
         Default 0: τ_0 fixed.
     freeze : bool
         Hold the plan and the innovations once stationary (default); ``False`` computes

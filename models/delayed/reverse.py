@@ -1,6 +1,6 @@
 """The reverse sweep of the ``delayed`` human's plan: F's derivative in q11, q22, a and α (numba).
 
-Step 3 of :mod:`models.delayed.riccati` (which states the recursion and records the tape). With
+Step 3 of :mod:`scioc.models.delayed.riccati` (which states the recursion and records the tape). With
 P = P_{k+1}, s' = s_{k+1} and F's adjoints of step k's outputs known (x̄ = ∂F/∂x), one step
 backwards through::
 
@@ -20,7 +20,7 @@ perturbations of P exist)::
           P̄ += sym(c b_cᵀ)
 
 At step k_z the held steps' constants (β = b_c / S, M, P b_a, S and L of the stationary rows)
-add their adjoints, and s̄_{k_z} starts from :func:`models.delayed.riccati.plan_adjoint`'s λ.
+add their adjoints, and s̄_{k_z} starts from :func:`scioc.models.delayed.riccati.plan_adjoint`'s λ.
 At the end, P_N = Q and s_N = q11 r_N e_0. Finally ``G[p] += Āᵢⱼ ∂Aᵢⱼ/∂p + b̄ᵢ ∂bᵢ/∂p``.
 Written with scalars, not 3 × 3 arrays: the same sweep on small arrays took twice as long
 (LLVM kept them in memory).
@@ -28,19 +28,17 @@ Written with scalars, not 3 × 3 arrays: the same sweep on small arrays took twi
 
 from __future__ import annotations
 
-from numba import njit
-
-from models import FASTMATH
+from scioc.models.runtime import FASTMATH, njit
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def plan_reverse(Ab, bc, ba, dAb, dbc, r, ua, K_obs, k_z, tape, fbar, Sbar, Lbar, Sc_bar, Lc_bar, seed, G):
-    """Add F's derivative in :data:`models.delayed.riccati.DIRECTIONS` through the recorded steps to G (4,).
+    """Add F's derivative in :data:`scioc.models.delayed.riccati.DIRECTIONS` through the recorded steps to G (4,).
 
     ``fbar``, ``Sbar``, ``Lbar`` (K,), (K,), (K, 3): F's adjoints of f_k, S_k and L_k, read for the observed
     steps k >= k_z. If k_z > 0, ``Sc_bar`` and ``Lc_bar`` (3,) are F's adjoints of the stationary S and L
-    (``cst`` of :func:`models.delayed.riccati.plan_recursion`, through the stationary observed rows) and
-    ``seed`` those of :func:`models.delayed.riccati.plan_adjoint`; they belong to step k_z, whose quantities
+    (``cst`` of :func:`scioc.models.delayed.riccati.plan_recursion`, through the stationary observed rows) and
+    ``seed`` those of :func:`scioc.models.delayed.riccati.plan_adjoint`; they belong to step k_z, whose quantities
     the stationary steps hold.
     ``dAb``, ``dbc``: the derivatives of Ab and bc in the directions (3, 3, 4), (3, 4).
     """

@@ -1,12 +1,12 @@
 """The ``delayed`` human's plan: the 3-state LQ recursion, and its reverse-mode derivative in q11, q22, a and α (numba).
 
-The same recursion as :func:`models.lq.lq_tracking_policy` (P_{K+M} = Q, s_{K+M} = Q x_ref,
+The same recursion as :func:`scioc.models.lq.lq_tracking_policy` (P_{K+M} = Q, s_{K+M} = Q x_ref,
 ``S_k = R + b_cᵀ P b_c``, ``L_k = b_cᵀ P A / S_k``, ``w = s_{k+1} - P b_a a_k``,
 ``f_k = b_cᵀ w / S_k``, ``M_k = A - b_c L_k``, ``s_k = Q x_ref_k + M_kᵀ w``,
 ``P_k = Q + R L_kᵀ L_k + M_kᵀ P M_k``, P = P_{k+1}) on the plant of
-:func:`models.delayed.lag.lagged_planning_plant`. The likelihood needs the derivative of a
+:func:`scioc.models.delayed.lag.lagged_planning_plant`. The likelihood needs the derivative of a
 scalar F (its log-density) that depends on the plan through f_k, S_k and L_k; it gets it in
-reverse mode, once F's adjoints of those are known (:mod:`models.delayed.kernel`):
+reverse mode, once F's adjoints of those are known (:mod:`scioc.models.delayed.kernel`):
 
 1. :func:`plan_recursion` runs the recursion backward and records each step's P, P b_c,
    S, L, w and f (the tape) until P is stationary (step k_z, some hundred steps from the
@@ -14,7 +14,7 @@ reverse mode, once F's adjoints of those are known (:mod:`models.delayed.kernel`
    carries the reference and the known input), recording its w_k.
 2. :func:`plan_adjoint` sweeps the stationary steps forward with the adjoint of s and
    returns F's adjoints of the constants and of s_{k_z}.
-3. :func:`models.delayed.reverse.plan_reverse` sweeps the recorded steps forward, from k_z
+3. :func:`scioc.models.delayed.reverse.plan_reverse` sweeps the recorded steps forward, from k_z
    to the end, with the adjoints of P and s, and contracts the adjoints of A and b_c it
    collects with their derivatives in the :data:`DIRECTIONS`. The R-direction follows from
    homogeneity (L and f do not change when θ is scaled, S scales with it), so it is not needed.
@@ -22,13 +22,13 @@ reverse mode, once F's adjoints of those are known (:mod:`models.delayed.kernel`
 Reverse through P_k. By the envelope theorem (L minimizes the Joseph-form bracket for every
 state) the P-update's derivative in L is zero at the optimal L, so P_k's adjoint flows to
 P_{k+1}, to Q, and to A and b_c through M at fixed L; every other use of L goes through
-``L = Aᵀ P b_c / S`` (:mod:`models.delayed.reverse` has the step). Until 2026-12-05 the plan
+``L = Aᵀ P b_c / S`` (:mod:`scioc.models.delayed.reverse` has the step). Until 2026-12-05 the plan
 carried forward tangents in the four directions through every recorded step instead, about
 nine times the primal step's arithmetic; the reverse sweep costs about twice it, and the whole
 kernel took 30 % less time for it (``scioc bench --parts delayed``, README "Speed").
 
 Holding the stationary part is exact to rounding: P stops changing at the last bit
-(:data:`models.maxent.FREEZE_RTOL`), and the derivative is that of the held computation. The
+(:data:`scioc.models.maxent.FREEZE_RTOL`), and the derivative is that of the held computation. The
 held P's tangents, which converge at the same geometric rate as P, differ from their limits by
 about the number of recorded steps times the last bit, some 1e-13 relative: ``freeze=False``
 records every step, and the two agree to that (tested).
@@ -36,10 +36,8 @@ records every step, and the two agree to that (tested).
 
 from __future__ import annotations
 
-from numba import njit
-
-from models import FASTMATH
-from models.maxent import FREEZE_RTOL
+from scioc.models.maxent import FREEZE_RTOL
+from scioc.models.runtime import FASTMATH, njit
 
 #: Directions of the plan's derivative, in this order.
 DIRECTIONS = ("q11", "q22", "a", "alpha")

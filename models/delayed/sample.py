@@ -1,6 +1,6 @@
 """The ``delayed`` human as a generative closed loop: exact draws, and the affine map the dense reference uses.
 
-:func:`closed_loop` runs the model of :mod:`models.delayed.likelihood` forward, literally:
+:func:`closed_loop` runs the model of :mod:`scioc.models.delayed.likelihood` forward, literally:
 at step k the human takes the state it saw d samples ago, z_{k-d} (angle, velocity and
 arm torque), runs its internal model Ā forward with its own past commands and the known
 input (the assistant's feedforward with its law, or the recorded u_A), and commands
@@ -18,7 +18,7 @@ from their prior, independent of z_0: the conditioning the likelihood states.
 
 The loop is affine in the noises (ε_0..ε_{K-1}, m_{-d}..m_{K-1}): with every offset
 zero (initial state, feedforward, known input, reference) it is their linear map, which
-:func:`models.delayed.dense.loglik_dense` evaluates on unit impulses.
+:func:`scioc.models.delayed.dense.loglik_dense` evaluates on unit impulses.
 """
 
 from __future__ import annotations
@@ -27,15 +27,15 @@ from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from models.cost import validate_theta
-from models.delayed.lag import check_wheel, lag_coefficients, lagged_planning_plant
-from models.design import WheelParameters
-from models.lq import Policy, lq_tracking_policy
-from models.maxent import Demonstration
-from models.plant import DiscretePlant, discretize_lagged
-from models.segment import Feedback, Segment
+from scioc.models.cost import validate_theta
+from scioc.models.delayed.lag import check_wheel, lag_coefficients, lagged_planning_plant
+from scioc.models.design import WheelParameters
+from scioc.models.lq import Policy, lq_tracking_policy
+from scioc.models.maxent import Demonstration
+from scioc.models.plant import DiscretePlant, discretize_lagged
+from scioc.models.runtime import njit
+from scioc.models.segment import Feedback, Segment
 
 
 @njit(cache=True, fastmath=False, error_model="python")
@@ -47,9 +47,9 @@ def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps,
     Aw, bw : ndarray, shapes (2, 2), (2,)
         The wheel.
     a, al : float
-        The lag's pole and mixing (:func:`models.delayed.lag.lag_coefficients`).
+        The lag's pole and mixing (:func:`scioc.models.delayed.lag.lag_coefficients`).
     Ab, bc, ba : ndarray, shapes (3, 3), (3,), (3,)
-        The planning plant (:func:`models.delayed.lag.lagged_planning_plant`).
+        The planning plant (:func:`scioc.models.delayed.lag.lagged_planning_plant`).
     gain : ndarray, shape (2,)
         The assistant's state feedback (used if ``feedback``).
     feedback : bool
@@ -68,7 +68,7 @@ def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps,
     d : int
         Delay, samples.
     At, bt : ndarray, shapes (3, 3), (3,)
-        The physically lagged wheel (:func:`models.plant.discretize_lagged`: A and b_c),
+        The physically lagged wheel (:func:`scioc.models.plant.discretize_lagged`: A and b_c),
         used if ``physical``.
     physical : bool
         The true state moves on the physically lagged wheel (the arm torque acts
@@ -135,7 +135,7 @@ def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps,
 
 
 #: The physically lagged wheel by (τ_nm, dt, params), kept: a matrix exponential costs about as much as a
-#: window's angle likelihood (:mod:`models.delayed.angles`), and a search moves τ_nm in one of five coordinates.
+#: window's angle likelihood (:mod:`scioc.models.delayed.angles`), and a search moves τ_nm in one of five coordinates.
 _lagged_wheel = lru_cache(maxsize=64)(discretize_lagged)
 
 
@@ -216,7 +216,7 @@ class DelayedDraw(NamedTuple):
     tau : ndarray, shape (K + 1[, size])
         Arm torque, N·m.
     segments : list of Segment
-        Each draw as a window for :func:`models.segment.prepare_batch` (the plan's
+        Each draw as a window for :func:`scioc.models.segment.prepare_batch` (the plan's
         reference and known input included).
     """
 
@@ -259,12 +259,12 @@ def sample_delayed(theta, x0, angle_ref, plant: DiscretePlant, rng: np.random.Ge
     params : WheelParameters
     physical : bool
         The wheel feels the arm torque continuously within each sample (the physically
-        lagged wheel, :func:`models.plant.discretize_lagged`; default), as a real arm
+        lagged wheel, :func:`scioc.models.plant.discretize_lagged`; default), as a real arm
         does, and the human plans and predicts on that wheel; the recorded u_H is its
         ZOH-equivalent torque. ``False``: the state moves
         with that torque held over the sample, the convention in which
-        :mod:`models.delayed.likelihood` is exact; the two differ in the angle by about
-        1e-5 rad per step (:mod:`models.humans`).
+        :mod:`scioc.models.delayed.likelihood` is exact; the two differ in the angle by about
+        1e-5 rad per step (:mod:`scioc.models.humans`).
 
     Returns
     -------
@@ -298,7 +298,7 @@ def forward_delayed(theta, x0, angle_ref, plant: DiscretePlant, *, u_A=None, fee
                     params: WheelParameters = WheelParameters(), physical: bool = True) -> Demonstration:
     """The ``delayed`` human's mean behaviour for θ: its closed loop with every noise at zero.
 
-    The counterpart of :func:`models.maxent.forward_optimal_control` (the dashed trajectories
+    The counterpart of :func:`scioc.models.maxent.forward_optimal_control` (the dashed trajectories
     of Fig. 6) for this model: the loop is affine in its noises, so the noise-free run is
     the mean of :func:`sample_delayed`'s draws. Without motor noise the human's prediction
     is exact, so the delay does not enter; the lag does (the arm torque starts at ``tau0``).

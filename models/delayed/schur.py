@@ -1,6 +1,6 @@
 """One step of the Schur algorithm on a banded Toeplitz matrix's generator, and its reverse mode (numba).
 
-Used by :func:`models.delayed.innovations.banded_loglik` (whose docstring derives the algorithm): the generator
+Used by :func:`scioc.models.delayed.innovations.banded_loglik` (whose docstring derives the algorithm): the generator
 (x, y) of a Schur complement, rows ``XY[k, 0]`` and ``XY[k, 1]`` of length d + 1, passes to the next by the
 hyperbolic rotation that zeroes y's leading entry; ``XY[k, 2:4]`` hold their adjoints.
 """
@@ -10,11 +10,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from models import FASTMATH
+from scioc.models.runtime import FASTMATH, njit
 
-#: Unsigned index type of the delayed kernels' inner loops (:mod:`models.delayed.innovations` says why).
+#: Unsigned index type of the delayed kernels' inner loops (:mod:`scioc.models.delayed.innovations` says why).
 U = np.uint64
 
 

@@ -1,16 +1,16 @@
-"""The search at one delay of :mod:`models.delayed.identify`: log-likelihood in z, bounds, L-BFGS-B, information.
+"""The search at one delay of :mod:`scioc.models.delayed.identify`: log-likelihood in z, bounds, L-BFGS-B, information.
 
 A unit's parameters at delay d, in the optimizer's coordinates::
 
     z = (log θ1 in LOG_THETA1_RANGE, θ2 >= 0, w = R_0 / R in [1/R_SPAN, R_SPAN], τ_nm in [0, TAU_NM_MAX],
          σ_m >= 0)
 
-with R_0 the max-ent estimate's R (:mod:`models.delayed.identify` says why w and not
+with R_0 the max-ent estimate's R (:mod:`scioc.models.delayed.identify` says why w and not
 log R). σ_m is held at 0 for d = 0. The objective handed to L-BFGS-B is minus the
 log-likelihood per torque sample, with τ_nm and σ_m in the units of :data:`Z_SCALE`.
 
-A unit is its torques (:func:`models.delayed.likelihood.loglik_grad`, exact gradient) or,
-for angle-only recordings, its encoder angles (:func:`models.delayed.angles.window_loglik`;
+A unit is its torques (:func:`scioc.models.delayed.likelihood.loglik_grad`, exact gradient) or,
+for angle-only recordings, its encoder angles (:func:`scioc.models.delayed.angles.window_loglik`;
 ``SearchUnit.angles``), whose gradient in z is taken by central differences
 (:func:`_angle_loglik_grad_z`).
 """
@@ -22,13 +22,13 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import minimize
 
-from models.cost import from_normalized
-from models.delayed.angles import window_loglik
-from models.delayed.lag import lag_coefficients, window_tau0
-from models.delayed.likelihood import loglik_grad
-from models.design import WheelParameters
-from models.identify import BOUND_TOL, PLAUSIBLE_THETA1
-from models.plant import DiscretePlant
+from scioc.models.cost import from_normalized
+from scioc.models.delayed.angles import window_loglik
+from scioc.models.delayed.lag import lag_coefficients, window_tau0
+from scioc.models.delayed.likelihood import loglik_grad
+from scioc.models.design import WheelParameters
+from scioc.models.identify import BOUND_TOL, PLAUSIBLE_THETA1
+from scioc.models.plant import DiscretePlant
 
 #: Largest τ_nm searched, s (McRuer & Jex: about 0.1 s; 10 times that is no longer a neuromuscular lag).
 TAU_NM_MAX = 1.0
@@ -40,7 +40,7 @@ LAG_NOISE_TOL = 1e-6
 #: policy noise then has 1/1000 of the SD it has in the max-ent fit, a bound like θ2 = 0. Down:
 #: only against overflow.
 R_SPAN = 1e6
-#: log θ1 is searched within a decade beyond :data:`models.identify.PLAUSIBLE_THETA1` (an estimate
+#: log θ1 is searched within a decade beyond :data:`scioc.models.identify.PLAUSIBLE_THETA1` (an estimate
 #: outside that is flagged implausible anyway); without a bound a likelihood that rises without
 #: end, as on a torque smoother than any lag explains, drives θ1 to overflow.
 LOG_THETA1_RANGE = (float(np.log(PLAUSIBLE_THETA1[0] / 10.0)), float(np.log(PLAUSIBLE_THETA1[1] * 10.0)))
@@ -55,10 +55,10 @@ SADDLE_PROBE = 1e-3
 class SearchUnit(NamedTuple):
     """One unit's data and the search's fixed settings.
 
-    ``warmups`` per batch, one :class:`models.delayed.lag.Warmup` or None per row; ``K`` the
+    ``warmups`` per batch, one :class:`scioc.models.delayed.lag.Warmup` or None per row; ``K`` the
     torque samples of all rows (the scored angle samples with ``angles``); ``R0`` the max-ent
     estimate's R (the scale of w). ``angles``: the unit's windows as
-    :class:`models.delayed.angles.AngleWindow`; the likelihood is then that of the angles
+    :class:`scioc.models.delayed.angles.AngleWindow`; the likelihood is then that of the angles
     (encoder noise SD ``sigma_y``, rad) and ``batches`` only gave R0.
     """
 

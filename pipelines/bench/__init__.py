@@ -14,6 +14,6 @@ module                     what it measures
 =========================  ===========================================================
 """
 
-from pipelines.bench.suite import PARTS, run_bench
+from scioc.pipelines.bench.suite import PARTS, run_bench
 
 __all__ = ["PARTS", "run_bench"]

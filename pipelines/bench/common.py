@@ -11,11 +11,11 @@ import numba
 import numpy as np
 import scipy
 
-from models.design import WINDOW_SECONDS
-from models.simulate import simulate_study
-from pipelines.io import validate_table
-from pipelines.prepare import IdentifySettings, prepare_study
-from pipelines.simulate import study_table
+from scioc.models.design import WINDOW_SECONDS
+from scioc.models.simulate import simulate_study
+from scioc.pipelines.io import validate_table
+from scioc.pipelines.prepare import IdentifySettings, prepare_study
+from scioc.pipelines.simulate import study_table
 
 
 def timeit(fn: Callable[[], object], *, min_time: float = 0.3, max_repeat: int = 200) -> dict:

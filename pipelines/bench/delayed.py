@@ -3,12 +3,12 @@
 The batch is the default simulated study's analysis windows as ``scioc run`` prepares them
 (84 segments × K = 1500, the plan looking 2 s = 200 steps further), each with its true θ.
 Delay, lag and motor noise are those of the simulated ``combined`` human
-(:mod:`models.humans`: τ_nm = 0.06 s, σ_m = 0.25 N·m); the delay is varied. The cost of
+(:mod:`scioc.models.humans`: τ_nm = 0.06 s, σ_m = 0.25 N·m); the delay is varied. The cost of
 the kernel depends on them (the lengths of the transients), not on the data. All
 timings are measured in the same run; the max-ent kernel is timed on the same batch.
 
 :func:`bench_angles` times the likelihood of the same windows' encoder angles
-(:mod:`models.delayed.angles`, no gradient: identify takes it by central differences), one
+(:mod:`scioc.models.delayed.angles`, no gradient: identify takes it by central differences), one
 core, beside its dense reference on a shorter window.
 """
 
@@ -19,18 +19,18 @@ import time
 import numba
 import numpy as np
 
-from models.delayed import loglik as delayed_loglik
-from models.delayed import loglik_grad as delayed_loglik_grad
-from models.delayed import window_loglik
-from models.delayed.angles import START_SD
-from models.delayed.dense import angle_loglik_dense
-from models.design import STUDY
-from models.humans import MOTOR_SD, TAU_NM
-from models.maxent import loglik_grad as maxent_loglik_grad
-from models.plant import DT_HUMAN, discretize
-from models.segment import prepare_batch
-from pipelines.bench.common import timeit
-from pipelines.identify import angle_windows
+from scioc.models.delayed import loglik as delayed_loglik
+from scioc.models.delayed import loglik_grad as delayed_loglik_grad
+from scioc.models.delayed import window_loglik
+from scioc.models.delayed.angles import START_SD
+from scioc.models.delayed.dense import angle_loglik_dense
+from scioc.models.design import STUDY
+from scioc.models.humans import MOTOR_SD, TAU_NM
+from scioc.models.maxent import loglik_grad as maxent_loglik_grad
+from scioc.models.plant import DT_HUMAN, discretize
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.bench.common import timeit
+from scioc.pipelines.identify import angle_windows
 
 #: Delays timed, in samples of 0.01 s (0 to 300 ms).
 DELAYS = (0, 10, 30)
@@ -43,7 +43,7 @@ def bench_delayed(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m
     Parameters
     ----------
     study : dict
-        From :func:`pipelines.bench.common.default_study_segments`.
+        From :func:`scioc.pipelines.bench.common.default_study_segments`.
     delays : sequence of int
         Delays in samples.
     tau_nm, sigma_m : float
@@ -57,9 +57,9 @@ def bench_delayed(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m
     -------
     dict
         ``n``, ``K``, ``preview_steps``, ``maxent`` (timing dict of
-        :func:`pipelines.bench.common.timeit`) and ``rows``: one per (delay, threads)
+        :func:`scioc.pipelines.bench.common.timeit`) and ``rows``: one per (delay, threads)
         with ``min_s``, ``median_s``, the ratio to the max-ent kernel and ``value_min_s``, the log-likelihood
-        alone (:func:`models.delayed.loglik`, without the gradient's reverse sweeps).
+        alone (:func:`scioc.models.delayed.loglik`, without the gradient's reverse sweeps).
     """
     plant = discretize(DT_HUMAN)
     batch = prepare_batch(plant, [p.segment for p in study[preview]])

@@ -12,17 +12,17 @@ functions and defaults as::
 
 that is, the paper's study with a torque sensor (the hierarchical delayed model is that of
 recorded torques), each subject's delay at its profile maximum, the chains started at the
-ML estimates and sampled on the subjects' whitened coordinates (:mod:`pipelines.fit.start`,
-:mod:`pipelines.fit.whiten`). The time judged is the fit's own (``posterior.json``,
+ML estimates and sampled on the subjects' whitened coordinates (:mod:`scioc.pipelines.fit.start`,
+:mod:`scioc.pipelines.fit.whiten`). The time judged is the fit's own (``posterior.json``,
 ``seconds.total_s``: preparing, the start and whitening, compiling, sampling, the
 log-likelihood, predictive draws and the adequacy check at the posterior); the
 identification is reported beside it.
 
-Humans (:data:`models.humans.HUMANS`): ``maxent``, the paper's agent (the default study; its
+Humans (:data:`scioc.models.humans.HUMANS`): ``maxent``, the paper's agent (the default study; its
 ML delays, lags and motor noise sit near 0), and ``kbl``, Kleinman-Baron-Levison's operator
 with delays of 10-20 samples, a neuromuscular lag and motor noise (the kernel's cost grows with
-the delay, :mod:`pipelines.bench.delayed`). ``scioc bench-fit --human-model delayed``
-(:mod:`pipelines.bench.fit_delayed`) is the other measurement: a study drawn from the delayed
+the delay, :mod:`scioc.pipelines.bench.delayed`). ``scioc bench-fit --human-model delayed``
+(:mod:`scioc.pipelines.bench.fit_delayed`) is the other measurement: a study drawn from the delayed
 model itself with true delays, no ML start and so no whitening, for comparing
 parameterizations; its times are not the goal's.
 """
@@ -37,11 +37,11 @@ from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
-from pipelines.experiment import load_experiment
-from pipelines.identify import identify_to_dir
-from pipelines.io import load_study
-from pipelines.prepare import IdentifySettings, prepare_study
-from pipelines.simulate import simulate_to_dir
+from scioc.pipelines.experiment import load_experiment
+from scioc.pipelines.identify import identify_to_dir
+from scioc.pipelines.io import load_study
+from scioc.pipelines.prepare import IdentifySettings, prepare_study
+from scioc.pipelines.simulate import simulate_to_dir
 
 #: The issue's goal for the full delayed fit (``scioc fit``'s ``seconds.total_s``), s.
 FIT_DELAYED_GOAL_S = 900.0
@@ -95,7 +95,7 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
         identify_to_dir(sim["study"], root / "identify_delayed", settings, show_progress=False, prepared=prepared,
                         experiment_file=sim["experiment"])
         identify_s = time.perf_counter() - t0
-        from pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
+        from scioc.pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
 
         paths = fit_to_dir(sim["study"], root / "fit_delayed", seed=seed, chains=chains, draws=draws, tune=tune,
                            settings=settings, prepared=prepared, experiment_file=sim["experiment"],

@@ -13,11 +13,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from pipelines.experiment import load_experiment
-from pipelines.identify import identify_prepared
-from pipelines.io import load_study
-from pipelines.prepare import IdentifySettings, prepare_study
-from pipelines.simulate import simulate_to_dir
+from scioc.pipelines.experiment import load_experiment
+from scioc.pipelines.identify import identify_prepared
+from scioc.pipelines.io import load_study
+from scioc.pipelines.prepare import IdentifySettings, prepare_study
+from scioc.pipelines.simulate import simulate_to_dir
 
 #: The example's experiment file.
 EXAMPLE = Path(__file__).resolve().parents[2] / "data" / "examples" / "three-assistants" / "experiment.toml"
@@ -37,7 +37,7 @@ def bench_example(*, fit: bool = True, seed: int = 2018) -> dict:
                "identify_s": time.perf_counter() - t0, "identify_parts_s": ident.timing,
                "adequacy_verdict": ident.adequacy["verdict"]}
         if fit:
-            from pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
+            from scioc.pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
 
             t0 = time.perf_counter()
             paths = fit_to_dir(sim["study"], Path(tmp) / "fit", seed=seed, settings=settings, prepared=prepared,

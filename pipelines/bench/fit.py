@@ -2,11 +2,11 @@
 
 The default simulated study (42 subjects × MC and SC, the 15-s window, K = 1500, the plan
 looking 2 s further, u_H reconstructed from the encoder angle) is fitted with the
-condition model of :func:`models.bayes.hierarchical.build_model` through
-:func:`pipelines.fit.sampling.sample_model` (PyMC's nutpie sampler, 4 chains × 1000 draws after
+condition model of :func:`scioc.models.bayes.hierarchical.build_model` through
+:func:`scioc.pipelines.fit.sampling.sample_model` (PyMC's nutpie sampler, 4 chains × 1000 draws after
 1000 tuning draws, chains in parallel on all cores). Reported: wall time of building,
 compiling and sampling; the sampler's diagnostics and verdict
-(:func:`pipelines.fit.diagnostics.diagnostics`), ESS per second for every population parameter; β
+(:func:`scioc.pipelines.fit.diagnostics.diagnostics`), ESS per second for every population parameter; β
 against the simulator's population; and what the same fit would cost with the dense
 O(K³) likelihood: the number of logp-and-gradient evaluations the sampler made after
 tuning (tuning needs about as many again, uncounted: a lower bound) times the measured
@@ -21,14 +21,14 @@ import time
 
 import numpy as np
 
-from models.bayes.hierarchical import Parameterization, build_model
-from models.design import WINDOW_SECONDS
-from models.plant import DT_HUMAN, discretize
-from models.simulate import Population
-from pipelines.bench.common import default_study_segments
-from pipelines.fit.contrasts import hdi
-from pipelines.fit.diagnostics import diagnostics
-from pipelines.fit.sampling import sample_model
+from scioc.models.bayes.hierarchical import Parameterization, build_model
+from scioc.models.design import WINDOW_SECONDS
+from scioc.models.plant import DT_HUMAN, discretize
+from scioc.models.simulate import Population
+from scioc.pipelines.bench.common import default_study_segments
+from scioc.pipelines.fit.contrasts import hdi
+from scioc.pipelines.fit.diagnostics import diagnostics
+from scioc.pipelines.fit.sampling import sample_model
 
 #: The issue's speed goal for the full fit (build, compile and sample), s.
 FIT_GOAL_S = 180.0
@@ -42,7 +42,7 @@ def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 10
     Parameters
     ----------
     study : dict
-        From :func:`pipelines.bench.common.default_study_segments` (its 2-s-preview segments are used).
+        From :func:`scioc.pipelines.bench.common.default_study_segments` (its 2-s-preview segments are used).
     seed, chains, draws, tune
         As ``scioc fit``.
     dense_s_per_segment : float, optional
@@ -56,7 +56,7 @@ def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 10
     -------
     dict
         ``seconds`` (build, compile_and_sample, sample, total), ``diagnostics`` (see
-        :func:`pipelines.fit.diagnostics`), ``beta`` (mean, 94 % HDI, truth, inside),
+        :func:`scioc.pipelines.fit.diagnostics`), ``beta`` (mean, 94 % HDI, truth, inside),
         ``grad_evals_after_tuning``, ``dense`` (projected time and ratio) and the goal check.
     """
     form = parameterization or Parameterization()
@@ -126,7 +126,7 @@ def bench_parameterization(parameterization: Parameterization, *, study_seed: in
                            window_seconds: float = WINDOW_SECONDS, seed: int = 2018) -> dict:
     """One fit of the default simulated study in ``parameterization`` (``scioc bench-fit``).
 
-    What the parameterization table of :mod:`models.bayes.hierarchical` was measured with::
+    What the parameterization table of :mod:`scioc.models.bayes.hierarchical` was measured with::
 
         scioc bench-fit --study-seed 2018 --theta1-mc centred [--window-seconds 3]
 

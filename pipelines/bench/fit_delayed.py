@@ -4,21 +4,21 @@ Two measurements (``scioc bench --parts fit_delayed``):
 
 * :func:`bench_delay_profile`: on windows drawn from the ``delayed`` model at default-like
   settings (1500 samples, 2-s preview, delay 12 samples, τ_nm 0.06 s, σ_m 0.25 N·m, θ of
-  the default population; :func:`models.bayes.delayed_windows.delayed_windows`), the ML
+  the default population; :func:`scioc.models.bayes.delayed_windows.delayed_windows`), the ML
   profile log-likelihood over the delay grid of every unit
-  (:func:`models.delayed.identify.identify_unit_delayed`) and its drop one and two
+  (:func:`scioc.models.delayed.identify.identify_unit_delayed`) and its drop one and two
   samples from its maximum, per level: the measurement behind the plug-in delay of
-  :mod:`models.bayes.delayed_model`.
+  :mod:`scioc.models.bayes.delayed_model`.
 * :func:`bench_fit_delayed`: the full hierarchical fit of a default-size study of the
   ``delayed`` human (42 subjects × MC and SC, K = 1500, preview 200, each subject's delay,
   lag and motor noise drawn as the ``kbl`` human's; true torques, delays at their true
-  values, τ_0 = 0 known), as :func:`pipelines.fit.sampling.sample_model` runs it (nutpie,
+  values, τ_0 = 0 known), as :func:`scioc.pipelines.fit.sampling.sample_model` runs it (nutpie,
   4 chains × 1000 draws after 1000 tuning draws, chains in parallel on all cores): wall
   times, the sampler's diagnostics, recovery of τ_nm, σ_m and β (``scioc bench-fit
-  --human-model delayed``: how the tables of :mod:`models.bayes.delayed_blocks` compare
+  --human-model delayed``: how the tables of :mod:`scioc.models.bayes.delayed_blocks` compare
   parameterizations). Without ML estimates it has no start near them and no whitening, the
   default of ``scioc fit``, so its times are not the issue's goal (15 minutes), which
-  :mod:`pipelines.bench.delayed_workflow` measures on the path a user runs.
+  :mod:`scioc.pipelines.bench.delayed_workflow` measures on the path a user runs.
 """
 
 from __future__ import annotations
@@ -29,17 +29,23 @@ from dataclasses import asdict
 
 import numpy as np
 
-from models.bayes.delayed_model import (DELAYED_NUTS, DELAYED_PARAMETERIZATION, DELAYED_POPULATION_PARAMETERS,
-                                        DelayedForm, DelayedPriors, build_delayed_model)
-from models.bayes.delayed_windows import delayed_windows
-from models.bayes.hierarchical import POPULATION_PARAMETERS
-from models.delayed.identify import identify_unit_delayed
-from models.plant import DT_HUMAN, discretize
-from models.population import Population
-from models.segment import prepare_batch
-from pipelines.fit.contrasts import hdi
-from pipelines.fit.diagnostics import diagnostics
-from pipelines.fit.sampling import sample_model
+from scioc.models.bayes.delayed_model import (
+    DELAYED_NUTS,
+    DELAYED_PARAMETERIZATION,
+    DELAYED_POPULATION_PARAMETERS,
+    DelayedForm,
+    DelayedPriors,
+    build_delayed_model,
+)
+from scioc.models.bayes.delayed_windows import delayed_windows
+from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS
+from scioc.models.delayed.identify import identify_unit_delayed
+from scioc.models.plant import DT_HUMAN, discretize
+from scioc.models.population import Population
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.fit.contrasts import hdi
+from scioc.pipelines.fit.diagnostics import diagnostics
+from scioc.pipelines.fit.sampling import sample_model
 
 #: Unit-level quantities of the delayed model whose diagnostics are reported.
 DELAYED_UNITS = ("log_theta1", "log_R", "theta2", "tau_nm", "sigma_m")
@@ -96,10 +102,10 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
     -------
     dict
         ``settings``, ``seconds`` (build, compile_and_sample, sample, fit), ``diagnostics``
-        (:func:`pipelines.fit.diagnostics.diagnostics` over the cost and the lag and
+        (:func:`scioc.pipelines.fit.diagnostics.diagnostics` over the cost and the lag and
         motor-noise population parameters), ``recovery`` (β, τ_nm, σ_m against the truth),
         and ``grad_evals``. ``idata_path``: also write the posterior there.
-        ``nuts``: nutpie's options (default :data:`models.bayes.delayed_model.DELAYED_NUTS`).
+        ``nuts``: nutpie's options (default :data:`scioc.models.bayes.delayed_model.DELAYED_NUTS`).
     """
     plant = discretize(DT_HUMAN)
     w = delayed_windows(n_subjects, np.random.default_rng(np.random.SeedSequence(seed)))

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import time
 
-from models.identify import identify_segment
-from models.plant import DT_HUMAN, discretize
-from models.segment import prepare_batch
-from pipelines.adequacy import assess_study
-from pipelines.prepare import IdentifySettings
+from scioc.models.identify import identify_segment
+from scioc.models.plant import DT_HUMAN, discretize
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.adequacy import assess_study
+from scioc.pipelines.prepare import IdentifySettings
 
 
 def bench_identify(study: dict) -> dict:

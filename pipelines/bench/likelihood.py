@@ -12,11 +12,11 @@ import tracemalloc
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from models.maxent import loglik_grad, sample_maxent
-from models.maxent_dense import loglik_dense
-from models.plant import DT_HUMAN, discretize
-from models.segment import Segment, prepare_batch
-from pipelines.bench.common import timeit
+from scioc.models.maxent import loglik_grad, sample_maxent
+from scioc.models.maxent_dense import loglik_dense
+from scioc.models.plant import DT_HUMAN, discretize
+from scioc.models.segment import Segment, prepare_batch
+from scioc.pipelines.bench.common import timeit
 
 #: Segment lengths compared against the dense reference.
 DENSE_K = (250, 500, 1000, 1500)
@@ -51,7 +51,7 @@ def synthetic_segments(n: int, K: int, seed: int = 0) -> list[Segment]:
 def bench_likelihood(study: dict, *, dense_k=DENSE_K, long_k: int = LONG_K, seed: int = 0) -> dict:
     """Time dense vs linear-time likelihood with gradient, the long run and the study batch.
 
-    ``study`` comes from :func:`pipelines.bench.common.default_study_segments`.
+    ``study`` comes from :func:`scioc.pipelines.bench.common.default_study_segments`.
 
     Returns
     -------

@@ -5,7 +5,7 @@ from __future__ import annotations
 import tempfile
 import time
 
-from pipelines.calibrate import CalibrationConfig, calibrate
+from scioc.pipelines.calibrate import CalibrationConfig, calibrate
 
 
 def bench_sbc(n_reps: int = 200, seed: int = 99) -> dict:

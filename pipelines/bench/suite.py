@@ -1,8 +1,8 @@
 """``scioc bench``: measured speed of the likelihood kernels, the identification, the full fit and SBC.
 
-All ratios are measured in the same run on the same machine (:mod:`pipelines.bench.likelihood`,
-:mod:`pipelines.bench.identify`, :mod:`pipelines.bench.fit`, :mod:`pipelines.bench.sbc`), and the
-second built-in example's identification and fit (:mod:`pipelines.bench.example`).
+All ratios are measured in the same run on the same machine (:mod:`scioc.pipelines.bench.likelihood`,
+:mod:`scioc.pipelines.bench.identify`, :mod:`scioc.pipelines.bench.fit`, :mod:`scioc.pipelines.bench.sbc`), and the
+second built-in example's identification and fit (:mod:`scioc.pipelines.bench.example`).
 """
 
 from __future__ import annotations
@@ -10,10 +10,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pipelines.bench.common import default_study_segments, machine_info
-from pipelines.bench.identify import bench_identify, format_identify
-from pipelines.bench.likelihood import bench_likelihood, format_likelihood
-from pipelines.storage import write_text_atomic
+from scioc.pipelines.bench.common import default_study_segments, machine_info
+from scioc.pipelines.bench.identify import bench_identify, format_identify
+from scioc.pipelines.bench.likelihood import bench_likelihood, format_likelihood
+from scioc.pipelines.storage import write_text_atomic
 
 #: The parts of ``scioc bench``, in the order they run.
 PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "sbc", "example")
@@ -32,7 +32,7 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
         Any of :data:`PARTS`. The fit's dense comparison needs the likelihood part.
     humans : sequence of str, optional
         The simulated humans of the ``fit_delayed`` part's fits as ``scioc fit`` runs them
-        (default :data:`pipelines.bench.delayed_workflow.WORKFLOW_HUMANS`; each fit takes
+        (default :data:`scioc.pipelines.bench.delayed_workflow.WORKFLOW_HUMANS`; each fit takes
         15-35 minutes at full size).
     keep : str or Path, optional
         Keep each of those fits' study, estimates and fit in ``keep/<human>/`` (default: removed).
@@ -41,7 +41,7 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
     if unknown:
         raise ValueError(f"unknown benchmark part(s) {sorted(unknown)}; choose from {', '.join(PARTS)}")
     if keep is not None and "fit_delayed" in parts:  # refused now, not after an hour of the parts before
-        from pipelines.bench.delayed_workflow import WORKFLOW_HUMANS, refuse_used_folder
+        from scioc.pipelines.bench.delayed_workflow import WORKFLOW_HUMANS, refuse_used_folder
 
         for human in WORKFLOW_HUMANS if humans is None else humans:
             refuse_used_folder(Path(keep) / human)
@@ -52,7 +52,7 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
         result["likelihood"] = bench_likelihood(study, **kw)
         print(format_likelihood(result["likelihood"]), flush=True)
     if "delayed" in parts:
-        from pipelines.bench.delayed import bench_angles, bench_delayed, format_angles, format_delayed
+        from scioc.pipelines.bench.delayed import bench_angles, bench_delayed, format_angles, format_delayed
 
         result["delayed"] = bench_delayed(study)
         print(format_delayed(result["delayed"]), flush=True)
@@ -62,7 +62,7 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
         result["identify"] = bench_identify(study)
         print(format_identify(result["identify"]), flush=True)
     if "fit" in parts and not quick:
-        from pipelines.bench.fit import bench_fit, format_fit  # lazy: PyMC takes seconds to import
+        from scioc.pipelines.bench.fit import bench_fit, format_fit  # lazy: PyMC takes seconds to import
 
         lik = result.get("likelihood", {})
         dense = {r["K"]: r["dense_s"] for r in lik.get("rows", [])}
@@ -71,8 +71,12 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
                                   linear_s_per_batch=lik.get("batch_preview", {}).get("linear_s"))
         print(format_fit(result["fit"]), flush=True)
     if "fit_delayed" in parts and not quick:
-        from pipelines.bench.delayed_workflow import WORKFLOW_HUMANS, bench_delayed_workflow, format_delayed_workflow
-        from pipelines.bench.fit_delayed import bench_delay_profile, format_delay_profile
+        from scioc.pipelines.bench.delayed_workflow import (
+            WORKFLOW_HUMANS,
+            bench_delayed_workflow,
+            format_delayed_workflow,
+        )
+        from scioc.pipelines.bench.fit_delayed import bench_delay_profile, format_delay_profile
 
         result["fit_delayed"] = {"profile": bench_delay_profile(), "workflow": {}}
         print(format_delay_profile(result["fit_delayed"]["profile"]), flush=True)
@@ -81,12 +85,12 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
                 human=human, keep=None if keep is None else Path(keep) / human)
             print(format_delayed_workflow(result["fit_delayed"]["workflow"][human]), flush=True)
     if "sbc" in parts and not quick:
-        from pipelines.bench.sbc import bench_sbc, format_sbc  # lazy: Dask and PyMC take seconds to import
+        from scioc.pipelines.bench.sbc import bench_sbc, format_sbc  # lazy: Dask and PyMC take seconds to import
 
         result["sbc"] = bench_sbc()
         print(format_sbc(result["sbc"]), flush=True)
     if "example" in parts:
-        from pipelines.bench.example import bench_example, format_example  # lazy: the fit imports PyMC
+        from scioc.pipelines.bench.example import bench_example, format_example  # lazy: the fit imports PyMC
 
         result["example"] = bench_example(fit=not quick)
         print(format_example(result["example"]), flush=True)

@@ -14,10 +14,10 @@ module                     what it holds
 =========================  ===========================================================
 """
 
-from pipelines.calibrate.config import DEFAULTS, CalibrationConfig, level_configs
-from pipelines.calibrate.execution import calibrate, calibrate_runs, check_scheduler
-from pipelines.calibrate.store import rep_path
-from pipelines.calibrate.summary import FAMILY_ALPHA, as_expected, format_summary
+from scioc.pipelines.calibrate.config import DEFAULTS, CalibrationConfig, level_configs
+from scioc.pipelines.calibrate.execution import calibrate, calibrate_runs, check_scheduler
+from scioc.pipelines.calibrate.store import rep_path
+from scioc.pipelines.calibrate.summary import FAMILY_ALPHA, as_expected, format_summary
 
 __all__ = ["DEFAULTS", "CalibrationConfig", "level_configs", "calibrate", "calibrate_runs", "check_scheduler",
            "rep_path", "FAMILY_ALPHA", "as_expected", "format_summary"]

@@ -8,14 +8,14 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from models.design import STUDY, Design
+from scioc.models.design import STUDY, Design
 
 #: Version of how replications simulate and fit; part of every fingerprint. Bump it when
 #: the data-generating process or the fitted likelihood changes.
 GENERATOR = ("3: SC human plans with the assistant's feedback law; assistant re-solves every sample; "
              "ArviZ's bulk/tail-ESS thinning; log-likelihood test quantity; thinned draws stored")
 
-#: Likewise for the ``delayed`` human's replications (:mod:`pipelines.calibrate.unit_delayed`).
+#: Likewise for the ``delayed`` human's replications (:mod:`scioc.pipelines.calibrate.unit_delayed`).
 DELAYED_GENERATOR = ("3: the likelihood's held-torque convention; the delay sampled (NUTS then DelayMetropolis); "
                      "numba-compiled once per worker")
 
@@ -44,11 +44,11 @@ class CalibrationConfig:
     batch_size : int
         Replications per Dask task.
     experiment : dict or None
-        The experiment calibrated, in the resolved form of :func:`pipelines.experiment.resolved`
+        The experiment calibrated, in the resolved form of :func:`scioc.pipelines.experiment.resolved`
         (its rate, wheel, levels and assistants, window); None for the paper's study.
     human_model : {"maxent", "delayed"}
         The human model simulated and fitted (``delayed``: unit level only,
-        :mod:`pipelines.calibrate.unit_delayed`; its negative control ``no-delay`` fits
+        :mod:`scioc.pipelines.calibrate.unit_delayed`; its negative control ``no-delay`` fits
         with the delay fixed at 0 instead of the profile's).
     """
 
@@ -105,7 +105,7 @@ class CalibrationConfig:
             d["delayed_generator"] = DELAYED_GENERATOR
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
-#: The human models a calibration can simulate and fit (:data:`pipelines.prepare.HUMAN_MODELS`).
+#: The human models a calibration can simulate and fit (:data:`scioc.pipelines.prepare.HUMAN_MODELS`).
 HUMAN_MODELS = ("maxent", "delayed")
 #: The negative controls each human model can run.
 NEGATIVE_CONTROLS = {"maxent": ("inertia", "ignore-uA"), "delayed": ("no-delay", "inertia")}
@@ -166,7 +166,7 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
             d[key] = value
     experiment = None
     if design is not None and design != STUDY:
-        from pipelines.experiment import resolved  # the experiment travels to the workers as data
+        from scioc.pipelines.experiment import resolved  # the experiment travels to the workers as data
 
         experiment = resolved(design)
         if level == "unit" and seconds is None:

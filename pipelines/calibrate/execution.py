@@ -11,8 +11,8 @@ exists, so an interrupted run resumes and a worker that dies costs only the
 replications it had not finished.
 
 The statistics (ranks, PIT, uniformity tests, coverage, contraction) are computed from
-the replication files by :func:`pipelines.calibrate.summary.summarize`, in replication
-order; the files and their rules live in :mod:`pipelines.calibrate.store`.
+the replication files by :func:`scioc.pipelines.calibrate.summary.summarize`, in replication
+order; the files and their rules live in :mod:`scioc.pipelines.calibrate.store`.
 
 An existing scheduler is first asked who it is (:func:`check_scheduler`), under one hard
 deadline: distributed's connect timeout stops applying once TCP connects, so an address
@@ -28,19 +28,20 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
-from pipelines.calibrate.config import CalibrationConfig, replication_seed
-from pipelines.calibrate.store import earlier_summary, prepare_out, read_json, rep_path, write_replication
-from pipelines.calibrate.summary import sbc_tree, summarize
-from pipelines.progress import progress
-from pipelines.storage import atomic_path, write_text_atomic
+from scioc.models.runtime import configure
+from scioc.pipelines.calibrate.config import CalibrationConfig, replication_seed
+from scioc.pipelines.calibrate.store import earlier_summary, prepare_out, read_json, rep_path, write_replication
+from scioc.pipelines.calibrate.summary import sbc_tree, summarize
+from scioc.pipelines.progress import progress
+from scioc.pipelines.storage import atomic_path, write_text_atomic
 
 
 def run_replication(config: CalibrationConfig, i: int) -> dict:
     """Replication ``i`` of ``config`` (its level's), with its index, wall time and worker."""
     # Lazy: the models import PyMC (seconds), which only the workers need.
-    from pipelines.calibrate.study import study_replication
-    from pipelines.calibrate.unit import unit_replication
-    from pipelines.calibrate.unit_delayed import unit_delayed_replication
+    from scioc.pipelines.calibrate.study import study_replication
+    from scioc.pipelines.calibrate.unit import unit_replication
+    from scioc.pipelines.calibrate.unit_delayed import unit_delayed_replication
 
     t0 = time.perf_counter()
     if config.human_model == "delayed":
@@ -56,6 +57,7 @@ def run_replication(config: CalibrationConfig, i: int) -> dict:
 
 def run_batch(indices, config_dict: dict, out_dir: str) -> list[dict]:
     """A Dask task: run (or read back) several replications, writing each as it finishes."""
+    configure()  # a worker process: numba's cache, PyTensor's fast-math off
     config = CalibrationConfig(**config_dict)
     out = []
     for i in indices:
@@ -132,7 +134,7 @@ def calibrate(config: CalibrationConfig, out_dir, *, scheduler: str | None = Non
     -------
     dict
         The summary (also written to ``OUT/summary.json``; every replication also goes
-        into ``OUT/sbc.nc``, :func:`pipelines.calibrate.summary.sbc_tree`).
+        into ``OUT/sbc.nc``, :func:`scioc.pipelines.calibrate.summary.sbc_tree`).
     """
     from dask.distributed import as_completed  # lazy: Dask takes seconds to import
 
@@ -175,8 +177,8 @@ def calibrate_runs(runs, out, *, scheduler: str | None = None, n_workers: int = 
     """``scioc calibrate``: several calibrations (a level and its negative control), each into ``out/NAME``.
 
     ``runs`` is a list of (folder name, :class:`CalibrationConfig`), as
-    :func:`pipelines.calibrate.config.level_configs` gives. Every folder is checked
-    (:func:`pipelines.calibrate.store.earlier_summary`) before anything runs.
+    :func:`scioc.pipelines.calibrate.config.level_configs` gives. Every folder is checked
+    (:func:`scioc.pipelines.calibrate.store.earlier_summary`) before anything runs.
     """
     for name, cfg in runs:
         earlier_summary(cfg, Path(out) / name)

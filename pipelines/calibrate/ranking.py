@@ -1,13 +1,13 @@
 """The one SBC replication loop after the data: sample, thin, rank, randomize the PIT, keep the thinned draws.
 
-Both levels (:mod:`pipelines.calibrate.unit`, :mod:`pipelines.calibrate.study`) simulate
+Both levels (:mod:`scioc.pipelines.calibrate.unit`, :mod:`scioc.pipelines.calibrate.study`) simulate
 their data and then call :func:`sample_and_rank` with their targets: each target names
 the posterior draws of one scalar quantity and its true value. Ranks follow simuk's
-definition (draws strictly below the truth, :func:`models.sbc.rank`) among L draws
+definition (draws strictly below the truth, :func:`scioc.models.sbc.rank`) among L draws
 thinned to near independence by ArviZ's bulk- and tail-ESS factor (:func:`thin`); the randomized PIT
 ``(rank + U) / (L + 1)`` takes its U from the replication's own generator, one per target
 in target order. The thinned draws are returned too, so that the replication can be
-re-ranked later (simuk's ``prior_sbc`` layout, :mod:`pipelines.calibrate.summary`).
+re-ranked later (simuk's ``prior_sbc`` layout, :mod:`scioc.pipelines.calibrate.summary`).
 
 Besides the parameters, every replication ranks one test quantity that depends on the
 data: the log-likelihood of the simulated data (Modrák et al. 2023, *Simulation-based
@@ -23,8 +23,8 @@ from typing import NamedTuple
 import numpy as np
 from arviz_stats.base import array_stats
 
-from models.maxent import loglik_grad
-from models.sbc import rank
+from scioc.models.maxent import loglik_grad
+from scioc.models.sbc import rank
 
 #: Name of the log-likelihood test quantity among the ranked targets.
 LOGLIK = "loglik"

@@ -4,7 +4,7 @@ Runs inside Dask workers. Compiled models and other slow-to-build objects are ca
 worker process (compiling takes seconds, a unit fit a fraction of one), keyed by
 everything that changes them (:func:`cached`).
 
-Everything follows the experiment being calibrated (:class:`models.design.Design`; the
+Everything follows the experiment being calibrated (:class:`scioc.models.design.Design`; the
 paper's study by default): its sample time, wheel, levels and their assistants, and its
 analysis window (from the window's start on the study reference, or from the start of a
 trial when it is analysed whole).
@@ -20,14 +20,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from models.assistant import human_feedback
-from models.bayes.op import DATA_NAMES
-from models.design import STUDY, Design
-from models.maxent import sample_maxent
-from models.plant import discretize
-from models.reference import reference_trajectory
-from models.segment import Segment, planning_plant, prepare_batch
-from pipelines.prepare import assistant_law
+from scioc.models.assistant import human_feedback
+from scioc.models.bayes.op import DATA_NAMES
+from scioc.models.design import STUDY, Design
+from scioc.models.maxent import sample_maxent
+from scioc.models.plant import discretize
+from scioc.models.reference import reference_trajectory
+from scioc.models.segment import Segment, planning_plant, prepare_batch
+from scioc.pipelines.prepare import assistant_law
 
 #: Relative error of the inertia in the ``inertia`` negative control.
 INERTIA_ERROR = 0.10
@@ -115,6 +115,6 @@ def config_design(config) -> Design:
     """The experiment a calibration configuration calibrates (its ``experiment``; the paper's study without one)."""
     if config.experiment is None:
         return STUDY
-    from pipelines.experiment import parse_experiment
+    from scioc.pipelines.experiment import parse_experiment
 
     return parse_experiment(config.experiment, "<calibration experiment>")

@@ -13,9 +13,9 @@ import json
 from dataclasses import asdict
 from pathlib import Path
 
-from pipelines.calibrate.config import CalibrationConfig
-from pipelines.io import InputDataError
-from pipelines.storage import write_text_atomic
+from scioc.pipelines.calibrate.config import CalibrationConfig
+from scioc.pipelines.io import InputDataError
+from scioc.pipelines.storage import write_text_atomic
 
 #: The fields every replication file holds.
 REPLICATION_FIELDS = frozenset({"ranks", "pit_u", "ess", "contraction", "seconds", "truth", "thinned"})

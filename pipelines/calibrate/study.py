@@ -1,17 +1,17 @@
 """Study-level SBC replication: the hierarchical model against studies drawn from its own prior.
 
 Per replication: population and unit parameters are drawn from the prior of
-:func:`models.bayes.hierarchical.build_model` (by PyMC itself, from the model graph, so
+:func:`scioc.models.bayes.hierarchical.build_model` (by PyMC itself, from the model graph, so
 the draws follow exactly the model that is fitted); a whole study is simulated exactly
 from the max-ent model (``n_subjects`` × every level of the experiment, windows of K
 samples of the reference from rest; on an assisted level the human plans with the
 assistant's law and the assistant reacts to the sampled trajectory,
-:func:`pipelines.calibrate.simulation.simulate_unit`); the model compiled once per worker
+:func:`scioc.pipelines.calibrate.simulation.simulate_unit`); the model compiled once per worker
 (data in ``pm.Data`` containers) is refitted with nutpie; ranks of the population
 parameters (with more than two levels, β, σ_β, β_R and σ_βR once per non-baseline level,
 labelled ``beta[weak]``), of the first subject's unit parameters and of the study's
 log-likelihood are recorded. The negative controls are those of the unit level
-(:mod:`pipelines.calibrate.simulation`).
+(:mod:`scioc.pipelines.calibrate.simulation`).
 """
 
 from __future__ import annotations
@@ -20,11 +20,17 @@ import warnings
 
 import numpy as np
 
-from models.bayes.hierarchical import POPULATION_PARAMETERS, build_model
-from models.cost import from_normalized
-from pipelines.calibrate.ranking import LOGLIK, Target, loglik_draws, sample_and_rank
-from pipelines.calibrate.simulation import (cached, config_design, fit_plant, fitted_batch, rest_segment,
-                                            simulate_unit)
+from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS, build_model
+from scioc.models.cost import from_normalized
+from scioc.pipelines.calibrate.ranking import LOGLIK, Target, loglik_draws, sample_and_rank
+from scioc.pipelines.calibrate.simulation import (
+    cached,
+    config_design,
+    fit_plant,
+    fitted_batch,
+    rest_segment,
+    simulate_unit,
+)
 
 #: Unit parameters ranked (first subject), as (variable, condition index).
 UNITS = (("log_theta1", 0), ("log_theta1", 1), ("log_R", 0), ("theta2", 0))

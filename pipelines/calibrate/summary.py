@@ -17,9 +17,9 @@ import numpy as np
 import xarray as xr
 from arviz_stats.base import array_stats
 
-from models.sbc import COVERAGE_LEVELS, pit_from_rank, uniformity_test
-from pipelines.calibrate.config import CalibrationConfig
-from pipelines.calibrate.store import load_replications
+from scioc.models.sbc import COVERAGE_LEVELS, pit_from_rank, uniformity_test
+from scioc.pipelines.calibrate.config import CalibrationConfig
+from scioc.pipelines.calibrate.store import load_replications
 
 #: Family-wise false-failure rate of the uniformity tests of one calibration run
 #: (Bonferroni over the parameters tested).

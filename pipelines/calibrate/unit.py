@@ -1,13 +1,13 @@
 """Unit-level SBC replication: one subject in one condition, θ from its prior, one analysis window.
 
-θ ~ :class:`models.bayes.unit_model.UnitPrior`; one exact max-ent demonstration over the
+θ ~ :class:`scioc.models.bayes.unit_model.UnitPrior`; one exact max-ent demonstration over the
 experiment's analysis window (the fixed reference; by default the paper's 15 s) from rest
 at the reference; replication i is in level i mod L of the experiment's L levels
 (baseline first: for the paper's study even replications are manual control, u_A = 0,
 odd ones shared control), where on an assisted level the human plans with the
 assistant's feedback law and the assistant reacts to the actual state
-(:func:`pipelines.calibrate.simulation.simulate_unit`, the simulator's SC human); the
-likelihood is the :class:`models.segment.Feedback` model, as in the pipeline; the
+(:func:`scioc.pipelines.calibrate.simulation.simulate_unit`, the simulator's SC human); the
+likelihood is the :class:`scioc.models.segment.Feedback` model, as in the pipeline; the
 posterior is sampled with nutpie, one chain after the other (``cores=1``: the
 parallelism is across replications, one worker per core; nutpie seeds each chain on its
 own, so the draws do not depend on this).
@@ -19,12 +19,18 @@ import warnings
 
 import numpy as np
 
-from models.bayes.unit_model import UNIT_PARAMETERS, UnitPrior, build_unit_model
-from models.cost import from_normalized
-from models.design import STUDY, Design
-from pipelines.calibrate.ranking import LOGLIK, Target, loglik_draws, sample_and_rank
-from pipelines.calibrate.simulation import (cached, config_design, fit_plant, fitted_batch, rest_segment,
-                                            simulate_unit)
+from scioc.models.bayes.unit_model import UNIT_PARAMETERS, UnitPrior, build_unit_model
+from scioc.models.cost import from_normalized
+from scioc.models.design import STUDY, Design
+from scioc.pipelines.calibrate.ranking import LOGLIK, Target, loglik_draws, sample_and_rank
+from scioc.pipelines.calibrate.simulation import (
+    cached,
+    config_design,
+    fit_plant,
+    fitted_batch,
+    rest_segment,
+    simulate_unit,
+)
 
 
 def compiled_unit(K: int, negative_control, design: Design = STUDY):

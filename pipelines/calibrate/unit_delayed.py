@@ -1,15 +1,15 @@
 """Unit-level SBC replication of the ``delayed`` human: one unit, its parameters from the prior, one window.
 
-θ, τ_nm, σ_m and the delay d ~ :class:`models.bayes.unit_delayed.DelayedUnitPrior`; one
+θ, τ_nm, σ_m and the delay d ~ :class:`scioc.models.bayes.unit_delayed.DelayedUnitPrior`; one
 draw of the delayed human over the experiment's analysis window from rest at the
-reference, exactly as the likelihood describes it (:func:`models.delayed.sample_delayed`
+reference, exactly as the likelihood describes it (:func:`scioc.models.delayed.sample_delayed`
 with ``physical=False``: the observed torque is held over each sample, the model's own
 convention; what a physically lagged arm costs is measured apart, README "Human
 models"); replication i is in level i mod L of the experiment's levels, and on an
 assisted level the human plans with the assistant's law, which acts on the true state.
 The fit samples the posterior of θ1, θ2, R, τ_nm, σ_m and the delay together
-(:class:`models.bayes.unit_delayed.UnitDelayedSampler`: NUTS and
-:class:`models.bayes.delay_step.DelayMetropolis`), so the delay's uncertainty is in the
+(:class:`scioc.models.bayes.unit_delayed.UnitDelayedSampler`: NUTS and
+:class:`scioc.models.bayes.delay_step.DelayMetropolis`), so the delay's uncertainty is in the
 other parameters' posterior. Ranked: those five and the log-likelihood of the data (at
 each draw's delay; at the truth's).
 
@@ -28,14 +28,20 @@ import warnings
 
 import numpy as np
 
-from models.bayes.unit_delayed import (DELAY_INDEX, UNIT_DELAYED_PARAMETERS, DelayedUnitPrior, UnitDelayedSampler,
-                                       build_unit_delayed_model, unit_delayed_data)
-from models.delayed import loglik_grad, sample_delayed
-from models.design import STUDY, Design
-from models.plant import discretize
-from models.segment import prepare_batch
-from pipelines.calibrate.ranking import LOGLIK, Target, sample_and_rank
-from pipelines.calibrate.simulation import INERTIA_ERROR, cached, config_design, rest_segment, window_inputs
+from scioc.models.bayes.unit_delayed import (
+    DELAY_INDEX,
+    UNIT_DELAYED_PARAMETERS,
+    DelayedUnitPrior,
+    UnitDelayedSampler,
+    build_unit_delayed_model,
+    unit_delayed_data,
+)
+from scioc.models.delayed import loglik_grad, sample_delayed
+from scioc.models.design import STUDY, Design
+from scioc.models.plant import discretize
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.calibrate.ranking import LOGLIK, Target, sample_and_rank
+from scioc.pipelines.calibrate.simulation import INERTIA_ERROR, cached, config_design, rest_segment, window_inputs
 
 
 def fit_wheel(negative_control, design: Design = STUDY):

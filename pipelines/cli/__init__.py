@@ -1,6 +1,6 @@
-"""The ``scioc`` command line: :func:`main`, the parser (:mod:`pipelines.cli.parser`, all options; their
-values' checks and names in :mod:`pipelines.cli.values`) and the commands (:mod:`pipelines.cli.commands`, one
-pipeline function each). ``python -m pipelines.cli`` runs it too.
+"""The ``scioc`` command line: :func:`main`, the parser (:mod:`scioc.pipelines.cli.parser`, all options; their
+values' checks and names in :mod:`scioc.pipelines.cli.values`) and the commands (:mod:`scioc.pipelines.cli.commands`, one
+pipeline function each). ``python -m scioc`` runs it too.
 """
 
 from __future__ import annotations
@@ -8,8 +8,9 @@ from __future__ import annotations
 import os
 import sys
 
-from pipelines.cli.parser import build_parser
-from pipelines.cli.values import HUMAN_NAMES, MIN_WINDOW_SECONDS, PARAMETERIZATION_BLOCKS
+from scioc.models.runtime import configure
+from scioc.pipelines.cli.parser import build_parser
+from scioc.pipelines.cli.values import HUMAN_NAMES, MIN_WINDOW_SECONDS, PARAMETERIZATION_BLOCKS
 
 #: Exit statuses (README "Errors and exit codes"). Usage errors found by argparse exit 2 too.
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_USAGE, EXIT_BAD_DATA, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -21,6 +22,7 @@ def main(argv=None) -> int:
     """Run ``scioc`` with ``argv`` (default: the command line); returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    configure()
     try:
         return args.func(args)
     except BrokenPipeError:
@@ -33,7 +35,7 @@ def main(argv=None) -> int:
         print(f"scioc {args.command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
-        from pipelines.io import InputDataError  # lazy: pandas takes a second to import; only errors need it
+        from scioc.pipelines.io import InputDataError  # lazy: pandas takes a second to import; only errors need it
 
         print(f"scioc {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_DATA if isinstance(exc, InputDataError) else EXIT_USAGE

@@ -1,7 +1,7 @@
-"""``python -m pipelines.cli``: the ``scioc`` command."""
+"""``python -m scioc``: the ``scioc`` command."""
 
 import sys
 
-from pipelines.cli import main
+from scioc.pipelines.cli import main
 
 sys.exit(main())

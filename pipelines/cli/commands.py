@@ -14,8 +14,8 @@ from pathlib import Path
 
 
 def cmd_loglik(args) -> int:
-    from pipelines.experiment import find_experiment
-    from pipelines.loglik import NonFiniteLoglik, parse_theta, study_loglik
+    from scioc.pipelines.experiment import find_experiment
+    from scioc.pipelines.loglik import NonFiniteLoglik, parse_theta, study_loglik
 
     theta = parse_theta(args.theta)
     design, source = find_experiment(args.study, args.experiment)
@@ -40,7 +40,7 @@ def cmd_loglik(args) -> int:
 
 
 def cmd_power(args) -> int:
-    from pipelines.power import format_power, power_study
+    from scioc.pipelines.power import format_power, power_study
 
     humans = [h.strip() for h in args.humans.split(",") if h.strip()]
     summary = power_study(args.out, humans=humans, studies=args.studies, seed=args.seed, n_subjects=args.subjects,
@@ -52,7 +52,7 @@ def cmd_power(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from pipelines.bench import run_bench
+    from scioc.pipelines.bench import run_bench
 
     run_bench(args.json, quick=args.quick, parts=[p.strip() for p in args.parts.split(",") if p.strip()],
               humans=args.humans, keep=args.keep)
@@ -64,30 +64,30 @@ def cmd_bench(args) -> int:
 def cmd_bench_fit(args) -> int:
     if args.human_model == "delayed":
         # imports PyMC (seconds): only for this command
-        from models.bayes.delayed_model import DelayedForm, DelayedPriors
-        from pipelines.bench.fit_delayed import bench_fit_delayed, format_fit_delayed
+        from scioc.models.bayes.delayed_model import DelayedForm, DelayedPriors
+        from scioc.pipelines.bench.fit_delayed import bench_fit_delayed, format_fit_delayed
 
         res = bench_fit_delayed(n_subjects=args.subjects, seed=args.seed, chains=args.chains, draws=args.draws,
                                 tune=args.tune, delayed_priors=DelayedPriors(R_population=args.R_population),
                                 delayed_form=DelayedForm(rho=args.rho_form), nuts={"adaptation": args.adaptation})
         print(format_fit_delayed(res))
     else:
-        from models.bayes.hierarchical import Parameterization
-        from pipelines.bench.fit import bench_parameterization, format_fit
+        from scioc.models.bayes.hierarchical import Parameterization
+        from scioc.pipelines.bench.fit import bench_parameterization, format_fit
 
         form = Parameterization(**{f.name: getattr(args, f.name) for f in dataclasses.fields(Parameterization)})
         res = bench_parameterization(form, study_seed=args.study_seed, window_seconds=args.window_seconds,
                                      seed=args.seed)
         print(format_fit(res))
     if args.json:
-        from pipelines.storage import write_text_atomic
+        from scioc.pipelines.storage import write_text_atomic
 
         write_text_atomic(args.json, json.dumps(res, indent=1) + "\n")
     return 0
 
 
 def cmd_assistant(args) -> int:
-    from pipelines.assistant_check import assistant_alone, format_assistant
+    from scioc.pipelines.assistant_check import assistant_alone, format_assistant
 
     res = assistant_alone()
     print(json.dumps(res, indent=2) if args.format == "json" else format_assistant(res))
@@ -95,7 +95,7 @@ def cmd_assistant(args) -> int:
 
 
 def window_settings(args):
-    """The :class:`pipelines.prepare.IdentifySettings` of the experiment and the window options, and its source.
+    """The :class:`scioc.pipelines.prepare.IdentifySettings` of the experiment and the window options, and its source.
 
     The experiment (``--experiment``, or ``experiment.toml`` beside the study file, or the
     paper's study) gives the defaults; ``--window``, ``--whole-run`` and ``--preview``
@@ -107,8 +107,8 @@ def window_settings(args):
     source : str or None
         The experiment file's path (None: the paper's study, no file).
     """
-    from pipelines.experiment import find_experiment
-    from pipelines.prepare import IdentifySettings
+    from scioc.pipelines.experiment import find_experiment
+    from scioc.pipelines.prepare import IdentifySettings
 
     design, source = find_experiment(args.study, getattr(args, "experiment", None))
     overrides = {}
@@ -141,9 +141,9 @@ def simulated_human(args) -> str:
 
 
 def cmd_simulate(args) -> int:
-    from models.simulate import Population
-    from pipelines.experiment import load_experiment
-    from pipelines.simulate import simulate_to_dir
+    from scioc.models.simulate import Population
+    from scioc.pipelines.experiment import load_experiment
+    from scioc.pipelines.simulate import simulate_to_dir
 
     design = load_experiment(args.experiment) if args.experiment else None
     paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed,
@@ -156,7 +156,7 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_identify(args) -> int:
-    from pipelines.identify import format_identify, identify_to_dir
+    from scioc.pipelines.identify import format_identify, identify_to_dir
 
     settings, source = window_settings(args)
     settings = dataclasses.replace(settings, human_model=args.human_model)
@@ -170,7 +170,7 @@ def cmd_identify(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from pipelines.compare import compare_to_file, format_compare
+    from scioc.pipelines.compare import compare_to_file, format_compare
 
     out = args.out or str(Path(args.estimates).parent / "compare.json")
     res = compare_to_file(args.estimates, out, alpha=args.alpha, include_nonconverged=args.include_nonconverged)
@@ -181,7 +181,7 @@ def cmd_compare(args) -> int:
 
 
 def cmd_recovery(args) -> int:
-    from pipelines.recovery import format_recovery, recovery_of_files
+    from scioc.pipelines.recovery import format_recovery, recovery_of_files
 
     res = recovery_of_files(args.estimates, args.truth)
     print(json.dumps(res, indent=2) if args.format == "json" else format_recovery(res))
@@ -189,18 +189,16 @@ def cmd_recovery(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from pipelines.report import build_report
+    from scioc.pipelines.report import build_report
 
     print(build_report(args.run_dir, subject=args.subject))
     return 0
 
 
 def cmd_run(args) -> int:
-    from pipelines.run import run_all, run_verdicts
-
-    from models.simulate import Population
-
-    from pipelines.experiment import load_experiment
+    from scioc.models.simulate import Population
+    from scioc.pipelines.experiment import load_experiment
+    from scioc.pipelines.run import run_all, run_verdicts
 
     design = load_experiment(args.experiment) if args.experiment else None
     name = args.name or (Path(args.experiment).resolve().parent.name if args.experiment else "default-study")
@@ -225,13 +223,13 @@ def cmd_fit(args) -> int:
     if args.adaptation is not None and (args.human_model != "delayed" or args.delay != "profile"):
         raise ValueError("--adaptation is nutpie's mass matrix for the delayed model: it needs --human-model delayed "
                          "and profile delays (--delay sampled runs PyMC's NUTS)")
-    from models.bayes.delayed_blocks import DelayedPriors
-    from pipelines.fit import fit_to_dir, format_fit  # imports PyMC (seconds): only when fitting
+    from scioc.models.bayes.delayed_blocks import DelayedPriors
+    from scioc.pipelines.fit import fit_to_dir, format_fit  # imports PyMC (seconds): only when fitting
 
     settings, source = window_settings(args)
     if args.compare_to is not None:
-        from pipelines.fit.human_models import check_maxent_fit
-        from pipelines.storage import refuse_inputs_inside
+        from scioc.pipelines.fit.human_models import check_maxent_fit
+        from scioc.pipelines.storage import refuse_inputs_inside
 
         refuse_inputs_inside(args.out, args.compare_to)
         check_maxent_fit(args.compare_to, args.study, settings)  # before minutes of sampling, not after
@@ -247,7 +245,7 @@ def cmd_fit(args) -> int:
     for k, v in paths.items():
         print(f"{k}: {v}")
     if args.compare_to is not None:
-        from pipelines.fit.human_models import HUMAN_MODELS_FILE, compare_human_models, format_human_models
+        from scioc.pipelines.fit.human_models import HUMAN_MODELS_FILE, compare_human_models, format_human_models
 
         res = compare_human_models(args.compare_to, args.out, settings=settings, seed=args.seed, out=args.out,
                                    study=args.study)
@@ -261,10 +259,10 @@ def cmd_fit(args) -> int:
 
 
 def cmd_adequacy(args) -> int:
-    from pipelines.adequacy import format_adequacy
-    from pipelines.fit.artifacts import strict_json
-    from pipelines.fit.recheck import recheck_adequacy, write_recheck
-    from pipelines.storage import refuse_inputs_inside
+    from scioc.pipelines.adequacy import format_adequacy
+    from scioc.pipelines.fit.artifacts import strict_json
+    from scioc.pipelines.fit.recheck import recheck_adequacy, write_recheck
+    from scioc.pipelines.storage import refuse_inputs_inside
 
     if args.out is not None:  # never onto one of the fit's own files
         refuse_inputs_inside(args.out, *(Path(args.fit) / name for name in ("posterior.json", "posterior.nc",
@@ -285,10 +283,14 @@ def cmd_adequacy(args) -> int:
 
 
 def cmd_human_models(args) -> int:
-    from pipelines.fit.artifacts import strict_json
-    from pipelines.fit.human_models import (HUMAN_MODELS_POINTS, compare_human_models, format_human_models,
-                                            write_human_models)
-    from pipelines.storage import refuse_inputs_inside
+    from scioc.pipelines.fit.artifacts import strict_json
+    from scioc.pipelines.fit.human_models import (
+        HUMAN_MODELS_POINTS,
+        compare_human_models,
+        format_human_models,
+        write_human_models,
+    )
+    from scioc.pipelines.storage import refuse_inputs_inside
 
     if args.out is not None:  # never onto one of the fits' own files
         refuse_inputs_inside(args.out, *(Path(f) / name for f in (args.maxent_fit, args.delayed_fit)
@@ -306,9 +308,8 @@ def cmd_human_models(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    from pipelines.calibrate import as_expected, calibrate_runs, format_summary, level_configs
-
-    from pipelines.experiment import load_experiment
+    from scioc.pipelines.calibrate import as_expected, calibrate_runs, format_summary, level_configs
+    from scioc.pipelines.experiment import load_experiment
 
     design = load_experiment(args.experiment) if args.experiment else None
     runs = level_configs(args.level, seed=args.seed, replications=args.replications, batch_size=args.batch_size,

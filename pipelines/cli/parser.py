@@ -1,18 +1,39 @@
 """The ``scioc`` argument parser: every command's options and their defaults (the values' checks and names:
-:mod:`pipelines.cli.values`)."""
+:mod:`scioc.pipelines.cli.values`)."""
 
 from __future__ import annotations
 
 import argparse
 from importlib.metadata import PackageNotFoundError, version
 
-import pipelines.cli.commands as commands
-from pipelines.cli.values import (ADAPTATION_NAMES, ADEQUACY_AT_HELP, ADEQUACY_AT_NAMES, HUMAN_MODEL_NAMES,
-                                  HUMAN_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S, NUTPIE_ADAPTATION_NAMES,
-                                  PARAMETERIZATION_BLOCKS, PREVIEW, RHO_FORM_NAMES, RUN_SECONDS, R_POPULATION_NAMES,
-                                  WINDOW_TEXT, acceptance, finite_float, human_models_list, humans_list,
-                                  nonnegative_float, nonnegative_int, nonnegative_seconds, positive_int,
-                                  positive_seconds, significance_level, window_spec)
+import scioc.pipelines.cli.commands as commands
+from scioc.pipelines.cli.values import (
+    ADAPTATION_NAMES,
+    ADEQUACY_AT_HELP,
+    ADEQUACY_AT_NAMES,
+    HUMAN_MODEL_NAMES,
+    HUMAN_NAMES,
+    LIKELIHOOD_NAMES,
+    MAX_DELAY_S,
+    NUTPIE_ADAPTATION_NAMES,
+    PARAMETERIZATION_BLOCKS,
+    PREVIEW,
+    R_POPULATION_NAMES,
+    RHO_FORM_NAMES,
+    RUN_SECONDS,
+    WINDOW_TEXT,
+    acceptance,
+    finite_float,
+    human_models_list,
+    humans_list,
+    nonnegative_float,
+    nonnegative_int,
+    nonnegative_seconds,
+    positive_int,
+    positive_seconds,
+    significance_level,
+    window_spec,
+)
 
 
 def _add_force_option(p):
@@ -75,7 +96,7 @@ def _add_human_options(p, *, by_model: bool = False):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``scioc`` parser with every command; each command's ``func`` is its :mod:`pipelines.cli.commands` function."""
+    """The ``scioc`` parser with every command; each command's ``func`` is its :mod:`scioc.pipelines.cli.commands` function."""
     parser = argparse.ArgumentParser(
         prog="scioc", description="Shared-control inverse optimal control: identify human steering cost functions "
         "in manual and shared control (Inga et al., SMC 2018).",

@@ -1,4 +1,4 @@
-"""``scioc fit``: the hierarchical Bayesian fit of a study (:mod:`pipelines.fit.stage`) and its parts.
+"""``scioc fit``: the hierarchical Bayesian fit of a study (:mod:`scioc.pipelines.fit.stage`) and its parts.
 
 =========================  ===========================================================
 module                     what it holds
@@ -22,9 +22,9 @@ module                     what it holds
 Importing this package imports PyMC (seconds): the CLI imports it only to fit.
 """
 
-from pipelines.fit.checks import mixedlm_check, truth_check
-from pipelines.fit.diagnostics import ESS_MIN, RHAT_MAX, diagnostics
-from pipelines.fit.stage import fit_to_dir
-from pipelines.fit.summary import format_fit
+from scioc.pipelines.fit.checks import mixedlm_check, truth_check
+from scioc.pipelines.fit.diagnostics import ESS_MIN, RHAT_MAX, diagnostics
+from scioc.pipelines.fit.stage import fit_to_dir
+from scioc.pipelines.fit.summary import format_fit
 
 __all__ = ["fit_to_dir", "format_fit", "diagnostics", "mixedlm_check", "truth_check", "ESS_MIN", "RHAT_MAX"]

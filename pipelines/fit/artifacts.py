@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipelines.storage import atomic_path
+from scioc.pipelines.storage import atomic_path
 
 
 def strict_json(obj) -> str:

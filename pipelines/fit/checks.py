@@ -11,12 +11,12 @@ import numpy as np
 import pandas as pd
 import statsmodels.formula.api as smf
 
-from models.cost import from_normalized
-from models.design import CONDITIONS, STUDY, Design
-from pipelines.adequacy import assess_study, not_checked
-from pipelines.fit.contrasts import HDI_PROB, condition_change, effect_draws, hdi, levels_of
-from pipelines.prepare import PreparedStudy
-from pipelines.simulate import read_truth
+from scioc.models.cost import from_normalized
+from scioc.models.design import CONDITIONS, STUDY, Design
+from scioc.pipelines.adequacy import assess_study, not_checked
+from scioc.pipelines.fit.contrasts import HDI_PROB, condition_change, effect_draws, hdi, levels_of
+from scioc.pipelines.prepare import PreparedStudy
+from scioc.pipelines.simulate import read_truth
 
 
 def _fixed_effect(fit, column: str) -> dict:
@@ -255,11 +255,11 @@ def unit_theta(point, prepared: PreparedStudy) -> np.ndarray:
 
 
 def posterior_adequacy(idata, prepared: PreparedStudy, plant, at: str = "draw") -> dict:
-    """Model adequacy (:func:`pipelines.adequacy.assess_study`) at one posterior point of θ.
+    """Model adequacy (:func:`scioc.pipelines.adequacy.assess_study`) at one posterior point of θ.
 
     The point (``at``, :func:`posterior_point`) gives each segment the θ of its subject ×
     condition: the trials of a unit share it, and the verdict then counts units
-    (:func:`pipelines.adequacy.assess_study`). ``plant`` is the wheel at the recording's
+    (:func:`scioc.pipelines.adequacy.assess_study`). ``plant`` is the wheel at the recording's
     sample time; the assistants and the encoder come from the study's settings.
     """
     if prepared.settings.adequacy_boot == 0:

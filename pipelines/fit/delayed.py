@@ -1,6 +1,6 @@
-"""``scioc fit`` with the ``delayed`` human (:func:`pipelines.fit.stage.fit_to_dir`, ``human_model="delayed"``).
+"""``scioc fit`` with the ``delayed`` human (:func:`scioc.pipelines.fit.stage.fit_to_dir`, ``human_model="delayed"``).
 
-The model is :func:`models.bayes.delayed_model.build_delayed_model`: the max-ent model's
+The model is :func:`scioc.models.bayes.delayed_model.build_delayed_model`: the max-ent model's
 cost blocks with the commands' cost, plus each subject's neuromuscular lag and motor noise.
 What differs from the max-ent fit:
 
@@ -8,18 +8,18 @@ What differs from the max-ent fit:
   why) at the maximum of the sum of its units' profile log-likelihoods over 0-300 ms:
   from the estimates file's ``profile_loglik`` (``scioc identify --human-model delayed``)
   when it has one, else computed here by the same profile
-  (:func:`models.delayed.identify.identify_unit_delayed`, its trials together)
+  (:func:`scioc.models.delayed.identify.identify_unit_delayed`, its trials together)
   (:func:`unit_delays`). The sidecar records the delay of every unit and where it came from.
 * **Arm torque at each window's start.** It follows from the torques before the window
-  (:attr:`pipelines.prepare.PreparedSegment.warmup`) at every τ_nm the sampler visits,
-  with its tangents (:mod:`models.bayes.delayed_op`).
+  (:attr:`scioc.pipelines.prepare.PreparedSegment.warmup`) at every τ_nm the sampler visits,
+  with its tangents (:mod:`scioc.models.bayes.delayed_op`).
 * **One model.** No pooled model is fitted (its only use is the condition-effect LOO of
   the max-ent fit, and it would double the fit's cost); the PSIS-LOO over segments is
   reported for this model alone. The comparison with the max-ent human is
-  :func:`pipelines.fit.human_models.compare_human_models`, on two fit folders.
+  :func:`scioc.pipelines.fit.human_models.compare_human_models`, on two fit folders.
 * Posterior predictive draws and the adequacy check at the posterior draw from the
-  delayed human (:func:`pipelines.fit.ppc.posterior_predictive`, ``delayed=``;
-  :func:`pipelines.adequacy.assess_study`, ``delayed=``).
+  delayed human (:func:`scioc.pipelines.fit.ppc.posterior_predictive`, ``delayed=``;
+  :func:`scioc.pipelines.adequacy.assess_study`, ``delayed=``).
 """
 
 from __future__ import annotations
@@ -31,28 +31,42 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_blocks import SIGNED_FORMS, ridge_pivots
-from models.bayes.delayed_model import (ADAPTATIONS, CURVED_ADAPTATIONS, DELAY_INDEX, DELAYED_POPULATION_PARAMETERS,
-                                        WHITENED_ADAPTATIONS, DelayedForm, DelayedPriors, build_delayed_model,
-                                        delay_step, nutpie_options)
-from models.bayes.hierarchical import POPULATION_PARAMETERS
-from models.delayed.identify import delay_grid, identify_unit_delayed
-from models.delayed.lag import lag_coefficients, window_tau0
-from models.segment import prepare_batch
-from pipelines.adequacy import assess_study, not_checked
-from pipelines.fit.checks import mixedlm_check, motor_truth, posterior_point, truth_check, unit_theta
-from pipelines.fit.contrasts import contrasts
-from pipelines.fit.delayed_forms import (LOG_R_FORMS, THETA2_FORM, choose_R_population, choose_delayed_form,
-                                        log_R_form)
-from pipelines.fit.diagnostics import diagnostics
-from pipelines.fit.loo import psis_summary
-from pipelines.fit.noise_arcs import noise_arcs
-from pipelines.fit.ppc import posterior_predictive, ppc_coverage
-from pipelines.fit.sampling import sample_model
-from pipelines.fit.start import scale_sources, start_point
-from pipelines.fit.warmup import pilot_runs
-from pipelines.fit.whiten import sample_whitened
-from pipelines.io import InputDataError
+from scioc.models.bayes.delayed_blocks import SIGNED_FORMS, ridge_pivots
+from scioc.models.bayes.delayed_model import (
+    ADAPTATIONS,
+    CURVED_ADAPTATIONS,
+    DELAY_INDEX,
+    DELAYED_POPULATION_PARAMETERS,
+    WHITENED_ADAPTATIONS,
+    DelayedForm,
+    DelayedPriors,
+    build_delayed_model,
+    delay_step,
+    nutpie_options,
+)
+from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS
+from scioc.models.delayed.identify import delay_grid, identify_unit_delayed
+from scioc.models.delayed.lag import lag_coefficients, window_tau0
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.adequacy import assess_study, not_checked
+from scioc.pipelines.fit.checks import mixedlm_check, motor_truth, posterior_point, truth_check, unit_theta
+from scioc.pipelines.fit.contrasts import contrasts
+from scioc.pipelines.fit.delayed_forms import (
+    LOG_R_FORMS,
+    THETA2_FORM,
+    choose_delayed_form,
+    choose_R_population,
+    log_R_form,
+)
+from scioc.pipelines.fit.diagnostics import diagnostics
+from scioc.pipelines.fit.loo import psis_summary
+from scioc.pipelines.fit.noise_arcs import noise_arcs
+from scioc.pipelines.fit.ppc import posterior_predictive, ppc_coverage
+from scioc.pipelines.fit.sampling import sample_model
+from scioc.pipelines.fit.start import scale_sources, start_point
+from scioc.pipelines.fit.warmup import pilot_runs
+from scioc.pipelines.fit.whiten import sample_whitened
+from scioc.pipelines.io import InputDataError
 
 #: Unit-level quantities of the delayed model whose diagnostics are reported.
 DELAYED_UNITS = ("log_theta1", "log_R", "theta2", "tau_nm", "sigma_m")
@@ -81,10 +95,10 @@ class Delays(NamedTuple):
 def check_recorded_torques(prepared) -> None:
     """Refuse a study whose torques are reconstructed: the hierarchical delayed model is that of recorded torques.
 
-    Its likelihood is the torques' (:mod:`models.bayes.delayed_model`); a reconstructed torque is
+    Its likelihood is the torques' (:mod:`scioc.models.bayes.delayed_model`); a reconstructed torque is
     smoothed, which the model reads as neuromuscular lag (README "Human models"). Such units are
     identified from their angles by ``scioc identify --human-model delayed``
-    (:mod:`models.delayed.angles`), which has no hierarchical counterpart yet.
+    (:mod:`scioc.models.delayed.angles`), which has no hierarchical counterpart yet.
     """
     rec = [p for p in prepared.segments if p.reconstructed]
     if rec:
@@ -99,12 +113,12 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
     """Each segment's delay: its subject's maximum of the summed profile log-likelihoods of its units.
 
     The profiles (log-likelihood maximized over θ, τ_nm and σ_m at each delay of
-    :func:`models.delayed.identify.delay_grid`) come from the estimates' ``profile_loglik``
+    :func:`scioc.models.delayed.identify.delay_grid`) come from the estimates' ``profile_loglik``
     (``scioc identify --human-model delayed``) or are computed here
-    (:func:`models.delayed.identify.identify_unit_delayed`, the unit's trials together).
+    (:func:`scioc.models.delayed.identify.identify_unit_delayed`, the unit's trials together).
     One delay per subject, as the model has one τ_nm and σ_m per subject: in SC the
     assistant's feedback makes the unit's own profile nearly flat (measured in
-    :mod:`models.bayes.delayed_model`), and the subject's MC data fix it. Estimates with
+    :mod:`scioc.models.bayes.delayed_model`), and the subject's MC data fix it. Estimates with
     ``delay_s`` but no profile give each unit its own ``delay_s``.
 
     The first step of the delayed fit, so it refuses reconstructed torques first
@@ -174,7 +188,7 @@ def tau0_function(prepared, plant):
 
 
 class DelayedFit(NamedTuple):
-    """What the delayed path of ``scioc fit`` hands back to :func:`pipelines.fit.stage.fit_to_dir`."""
+    """What the delayed path of ``scioc fit`` hands back to :func:`scioc.pipelines.fit.stage.fit_to_dir`."""
 
     idata: object
     diagnostics: dict
@@ -185,7 +199,7 @@ class DelayedFit(NamedTuple):
 
 #: How ``scioc fit --human-model delayed`` treats the delays: ``profile`` fixes each subject's at the
 #: maximum of its profile likelihood (nutpie); ``sampled`` samples them (PyMC's NUTS beside
-#: :class:`models.bayes.delay_step.DelayMetropolis`), so the other parameters' draws are delay-marginal.
+#: :class:`scioc.models.bayes.delay_step.DelayMetropolis`), so the other parameters' draws are delay-marginal.
 DELAY_MODES = ("profile", "sampled")
 
 
@@ -217,18 +231,18 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``delayed_priors``: None chooses the population of R by the data
-    (:func:`pipelines.fit.delayed_forms.choose_R_population`), the other priors their defaults.
-    ``form``: the log θ1 blocks' forms as :func:`pipelines.fit.stage.choose_parameterization`
-    chose them; θ2's is :data:`pipelines.fit.delayed_forms.THETA2_FORM`; the log R blocks take ``log_R``
-    (:data:`pipelines.fit.delayed_forms.LOG_R_FORMS`), by default :func:`pipelines.fit.delayed_forms.log_R_form`'s choice by the data.
+    (:func:`scioc.pipelines.fit.delayed_forms.choose_R_population`), the other priors their defaults.
+    ``form``: the log θ1 blocks' forms as :func:`scioc.pipelines.fit.stage.choose_parameterization`
+    chose them; θ2's is :data:`scioc.pipelines.fit.delayed_forms.THETA2_FORM`; the log R blocks take ``log_R``
+    (:data:`scioc.pipelines.fit.delayed_forms.LOG_R_FORMS`), by default :func:`scioc.pipelines.fit.delayed_forms.log_R_form`'s choice by the data.
     ``delay_mode`` (:data:`DELAY_MODES`): ``profile`` conditions on ``delays``; ``sampled``
     samples one delay per subject (``delays`` then only supplies the lag and noise estimates
     that choose the blocks' forms), and the returned fit's delays are the posterior modes.
-    ``rho_form`` (:data:`models.bayes.delayed_blocks.RHO_FORMS`, with ``R_population="policy_scale"``)
+    ``rho_form`` (:data:`scioc.models.bayes.delayed_blocks.RHO_FORMS`, with ``R_population="policy_scale"``)
     replaces the ρ form of the chosen (or given) ``delayed_form``. ``adaptation``
-    (:data:`models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None: the first, curved)
+    (:data:`scioc.models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None: the first, curved)
     chooses the coordinates and nutpie's mass matrix; ``target_accept`` (None: the adaptation's, e.g.
-    :data:`models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`) the sampler's target acceptance rate.
+    :data:`scioc.models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`) the sampler's target acceptance rate.
     """
     if delay_mode not in DELAY_MODES:
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
@@ -325,7 +339,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
 
 
 def per_segment_motor(point, prepared, plant, delays: Delays, own_delay: bool = False) -> dict:
-    """Per segment at a posterior point (:func:`pipelines.fit.checks.posterior_point`): its subject's τ_nm and σ_m,
+    """Per segment at a posterior point (:func:`scioc.pipelines.fit.checks.posterior_point`): its subject's τ_nm and σ_m,
     its delay and its arm torque at the start (for the adequacy check).
 
     The delay is the point's own with ``own_delay`` (a draw of a fit that sampled the delays), else
@@ -342,7 +356,7 @@ def per_segment_motor(point, prepared, plant, delays: Delays, own_delay: bool = 
 
 
 def delayed_adequacy(idata, prepared, plant, delays: Delays, at: str = "draw") -> dict:
-    """Model adequacy at one posterior point (``at``, as :func:`pipelines.fit.checks.posterior_adequacy`) with the
+    """Model adequacy at one posterior point (``at``, as :func:`scioc.pipelines.fit.checks.posterior_adequacy`) with the
     bootstrap drawn from the delayed human."""
     if prepared.settings.adequacy_boot == 0:
         return not_checked("switched off (adequacy bootstrap size 0)")
@@ -360,7 +374,7 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
                     n_draws: int) -> tuple[dict, object, object]:
     """contrasts.json of the delayed fit, and the posterior predictive (bands, draws).
 
-    β and the per-subject contrasts as for the max-ent fit (:func:`pipelines.fit.contrasts.contrasts`),
+    β and the per-subject contrasts as for the max-ent fit (:func:`scioc.pipelines.fit.contrasts.contrasts`),
     PSIS-LOO over segments of this model alone, the mixed model of the estimates, the truth
     check (with each subject's τ_nm and σ_m when the simulator recorded them), the
     posterior predictive bands from the delayed human and the adequacy at the posterior.

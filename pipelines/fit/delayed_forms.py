@@ -11,7 +11,7 @@ sidecar (``delayed_form``).
 The baseline log R (both levels). Policy noise (variance 1/(2S), S ∝ R) and motor noise explain
 the same torque variability but for the motor noise's moving average. With motor noise in the
 data, R is barely fixed per unit (SD of log R about 0.4, against a population SD of about 0.3:
-:mod:`models.bayes.delayed_model`, "Geometry"), so non-centred. Without it, the policy noise
+:mod:`scioc.models.bayes.delayed_model`, "Geometry"), so non-centred. Without it, the policy noise
 carries the variability alone and fixes R as in the max-ent model, whose default is centred:
 in the full-size fit of the max-ent human (README "Measured: the paper's study with a torque
 sensor"), which was non-centred, each unit's posterior SD of log R was 0.05 (median) against
@@ -45,17 +45,17 @@ near 0: a funnel between s_m and z).
 
 Motor noise. Where the estimates find none, every σ_m sits near 0 and the data bound it from
 above only. The likelihood depends on σ_m through σ_m² (the covariance diag(1/(2S)) + σ_m² C Cᵀ,
-:mod:`models.delayed.kernel`), about -κ σ_m² near 0. Non-centred, the sampler moves log z
+:mod:`scioc.models.delayed.kernel`), about -κ σ_m² near 0. Non-centred, the sampler moves log z
 (PyMC's log transform of z ~ HalfNormal(1)), where that bound is the doubly exponential wall
 exp(-κ s_m² e^(2 log z)); folded (σ_m = s_m |z|, z ~ N(0, 1) unconstrained; the law of σ_m is
 the same half-normal) it is the Gaussian exp(-κ s_m² z²) around the interior point z = 0. So
 :data:`LOOSE_FORM` folds σ_m. τ_nm stays non-centred: near 0 the likelihood is linear in τ_nm
-(α ≈ τ_nm (Φ b_w)_1 / b_1, :mod:`models.bayes.delayed_lag`), so folded it has a kink at z = 0;
+(α ≈ τ_nm (Φ b_w)_1 / b_1, :mod:`scioc.models.bayes.delayed_lag`), so folded it has a kink at z = 0;
 one run with both blocks folded took 265.7 leapfrog steps per kept draw with 74 divergent
 transitions. Measured on the 12-subject max-ent study above, target acceptance 0.9 (the
 default), log R centred, seeds 1-4; the forms by a wrapper that replaces
 :func:`choose_delayed_form`'s σ_m (and with it, the s_m prior of
-:class:`models.bayes.delayed_blocks.DelayedPriors`), as ``scioc fit`` has no option for them;
+:class:`scioc.models.bayes.delayed_blocks.DelayedPriors`), as ``scioc fit`` has no option for them;
 divergent transitions per run, leapfrog steps per kept draw, ESS (smaller of bulk and tail, of
 600 draws) of s_m and the smallest of the units' σ_m::
 
@@ -65,33 +65,33 @@ divergent transitions per run, leapfrog steps per kept draw, ESS (smaller of bul
     folded, Gamma(2, rate 8)   0 0 0 0     31.2 31.1 31.0 31.6   108 46 109 76    117 74 192 138
 
 (2026-12-05; seeds 1-2 of the first row are the "Whitened" table's 0.9 rows of
-:mod:`models.bayes.delayed_model`.) Folding removed the divergences; s_m itself mixed no
+:mod:`scioc.models.bayes.delayed_model`.) Folding removed the divergences; s_m itself mixed no
 better, as below its data's upper bound s_m's posterior is its prior, and the half-normal's
 (flat at 0) is an exponential tail in log s_m (log s_m from -7.7 to -2.9, 1 % to 99 %, seed 2). The Gamma prior (the default since,
-:class:`models.bayes.delayed_blocks.DelayedPriors`) shortens that tail (-6.4 to -2.5) and about
+:class:`scioc.models.bayes.delayed_blocks.DelayedPriors`) shortens that tail (-6.4 to -2.5) and about
 doubled the ESS of s_m and the units' σ_m; β, the units' σ_m upper ends and the steps did not
 change. Holding s_m, for the whitening and the start, at the half-normal ML scale of the subjects'
 σ_m estimates (0.068 here) instead of PyMC's initial point (0.3) did not help s_m's mixing (two
 runs: 0 and 3 divergent, s_m ESS 22 and 49). Since a6bd517 every population scale is held at its
-units' spread all the same (:func:`pipelines.fit.start.scale_estimate`), for the warm-up's first
+units' spread all the same (:func:`scioc.pipelines.fit.start.scale_estimate`), for the warm-up's first
 draws, which no longer travel down to it; s_m's ESS was no better at full size (README, "The
 start of the population").
 
 The motor-noise scale's prior and σ_m's folded centred form (the defaults since 2026-12-05's
 last change). Below the data's bound s_m's posterior is its prior, so what mixes is the prior's
 tail towards 0, and the form that suits it depends on that tail. An inverse gamma on s_m²
-(:class:`models.bayes.delayed_blocks.DelayedPriors`, ``sigma_m_variance_inverse_gamma``, IG(1, 0.03):
+(:class:`scioc.models.bayes.delayed_blocks.DelayedPriors`, ``sigma_m_variance_inverse_gamma``, IG(1, 0.03):
 s_m's median 0.21 N·m as the Gamma's) vanishes at 0 faster than any power, so s_m stays where
 the 42 (here 12) subjects' σ_m fix it, and centred is then the form whose coordinates are nearly
 independent: each σ_m held by its data's bound, s_m by the σ_m (a conditional SD of about
 1/sqrt(2n) in log s_m, about its marginal one). Folded, s_m |z| with s_m held off 0, presses
 every z against its bound instead (at full size 72 leapfrog steps per draw against 31, session
 notes of 2026-12-05). So σ_m's loose form is ``folded_centred``, |v| with v ~ N(0, s_m)
-unconstrained (:func:`models.bayes.delayed_blocks.half_normal_block`): the half-normal law,
+unconstrained (:func:`scioc.models.bayes.delayed_blocks.half_normal_block`): the half-normal law,
 centred, without the log transform's tail at σ_m -> 0. Measured as the table above (12
 subjects of the max-ent human, 2 chains × (300 + 300) draws, log R centred, whitened, defaults
 of 2f87f97 otherwise; the prior and form by a wrapper that replaces
-:func:`models.bayes.delayed_blocks.motor_blocks`; per run: leapfrog steps per warm-up and kept
+:func:`scioc.models.bayes.delayed_blocks.motor_blocks`; per run: leapfrog steps per warm-up and kept
 draw, divergent transitions, s_m's bulk and tail ESS, its 5-50-95 % quantiles, the smallest of
 the units' σ_m ESS)::
 
@@ -124,7 +124,7 @@ subject's σ_m stays below its data's bound. Human motor noise is never absent (
 likelihood sees.
 
 The ridge's pivot with a signed ρ (``--R-population policy_scale`` with ρ folded or folded centred;
-:func:`models.bayes.delayed_blocks.ridge_pivots`). On the 12 subjects of the ``kbl`` human of README
+:func:`scioc.models.bayes.delayed_blocks.ridge_pivots`). On the 12 subjects of the ``kbl`` human of README
 "Which part of the warm-up", fitted with ρ folded centred and the bend along σ_m (README, "Not yet"), 10
 of the 12 subjects' ρ̃ changed sign within a chain (positive in 25-85 % of a chain's draws; the other two
 kept one sign), and every subject's σ_m fell as |ρ̃| grew (correlation of |ρ̃| and σ_m -0.21 to -0.73;
@@ -151,7 +151,7 @@ other way: its data fix each ρ far from the fold (ρ̂/SE about 10), so a signe
 ±ρ, each a few thousandths wide, joined only over the arch through large σ_m; and σ_m, not ρ,
 sits at its fold. The 12-subject max-ent study above, the same command with ``--rho-form F`` (per
 run as the table above; "ρ̃" at e524099, the others at f0acfef, whose
-:func:`models.bayes.whiten.nearest_fold` bent every one of the 12 subjects along σ_m; "lognormal":
+:func:`scioc.models.bayes.whiten.nearest_fold` bent every one of the 12 subjects along σ_m; "lognormal":
 no ``--R-population``, the default)::
 
     ρ's form, bend              seed   steps        div   population                    units' log R
@@ -172,7 +172,7 @@ only the motor-noise funnel's rare divergences remain (seed 2: all four in one c
 its 95 % quantile). So ρ is centred where the estimates fix it, like τ_nm's and σ_m's blocks, and
 folded centred (the ``kbl`` rows above) where they do not.
 
-Per subject (``mixed``, :func:`models.bayes.noise_blocks.mixed_half_normal_block`). A study of the
+Per subject (``mixed``, :func:`scioc.models.bayes.noise_blocks.mixed_half_normal_block`). A study of the
 ``kbl`` human has both kinds of subject. In its full-size fit with ρ folded centred (README, "Not
 yet": the run that passed the verdict at 2540 s of sampling), the 9 subjects whose posterior |ρ| was
 at least 3.4 of its SDs from 0 changed the sign of ρ̃ 0-16 times in a chain of 1000 draws, the other
@@ -180,7 +180,7 @@ at least 3.4 of its SDs from 0 changed the sign of ρ̃ 0-16 times in a chain of
 from that fit's posterior). Their units' estimates, combined (:func:`rho_pinned`), flag 14 subjects,
 those 9 among them. ``mixed`` makes ρ's block centred for the subjects the estimates flag and folded
 centred for the others, each subject bending along ρ̃ where it is signed and along σ_m elsewhere
-(:func:`models.bayes.delayed_blocks.ridge_pivots`). On the 12-subject ``kbl`` study above
+(:func:`scioc.models.bayes.delayed_blocks.ridge_pivots`). On the 12-subject ``kbl`` study above
 (``--R-population policy_scale``, seed 1, run before e7cd12a was committed; its sidecar records
 ``mixed`` with 3 of 12 subjects centred): 40.0 and 31.7 leapfrog steps per warm-up and kept draw, 0
 divergent, of the population β_R's ESS 144 the smallest and σ_β's R-hat 1.015 the largest, the
@@ -215,8 +215,8 @@ for S04, S14, S20, S22 and S42 (0-5 for the others); of those read closely (S04,
 τ_nm, and often log σ_m and log θ1's mean, lie on ρ̃ along parabolas about ρ̃ = 0, with a dip there (ρ
 = 0 less likely than their mode, not excluded); those whose ρ̃ kept its sign (S21, S23, S40) lie on a
 straight ridge of ρ̃, log τ_nm and log σ_m (smallest eigenvalue of the correlation 0.015-0.023),
-which the whitening takes out. So: polar coordinates (:mod:`models.bayes.noise_blocks`, k from
-:mod:`pipelines.fit.noise_arcs`, 7 of the 12 in them) straighten less than their arcs promised, a
+which the whitening takes out. So: polar coordinates (:mod:`scioc.models.bayes.noise_blocks`, k from
+:mod:`scioc.pipelines.fit.noise_arcs`, 7 of the 12 in them) straighten less than their arcs promised, a
 quarter fewer steps; ρ = u² removes the dip (no sign changes at all) and halves the steps, but its
 density vanishes at u = 0 like |u|, and for S04, S14, S20 and S22, whose ρ reaches 0, the draw with
 the smallest |u| was a divergent one; nutpie's low-rank mass matrix on the curved coordinates,
@@ -249,7 +249,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_blocks import DelayedForm
+from scioc.models.bayes.delayed_blocks import DelayedForm
 
 #: τ_nm's and σ_m's blocks are centred when the median over units of (ML estimate / its SE) is at
 #: least this: the data then pin each subject's value (models/bayes/delayed_model.py, "Geometry").
@@ -258,8 +258,8 @@ CENTRED_Z = 3.0
 LOOSE_FORM = {"tau_nm": "noncentred", "sigma_m": "folded_centred"}
 #: The forms the baseline log R blocks may take (``scioc fit --log-R-form``; default: :func:`log_R_form`).
 LOG_R_FORMS = ("centred", "noncentred")
-#: θ2's form in the delayed fit (:func:`models.bayes.blocks.theta2_block`: the recorded torque leaves θ2 at its prior,
-#: which is a standard normal in this form; measured: :mod:`pipelines.fit.warmup`, "The pivot's tails").
+#: θ2's form in the delayed fit (:func:`scioc.models.bayes.blocks.theta2_block`: the recorded torque leaves θ2 at its prior,
+#: which is a standard normal in this form; measured: :mod:`scioc.pipelines.fit.warmup`, "The pivot's tails").
 THETA2_FORM = "quantile"
 
 
@@ -320,7 +320,7 @@ def _rho_by_subject(estimates: pd.DataFrame, subjects) -> tuple[str, tuple, str]
 
 
 def choose_R_population(estimates: pd.DataFrame | None, subjects) -> tuple[str, str]:
-    """The population of the subjects' baseline R (:class:`models.bayes.delayed_blocks.DelayedPriors`'s
+    """The population of the subjects' baseline R (:class:`scioc.models.bayes.delayed_blocks.DelayedPriors`'s
     ``R_population``) for these data, and why: ``lognormal`` (the max-ent model's) where the estimates fix the R of
     at least half the subjects (:func:`rho_pinned`; as the other blocks' forms, by the median subject), else
     ``policy_scale`` (module docstring, "The population of R"); lognormal without estimates with an SE of log R."""

@@ -7,7 +7,7 @@ import math
 import arviz as az
 import numpy as np
 
-from models.bayes.hierarchical import POPULATION_PARAMETERS
+from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS
 
 #: Unit-level quantities (subject × condition) whose diagnostics are reported too.
 UNITS = ("log_theta1", "log_R", "theta2")

@@ -3,12 +3,12 @@
 :func:`compare_human_models` takes two ``scioc fit`` folders of the same study and settings,
 one fitted with the ``maxent`` human and one with the ``delayed`` human, and computes for
 each the leave-one-subject-out ELPD of every subject by integrated PSIS
-(:func:`pipelines.fit.loo.subject_elpd`: the subject's unit parameters integrated out by
-importance sampling, :mod:`models.bayes.subject_loo`; for the delayed model with its lag
-and motor noise, :mod:`models.bayes.delayed_loo`). Both are log densities of the same
+(:func:`scioc.pipelines.fit.loo.subject_elpd`: the subject's unit parameters integrated out by
+importance sampling, :mod:`scioc.models.bayes.subject_loo`; for the delayed model with its lag
+and motor noise, :mod:`scioc.models.bayes.delayed_loo`). Both are log densities of the same
 observed torques, so their difference per subject says which model predicts that subject
 better, and the sum over subjects ± its SE (``sqrt(n) sd``, as
-:func:`pipelines.fit.loo.elpd_difference`) which predicts new subjects better.
+:func:`scioc.pipelines.fit.loo.elpd_difference`) which predicts new subjects better.
 
 It runs after the two fits (they are minutes each): ``scioc fit --human-model delayed
 --compare-to MAXENT_FIT`` after the delayed fit, ``scioc human-models`` on two finished
@@ -27,18 +27,18 @@ from pathlib import Path
 import arviz as az
 import numpy as np
 
-from models.bayes.delayed_blocks import DelayedPriors
-from models.bayes.delayed_loo import DelayedSubjectTerms
-from models.bayes.hierarchical import Priors
-from models.plant import discretize
-from models.segment import prepare_batch
-from models.units import index_study
-from pipelines.experiment import experiment_hash, parse_experiment
-from pipelines.fit.artifacts import strict_json
-from pipelines.fit.loo import LOSO_POINTS, comparison_reliability, reliability_words, subject_elpd
-from pipelines.io import InputDataError, load_study
-from pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
-from pipelines.storage import write_text_atomic
+from scioc.models.bayes.delayed_blocks import DelayedPriors
+from scioc.models.bayes.delayed_loo import DelayedSubjectTerms
+from scioc.models.bayes.hierarchical import Priors
+from scioc.models.plant import discretize
+from scioc.models.segment import prepare_batch
+from scioc.models.units import index_study
+from scioc.pipelines.experiment import experiment_hash, parse_experiment
+from scioc.pipelines.fit.artifacts import strict_json
+from scioc.pipelines.fit.loo import LOSO_POINTS, comparison_reliability, reliability_words, subject_elpd
+from scioc.pipelines.io import InputDataError, load_study
+from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
+from scioc.pipelines.storage import write_text_atomic
 
 #: Human models compared, in the order of the difference (second minus first).
 HUMAN_MODELS_COMPARED = ("maxent", "delayed")
@@ -135,7 +135,7 @@ def check_maxent_fit(folder, study_path, settings: IdentifySettings) -> dict:
 
 
 def fit_settings(side: dict, folder) -> IdentifySettings:
-    """The :class:`pipelines.prepare.IdentifySettings` a fit used, from its sidecar (settings and experiment)."""
+    """The :class:`scioc.pipelines.prepare.IdentifySettings` a fit used, from its sidecar (settings and experiment)."""
     path = Path(folder) / "posterior.json"
     if "experiment" not in side:
         raise InputDataError(f"{path}: no key 'experiment' (a fit written before experiment files); "
@@ -264,7 +264,7 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         ``by_subject``: per subject ``elpd_maxent``, ``elpd_delayed``, ``difference``
         (delayed - maxent) and ``preferred``; ``difference``: ``elpd_diff`` ± ``se``, ``z``,
         ``preferred``, ``n_preferring_delayed``, ``n``, ``reliable``, ``unreliable_because``
-        and ``importance`` (:func:`pipelines.fit.loo.comparison_reliability`: the Pareto k and the
+        and ``importance`` (:func:`scioc.pipelines.fit.loo.comparison_reliability`: the Pareto k and the
         importance sampling); ``maxent`` and ``delayed``: each model's PSIS summary with the
         importance-sampling ESS; ``adequacy``: each fit's verdict at its posterior θ
         (:func:`adequacy_brief`); ``convergence``: each fit's sampler-convergence verdict.

@@ -8,9 +8,9 @@ import arviz as az
 import numpy as np
 import xarray as xr
 
-from models.bayes.subject_loo import subject_loglik
-from models.design import CONDITIONS
-from models.units import index_study
+from scioc.models.bayes.subject_loo import subject_loglik
+from scioc.models.design import CONDITIONS
+from scioc.models.units import index_study
 
 
 def psis_summary(data, var_name: str, dim: str) -> tuple[dict, np.ndarray]:
@@ -75,7 +75,7 @@ def psis_weights(log_lik: xr.DataArray, dim: str, reff: float) -> tuple[xr.DataA
     return xr.concat(weights, dim), xr.concat(ks, dim)
 
 
-#: The smallest leave-one-out importance-sampling ESS (``is_ess_loo``, :mod:`models.bayes.subject_loo`)
+#: The smallest leave-one-out importance-sampling ESS (``is_ess_loo``, :mod:`scioc.models.bayes.subject_loo`)
 #: of any subject for a leave-one-subject-out comparison to count as reliable: a subject's log
 #: density then has a Monte Carlo SE of about 1 / sqrt(ESS) ≤ 0.1 nats (delta method), and the
 #: weights are past the few-points regime in which Kong's ESS, estimated from the weights
@@ -176,8 +176,8 @@ def subject_elpd(idata, batch, index, plant, rng: np.random.Generator, levels, *
 
     ``points``: importance-sampling points per subject.
 
-    ``index`` is :func:`models.units.index_study` of the fitted segments; ``extra`` the terms
-    of another human model (:func:`models.bayes.subject_loo.subject_loglik`), built from
+    ``index`` is :func:`scioc.models.units.index_study` of the fitted segments; ``extra`` the terms
+    of another human model (:func:`scioc.models.bayes.subject_loo.subject_loglik`), built from
     the thinned posterior's flat draws by a callable ``extra(flat)``.
     """
     flat, keep = thinned_posterior(idata)
@@ -206,7 +206,7 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
     """Leave-one-subject-out ELPD of both models by integrated PSIS, and their difference.
 
     The pointwise term is ``log p(y_i | ψ_s)``, subject i's data with its unit parameters
-    integrated out under population draw ψ_s (:mod:`models.bayes.subject_loo`); PSIS then
+    integrated out under population draw ψ_s (:mod:`scioc.models.bayes.subject_loo`); PSIS then
     reweights only the population draws, which one subject of many barely moves, so the
     Pareto k stay low where the segment-wise PSIS-LOO fails. The posterior is thinned
     evenly to :data:`LOSO_DRAWS` draws over the chains. ``levels``: the condition levels,

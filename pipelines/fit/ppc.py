@@ -14,12 +14,12 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from models.cost import from_normalized
-from models.delayed.sample import closed_loop, delayed_setup, sample_delayed
-from models.maxent import forward_optimal_control, sample_maxent
-from models.plant import discretize
-from models.segment import plan_inputs
-from pipelines.prepare import PreparedStudy
+from scioc.models.cost import from_normalized
+from scioc.models.delayed.sample import closed_loop, delayed_setup, sample_delayed
+from scioc.models.maxent import forward_optimal_control, sample_maxent
+from scioc.models.plant import discretize
+from scioc.models.segment import plan_inputs
+from scioc.pipelines.prepare import PreparedStudy
 
 #: Posterior draws used for the posterior predictive bands.
 PPC_DRAWS = 100
@@ -59,7 +59,7 @@ def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.r
     trials of a unit share its posterior θ, each with its own x0, reference and u_A.
 
     ``delayed`` (None: the max-ent human, as always) draws from the ``delayed`` human
-    instead (:func:`models.delayed.sample_delayed`) at each draw's θ and its subject's
+    instead (:func:`scioc.models.delayed.sample_delayed`) at each draw's θ and its subject's
     τ_nm and σ_m: a dict with ``delay`` (per segment of ``prepared``, samples) and
     ``tau0`` (a function (segment position, τ_nm) -> τ_0, N·m). Its "optimal" curves are
     the closed loop without noise at the posterior medians.

@@ -1,7 +1,7 @@
 """The adequacy check of a finished fit, again, without refitting (``scioc adequacy``).
 
 ``scioc fit`` checks the human model at one point of its posterior
-(:func:`pipelines.fit.checks.posterior_point`). :func:`recheck_adequacy` repeats that
+(:func:`scioc.pipelines.fit.checks.posterior_point`). :func:`recheck_adequacy` repeats that
 check on a finished fit folder: at another point (``--at draw`` or ``means``), with another
 seed (another draw, another bootstrap), or after the check itself changed. It reads the
 folder's ``posterior.json`` (study, settings, experiment, the delayed fit's delays) and
@@ -16,14 +16,14 @@ from pathlib import Path
 
 import arviz as az
 
-from models.plant import discretize
-from pipelines.fit.artifacts import strict_json
-from pipelines.fit.checks import posterior_adequacy
-from pipelines.fit.delayed import Delays, delayed_adequacy
-from pipelines.fit.human_models import fit_settings, fit_sidecar, fit_study, sidecar_delays
-from pipelines.io import load_study
-from pipelines.prepare import prepare_study
-from pipelines.storage import write_text_atomic
+from scioc.models.plant import discretize
+from scioc.pipelines.fit.artifacts import strict_json
+from scioc.pipelines.fit.checks import posterior_adequacy
+from scioc.pipelines.fit.delayed import Delays, delayed_adequacy
+from scioc.pipelines.fit.human_models import fit_settings, fit_sidecar, fit_study, sidecar_delays
+from scioc.pipelines.io import load_study
+from scioc.pipelines.prepare import prepare_study
+from scioc.pipelines.storage import write_text_atomic
 
 
 def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, study=None) -> dict:
@@ -34,7 +34,7 @@ def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, stud
     fit_dir : str or Path
         A finished fit folder (max-ent or delayed human).
     at : {"draw", "means"}
-        The posterior point (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
+        The posterior point (:data:`scioc.pipelines.fit.checks.ADEQUACY_POINTS`).
     seed : int, optional
         The adequacy seed (the draw and the bootstrap); default: the one the fit used.
     study : str or Path, optional

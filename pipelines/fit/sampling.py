@@ -43,7 +43,7 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
     ``target_accept``: the NUTS target acceptance rate (nutpie's, or PyMC's NUTS's beside ``steps``),
     over any in ``nuts``; None leaves the sampler's own (nutpie's 0.8, or ``nuts``'s).
 
-    ``initvals``: where the chains start (RV name -> value; :func:`pipelines.fit.start.start_point`),
+    ``initvals``: where the chains start (RV name -> value; :func:`scioc.pipelines.fit.start.start_point`),
     jittered per chain as PyMC's own start is; passed on only when given.
 
     Returns
@@ -106,7 +106,7 @@ def keep_tuning_steps(idata) -> None:
     """Record the warm-up's leapfrog steps in ``sample_stats.attrs`` and drop nutpie's warm-up groups.
 
     ``tuning_leapfrog_steps`` (all chains) and ``tuning_draws`` (per chain), so that
-    :func:`pipelines.fit.diagnostics.diagnostics` can say where the sampling time went: the
+    :func:`scioc.pipelines.fit.diagnostics.diagnostics` can say where the sampling time went: the
     kept draws' steps alone do not (the delayed fit's warm-up took most of it). And
     ``tuning_steps_by_tenth``: the mean steps per draw (all chains) in each tenth of the
     warm-up, in order, which says which phase of nutpie's adaptation the steps went to. The

@@ -1,17 +1,17 @@
 """``scioc fit``: the hierarchical Bayesian model of a study, its diagnostics and contrasts.
 
 The segments are cut and reconstructed exactly as ``scioc identify`` does
-(:func:`pipelines.prepare.prepare_study`; ``scioc run`` passes the same prepared study to
+(:func:`scioc.pipelines.prepare.prepare_study`; ``scioc run`` passes the same prepared study to
 both), then two models of
-:func:`models.bayes.hierarchical.build_model` are sampled with nutpie through ``pm.sample``:
+:func:`scioc.models.bayes.hierarchical.build_model` are sampled with nutpie through ``pm.sample``:
 the model with condition effects (β, the mean SC change of log θ1, is the paper's
 question; with more levels one β per level against the baseline) and the pooled model
 without them (log θ1 the same in every level), which only serves the PSIS-LOO comparison.
-With ``human_model="delayed"`` the one model is the delayed human's (:mod:`pipelines.fit.delayed`).
+With ``human_model="delayed"`` the one model is the delayed human's (:mod:`scioc.pipelines.fit.delayed`).
 
-The experiment (:class:`models.design.Design`, ``settings.design``) gives the wheel and
+The experiment (:class:`scioc.models.design.Design`, ``settings.design``) gives the wheel and
 the sample time of the likelihood, the levels (baseline first) and their assistants, and
-the rate of the prior on log R (:meth:`models.bayes.hierarchical.Priors.for_design`).
+the rate of the prior on log R (:meth:`scioc.models.bayes.hierarchical.Priors.for_design`).
 Several trials of one subject × level are segments of one unit: they share its θ.
 
 Artifacts in ``--out DIR``:
@@ -30,11 +30,11 @@ Artifacts in ``--out DIR``:
   per-subject MC→SC contrasts of log θ1 (with more than two levels: ``baseline`` and one
   such block per non-baseline level under ``contrasts``), the LOO comparisons (PSIS over segments, which
   one segment per unit defeats, and integrated PSIS leaving out whole subjects,
-  :func:`pipelines.fit.loo.subject_loo_comparison`), the frequentist mixed-model
+  :func:`scioc.pipelines.fit.loo.subject_loo_comparison`), the frequentist mixed-model
   cross-check on the per-segment ML estimates and, for a simulated study, the truth check.
 * ``ppc.parquet`` — the report's summary of the predictive draws: 5/50/95 % bands of angle
   and torque of one subject (every level and trial) over exact max-ent draws of the human the
-  likelihood assumes (:func:`models.maxent.sample_maxent`), beside the data.
+  likelihood assumes (:func:`scioc.models.maxent.sample_maxent`), beside the data.
 
 Randomness: the root ``seed`` is split with ``SeedSequence(seed).spawn(4)`` into the seeds
 of the two samplers, of the posterior predictive draws and of the leave-one-subject-out
@@ -53,26 +53,38 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from models.bayes.delayed_blocks import DelayedPriors
-from models.bayes.hierarchical import Parameterization, Priors, build_model
-from models.identify import identify_unit
-from models.plant import discretize
-from models.segment import prepare_batch
-from pipelines.experiment import sidecar as experiment_fields
-from pipelines.fit.artifacts import require_netcdf, strict_json, write_netcdf
-from pipelines.fit.checks import ADEQUACY_POINTS, mixedlm_check, posterior_adequacy, truth_check
-from pipelines.fit.contrasts import contrasts
-from pipelines.fit.delayed import DELAY_MODES, delayed_adequacy, delayed_results, sample_delayed_model, unit_delays
-from pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, NUTPIE_TARGET_ACCEPT, RHAT_MAX, diagnostics
-from pipelines.fit.loo import loo_comparison, subject_loo_comparison
-from pipelines.fit.ppc import PPC_DRAWS, constant_data, posterior_predictive, ppc_coverage
-from pipelines.fit.sampling import child_seeds, sample_model
-from pipelines.fit.warmup import default_tune
-from pipelines.io import InputDataError, load_study
-from pipelines.prepare import IdentifySettings, PreparedStudy, check_design, check_human_model, prepare_study
-from pipelines.provenance import versions
-from pipelines.storage import (check_output_dir, refuse_inputs_inside, staged_dir, write_table_atomic,
-                               write_text_atomic)
+from scioc.models.bayes.delayed_blocks import DelayedPriors
+from scioc.models.bayes.hierarchical import Parameterization, Priors, build_model
+from scioc.models.identify import identify_unit
+from scioc.models.plant import discretize
+from scioc.models.runtime import configure
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.experiment import sidecar as experiment_fields
+from scioc.pipelines.fit.artifacts import require_netcdf, strict_json, write_netcdf
+from scioc.pipelines.fit.checks import ADEQUACY_POINTS, mixedlm_check, posterior_adequacy, truth_check
+from scioc.pipelines.fit.contrasts import contrasts
+from scioc.pipelines.fit.delayed import (
+    DELAY_MODES,
+    delayed_adequacy,
+    delayed_results,
+    sample_delayed_model,
+    unit_delays,
+)
+from scioc.pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, NUTPIE_TARGET_ACCEPT, RHAT_MAX, diagnostics
+from scioc.pipelines.fit.loo import loo_comparison, subject_loo_comparison
+from scioc.pipelines.fit.ppc import PPC_DRAWS, constant_data, posterior_predictive, ppc_coverage
+from scioc.pipelines.fit.sampling import child_seeds, sample_model
+from scioc.pipelines.fit.warmup import default_tune
+from scioc.pipelines.io import InputDataError, load_study
+from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, check_design, check_human_model, prepare_study
+from scioc.pipelines.provenance import versions
+from scioc.pipelines.storage import (
+    check_output_dir,
+    refuse_inputs_inside,
+    staged_dir,
+    write_table_atomic,
+    write_text_atomic,
+)
 
 
 def default_inputs(study_path: Path, estimates_path, truth_dir):
@@ -124,7 +136,7 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
 def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | None = None,
                    whitening: dict | None = None) -> dict:
     """Which sampler a fit used and its mass matrix, for the sidecar (``nutpie_options``: the delayed fit's;
-    ``whitening``: the record of its whitened coordinates, :mod:`pipelines.fit.whiten`, if any)."""
+    ``whitening``: the record of its whitened coordinates, :mod:`scioc.pipelines.fit.whiten`, if any)."""
     if human_model == "delayed" and delay_mode == "sampled":
         return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
                 "adaptation": "diag (PyMC's NUTS)"}
@@ -139,7 +151,7 @@ def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | Non
 
 
 def curved_along(counts: dict) -> str:
-    """The pivots of a curved whitening (:func:`pipelines.fit.whiten.whitening`'s ``curved_along``) for the sidecar:
+    """The pivots of a curved whitening (:func:`scioc.pipelines.fit.whiten.whitening`'s ``curved_along``) for the sidecar:
     the name alone, or each with its number of subjects where each subject had its own."""
     if len(counts) == 1:
         return next(iter(counts))
@@ -182,7 +194,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         Root seed (split into the samplers' and the predictive draws' seeds).
     chains, draws, tune : int
         nutpie chains, and draws kept per chain after ``tune`` warm-up draws (default
-        :func:`pipelines.fit.warmup.default_tune`: 1000, 150 after the delayed fit's pilot run).
+        :func:`scioc.pipelines.fit.warmup.default_tune`: 1000, 150 after the delayed fit's pilot run).
     settings : IdentifySettings
         Window, preview and reconstruction, as for ``scioc identify``, and the experiment
         (``settings.design``: wheel, sample time, levels, assistants).
@@ -201,7 +213,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     show_progress : bool
         Progress bars on standard error.
     force : bool
-        Replace an existing non-empty ``out`` (as a whole; see :func:`pipelines.storage.staged_dir`).
+        Replace an existing non-empty ``out`` (as a whole; see :func:`scioc.pipelines.storage.staged_dir`).
     prepared : PreparedStudy, optional
         The study file already prepared with ``settings`` (``scioc run`` shares the
         identification's); by default it is loaded and prepared here.
@@ -211,18 +223,18 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     human_model : {"maxent", "delayed"}, optional
         The human model (default ``settings.human_model``): ``maxent`` fits the condition
         and pooled max-ent models as always; ``delayed`` fits
-        :func:`models.bayes.delayed_model.build_delayed_model` alone, with each unit's
-        delay from the estimates' ``delay_s`` or the ML profile (:mod:`pipelines.fit.delayed`;
+        :func:`scioc.models.bayes.delayed_model.build_delayed_model` alone, with each unit's
+        delay from the estimates' ``delay_s`` or the ML profile (:mod:`scioc.pipelines.fit.delayed`;
         no ``posterior_pooled.nc``). ``posterior.json`` records it, and for ``delayed`` the
         delay of every unit and how it was chosen.
     delay_mode, delayed_priors, rho_form, adaptation, log_R_form
-        ``delayed`` only, as :func:`pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
+        ``delayed`` only, as :func:`scioc.pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
         at each subject's profile maximum or sampled, the priors (e.g. the population of R; None: the defaults, the
         population of R chosen by the data), the form of ρ,
-        the coordinates and nutpie's mass matrix (None: the first of :data:`models.bayes.delayed_model.ADAPTATIONS`),
+        the coordinates and nutpie's mass matrix (None: the first of :data:`scioc.models.bayes.delayed_model.ADAPTATIONS`),
         and the form of the log R blocks (its ``log_R``; None: chosen by the data).
     adequacy_at : {"draw", "means"}
-        The posterior point of the adequacy check (:data:`pipelines.fit.checks.ADEQUACY_POINTS`).
+        The posterior point of the adequacy check (:data:`scioc.pipelines.fit.checks.ADEQUACY_POINTS`).
     target_accept : float, optional
         The sampler's target acceptance rate, in (0, 1) (None: the fit's own, recorded in the
         sidecar: nutpie's 0.8, the delayed model's whitened fit 0.9, 0.8 with its pilot run).
@@ -236,9 +248,10 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     ------
     ValueError
         For a bad study design (a subject lacking a level, a level with no segment at all:
-        the message of :func:`models.units.index_study`), a malformed file, or an unknown
+        the message of :func:`scioc.models.units.index_study`), a malformed file, or an unknown
         ``subject``; nothing is written then.
     """
+    configure()
     require_netcdf()
     human_model = settings.human_model if human_model is None else human_model
     check_human_model(human_model)

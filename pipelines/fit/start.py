@@ -31,7 +31,7 @@ scales held). A start that the optimizer cannot improve on its initial point (Py
 held scales as above) is not used (:func:`start_point` returns None), nor one with a coordinate at the optimizer's box
 (:data:`UNCONSTRAINED_BOUND`), nor one from estimates without the cost (θ1, R) targets (a
 delayed fit without ``--estimates`` takes them from its own delay profile's ML points,
-:func:`pipelines.fit.delayed.unit_delays`). Discrete variables (the
+:func:`scioc.pipelines.fit.delayed.unit_delays`). Discrete variables (the
 sampled delays of ``--delay sampled``) stay at PyMC's initial point too.
 
 Why the held scales start at their targets' spread: PyMC's initial point is the prior's scale

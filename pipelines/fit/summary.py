@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pipelines.adequacy import format_adequacy, not_checked
-from pipelines.fit.diagnostics import remedies
-from pipelines.fit.loo import reliability_words
+from scioc.pipelines.adequacy import format_adequacy, not_checked
+from scioc.pipelines.fit.diagnostics import remedies
+from scioc.pipelines.fit.loo import reliability_words
 
 
 def _beta_lines(b: dict, r: dict, what: str) -> list:
@@ -23,7 +23,7 @@ def _truth_line(t: dict, level: str = "") -> str:
 
 def fit_remedies(side: dict) -> list[tuple[str, str]]:
     """``(model, remedy)`` for each fitted model of a sidecar whose convergence verdict fails
-    (:func:`pipelines.fit.diagnostics.remedies`, at the fit's own chains, draws and target acceptance)."""
+    (:func:`scioc.pipelines.fit.diagnostics.remedies`, at the fit's own chains, draws and target acceptance)."""
     s = side.get("sampler")
     if s is None or "diagnostics" not in side:
         return []

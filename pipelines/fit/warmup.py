@@ -1,7 +1,7 @@
 """How long a fit warms up: the default warm-up, and the delayed fit's pilot run (``--adaptation pilot``).
 
-The delayed fit's default coordinates are measured on a pilot run's draws (:mod:`models.bayes.whiten_draws`,
-:func:`pipelines.fit.whiten.sample_whitened`). The run after it starts inside the posterior's bulk in coordinates
+The delayed fit's default coordinates are measured on a pilot run's draws (:mod:`scioc.models.bayes.whiten_draws`,
+:func:`scioc.pipelines.fit.whiten.sample_whitened`). The run after it starts inside the posterior's bulk in coordinates
 in which each subject's block is near the identity, so it needs a shorter warm-up than a fit from the mode on the
 Hessian's coordinates: measured on the full-size ``kbl`` study (README, "Speed"), after the first tenth of its 300
 warm-up draws its trees were as deep as the kept draws'.
@@ -11,7 +11,7 @@ bench --parts fit_delayed --humans kbl`` at f484bf1) 82 leapfrog steps per warm-
 every draw of the run after it was a tree of depth 5 (31 steps); and the first tenth of that run's warm-up took 169
 steps per draw, where nutpie starts its adaptation again. A cap on the trees' depth (nutpie's ``maxdepth``; a capped
 tree is still a valid NUTS transition, only a shorter one) bounds both. Measured on the twelve subjects of
-:mod:`pipelines.fit.delayed_forms`' last table (``scioc fit h12/study.parquet --human-model delayed --estimates
+:mod:`scioc.pipelines.fit.delayed_forms`' last table (``scioc fit h12/study.parquet --human-model delayed --estimates
 h12/delayed/estimates.parquet --experiment h12/experiment.toml --chains 4 --draws 300 --adequacy-boot 19 --seed S
 --R-population policy_scale --rho-form folded_centred``, the cap set for the pilot and the kept run alike by a
 wrapper that added ``maxdepth`` to nutpie's options; 2026-12-06; gradients of the pilot, the warm-up and the kept
@@ -57,7 +57,7 @@ than 300, with as many steps per kept draw and no worse mixing over the three se
 :data:`TUNE_AFTER_PILOT` is 150. At full size: README, "Speed".
 
 The target acceptance rate after the pilot (tried then; the default since 41cd710, with the pivots' tail maps
-below). nutpie's 0.8 instead of the delayed fit's 0.9 (:data:`models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`,
+below). nutpie's 0.8 instead of the delayed fit's 0.9 (:data:`scioc.models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`,
 chosen before the pilot existed) on the twelve subjects
 (the same command with ``--target-accept 0.8``, which the pilot follows too; 300 warm-up draws; 2026-12-07)::
 
@@ -79,11 +79,11 @@ on seeds 1 and 3 (θ2 already in the quantile form below), four of the five dive
 subject's pivot (S04's ρ̃) beyond the largest |ρ̃| among its 1200 draws (0.52-0.54), at |ρ̃| of 0.81-1.69, their last
 step moving ρ̃ by 0.3-2.4 (its draws span about 1.05), with energy errors of 4·10³-4·10¹⁰; the fifth at the
 population's β_R and σ_βR, 5-7 of their scales out. That is the wall at the ridge's end, where the data hold ρ²
-(:mod:`models.bayes.pivot_tails`), rather than a bend that the parabola misses. In the same draws each
+(:mod:`scioc.models.bayes.pivot_tails`), rather than a bend that the parabola misses. In the same draws each
 unit's log z = log(θ2/τ) had its prior's quantiles, and the whitened coordinates' excess kurtosis was 1-10 for the
 two θ2 coordinates and log σ_m of every subject, against about 0 for the rest. Two changes followed: θ2 in the
-``quantile`` form (:func:`models.bayes.blocks.theta2_block`, :data:`pipelines.fit.delayed_forms.THETA2_FORM`), and
-the pivot's tail map, its b chosen on the pilot's draws (:func:`models.bayes.pivot_tails.tail_scale`). The same
+``quantile`` form (:func:`scioc.models.bayes.blocks.theta2_block`, :data:`scioc.pipelines.fit.delayed_forms.THETA2_FORM`), and
+the pivot's tail map, its b chosen on the pilot's draws (:func:`scioc.models.bayes.pivot_tails.tail_scale`). The same
 command as above with ``--target-accept R`` (three runs' code differs from any commit, as said; two fits at a time,
 so by gradients; the 0.9 rows without either are the table above's tune-150 rows)::
 
@@ -102,7 +102,7 @@ so by gradients; the 0.9 rows without either are the table above's tune-150 rows
     3     0.9   quantile    b ≥ SD       14 747   15 644   26 672   57 063   22.2        0.19-0.23    σ_βR 288      1.016  0
 
 (log z: the ``noncentred`` form before; "quantile, affine": the quantile form without the tail map, an edit of
-0e997e7; "b ≥ SD/4": :data:`models.bayes.pivot_tails.TAIL_GRID` with 0.5 and 0.25 added, where the likelihood chose
+0e997e7; "b ≥ SD/4": :data:`scioc.models.bayes.pivot_tails.TAIL_GRID` with 0.5 and 0.25 added, where the likelihood chose
 0.25 for all 24 subject-runs, the map's bend then inside the bulk, the steps smaller and the trees as deep as at
 0.9; "b ≥ SD": the grid as it is, which chose 1 for all 24.) The quantile form took 10-12 % fewer gradients at 0.8
 and the tail map removed the divergences (0 in both seeds against 4 and 1) at as few gradients. With 300 kept draws
@@ -111,7 +111,7 @@ per chain the smaller ESS and larger R-hat at 0.8 are within the spread of these
 
 from __future__ import annotations
 
-from models.bayes.delayed_model import ADAPTATIONS, PILOT
+from scioc.models.bayes.delayed_model import ADAPTATIONS, PILOT
 
 #: The pilot run of the ``pilot`` adaptation, (warm-up, kept) draws per chain, at most (pipelines/fit/whiten.py;
 #: :func:`pilot_runs`; measured: README, "Speed").
@@ -140,7 +140,7 @@ PILOT_MAX_TREE_DEPTH = None
 def pilot_runs(adaptation: str | None, delay_mode: str, tune: int, draws: int, chains: int = PILOT_CHAINS
                ) -> tuple | None:
     """The pilot runs of a delayed fit, as (tune, draws, chains, target_accept, max_tree_depth) for
-    :func:`pipelines.fit.whiten.sample_whitened`: :data:`PILOT_RUNS` for the ``pilot`` adaptation (the default) with
+    :func:`scioc.pipelines.fit.whiten.sample_whitened`: :data:`PILOT_RUNS` for the ``pilot`` adaptation (the default) with
     profile delays, each no longer than the fit's own warm-up and draws (a small fit gets a small pilot; at least 2
     draws), on :data:`PILOT_CHAINS` chains (at most the fit's) at :data:`PILOT_TARGET_ACCEPT`, its trees no deeper
     than :data:`PILOT_MAX_TREE_DEPTH` (None: the fit's own); None otherwise."""

@@ -1,23 +1,23 @@
-"""Sampling a hierarchical model in per-subject whitened coordinates (:mod:`models.bayes.whiten`), with nutpie.
+"""Sampling a hierarchical model in per-subject whitened coordinates (:mod:`scioc.models.bayes.whiten`), with nutpie.
 
-The steps, all deterministic (the seed enters only the sampler, as in :func:`pipelines.fit.sampling.sample_model`):
+The steps, all deterministic (the seed enters only the sampler, as in :func:`scioc.pipelines.fit.sampling.sample_model`):
 
-1. x̂: from the start (:func:`pipelines.fit.start.start_point`; PyMC's initial point without
+1. x̂: from the start (:func:`scioc.pipelines.fit.start.start_point`; PyMC's initial point without
    one), the maximum of the model's log density over every coordinate but the held ones (the
-   population scales, :func:`pipelines.fit.start.held_mask`, which a maximum would send into a
+   population scales, :func:`scioc.pipelines.fit.start.held_mask`, which a maximum would send into a
    funnel's neck), by L-BFGS with the exact gradient, at most :data:`MODE_MAX_ITER` iterations;
    kept only if it improves on the start.
-2. H_i: each subject's Hessian block at x̂ (:func:`models.bayes.whiten.block_hessian`,
+2. H_i: each subject's Hessian block at x̂ (:func:`scioc.models.bayes.whiten.block_hessian`,
    central differences of step :data:`HESSIAN_STEP` on the unconstrained scale); and each other
-   coordinate's own scale there (:func:`models.bayes.whiten.coordinate_scales`); given ``pivots``
-   (the delayed fit's σ_m or ρ, each signed in some subjects: :func:`models.bayes.delayed_blocks.ridge_pivots`), each
-   subject's pivot (the signed one whose fold x̂ is nearest, else the last: :func:`models.bayes.whiten.nearest_fold`)
-   and its ridge's curvature along it (:func:`models.bayes.whiten.ridge_curvature`, the module's "Curved"), one
+   coordinate's own scale there (:func:`scioc.models.bayes.whiten.coordinate_scales`); given ``pivots``
+   (the delayed fit's σ_m or ρ, each signed in some subjects: :func:`scioc.models.bayes.delayed_blocks.ridge_pivots`), each
+   subject's pivot (the signed one whose fold x̂ is nearest, else the last: :func:`scioc.models.bayes.whiten.nearest_fold`)
+   and its ridge's curvature along it (:func:`scioc.models.bayes.whiten.ridge_curvature`, the module's "Curved"), one
    group of subjects per pivot.
-3. The model in w (:func:`models.bayes.whiten.whitened_model`) sampled by nutpie with its
+3. The model in w (:func:`scioc.models.bayes.whiten.whitened_model`) sampled by nutpie with its
    diagonal mass matrix, the chains jittered around w = 0 (x̂) as PyMC jitters its own start.
    With a ``pilot``, first a short run of it, whose draws measure each block's centre, factor and
-   curvature again (:func:`models.bayes.whiten_draws.draws_factors`: where the posterior is far from
+   curvature again (:func:`scioc.models.bayes.whiten_draws.draws_factors`: where the posterior is far from
    Gaussian at x̂, the Hessian there describes it badly), then the run whose draws are kept, on
    the new coordinates, the chains jittered around the pilot's first chain's last draw.
 4. The draws mapped back: x(w), then every free variable and deterministic of the original
@@ -32,11 +32,22 @@ import time
 
 import numpy as np
 
-from models.bayes.whiten import (WHITE, block_column, block_hessian, coordinate_scales, nearest_fold, pivot_curve,
-                                 ridge_curvature, subject_blocks, to_unconstrained, whitened_model, whitening_factors)
-from models.bayes.whiten_draws import draws_factors, to_white
-from pipelines.fit.sampling import add_log_likelihood, sample_model
-from pipelines.fit.start import held_mask
+from scioc.models.bayes.whiten import (
+    WHITE,
+    block_column,
+    block_hessian,
+    coordinate_scales,
+    nearest_fold,
+    pivot_curve,
+    ridge_curvature,
+    subject_blocks,
+    to_unconstrained,
+    whitened_model,
+    whitening_factors,
+)
+from scioc.models.bayes.whiten_draws import draws_factors, to_white
+from scioc.pipelines.fit.sampling import add_log_likelihood, sample_model
+from scioc.pipelines.fit.start import held_mask
 
 #: Most L-BFGS iterations of the search for x̂ (the 12-subject ``kbl`` study took 229).
 MODE_MAX_ITER = 1000
@@ -47,20 +58,20 @@ HESSIAN_STEP = 1e-4
 def whitening(model, start: dict | None, pivots=None):
     """(logp graph, its flat input, x̂, groups, point_map_info, record, folds) of ``model`` (module docstring,
     steps 1-2); ``groups``: [(subject blocks, L)] and, where there are any, (the other coordinates (m, 1), their
-    scales (m, 1, 1)), as :func:`models.bayes.whiten.to_unconstrained` takes them; ``folds``: per group, None, or
-    for a curved one whether each of its subjects' pivot is signed (:func:`models.bayes.whiten_draws.draws_factors`).
+    scales (m, 1, 1)), as :func:`scioc.models.bayes.whiten.to_unconstrained` takes them; ``folds``: per group, None, or
+    for a curved one whether each of its subjects' pivot is signed (:func:`scioc.models.bayes.whiten_draws.draws_factors`).
 
     ``pivots``: (name, signed) pairs, ``name`` a free variable with one value per subject along which each
-    subject's ridge may be curved (:func:`models.bayes.whiten.ridge_curvature`), ``signed`` (n_subjects,) where
+    subject's ridge may be curved (:func:`scioc.models.bayes.whiten.ridge_curvature`), ``signed`` (n_subjects,) where
     its coordinate is signed; each subject's pivot is the signed one whose fold x̂ is nearest, else the last
-    (:func:`models.bayes.whiten.nearest_fold`). The subjects' blocks then are one (blocks, L, (column, a)) group
+    (:func:`scioc.models.bayes.whiten.nearest_fold`). The subjects' blocks then are one (blocks, L, (column, a)) group
     per pivot used.
     """
+    import pytensor.tensor as pt
     from pymc.blocking import DictToArrayBijection
     from pymc.initial_point import make_initial_point_fn
     from pymc.pytensorf import compile as compile_pymc
     from pymc.pytensorf import join_nonshared_inputs
-    import pytensor.tensor as pt
     from scipy.optimize import minimize
 
     t0 = time.perf_counter()
@@ -127,7 +138,7 @@ def whitening(model, start: dict | None, pivots=None):
 
 
 def tail_count(groups) -> int:
-    """How many subjects' pivots have a tail map (a finite b, :mod:`models.bayes.pivot_tails`) in ``groups``."""
+    """How many subjects' pivots have a tail map (a finite b, :mod:`scioc.models.bayes.pivot_tails`) in ``groups``."""
     tails = [pivot_curve(curve[0])[2] for _, _, *curve in groups if curve]
     return sum(int(np.sum(np.isfinite(b))) for b in tails if b is not None)
 
@@ -205,14 +216,14 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
                     pivots=None, pilot=None):
     """Sample ``model`` in whitened coordinates (module docstring); returns (idata, seconds, record).
 
-    ``idata`` is as :func:`pipelines.fit.sampling.sample_model` returns it for ``model`` (posterior,
+    ``idata`` is as :func:`scioc.pipelines.fit.sampling.sample_model` returns it for ``model`` (posterior,
     sample_stats with the warm-up's steps, log_likelihood); ``seconds`` adds ``whitening`` (steps 1-2);
     ``record`` says what the whitening found (for the sidecar).
 
     ``pilot``: pilot runs, each (tune, draws) per chain or (tune, draws, chains, target_accept[, max_tree_depth]),
     None for the fit's own, run one after the other, the first on the Hessian's
     whitening, each later one on the whitening measured again on the draws of the one before
-    (:func:`models.bayes.whiten_draws.draws_factors`), and the run whose draws are returned on the last one's
+    (:func:`scioc.models.bayes.whiten_draws.draws_factors`), and the run whose draws are returned on the last one's
     (seeds :func:`pilot_seeds`); each run after a pilot starts (jittered) at the pilot's first chain's last draw,
     inside the posterior's bulk, not at its centre. ``seconds["sample"]`` then holds every run's sampling,
     ``record["pilot"]`` each pilot's draws and leapfrog steps.

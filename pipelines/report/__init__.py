@@ -18,6 +18,6 @@ module                     what it holds
 =========================  ===========================================================
 """
 
-from pipelines.report.build import build_report
+from scioc.pipelines.report.build import build_report
 
 __all__ = ["build_report"]

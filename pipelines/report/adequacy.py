@@ -1,6 +1,6 @@
 """The report's model-adequacy parts: the opening verdict, the caveat beside every cost result, the section.
 
-The verdict judges the *human model* (:mod:`models.adequacy`): whether the recorded data
+The verdict judges the *human model* (:mod:`scioc.models.adequacy`): whether the recorded data
 look like data the fitted model produces through the same acquisition chain. It is not
 the sampler's convergence verdict, and the report says which is which.
 """
@@ -10,8 +10,8 @@ from __future__ import annotations
 import pandas as pd
 from markupsafe import Markup
 
-from pipelines.adequacy import CHECK_TEXT
-from pipelines.report.render import render, table
+from scioc.pipelines.adequacy import CHECK_TEXT
+from scioc.pipelines.report.render import render, table
 
 #: Flagged segments listed by name before "and N more".
 FLAGGED_LISTED = 40
@@ -24,7 +24,7 @@ def _failed_names(adequacy: dict) -> str:
 def headline(adequacy: dict | None, fit_adequacy: dict | None = None,
              chain: str = "the same encoder and reconstruction") -> Markup:
     """The box the report opens with; ``chain`` names the acquisition the checks repeat
-    (:func:`pipelines.report.levels.acquisition`)."""
+    (:func:`scioc.pipelines.report.levels.acquisition`)."""
     verdict = (adequacy or {}).get("verdict", "not checked")
     fit_verdict = (fit_adequacy or {}).get("verdict")
     return render("adequacy_headline.html.j2", verdict=verdict, a=adequacy,
@@ -47,7 +47,7 @@ def section(est: pd.DataFrame, adequacy: dict | None, power: dict | None,
     """The model-adequacy section: per-check results, flagged segments, and the power table.
 
     ``chain`` says how the bootstrap's data sets pass the acquisition
-    (:func:`pipelines.report.levels.acquisition`).
+    (:func:`scioc.pipelines.report.levels.acquisition`).
     """
     checked = adequacy and adequacy.get("verdict") != "not checked"
     rows, flagged = [], []

@@ -3,9 +3,9 @@
 Reads ``root/fit/posterior.json``, ``root/fit/contrasts.json``, ``root/fit/ppc.parquet``,
 ``root/compare.json`` (the paper's Wilcoxon test) and, for simulated studies,
 ``root/data/truth.parquet``. :func:`section_bayes` returns the HTML that
-:func:`pipelines.report.build.build_report` places under its own heading; the parts
+:func:`scioc.pipelines.report.build.build_report` places under its own heading; the parts
 that come once per contrast (methods, forest plots, truth check) are in
-:mod:`pipelines.report.contrasts`.
+:mod:`scioc.pipelines.report.contrasts`.
 """
 
 from __future__ import annotations
@@ -15,13 +15,13 @@ from pathlib import Path
 import pandas as pd
 from markupsafe import Markup
 
-from models.design import STUDY, Design
-from pipelines.fit.diagnostics import smaller_ess
-from pipelines.fit.summary import fit_remedies
-from pipelines.report import figures
-from pipelines.report.contrasts import blocks, label, section_forest, section_methods, section_truth_check
-from pipelines.report.levels import assisted, joined, window_noun
-from pipelines.report.render import figure, number, read_artifact, render, table
+from scioc.models.design import STUDY, Design
+from scioc.pipelines.fit.diagnostics import smaller_ess
+from scioc.pipelines.fit.summary import fit_remedies
+from scioc.pipelines.report import figures
+from scioc.pipelines.report.contrasts import blocks, label, section_forest, section_methods, section_truth_check
+from scioc.pipelines.report.levels import assisted, joined, window_noun
+from scioc.pipelines.report.render import figure, number, read_artifact, render, table
 
 #: The two fitted models as the report names them.
 MODELS = {"condition": "with condition effects", "pooled": "pooled (β = 0)"}
@@ -123,7 +123,7 @@ def section_bayes(root, design: Design = STUDY, reconstructed: bool = True, tria
     root : str or Path
         Run folder (as ``scioc run`` writes it), with ``fit/`` from ``scioc fit``.
     design : Design
-        The run's experiment (:func:`pipelines.report.levels.run_experiment`): its levels
+        The run's experiment (:func:`scioc.pipelines.report.levels.run_experiment`): its levels
         name the contrasts, its window the predictive check.
     reconstructed : bool
         Whether u_H was reconstructed from the angle (False: recorded by a torque sensor).

@@ -7,16 +7,16 @@ Reads what the stages wrote under a run folder and never refits:
 * ``identify_true_torque/`` — the same from the true torques (simulated studies only)
 * ``identify_true_torque_exogenous/`` — the same with the paper's exogenous-u_A likelihood
 * ``compare.json`` — the Wilcoxon tests
-* ``fit/`` — the Bayesian fit (:mod:`pipelines.report.bayes`)
+* ``fit/`` — the Bayesian fit (:mod:`scioc.pipelines.report.bayes`)
 * ``identify_delayed/``, ``compare_delayed.json``, ``fit_delayed/``, ``human_models.json`` — the delayed
-  human model beside the max-ent one, when the run has it (:mod:`pipelines.report.human_models`)
+  human model beside the max-ent one, when the run has it (:mod:`scioc.pipelines.report.human_models`)
 * ``../calibration/`` and ``../power/`` — ``scioc calibrate`` and ``scioc power`` results beside the run
 
 Sections whose artifacts are missing are left out with a note. The page is the template
-``templates/page.html.j2``; every section renders its own (:mod:`pipelines.report.render`).
+``templates/page.html.j2``; every section renders its own (:mod:`scioc.pipelines.report.render`).
 
 The text and the tables follow the experiment recorded in the run
-(:func:`pipelines.report.levels.run_experiment`: ``identify.json``, else
+(:func:`scioc.pipelines.report.levels.run_experiment`: ``identify.json``, else
 ``simulation.json``, else the paper's study): its rate, rig, levels and assistants, window
 and trials. With the paper's study the report reads as the paper's analysis.
 """
@@ -27,17 +27,22 @@ from pathlib import Path
 
 from markupsafe import Markup
 
-from pipelines.report import adequacy as report_adequacy
-from pipelines.report import human_models as report_human_models
-from pipelines.report.bayes import section_bayes
-from pipelines.report.calibration import section_calibration
-from pipelines.report.design import section_design, section_reference
-from pipelines.report.identify import (section_cross_prediction, section_fig6, section_histogram,
-                                       section_identification, section_wilcoxon)
-from pipelines.report.levels import acquisition, joined, paper_labels, run_experiment
-from pipelines.report.render import read_artifact, render
-from pipelines.report.truth import section_reconstruction, section_truth
-from pipelines.storage import write_text_atomic
+from scioc.pipelines.report import adequacy as report_adequacy
+from scioc.pipelines.report import human_models as report_human_models
+from scioc.pipelines.report.bayes import section_bayes
+from scioc.pipelines.report.calibration import section_calibration
+from scioc.pipelines.report.design import section_design, section_reference
+from scioc.pipelines.report.identify import (
+    section_cross_prediction,
+    section_fig6,
+    section_histogram,
+    section_identification,
+    section_wilcoxon,
+)
+from scioc.pipelines.report.levels import acquisition, joined, paper_labels, run_experiment
+from scioc.pipelines.report.render import read_artifact, render
+from scioc.pipelines.report.truth import section_reconstruction, section_truth
+from scioc.pipelines.storage import write_text_atomic
 
 
 def _h2(text: str) -> Markup:

@@ -8,10 +8,10 @@ import pandas as pd
 import xarray as xr
 from markupsafe import Markup
 
-from models.design import STUDY
-from pipelines.experiment import parse_experiment
-from pipelines.report import figures
-from pipelines.report.render import figure, number, read_artifact, render, table
+from scioc.models.design import STUDY
+from scioc.pipelines.experiment import parse_experiment
+from scioc.pipelines.report import figures
+from scioc.pipelines.report.render import figure, number, read_artifact, render, table
 
 #: The calibration levels, in the order the report shows them.
 LEVELS = ("unit", "study")

@@ -2,7 +2,7 @@
 
 A contrast is one non-baseline level against the baseline. ``fit/contrasts.json`` holds β
 at its top with two levels, and one block per level under ``contrasts`` with more
-(:func:`pipelines.fit.contrasts.contrasts`); :func:`blocks` reads either. ``compare.json``
+(:func:`scioc.pipelines.fit.contrasts.contrasts`); :func:`blocks` reads either. ``compare.json``
 and the mixed model (``mixedlm``) follow the same rule.
 """
 
@@ -12,11 +12,11 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
-from models.design import STUDY, Design
-from pipelines.report import figures
-from pipelines.report.levels import assisted, joined, paper_labels
-from pipelines.report.render import figure, render, table
-from pipelines.report.truth import unit_truth
+from scioc.models.design import STUDY, Design
+from scioc.pipelines.report import figures
+from scioc.pipelines.report.levels import assisted, joined, paper_labels
+from scioc.pipelines.report.render import figure, render, table
+from scioc.pipelines.report.truth import unit_truth
 
 #: The population parameters as the report prints them; {base}, {level} and {vs} are filled in per contrast.
 LABELS = {

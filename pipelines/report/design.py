@@ -6,11 +6,22 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
-from models.design import REFERENCE_DT, Design
-from pipelines.report import figures
-from pipelines.report.levels import (RunExperiment, assistant_text, assisted, duration, encoder_text, joined,
-                                     level_name, paper_labels, wheel_text, window_noun, window_text)
-from pipelines.report.render import figure, render, table
+from scioc.models.design import REFERENCE_DT, Design
+from scioc.pipelines.report import figures
+from scioc.pipelines.report.levels import (
+    RunExperiment,
+    assistant_text,
+    assisted,
+    duration,
+    encoder_text,
+    joined,
+    level_name,
+    paper_labels,
+    wheel_text,
+    window_noun,
+    window_text,
+)
+from scioc.pipelines.report.render import figure, render, table
 
 
 def _levels_table(design: Design) -> Markup:
@@ -68,7 +79,7 @@ def section_design(sim: dict | None, ident_meta: dict | None, exp: RunExperiment
                    torque_measured: bool = False) -> Markup:
     """The experiment (rig, levels and assistants, analysis), the simulated study and the identification settings.
 
-    ``exp`` is the run's experiment (:func:`pipelines.report.levels.run_experiment`);
+    ``exp`` is the run's experiment (:func:`scioc.pipelines.report.levels.run_experiment`);
     ``trials`` the most trials of one subject × condition; ``torque_measured`` whether the
     human torque was recorded (a torque sensor) rather than reconstructed from the angle.
     """

@@ -2,7 +2,7 @@
 
 Colours follow the paper's Fig. 6: the baseline (MC) red, the next level (SC) green; further
 levels take the next colours of :data:`PALETTE`. Every figure takes the levels in the
-experiment's order, baseline first (:attr:`models.design.Design.ordered_levels`).
+experiment's order, baseline first (:attr:`scioc.models.design.Design.ordered_levels`).
 """
 
 from __future__ import annotations
@@ -11,13 +11,13 @@ import matplotlib
 import matplotlib.ticker
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import arviz_plots as azp  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy.stats import binom  # noqa: E402
 
-from models.design import CONDITIONS  # noqa: E402
+from scioc.models.design import CONDITIONS  # noqa: E402
 
 MC_COLOR = "#c0392b"  # red, as in the paper's Fig. 6
 SC_COLOR = "#27ae60"  # green
@@ -181,7 +181,7 @@ def forest(subjects: list, beta: dict, true_change: np.ndarray | None, pair: tup
     from ``contrasts.json``) with β's band.
 
     Drawn here rather than by ``arviz_plots.plot_forest``: the report reads the stored
-    contrasts (the same HDIs the text quotes, from :func:`pipelines.fit.contrasts.hdi`) and
+    contrasts (the same HDIs the text quotes, from :func:`scioc.pipelines.fit.contrasts.hdi`) and
     overlays β's HDI band and the simulated truth, which ``plot_forest`` does not draw. The
     diagnostics notebook shows ``plot_forest`` of the posterior itself.
     """
@@ -266,7 +266,7 @@ def sbc_rank_histograms(pits: dict, names: list, n: int):
 def sbc_ecdf(tree):
     """ECDF of the PIT minus the uniform CDF per ranked quantity, by ``arviz_plots.plot_ecdf_pit``.
 
-    ``tree`` is a calibration's DataTree (:func:`pipelines.calibrate.summary.sbc_tree`); its
+    ``tree`` is a calibration's DataTree (:func:`scioc.pipelines.calibrate.summary.sbc_tree`); its
     ``pit`` group is plotted with ArviZ's default ``pot_c`` test: each panel shows the test's
     p-value and marks the PIT values that contribute most to a departure from uniformity.
     (ArviZ deprecates the simultaneous-envelope method, which assumes independent PIT values.)

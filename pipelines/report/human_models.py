@@ -18,7 +18,7 @@ section says that no conclusion about the costs is supported.
 Artifacts read under the run folder (:data:`MODEL_ARTIFACTS`; never refits):
 ``identify/identify.json``, ``compare.json``, ``fit/contrasts.json`` for ``maxent``;
 ``identify_delayed/identify.json``, ``compare_delayed.json``, ``fit_delayed/contrasts.json``
-for ``delayed``; ``human_models.json`` (:func:`pipelines.fit.human_models.compare_human_models`).
+for ``delayed``; ``human_models.json`` (:func:`scioc.pipelines.fit.human_models.compare_human_models`).
 """
 
 from __future__ import annotations
@@ -29,12 +29,12 @@ from typing import NamedTuple
 import pandas as pd
 from markupsafe import Markup
 
-from models.design import STUDY, Design
-from pipelines.fit.summary import fit_remedies
-from pipelines.report.contrasts import blocks
-from pipelines.report.identify import tests_by_level
-from pipelines.report.levels import contrast_label, joined
-from pipelines.report.render import number, read_artifact, render, table
+from scioc.models.design import STUDY, Design
+from scioc.pipelines.fit.summary import fit_remedies
+from scioc.pipelines.report.contrasts import blocks
+from scioc.pipelines.report.identify import tests_by_level
+from scioc.pipelines.report.levels import contrast_label, joined
+from scioc.pipelines.report.render import number, read_artifact, render, table
 
 #: Per human model: its identify folder, its Wilcoxon tests and its fit folder, under the run folder.
 MODEL_ARTIFACTS = {"maxent": ("identify", "compare.json", "fit"),
@@ -45,7 +45,7 @@ NAMES = {"maxent": "max-ent", "delayed": "delayed"}
 #: usual reading: a difference within 2 SE is not distinguished from noise).
 LOSO_Z = 2.0
 #: The file in a run folder where ``scioc run`` records which human models it analysed and why
-#: (:func:`pipelines.run.default_human_models`).
+#: (:func:`scioc.pipelines.run.default_human_models`).
 RUN_FILE = "run.json"
 #: Why ``scioc run`` leaves the delayed model out of a design without a torque sensor (README "Human models").
 ANGLE_ONLY = ("without a torque sensor the delayed model is identified from the encoder's angles; its hierarchical "

@@ -1,6 +1,6 @@
 """The report's sections on the identification: θ1 histogram, the paper's test, Fig. 6, cross-prediction, details.
 
-Every section takes the run's experiment (:class:`models.design.Design`): one histogram
+Every section takes the run's experiment (:class:`scioc.models.design.Design`): one histogram
 colour, one Wilcoxon test, one Fig. 6 column and one cross-prediction per level; with the
 paper's two levels the sections read as they always have.
 """
@@ -10,11 +10,11 @@ from __future__ import annotations
 import pandas as pd
 from markupsafe import Markup
 
-from models.design import STUDY, Design
-from models.identify import PLAUSIBLE_THETA1
-from pipelines.report import figures
-from pipelines.report.levels import contrast_label, joined, key, paper_labels
-from pipelines.report.render import figure, number, render, table
+from scioc.models.design import STUDY, Design
+from scioc.models.identify import PLAUSIBLE_THETA1
+from scioc.pipelines.report import figures
+from scioc.pipelines.report.levels import contrast_label, joined, key, paper_labels
+from scioc.pipelines.report.render import figure, number, render, table
 
 #: The tested parameters as the tables name them.
 PARAMETERS = {"theta1": "θ1 = q11/R", "theta2": "θ2 = q22/R"}
@@ -123,7 +123,7 @@ def section_identification(est: pd.DataFrame, meta: dict | None) -> Markup:
     """Convergence, the segments that did not converge or ended at the edge of the search, and every estimate.
 
     The same lists as the console summary of ``scioc identify``
-    (:func:`pipelines.identify.format_identify`), from the estimates' ``converged``,
+    (:func:`scioc.pipelines.identify.format_identify`), from the estimates' ``converged``,
     ``message`` and ``implausible`` columns.
     """
     cols = ["subject", "condition", *(["trials"] if "trials" in est else []), "theta1", "se_log_theta1", "theta2",

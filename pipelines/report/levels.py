@@ -3,9 +3,9 @@
 The report is written from the experiment of the run (issue 12), not from the paper's
 literals: :func:`run_experiment` takes the resolved experiment that ``scioc identify``
 recorded in ``identify/identify.json``, else the one ``scioc simulate`` recorded in
-``data/simulation.json``, else the paper's study (:data:`models.design.STUDY`, for run
+``data/simulation.json``, else the paper's study (:data:`scioc.models.design.STUDY`, for run
 folders written before experiment files existed). The other functions turn a
-:class:`models.design.Design` into the report's phrases; for the paper's labels they give
+:class:`scioc.models.design.Design` into the report's phrases; for the paper's labels they give
 the paper's words ("manual control (MC)", "shared control (SC)").
 """
 
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from models.design import STUDY, AssistantSpec, Design
-from pipelines.experiment import experiment_hash, parse_experiment
+from scioc.models.design import STUDY, AssistantSpec, Design
+from scioc.pipelines.experiment import experiment_hash, parse_experiment
 
 #: The paper's names of its two levels, used when an experiment has exactly those labels.
 PAPER_NAMES = {"MC": "manual control", "SC": "shared control"}

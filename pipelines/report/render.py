@@ -3,7 +3,7 @@
 Every piece of the report is rendered from a template in ``templates/`` with autoescape
 on: values inserted into a template are escaped, only the templates' own markup and the
 fragments that :func:`render` returns (``Markup``) pass through as HTML. The sections
-(:mod:`pipelines.report.design`, :mod:`pipelines.report.identify`, ...) compute their
+(:mod:`scioc.pipelines.report.design`, :mod:`scioc.pipelines.report.identify`, ...) compute their
 numbers and call :func:`render`; :func:`table` and :func:`figure` are the two shared
 fragments.
 """

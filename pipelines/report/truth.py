@@ -11,10 +11,10 @@ import pandas as pd
 from markupsafe import Markup
 from scipy.stats import spearmanr
 
-from models.design import STUDY, Design
-from pipelines.report import figures
-from pipelines.report.levels import assisted, contrast_label, joined
-from pipelines.report.render import figure, render, table
+from scioc.models.design import STUDY, Design
+from scioc.pipelines.report import figures
+from scioc.pipelines.report.levels import assisted, contrast_label, joined
+from scioc.pipelines.report.render import figure, render, table
 
 #: Length of the stretch of torque the reconstruction figure shows, s.
 SHOWN_SECONDS = 3.0

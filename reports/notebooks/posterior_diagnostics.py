@@ -35,7 +35,7 @@ import arviz_plots as azp
 import matplotlib.pyplot as plt
 import numpy as np
 
-from models.bayes.hierarchical import POPULATION_PARAMETERS
+from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS
 
 POSTERIOR = Path(os.environ.get("SCIOC_POSTERIOR", "reports/default-study/fit/posterior.nc"))
 POOLED = POSTERIOR.with_name("posterior_pooled.nc")

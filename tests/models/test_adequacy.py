@@ -5,7 +5,7 @@ import pytest
 from scipy import stats as sps
 from statsmodels.tsa.stattools import acf
 
-from models import adequacy as adq
+from scioc.models import adequacy as adq
 
 
 def test_autocorrelation_matches_statsmodels():

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from models.assistant import assistant_torque, design_assistant, feedforward, human_feedback, simulate_closed_loop
-from models.lq import lq_policy
-from models.maxent_dense import lifted_matrices
-from models.plant import discretize
+from scioc.models.assistant import assistant_torque, design_assistant, feedforward, human_feedback, simulate_closed_loop
+from scioc.models.lq import lq_policy
+from scioc.models.maxent_dense import lifted_matrices
+from scioc.models.plant import discretize
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +98,7 @@ def test_closed_loop_with_a_human_policy_matches_open_loop_replay(assistant):
     pol = lq_policy(plant, (60.0, 0.0, 1.0), ref, np.zeros(300))
     noise = np.random.default_rng(1).normal(0.0, 0.1, 300)
     run = simulate_closed_loop(plant, assistant, [0.0, 0.0], ref, pol.L, pol.f, noise)
-    from models.plant import propagate
+    from scioc.models.plant import propagate
 
     np.testing.assert_allclose(propagate(plant, [0.0, 0.0], run.u_H + run.u_A), run.x, rtol=1e-12, atol=1e-14)
 

@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from models import adequacy as adq
-from models.bootstrap import Chain, bootstrap_records
-from models.lq import lq_policy
-from models.maxent import loglik_grad
-from models.plant import DT_HUMAN, discretize, propagate
-from models.segment import Segment, planning_plant, prepare_batch
-from models.simulate import Population, simulate_windows
+from scioc.models import adequacy as adq
+from scioc.models.bootstrap import Chain, bootstrap_records
+from scioc.models.lq import lq_policy
+from scioc.models.maxent import loglik_grad
+from scioc.models.plant import DT_HUMAN, discretize, propagate
+from scioc.models.segment import Segment, planning_plant, prepare_batch
+from scioc.models.simulate import Population, simulate_windows
 
 #: False-failure budget of each seeded statistical test in this module.
 FALSE_FAILURE = 0.001
@@ -53,8 +53,8 @@ def test_pvalues_exactly_uniform_when_data_and_replicates_share_the_model():
     K, B, n_sub = 300, 19, 120
     rng = np.random.default_rng(6)
     w = simulate_windows(n_sub, rng, Population(), K=K, preview=100)
-    from models.assistant import design_assistant, human_feedback
-    from models.reference import reference_trajectory
+    from scioc.models.assistant import design_assistant, human_feedback
+    from scioc.models.reference import reference_trajectory
 
     full_ref = reference_trajectory(DT_HUMAN * (K + 100 + 200)).angle
     fb = human_feedback(design_assistant(), full_ref)

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from models.cost import Theta, from_log_normalized, from_normalized, normalize, validate_theta
+from scioc.models.cost import Theta, from_log_normalized, from_normalized, normalize, validate_theta
 
 
 @pytest.mark.parametrize(

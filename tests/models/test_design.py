@@ -4,12 +4,12 @@ import math
 
 import pytest
 
-from models import design
-from models.assistant import design_assistant
-from models.design import STUDY, AssistantSpec, Design, WheelParameters
-from models.plant import discretize
-from models.reconstruct import DEFAULT_RESOLUTION
-from models.reference import reference_trajectory, window_slice
+from scioc.models import design
+from scioc.models.assistant import design_assistant
+from scioc.models.design import STUDY, AssistantSpec, Design, WheelParameters
+from scioc.models.plant import discretize
+from scioc.models.reconstruct import DEFAULT_RESOLUTION
+from scioc.models.reference import reference_trajectory, window_slice
 
 
 def test_defaults_are_the_papers_study():

@@ -4,12 +4,12 @@ import time
 import numpy as np
 import pytest
 
-from models.assistant import design_assistant
-from models.humans import HUMANS, MOTOR_SD, HumanSpec, simulate_human
-from models.lq import lq_policy
-from models.plant import WheelParameters, propagate
-from models.reference import reference_trajectory
-from models.simulate import ENCODER_STEP, simulate_run
+from scioc.models.assistant import design_assistant
+from scioc.models.humans import HUMANS, MOTOR_SD, HumanSpec, simulate_human
+from scioc.models.lq import lq_policy
+from scioc.models.plant import WheelParameters, propagate
+from scioc.models.reference import reference_trajectory
+from scioc.models.simulate import ENCODER_STEP, simulate_run
 
 THETA = {"MC": np.array([400.0, 0.0, 20.0]), "SC": np.array([200.0, 0.0, 20.0])}  # the default population's median
 
@@ -255,7 +255,7 @@ def test_kbl_subjects_draw_delay_and_lag_within_their_ranges(plant, assistant, r
 
 
 def test_kbl_study_keeps_each_subjects_delay_and_lag_across_levels():
-    from models.simulate import simulate_study
+    from scioc.models.simulate import simulate_study
 
     _, segs = simulate_study(4, np.random.default_rng(7), seconds=3.0, human="kbl")
     by_subject = {}

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from models.identify import identify_segment
-from models.maxent import sample_maxent
-from models.plant import discretize
-from models.reference import reference_trajectory
-from models.segment import Segment, prepare_batch
+from scioc.models.identify import identify_segment
+from scioc.models.maxent import sample_maxent
+from scioc.models.plant import discretize
+from scioc.models.reference import reference_trajectory
+from scioc.models.segment import Segment, prepare_batch
 
 # False-failure budget of each seeded statistical test below.
 ALPHA = 1e-3
@@ -79,8 +79,8 @@ def test_rejects_a_batch_of_two():
 def test_a_units_trials_are_fitted_together():
     # Two trials of one unit (the same θ): identify_unit maximizes the sum of their log-likelihoods,
     # whether the trials come as one batch of two rows or as two batches (trials of different lengths).
-    from models.identify import identify_unit
-    from models.maxent import loglik_grad
+    from scioc.models.identify import identify_unit
+    from scioc.models.maxent import loglik_grad
 
     plant = discretize(0.01)
     ref = reference_trajectory(8.0).angle

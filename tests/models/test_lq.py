@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
 
-from models.lq import lq_policy
-from models.plant import discretize
+from scioc.models.lq import lq_policy
+from scioc.models.plant import discretize
 
 
 @pytest.mark.parametrize("theta", [(60.0, 0.0, 1.0), (5.0, 0.0, 1.0), (200.0, 0.5, 0.3)])
@@ -50,8 +50,8 @@ def test_assistant_plant_is_the_same_recursion():
 
 # --------------------------------------------------------------------------- n-state recursion
 
-from models.lq import lq_tracking_policy  # noqa: E402
-from models.plant import discretize_lagged  # noqa: E402
+from scioc.models.lq import lq_tracking_policy  # noqa: E402
+from scioc.models.plant import discretize_lagged  # noqa: E402
 
 
 @pytest.mark.parametrize("theta", [(400.0, 0.0, 20.0), (200.0, 0.5, 0.3)])

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from models.maxent import forward_optimal_control, loglik_grad, loglik_segments, sample_maxent
-from models.maxent_dense import loglik_dense
-from models.segment import Feedback, Segment, planning_plant, prepare_batch
+from scioc.models.maxent import forward_optimal_control, loglik_grad, loglik_segments, sample_maxent
+from scioc.models.maxent_dense import loglik_dense
+from scioc.models.segment import Feedback, Segment, planning_plant, prepare_batch
 from tests.conftest import random_segment, random_theta
 
 CASES = [(K, shared, q22_zero) for K in (1, 7, 60, 250, 500) for shared in (False, True) for q22_zero in (True, False)]
@@ -164,8 +164,8 @@ def test_preview_gradient_matches_central_differences(plant):
 
 def _closed_loop_segment(plant, rng, K, preview):
     """A human planning with the MPC assistant's law, in closed loop with it (the simulator's SC)."""
-    from models.assistant import design_assistant, human_feedback
-    from models.reference import reference_trajectory
+    from scioc.models.assistant import design_assistant, human_feedback
+    from scioc.models.reference import reference_trajectory
 
     ref = reference_trajectory(0.01 * (K + preview) + 2.0).angle
     fb = human_feedback(design_assistant(), ref)

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from models.maxent_dense import lifted_matrices, loglik_dense
-from models.plant import propagate
+from scioc.models.maxent_dense import lifted_matrices, loglik_dense
+from scioc.models.plant import propagate
 from tests.conftest import random_segment, random_theta
 
 

@@ -1,31 +1,33 @@
-"""numba's cache is keyed by the sources of the whole package, so a changed callee is never served stale; and what
-it serves computes the same bits as a fresh compile."""
+"""numba's cache is keyed by the code of the whole package, so a changed callee is never served stale; prose does
+not key it; and what it serves computes the same bits as a fresh compile."""
 
 import numba
 import pytest
 
-from models import numba_cache_dir
+from scioc.models.runtime import numba_cache_dir
 
 
-def test_the_cache_folder_changes_with_any_source_file(tmp_path):
+def test_the_cache_folder_changes_with_any_code_but_not_with_prose(tmp_path):
     pkg = tmp_path / "pkg"
     (pkg / "sub").mkdir(parents=True)
     (pkg / "a.py").write_text("x = 1\n")
-    (pkg / "sub" / "b.py").write_text("y = 2\n")
+    (pkg / "sub" / "b.py").write_text('"""A module."""\ndef f():\n    """Its doc."""\n    return 2  # why\n')
     first = numba_cache_dir(pkg, tmp_path / "cache")
     assert first.parent == tmp_path / "cache"
     assert numba_cache_dir(pkg, tmp_path / "cache") == first  # same sources, same folder
-    (pkg / "sub" / "b.py").write_text("y = 3\n")  # a callee in another file changes
+    (pkg / "sub" / "b.py").write_text('"""Another."""\n# a comment\ndef f():\n    """Other doc."""\n    return 2\n')
+    assert numba_cache_dir(pkg, tmp_path / "cache") == first  # docstrings and comments do not key it
+    (pkg / "sub" / "b.py").write_text('"""A module."""\ndef f():\n    """Its doc."""\n    return 3  # why\n')
     second = numba_cache_dir(pkg, tmp_path / "cache")
     assert second != first
     (pkg / "sub" / "b.py").rename(pkg / "b2.py")  # a move changes it too
     assert numba_cache_dir(pkg, tmp_path / "cache") not in (first, second)
 
 
-def test_numba_uses_the_folder_of_these_sources():
+def test_configure_points_numba_at_the_folder_of_this_code():
     from pathlib import Path
 
-    from models.bayes.delayed_op import warm_samples  # a cache=True kernel
+    from scioc.models.bayes.delayed_op import warm_samples  # a cache=True kernel
 
     assert Path(numba.config.CACHE_DIR).name == numba_cache_dir().name  # ~/.cache, or the temp dir if unwritable
     assert warm_samples(0.5, 0.1) > 0
@@ -37,16 +39,17 @@ def test_numba_uses_the_folder_of_these_sources():
 #: their PyTensor Ops compiled by numba, and a few seeded nutpie draws of each unit model; prints a digest of every
 #: output's bits and the cache hits of the kernels it called.
 PROBE = """
+import scioc; scioc.configure()
 import hashlib, json, warnings
 import numba, numpy as np, pytensor, pytensor.tensor as pt
-from models import delayed, maxent
-from models.bayes.delayed_op import DelayedLoglikOp
-from models.bayes.delayed_windows import delayed_windows
-from models.bayes.op import MaxEntLoglikOp
-from models.delayed.kernel import batch_kernel, batch_kernel_serial
-from models.delayed.lag import Warmup
-from models.plant import discretize
-from models.segment import prepare_batch
+from scioc.models import delayed, maxent
+from scioc.models.bayes.delayed_op import DelayedLoglikOp
+from scioc.models.bayes.delayed_windows import delayed_windows
+from scioc.models.bayes.op import MaxEntLoglikOp
+from scioc.models.delayed.kernel import batch_kernel, batch_kernel_serial
+from scioc.models.delayed.lag import Warmup
+from scioc.models.plant import discretize
+from scioc.models.segment import prepare_batch
 warnings.simplefilter("ignore")
 plant = discretize(0.01)
 w = delayed_windows(3, np.random.default_rng(2), K=300, preview=50, delay=(0, 25))
@@ -69,8 +72,8 @@ f = pytensor.function([th], [logp, pytensor.grad(logp, th)], mode="NUMBA")
 out["max-ent Op"] = digest(*f(w.theta))
 # The fit's path: PyMC model, PyTensor's graph compiled by numba (nutpie), a few seeded draws.
 import nutpie
-from models.bayes.unit_delayed import build_unit_delayed_model
-from models.bayes.unit_model import build_unit_model
+from scioc.models.bayes.unit_delayed import build_unit_delayed_model
+from scioc.models.bayes.unit_model import build_unit_model
 one = prepare_batch(plant, w.segments[:1])
 for name, model in (("max-ent unit fit", build_unit_model(one, plant)),
                     ("delayed unit fit", build_unit_delayed_model(one, plant, delay=int(w.delay[0])))):
@@ -112,13 +115,14 @@ def test_the_likelihoods_bits_do_not_depend_on_whether_numba_compiled_them_or_lo
 #: Run in a fresh interpreter: with argument "likelihood", print a digest of the delayed likelihood's bits; with
 #: "arm torque first", only compile (and cache) the arm torque's recursion from Python, as ``arm_torque`` does.
 LIKELIHOOD = """
+import scioc; scioc.configure()
 import hashlib, sys, warnings
 import numpy as np
-from models import delayed
-from models.bayes.delayed_windows import delayed_windows
-from models.delayed.lag import arm_torque
-from models.plant import discretize
-from models.segment import prepare_batch
+from scioc.models import delayed
+from scioc.models.bayes.delayed_windows import delayed_windows
+from scioc.models.delayed.lag import arm_torque
+from scioc.models.plant import discretize
+from scioc.models.segment import prepare_batch
 warnings.simplefilter("ignore")
 if sys.argv[1] == "arm torque first":
     print(arm_torque(np.random.default_rng(0).normal(size=200), 0.9, 0.3).tau[-1])
@@ -149,3 +153,38 @@ def test_the_kernels_bits_do_not_depend_on_which_caller_compiled_a_callee_first(
 
     run("callee first", "arm torque first")
     assert run("callee first", "likelihood") == run("kernel first", "likelihood")
+
+
+#: Run in a fresh interpreter: import kernels and Ops, read the process settings, then configure and read again.
+IMPORT_ONLY = """
+import json, os, sys
+import numba
+before = numba.config.CACHE_DIR
+import scioc.models.maxent, scioc.models.delayed.kernel, scioc.models.bayes.op, scioc.pipelines.fit
+import pytensor
+out = {"cache dir unchanged": numba.config.CACHE_DIR == before, "pytensor fastmath": pytensor.config.numba__fastmath,
+       "caching": not isinstance(scioc.models.maxent.batch_kernel._cache, numba.core.caching.NullCache)}
+import scioc
+scioc.configure(); scioc.configure()
+out["after: pytensor fastmath"] = pytensor.config.numba__fastmath
+out["after: cache dir"] = numba.config.CACHE_DIR
+out["after: caching"] = scioc.models.maxent.batch_kernel._cache.cache_path
+print(json.dumps(out))
+"""
+
+
+def test_importing_changes_no_process_setting_and_configure_applies_them(tmp_path):
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTENSOR_FLAGS", "NUMBA_CACHE_DIR")}
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")
+    done = subprocess.run([sys.executable, "-c", IMPORT_ONLY], env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out["cache dir unchanged"] and out["pytensor fastmath"] is True and out["caching"] is False
+    assert out["after: pytensor fastmath"] is False
+    assert out["after: cache dir"].startswith(str(tmp_path / "numba"))
+    assert out["after: caching"].startswith(out["after: cache dir"])  # a kernel imported before configure caches

@@ -10,16 +10,16 @@ the sample time, models/design.py).
 import numpy as np
 import pytest
 
-from models.assistant import feedforward, human_feedback, linear_assistant
-from models.design import AssistantSpec, Design, WheelParameters
-from models.identify import identify_unit
-from models.maxent import loglik_grad, sample_maxent
-from models.maxent_dense import loglik_dense
-from models.plant import discretize
-from models.population import Population
-from models.reference import reference_trajectory
-from models.segment import Feedback, Segment, planning_plant, prepare_batch
-from models.simulate import simulate_study
+from scioc.models.assistant import feedforward, human_feedback, linear_assistant
+from scioc.models.design import AssistantSpec, Design, WheelParameters
+from scioc.models.identify import identify_unit
+from scioc.models.maxent import loglik_grad, sample_maxent
+from scioc.models.maxent_dense import loglik_dense
+from scioc.models.plant import discretize
+from scioc.models.population import Population
+from scioc.models.reference import reference_trajectory
+from scioc.models.segment import Feedback, Segment, planning_plant, prepare_batch
+from scioc.models.simulate import simulate_study
 from tests.conftest import random_theta
 
 WHEELS = [WheelParameters(), WheelParameters(0.06, 2.0, 0.4), WheelParameters(0.02, 0.5, 0.1)]

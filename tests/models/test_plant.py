@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.signal import cont2discrete
 
-from models.plant import WheelParameters, continuous_matrices, discretize, propagate
+from scioc.models.plant import WheelParameters, continuous_matrices, discretize, propagate
 
 
 def test_table_one_defaults():
@@ -45,7 +45,7 @@ def test_bad_parameters_are_rejected():
 
 # --------------------------------------------------------------------------- neuromuscular lag
 
-from models.plant import discretize_lagged  # noqa: E402
+from scioc.models.plant import discretize_lagged  # noqa: E402
 
 
 @pytest.mark.parametrize("tau_nm", [0.06, 0.1, 0.3])

@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from models.assistant import design_assistant
-from models.plant import discretize, propagate
-from models.reconstruct import DEFAULT_RESOLUTION, reconstruct
-from models.reference import reference_trajectory
-from models.simulate import simulate_run
+from scioc.models.assistant import design_assistant
+from scioc.models.plant import discretize, propagate
+from scioc.models.reconstruct import DEFAULT_RESOLUTION, reconstruct
+from scioc.models.reference import reference_trajectory
+from scioc.models.simulate import simulate_run
 
 
 @pytest.fixture(scope="module")

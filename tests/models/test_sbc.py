@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from models.sbc import central_coverage, ecdf_band, ess_basic, pit_from_rank, rank, thin, uniformity_test
+from scioc.models.sbc import central_coverage, ecdf_band, ess_basic, pit_from_rank, rank, thin, uniformity_test
 
 
 def ar1(rng, phi, shape):

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from models.plant import propagate
-from models.segment import Feedback, Segment, SegmentBatch, as_batch, plan_inputs, planning_plant, prepare_batch
+from scioc.models.plant import propagate
+from scioc.models.segment import Feedback, Segment, SegmentBatch, as_batch, plan_inputs, planning_plant, prepare_batch
 from tests.conftest import random_segment
 
 

@@ -1,12 +1,12 @@
 import numpy as np
 import pytest
 
-from models.assistant import design_assistant, human_feedback
-from models.lq import lq_policy
-from models.plant import discretize
-from models.reference import reference_trajectory
-from models.segment import planning_plant
-from models.simulate import (
+from scioc.models.assistant import design_assistant, human_feedback
+from scioc.models.lq import lq_policy
+from scioc.models.plant import discretize
+from scioc.models.reference import reference_trajectory
+from scioc.models.segment import planning_plant
+from scioc.models.simulate import (
     ENCODER_STEP,
     Population,
     draw_subjects,

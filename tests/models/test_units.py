@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from models.units import index_study
+from scioc.models.units import index_study
 
 
 def test_segments_map_to_subjects_in_order_of_appearance_and_conditions():

@@ -2,11 +2,11 @@
 
 import pytest
 
-from pipelines.fit import fit_to_dir
-from pipelines.identify import identify_to_dir
-from pipelines.io import load_study
-from pipelines.prepare import prepare_study
-from pipelines.simulate import simulate_to_dir
+from scioc.pipelines.fit import fit_to_dir
+from scioc.pipelines.identify import identify_to_dir
+from scioc.pipelines.io import load_study
+from scioc.pipelines.prepare import prepare_study
+from scioc.pipelines.simulate import simulate_to_dir
 
 #: A fit small enough for the test suite: the samplers are not meant to converge here
 #: (the numbers are checked for consistency, not for quality).
@@ -26,6 +26,6 @@ def small_fit(tmp_path_factory):
     prepared = prepare_study(load_study(sim["study"]))
     identify_to_dir(sim["study"], root / "identify", show_progress=False, prepared=prepared)
     with pytest.MonkeyPatch.context() as mp:  # the fit takes the prepared study and reconstructs nothing
-        mp.setattr("pipelines.prepare.reconstruct", _no_reconstruction)
+        mp.setattr("scioc.pipelines.prepare.reconstruct", _no_reconstruction)
         paths = fit_to_dir(sim["study"], root / "fit", prepared=prepared, **SMALL)
     return root, sim, paths

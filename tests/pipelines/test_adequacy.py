@@ -7,13 +7,13 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from models.adequacy import SEGMENT_ALPHA, STATISTICS
-from models.simulate import Population, simulate_study
-from pipelines.cli import main
-from pipelines.identify import identify_study
-from pipelines.io import validate_table
-from pipelines.prepare import IdentifySettings
-from pipelines.simulate import study_table
+from scioc.models.adequacy import SEGMENT_ALPHA, STATISTICS
+from scioc.models.simulate import Population, simulate_study
+from scioc.pipelines.cli import main
+from scioc.pipelines.identify import identify_study
+from scioc.pipelines.io import validate_table
+from scioc.pipelines.prepare import IdentifySettings
+from scioc.pipelines.simulate import study_table
 
 #: False-failure budget of the seeded statistical tests below.
 FALSE_FAILURE = 0.01
@@ -90,7 +90,7 @@ def test_adequacy_can_be_switched_off(tmp_path, capsys):
 
 
 def test_cli_human_names_are_the_models():
-    from models.humans import HUMANS
-    from pipelines.cli import HUMAN_NAMES
+    from scioc.models.humans import HUMANS
+    from scioc.pipelines.cli import HUMAN_NAMES
 
     assert tuple(HUMANS) == HUMAN_NAMES

@@ -7,24 +7,24 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from models.adequacy import SEGMENT_ALPHA, STATISTICS
-from models.assistant import human_feedback
-from models.bootstrap import bootstrap_records
-from models.delayed import lag_coefficients, sample_delayed
-from models.delayed.bootstrap import delayed_records
-from models.delayed.lag import arm_torque
-from models.delayed.sample import delayed_setup
-from models.design import ENCODER_STEP, MANUAL, SHARED, STUDY
-from models.plant import discretize
-from models.population import Population, draw_subjects
-from models.reconstruct import apply_reconstruction
-from models.reference import reference_trajectory
-from models.simulate import quantize, simulate_study
-from models import adequacy as adq
-from pipelines.adequacy import CHECK_TEXT, assess_study, delayed_segment_chain, segment_chain
-from pipelines.io import validate_table
-from pipelines.prepare import IdentifySettings, assistant_law, prepare_study
-from pipelines.simulate import study_table
+from scioc.models import adequacy as adq
+from scioc.models.adequacy import SEGMENT_ALPHA, STATISTICS
+from scioc.models.assistant import human_feedback
+from scioc.models.bootstrap import bootstrap_records
+from scioc.models.delayed import lag_coefficients, sample_delayed
+from scioc.models.delayed.bootstrap import delayed_records
+from scioc.models.delayed.lag import arm_torque
+from scioc.models.delayed.sample import delayed_setup
+from scioc.models.design import ENCODER_STEP, MANUAL, SHARED, STUDY
+from scioc.models.plant import discretize
+from scioc.models.population import Population, draw_subjects
+from scioc.models.reconstruct import apply_reconstruction
+from scioc.models.reference import reference_trajectory
+from scioc.models.simulate import quantize, simulate_study
+from scioc.pipelines.adequacy import CHECK_TEXT, assess_study, delayed_segment_chain, segment_chain
+from scioc.pipelines.io import validate_table
+from scioc.pipelines.prepare import IdentifySettings, assistant_law, prepare_study
+from scioc.pipelines.simulate import study_table
 
 #: False-failure budget of the seeded false-alarm tests below.
 FALSE_FAILURE = 0.01
@@ -40,7 +40,7 @@ def _settings(exogenous=False, boot=49, window=(20.0, 10.0)):
 
 
 def delayed_study(n_subjects, seed, *, sensor=False, exogenous=False):
-    """MC and SC runs of the delayed human itself (:func:`models.delayed.sample_delayed`, planning over the run,
+    """MC and SC runs of the delayed human itself (:func:`scioc.models.delayed.sample_delayed`, planning over the run,
     the arm at rest at its start), recorded by the study's encoder; θ from the paper's population. In SC the
     human plans with the assistant's law, or (``exogenous``) knows a given assistant torque (its feedforward)."""
     ref = reference_trajectory(35.0, STUDY.dt)
@@ -62,9 +62,9 @@ def delayed_study(n_subjects, seed, *, sensor=False, exogenous=False):
 
 
 def window_tau0(p, tau_nm):
-    """The arm torque at the window's start (:func:`models.delayed.lag.arm_torque`): over the measured torques
+    """The arm torque at the window's start (:func:`scioc.models.delayed.lag.arm_torque`): over the measured torques
     from rest at the run's start (exact), or over the span's reconstructed torques from the arm torque of a
-    held torque at the span's start (what :mod:`models.delayed.bootstrap` assumes of the recorded tau0)."""
+    held torque at the span's start (what :mod:`scioc.models.delayed.bootstrap` assumes of the recorded tau0)."""
     lag = lag_coefficients(tau_nm, STUDY.dt, STUDY.wheel)
     if not p.reconstructed:
         return float(arm_torque(p.data.u_H[: p.rows.start], lag.a, lag.alpha).tau[-1])

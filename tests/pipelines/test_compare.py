@@ -5,10 +5,10 @@ import pandas as pd
 import pytest
 from scipy.stats import wilcoxon
 
-from pipelines.cli import main
-from pipelines.compare import compare_estimates, compare_to_file, format_compare
-from pipelines.signed_rank import critical_value, null_cdf, wilcoxon_signed_rank
-from pipelines.io import StudyFileError
+from scioc.pipelines.cli import main
+from scioc.pipelines.compare import compare_estimates, compare_to_file, format_compare
+from scioc.pipelines.io import StudyFileError
+from scioc.pipelines.signed_rank import critical_value, null_cdf, wilcoxon_signed_rank
 
 
 def test_paper_critical_value():
@@ -163,7 +163,7 @@ def test_unknown_condition_in_estimates_names_the_row(tmp_path, capsys):
 
 
 def test_adequacy_columns_give_the_identify_verdict_and_bad_ones_are_named():
-    from models.adequacy import STATISTICS, study_verdict
+    from scioc.models.adequacy import STATISTICS, study_verdict
 
     est = _estimates([f"S{i}" for i in range(6)])
     rng = np.random.default_rng(3)

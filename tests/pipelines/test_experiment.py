@@ -6,9 +6,9 @@ import re
 
 import pytest
 
-import pipelines.experiment as experiment
-from models.design import PAPER_ASSISTANT, STUDY, AssistantSpec, Design, WheelParameters
-from pipelines.experiment import (
+import scioc.pipelines.experiment as experiment
+from scioc.models.design import PAPER_ASSISTANT, STUDY, AssistantSpec, Design, WheelParameters
+from scioc.pipelines.experiment import (
     EXPERIMENT_FILE,
     ExperimentFileError,
     experiment_hash,
@@ -20,7 +20,7 @@ from pipelines.experiment import (
     to_toml,
     write_experiment,
 )
-from pipelines.io import InputDataError
+from scioc.pipelines.io import InputDataError
 
 #: The example of issue 12, verbatim: the paper's study written out.
 EXAMPLE = '''\

@@ -14,14 +14,14 @@ import pandas as pd
 import pytest
 from scipy.stats import spearmanr
 
-from pipelines.cli import main
-from pipelines.compare import compare_to_file
-from pipelines.experiment import EXPERIMENT_FILE, load_experiment
-from pipelines.identify import identify_to_dir
-from pipelines.io import StudyFileError, load_study
-from pipelines.prepare import IdentifySettings
-from pipelines.simulate import simulate_to_dir
-from pipelines.storage import write_table_atomic
+from scioc.pipelines.cli import main
+from scioc.pipelines.compare import compare_to_file
+from scioc.pipelines.experiment import EXPERIMENT_FILE, load_experiment
+from scioc.pipelines.identify import identify_to_dir
+from scioc.pipelines.io import StudyFileError, load_study
+from scioc.pipelines.prepare import IdentifySettings
+from scioc.pipelines.simulate import simulate_to_dir
+from scioc.pipelines.storage import write_table_atomic
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "data" / "examples" / "three-assistants" / EXPERIMENT_FILE
 
@@ -32,7 +32,7 @@ def example():
 
 
 def test_the_example_differs_from_the_paper_in_every_respect(example):
-    from models.design import STUDY
+    from scioc.models.design import STUDY
 
     assert example.rate_hz == 200.0 and example.wheel != STUDY.wheel and example.encoder_counts == 0
     assert example.torque_sensor and example.trials == 3 and example.subjects == 16
@@ -179,6 +179,6 @@ def test_trials_are_found_and_validated_per_trial(example_study, example):
     bad = df.copy()
     bad.loc[i, "t"] += 0.001
     with pytest.raises(StudyFileError, match=r"segment \(S02, .*, 2\).*time step"):
-        from pipelines.io import validate_table
+        from scioc.pipelines.io import validate_table
 
         validate_table(bad, "x.parquet", design=example)

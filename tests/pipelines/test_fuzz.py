@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.cli import main
-from pipelines.io import InputDataError, segments_to_table, validate_table
+from scioc.pipelines.cli import main
+from scioc.pipelines.io import InputDataError, segments_to_table, validate_table
 from tests.pipelines.test_io import small_table
 
 THETA = "60,0.1,1"

@@ -8,23 +8,38 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.delayed import (DELAY_GRID_S, Warmup, forward_delayed, identify_unit_delayed, lag_coefficients, loglik_grad,
-                            window_loglik, window_tau0)
-from models.maxent import forward_optimal_control
-from models.bayes.delayed_blocks import R_POPULATIONS, RHO_FORMS
-from models.bayes.delayed_model import ADAPTATIONS, CURVED, DELAYED_NUTS, NUTPIE_ADAPTATIONS, PILOT, WHITENED
-from models.design import STUDY
-from models.plant import discretize
-from models.segment import prepare_batch
-from pipelines.cli import main
-from pipelines.cli.values import (ADAPTATION_NAMES, HUMAN_MODEL_NAMES, LIKELIHOOD_NAMES, MAX_DELAY_S,
-                                  NUTPIE_ADAPTATION_NAMES, R_POPULATION_NAMES, RHO_FORM_NAMES)
-from pipelines.fit.delayed_forms import LOG_R_FORMS
-from pipelines.identify import identify_to_dir
-from pipelines.loglik import LIKELIHOODS
-from pipelines.io import load_study
-from pipelines.prepare import HUMAN_MODELS, IdentifySettings, prepare_study
-from pipelines.simulate import simulate_to_dir
+from scioc.models.bayes.delayed_blocks import R_POPULATIONS, RHO_FORMS
+from scioc.models.bayes.delayed_model import ADAPTATIONS, CURVED, DELAYED_NUTS, NUTPIE_ADAPTATIONS, PILOT, WHITENED
+from scioc.models.delayed import (
+    DELAY_GRID_S,
+    Warmup,
+    forward_delayed,
+    identify_unit_delayed,
+    lag_coefficients,
+    loglik_grad,
+    window_loglik,
+    window_tau0,
+)
+from scioc.models.design import STUDY
+from scioc.models.maxent import forward_optimal_control
+from scioc.models.plant import discretize
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.cli import main
+from scioc.pipelines.cli.values import (
+    ADAPTATION_NAMES,
+    HUMAN_MODEL_NAMES,
+    LIKELIHOOD_NAMES,
+    MAX_DELAY_S,
+    NUTPIE_ADAPTATION_NAMES,
+    R_POPULATION_NAMES,
+    RHO_FORM_NAMES,
+)
+from scioc.pipelines.fit.delayed_forms import LOG_R_FORMS
+from scioc.pipelines.identify import identify_to_dir
+from scioc.pipelines.io import load_study
+from scioc.pipelines.loglik import LIKELIHOODS
+from scioc.pipelines.prepare import HUMAN_MODELS, IdentifySettings, prepare_study
+from scioc.pipelines.simulate import simulate_to_dir
 
 SENSOR = dataclasses.replace(STUDY, torque_sensor=True)
 #: 12 s into 30-s runs: windows that start inside a run, as the paper's 210-225 s of 240 s do.
@@ -217,8 +232,8 @@ def _status(argv) -> int:
 def test_identify_says_which_units_it_identified_from_their_angles(tmp_path):
     import json
 
-    from pipelines.adequacy import not_checked
-    from pipelines.identify import format_identify
+    from scioc.pipelines.adequacy import not_checked
+    from scioc.pipelines.identify import format_identify
 
     meta = {"segments": 4, "converged": 4, "human_model": "delayed", "reconstructed_units": 4,
             "adequacy": not_checked("test")}
@@ -234,7 +249,7 @@ def test_without_a_torque_sensor_the_delayed_model_is_identified_from_the_angles
     # The same recordings with the torque reconstructed from the encoder: the delayed model is fitted to the
     # angles themselves (models.delayed.angles), as identify_unit_delayed does with the unit's AngleWindows.
     # Before, the torque likelihood of the reconstructed torque put τ_nm at its 1-s bound (README "Human models").
-    from pipelines.identify import angle_windows
+    from scioc.pipelines.identify import angle_windows
 
     s_rec = settings(reconstruct="always")
     paths = identify_to_dir(combined["study"], tmp_path / "id", s_rec, show_progress=False)
@@ -261,7 +276,7 @@ def test_cli_loglik_of_the_angles_is_the_models(combined, tmp_path, capsys):
     # --likelihood angles: the delayed human's likelihood of the encoder's angles, window by window, as identify
     # evaluates it (models.delayed.window_loglik on the prepared windows); on a file without u_H too (the torques
     # before each window then reconstructed), where the torque likelihood is refused and says what to use instead.
-    from pipelines.identify import angle_windows
+    from scioc.pipelines.identify import angle_windows
 
     exp = tmp_path / "experiment.toml"
     exp.write_text("[analysis]\nwindow_start_s = 12.0\nwindow_s = 10.0\npreview_s = 2.0\n")

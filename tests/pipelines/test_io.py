@@ -9,13 +9,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.io import MAX_ANGLE, MAX_TORQUE, MAX_VELOCITY, StudyFileError, load_study, segments_to_table
-from pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
+from scioc.pipelines.io import MAX_ANGLE, MAX_TORQUE, MAX_VELOCITY, StudyFileError, load_study, segments_to_table
+from scioc.pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
 
 
 def _paper_law(angle, velocity, angle_ref):
     """u_A of the paper's MPC on the given states (the law the SC human plans with)."""
-    from models.assistant import design_assistant, feedforward
+    from scioc.models.assistant import design_assistant, feedforward
 
     a = design_assistant()
     u = -(a.gain[0] * angle + a.gain[1] * velocity)
@@ -206,7 +206,7 @@ def test_staged_dir_keeps_the_old_folder_when_the_stage_fails(tmp_path, error):
 _KILLED_WRITER = """
 import sys, time
 from pathlib import Path
-from pipelines.storage import staged_dir
+from scioc.pipelines.storage import staged_dir
 with staged_dir(sys.argv[1], force=True) as tmp:
     (tmp / "posterior.nc").write_text("new seed")
     print("writing", flush=True)
@@ -266,7 +266,7 @@ def test_implausible_velocity_and_torque_are_refused(tmp_path, column, factor, u
 
 def test_plausible_bounds_hold_the_simulated_study():
     # The bounds sit far outside what the study produces (reference peaks about ±0.6 rad).
-    from models.reference import reference_trajectory
+    from scioc.models.reference import reference_trajectory
 
     assert np.abs(reference_trajectory().angle).max() < MAX_ANGLE / 5
 

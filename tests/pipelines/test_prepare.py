@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from pipelines.identify import identify_prepared, identify_study, identify_to_dir
-from pipelines.io import InputDataError, validate_table
-from pipelines.prepare import IdentifySettings, check_design, prepare_study
+from scioc.pipelines.identify import identify_prepared, identify_study, identify_to_dir
+from scioc.pipelines.io import InputDataError, validate_table
+from scioc.pipelines.prepare import IdentifySettings, check_design, prepare_study
 from tests.pipelines.test_io import small_table
 
 

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.cli import main
-from pipelines.recovery import format_recovery, recovery
+from scioc.pipelines.cli import main
+from scioc.pipelines.recovery import format_recovery, recovery
 
 
 def _tables(shift_est, shift_true, delayed=False):
@@ -51,7 +51,7 @@ def test_cli(tmp_path, capsys):
 
 
 def test_delay_profile_spread_counts_each_subjects_summed_profile():
-    from pipelines.recovery import delay_profile_spread
+    from scioc.pipelines.recovery import delay_profile_spread
 
     flat, peaked = np.zeros(5), np.array([0.0, -2.0, -20.0, -5.0, -11.0])
     est = pd.DataFrame({"subject": ["A", "A", "B", "B"], "condition": ["MC", "SC"] * 2,

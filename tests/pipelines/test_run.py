@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.design import STUDY
-from pipelines.cli import main
-from pipelines.identify import identify_study
-from pipelines.io import StudyFileError, load_study
-from pipelines.prepare import IdentifySettings
+from scioc.models.design import STUDY
+from scioc.pipelines.cli import main
+from scioc.pipelines.identify import identify_study
+from scioc.pipelines.io import StudyFileError, load_study
+from scioc.pipelines.prepare import IdentifySettings
 
 
 @pytest.fixture(scope="module")
@@ -118,18 +118,18 @@ def test_outputs_are_refused_or_replaced_whole(tmp_path, capsys):
 
 def test_run_reconstructs_every_segment_once_for_identify_and_fit(tmp_path, monkeypatch):
     """``scioc run`` prepares the study once and hands the same prepared segments to identify and to the fit."""
-    import pipelines.fit
-    import pipelines.prepare
-    from pipelines.run import run_all
+    import scioc.pipelines.fit
+    import scioc.pipelines.prepare
+    from scioc.pipelines.run import run_all
 
     calls, seen = [], {}
-    real = pipelines.prepare.reconstruct
-    monkeypatch.setattr(pipelines.prepare, "reconstruct", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = scioc.pipelines.prepare.reconstruct
+    monkeypatch.setattr(scioc.pipelines.prepare, "reconstruct", lambda *a, **k: calls.append(1) or real(*a, **k))
 
     def fake_fit(study_path, out, *, prepared=None, **kwargs):  # stands in for minutes of sampling
         seen["prepared"] = prepared
 
-    monkeypatch.setattr(pipelines.fit, "fit_to_dir", fake_fit)
+    monkeypatch.setattr(scioc.pipelines.fit, "fit_to_dir", fake_fit)
     run_all(tmp_path, n_subjects=2, seed=5, fit=True, settings=IdentifySettings(adequacy_boot=0))
     assert len(calls) == 4  # 2 subjects × MC and SC, from the angle; the true-torque runs need none
     assert [p.data.subject for p in seen["prepared"].segments] == ["S01", "S01", "S02", "S02"]
@@ -153,14 +153,14 @@ SENSOR = replace(STUDY, torque_sensor=True, run_seconds=8.0, window_start=2.0, w
 def test_a_run_with_a_torque_sensor_adds_the_delayed_model(tmp_path, monkeypatch, capsys):
     """Both models when the max-ent model's adequacy fails (the kbl human: delay, lag, motor noise); the delayed
     stages share the prepared study; fits and LOSO stand in here."""
-    import pipelines.fit
-    import pipelines.fit.human_models
-    import pipelines.prepare
-    from pipelines.run import run_all, run_verdicts
+    import scioc.pipelines.fit
+    import scioc.pipelines.fit.human_models
+    import scioc.pipelines.prepare
+    from scioc.pipelines.run import run_all, run_verdicts
 
     calls, seen = [], {}
-    real = pipelines.prepare.reconstruct
-    monkeypatch.setattr(pipelines.prepare, "reconstruct", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = scioc.pipelines.prepare.reconstruct
+    monkeypatch.setattr(scioc.pipelines.prepare, "reconstruct", lambda *a, **k: calls.append(1) or real(*a, **k))
 
     def fake_fit(study_path, out, *, prepared=None, settings=None, **kwargs):  # stands in for minutes of sampling
         seen[Path(out).name] = (prepared, settings.human_model)
@@ -172,8 +172,8 @@ def test_a_run_with_a_torque_sensor_adds_the_delayed_model(tmp_path, monkeypatch
         return {"difference": {"elpd_diff": 1.0, "se": 1.0, "z": 1.0, "reliable": True, "n": 2,
                                "n_preferring_delayed": 1, "preferred": "delayed"}}
 
-    monkeypatch.setattr(pipelines.fit, "fit_to_dir", fake_fit)
-    monkeypatch.setattr(pipelines.fit.human_models, "compare_human_models", fake_compare)
+    monkeypatch.setattr(scioc.pipelines.fit, "fit_to_dir", fake_fit)
+    monkeypatch.setattr(scioc.pipelines.fit.human_models, "compare_human_models", fake_compare)
     root = run_all(tmp_path, n_subjects=2, seed=5, design=SENSOR, human="kbl",  # 39: 4 segments can fail at 1 %
                    settings=IdentifySettings.for_design(SENSOR, adequacy_boot=39)).parent
     log = capsys.readouterr().out
@@ -205,12 +205,12 @@ ANGLES = replace(SENSOR, torque_sensor=False)
 def test_a_run_without_a_torque_sensor_identifies_the_delayed_model_from_the_angles(tmp_path, monkeypatch, capsys):
     """The kbl human on the paper's rig: the max-ent model fails its adequacy checks, so the delayed model is identified
     (from the encoder's angles) and tested; its hierarchical fit, which needs the recorded torque, is not run."""
-    import pipelines.fit
-    from pipelines.report.human_models import ANGLE_ONLY
-    from pipelines.run import run_all
+    import scioc.pipelines.fit
+    from scioc.pipelines.report.human_models import ANGLE_ONLY
+    from scioc.pipelines.run import run_all
 
     seen = []
-    monkeypatch.setattr(pipelines.fit, "fit_to_dir", lambda study, out, **kw: seen.append(Path(out).name))
+    monkeypatch.setattr(scioc.pipelines.fit, "fit_to_dir", lambda study, out, **kw: seen.append(Path(out).name))
     root = run_all(tmp_path, n_subjects=2, seed=5, design=ANGLES, human="kbl",
                    settings=IdentifySettings.for_design(ANGLES, adequacy_boot=39)).parent
     log = capsys.readouterr().out
@@ -227,7 +227,7 @@ def test_a_run_without_a_torque_sensor_identifies_the_delayed_model_from_the_ang
 
 
 def test_run_with_maxent_only_on_a_torque_sensor_says_delayed_was_not_requested(tmp_path, capsys):
-    from pipelines.run import run_all
+    from scioc.pipelines.run import run_all
 
     root = run_all(tmp_path, n_subjects=2, seed=5, design=SENSOR, fit=False, human_models=("maxent",),
                    settings=IdentifySettings.for_design(SENSOR, adequacy_boot=0)).parent
@@ -237,7 +237,7 @@ def test_run_with_maxent_only_on_a_torque_sensor_says_delayed_was_not_requested(
 
 def test_by_default_a_maxent_model_that_fits_is_not_joined_by_the_delayed_one(tmp_path, capsys):
     """The max-ent human with a torque sensor: its model passes adequacy, so the run stops at it and says why."""
-    from pipelines.run import run_all
+    from scioc.pipelines.run import run_all
 
     root = run_all(tmp_path, n_subjects=2, seed=5, design=SENSOR, fit=False,
                    settings=IdentifySettings.for_design(SENSOR, adequacy_boot=39)).parent

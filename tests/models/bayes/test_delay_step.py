@@ -8,7 +8,7 @@ import pytensor.tensor as pt
 import pytest
 from scipy import stats
 
-from models.bayes.delay_step import DelayMetropolis
+from scioc.models.bayes.delay_step import DelayMetropolis
 
 G = 7
 # Per group, the log-likelihood of each grid index: one peaked group, one flat, one bimodal.

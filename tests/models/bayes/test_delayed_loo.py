@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-from models.bayes.delayed_loo import DelayedSubjectTerms
-from models.bayes.delayed_windows import delayed_windows
-from models.bayes.subject_loo import subject_loglik
-from models.cost import from_normalized
-from models.delayed import loglik_grad
-from models.delayed.lag import Warmup, lag_coefficients, window_tau0
-from models.segment import prepare_batch
+from scioc.models.bayes.delayed_loo import DelayedSubjectTerms
+from scioc.models.bayes.delayed_windows import delayed_windows
+from scioc.models.bayes.subject_loo import subject_loglik
+from scioc.models.cost import from_normalized
+from scioc.models.delayed import loglik_grad
+from scioc.models.delayed.lag import Warmup, lag_coefficients, window_tau0
+from scioc.models.segment import prepare_batch
 
 
 def _posterior(w, S, rng):
@@ -75,7 +75,7 @@ def test_the_lag_population_half_of_the_proposal_is_a_density_and_keeps_the_inte
     population half (off by a factor e) must be caught. The setup is the max-ent test's (short
     windows, prior draws as "posterior" draws), with s_τ over more than an order of magnitude.
     """
-    from models.maxent import loglik_grad as maxent_loglik
+    from scioc.models.maxent import loglik_grad as maxent_loglik
     from tests.models.bayes.test_subject_loo import _prior_study
 
     rng = np.random.default_rng(12)

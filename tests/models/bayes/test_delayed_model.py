@@ -8,16 +8,16 @@ import nutpie
 import pymc as pm
 import pytest
 
-from models.bayes.blocks import Parameterization
-from models.bayes.delayed_model import DelayedForm, build_delayed_model
-from models.bayes.delayed_op import DelayedLoglikOp
-from models.bayes.delayed_value import DelayedLoglikValueOp
-from models.bayes.delayed_windows import delayed_windows
-from models.bayes.hierarchical import build_model
-from models.cost import from_normalized
-from models.delayed import loglik_grad
-from models.segment import prepare_batch
-from models.units import index_study
+from scioc.models.bayes.blocks import Parameterization
+from scioc.models.bayes.delayed_model import DelayedForm, build_delayed_model
+from scioc.models.bayes.delayed_op import DelayedLoglikOp
+from scioc.models.bayes.delayed_value import DelayedLoglikValueOp
+from scioc.models.bayes.delayed_windows import delayed_windows
+from scioc.models.bayes.hierarchical import build_model
+from scioc.models.cost import from_normalized
+from scioc.models.delayed import loglik_grad
+from scioc.models.segment import prepare_batch
+from scioc.models.units import index_study
 
 #: The kernel sums with reassociation; the same arithmetic compiled inside the Op rounds
 #: differently (test_delayed_op.RTOL says by how much).
@@ -142,7 +142,7 @@ def test_folded_centred_motor_block(plant, study):
     """DelayedForm(sigma_m="folded_centred"): σ_m = |v|, v ~ N(0, s_m) unconstrained, starting off 0 at
     FOLDED_CENTRED_START; the model's density is the centred one's at the same σ_m less the log transform's
     Jacobian log σ_m and log 2 per subject (N(v; 0, s) = HalfNormal(|v|; s) / 2)."""
-    from models.bayes.delayed_blocks import FOLDED_CENTRED_START
+    from scioc.models.bayes.delayed_blocks import FOLDED_CENTRED_START
 
     w = study
     fc = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
@@ -166,7 +166,7 @@ def test_folded_centred_motor_block(plant, study):
 def test_motor_coordinate_is_the_free_variable_each_form_samples(plant, study):
     """The coordinate a curved whitening bends along (models.bayes.delayed_blocks.motor_coordinate) is the free
     variable of σ_m's block, with one value per subject, in every form."""
-    from models.bayes.delayed_blocks import MOTOR_FORMS, motor_coordinate
+    from scioc.models.bayes.delayed_blocks import MOTOR_FORMS, motor_coordinate
 
     w = study
     for form in MOTOR_FORMS:
@@ -186,8 +186,8 @@ def test_the_ridge_pivots_are_rhos_coordinate_where_rho_has_one_then_sigma_ms_wi
     else σ_m's (models.bayes.whiten.nearest_fold). Without ρ, σ_m's alone. polar: the block's a (signed where a subject
     has no k: a = ρ̃) and b (φ or σ̃; signed), whatever σ_m's form. Each is a free variable of the model with one value
     per subject."""
-    from models.bayes.delayed_blocks import MOTOR_FORMS, RHO_FORMS, SIGNED_FORMS, ridge_pivots
-    from models.bayes.delayed_model import DelayedPriors
+    from scioc.models.bayes.delayed_blocks import MOTOR_FORMS, RHO_FORMS, SIGNED_FORMS, ridge_pivots
+    from scioc.models.bayes.delayed_model import DelayedPriors
 
     w = study
     n = len(dict.fromkeys(w.subjects))
@@ -244,7 +244,7 @@ def test_the_mixed_form_of_rho_is_the_half_normal_law_centred_where_pinned_and_f
     import pytensor
     from scipy import stats
 
-    from models.bayes.noise_blocks import mixed_half_normal_block
+    from scioc.models.bayes.noise_blocks import mixed_half_normal_block
 
     pinned = np.array([True, False, True])
     with pm.Model(coords={"subject": ["a", "b", "c"]}) as model:
@@ -283,7 +283,7 @@ def test_the_motor_noise_variance_has_an_inverse_gamma_prior_by_default(plant, s
     (the default before) or HalfNormal(sigma_m_scale); one prior at a time, each checked."""
     from scipy import stats
 
-    from models.bayes.delayed_model import DelayedPriors
+    from scioc.models.bayes.delayed_model import DelayedPriors
 
     w = study
     assert DelayedPriors().sigma_m_variance_inverse_gamma == (1.0, 0.03)
@@ -326,7 +326,7 @@ def test_sigma_R_can_have_a_boundary_avoiding_gamma_prior(plant, study):
     # DelayedPriors(sigma_log_R_gamma=(shape, rate)): σ_R's prior is that Gamma (density 0 at 0), the rest unchanged.
     from scipy import stats
 
-    from models.bayes.delayed_model import DelayedPriors
+    from scioc.models.bayes.delayed_model import DelayedPriors
 
     w = study
     gamma = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
@@ -348,9 +348,9 @@ def test_policy_scale_population_of_R(plant, study):
     subject; the level changes are the lognormal model's; the LOSO density of log R is that law's."""
     from scipy import integrate, stats
 
-    from models.bayes.delayed_loo import DelayedSubjectTerms
-    from models.bayes.delayed_model import DelayedPriors
-    from models.bayes.hierarchical import Priors
+    from scioc.models.bayes.delayed_loo import DelayedSubjectTerms
+    from scioc.models.bayes.delayed_model import DelayedPriors
+    from scioc.models.bayes.hierarchical import Priors
 
     w = study
     dp = DelayedPriors(R_population="policy_scale")
@@ -423,9 +423,9 @@ def test_unpooled_baseline_R(plant, study):
     the level changes are the lognormal model's; the LOSO density of log R is that N(m, s) under every draw."""
     from scipy import stats
 
-    from models.bayes.delayed_loo import DelayedSubjectTerms
-    from models.bayes.delayed_model import DelayedPriors
-    from models.bayes.hierarchical import Priors
+    from scioc.models.bayes.delayed_loo import DelayedSubjectTerms
+    from scioc.models.bayes.delayed_model import DelayedPriors
+    from scioc.models.bayes.hierarchical import Priors
 
     w = study
     dp = DelayedPriors(R_population="unpooled")
@@ -490,7 +490,7 @@ def test_short_fit_recovers_lag_and_motor_noise(plant):
 def test_sampled_delays_give_the_fixed_delay_model_at_each_index(plant, study):
     # delay=None: a delay index per subject, uniform over the grid. At any index the log density is the fixed-delay
     # model's at those delays plus the uniform prior, and the step's per-subject log-likelihoods sum to u_H's.
-    from models.bayes.delayed_model import DELAY_INDEX, delay_step
+    from scioc.models.bayes.delayed_model import DELAY_INDEX, delay_step
 
     w = study
     grid = np.arange(0, 16, 3)

@@ -8,15 +8,21 @@ import pytensor
 import pytensor.tensor as pt
 import pytest
 
-from models.bayes.delayed_lag import lag_nb, wheel_constants
-from models.bayes.delayed_op import (DELAYED_DATA_NAMES, DelayedLoglikDataOp, DelayedLoglikOp, delayed_loglik, pack_tau0,
-                                    warm_samples)
-from models.bayes.delayed_value import DelayedLoglikValueOp
-from models.bayes.delayed_windows import delayed_windows
-from models.delayed import loglik_grad
-from models.delayed.lag import Warmup, lag_coefficients, window_tau0
-from models.design import WheelParameters
-from models.segment import prepare_batch
+from scioc.models.bayes.delayed_lag import lag_nb, wheel_constants
+from scioc.models.bayes.delayed_op import (
+    DELAYED_DATA_NAMES,
+    DelayedLoglikDataOp,
+    DelayedLoglikOp,
+    delayed_loglik,
+    pack_tau0,
+    warm_samples,
+)
+from scioc.models.bayes.delayed_value import DelayedLoglikValueOp
+from scioc.models.bayes.delayed_windows import delayed_windows
+from scioc.models.delayed import loglik_grad
+from scioc.models.delayed.lag import Warmup, lag_coefficients, window_tau0
+from scioc.models.design import WheelParameters
+from scioc.models.segment import prepare_batch
 
 OBJECT_MODE = "object mode"
 #: The kernel sums with reassociation (models.FASTMATH), so the same

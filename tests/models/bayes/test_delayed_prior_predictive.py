@@ -3,11 +3,11 @@ torques (a prior scale near 0 gives smaller torques than the default's)."""
 
 import numpy as np
 
-from models.bayes.delayed_model import DelayedPriors
-from models.bayes.delayed_windows import delayed_windows
-from models.bayes.prior_predictive import delayed_prior_predictive_summary
-from models.delayed.lag import Warmup
-from models.design import CONDITIONS
+from scioc.models.bayes.delayed_model import DelayedPriors
+from scioc.models.bayes.delayed_windows import delayed_windows
+from scioc.models.bayes.prior_predictive import delayed_prior_predictive_summary
+from scioc.models.delayed.lag import Warmup
+from scioc.models.design import CONDITIONS
 
 
 def test_delayed_prior_predictive_is_seeded_ordered_and_sees_the_motor_noise(plant):

@@ -9,12 +9,12 @@ import pytensor
 import pytest
 from scipy import stats
 
-from models.bayes.hierarchical import POPULATION_PARAMETERS, Parameterization, Priors, build_model
-from models.bayes.op import MaxEntLoglikOp
-from models.design import CONDITIONS
-from models.maxent import loglik_grad
-from models.segment import prepare_batch
-from models.units import index_study
+from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS, Parameterization, Priors, build_model
+from scioc.models.bayes.op import MaxEntLoglikOp
+from scioc.models.design import CONDITIONS
+from scioc.models.maxent import loglik_grad
+from scioc.models.segment import prepare_batch
+from scioc.models.units import index_study
 from tests.conftest import random_segment
 from tests.models.bayes.test_op import preview_segment
 
@@ -284,7 +284,7 @@ def test_small_fit_recovers_known_parameters(plant):
     """
     import nutpie
 
-    from models.simulate import Population, simulate_windows
+    from scioc.models.simulate import Population, simulate_windows
 
     truth = Population()
     study = simulate_windows(8, np.random.default_rng(3), truth)
@@ -362,7 +362,7 @@ def test_half_normal_quantile_is_the_half_normals_quantile_of_the_normal_probabi
     import pytensor
     import pytensor.tensor as pt
 
-    from models.bayes.blocks import half_normal_quantile
+    from scioc.models.bayes.blocks import half_normal_quantile
 
     n = pt.dvector("n")
     h = half_normal_quantile(n)

@@ -11,15 +11,15 @@ import pytensor
 import pytest
 from scipy import special, stats
 
-from models.bayes.hierarchical import POPULATION_PARAMETERS, Parameterization, Priors, build_model
-from models.bayes.prior_predictive import prior_predictive_summary
-from models.bayes.subject_loo import subject_loglik
-from models.bayes.unit_model import UnitPrior
-from models.design import REFERENCE_DT, Design, WheelParameters
-from models.maxent import loglik_grad, sample_maxent
-from models.plant import discretize
-from models.segment import Segment, prepare_batch
-from models.units import index_study
+from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS, Parameterization, Priors, build_model
+from scioc.models.bayes.prior_predictive import prior_predictive_summary
+from scioc.models.bayes.subject_loo import subject_loglik
+from scioc.models.bayes.unit_model import UnitPrior
+from scioc.models.design import REFERENCE_DT, Design, WheelParameters
+from scioc.models.maxent import loglik_grad, sample_maxent
+from scioc.models.plant import discretize
+from scioc.models.segment import Segment, prepare_batch
+from scioc.models.units import index_study
 from tests.models.bayes.test_hierarchical import FORMS, small_study
 from tests.models.bayes.test_op import preview_segment
 

@@ -5,7 +5,7 @@ import pymc as pm
 import pytest
 from scipy import stats
 
-from models.bayes.noise_blocks import NOISE_A, NOISE_B, draw_a, draw_b, log_envelope, polar_noise_block
+from scioc.models.bayes.noise_blocks import NOISE_A, NOISE_B, draw_a, draw_b, log_envelope, polar_noise_block
 
 S_RHO, S_M = 0.3, 0.2
 
@@ -112,7 +112,7 @@ def test_the_squared_form_gives_rho_the_half_normal_law_with_u_at_a_finite_step_
     """models.bayes.noise_blocks.squared_half_normal_block: ρ = u², u's density |u| p(u²) (p the half-normal's):
     by quadrature its mass is 1 and E ρ², E ρ⁴ are the half-normal's; its draws pass the KS test (false alarm 1e-3).
     Negative controls: without the Jacobian |u| the mass is not 1; u itself is not half-normal (KS fails)."""
-    from models.bayes.noise_blocks import squared_half_normal_block
+    from scioc.models.bayes.noise_blocks import squared_half_normal_block
 
     u = np.linspace(-3.0, 3.0, 6001)
     with pm.Model(coords={"subject": np.arange(u.size)}) as model:

@@ -9,9 +9,9 @@ import pytest
 from pytensor.graph.basic import Apply
 from pytensor.graph.op import Op
 
-from models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp, maxent_loglik
-from models.maxent import loglik_grad
-from models.segment import Segment, prepare_batch
+from scioc.models.bayes.op import DATA_NAMES, MaxEntLoglikDataOp, MaxEntLoglikOp, maxent_loglik
+from scioc.models.maxent import loglik_grad
+from scioc.models.segment import Segment, prepare_batch
 from tests.conftest import random_segment, random_theta
 
 OBJECT_MODE = "object mode"

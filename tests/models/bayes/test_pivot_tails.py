@@ -9,7 +9,7 @@ import numpy as np
 import pytensor
 import pytensor.tensor as pt
 
-from models.bayes.pivot_tails import TAIL_GRID, tail_inverse, tail_log_slope, tail_map, tail_scale
+from scioc.models.bayes.pivot_tails import TAIL_GRID, tail_inverse, tail_log_slope, tail_map, tail_scale
 
 
 def test_the_inverse_inverts_the_map_from_tiny_to_huge_values_and_b_infinite_is_the_identity():

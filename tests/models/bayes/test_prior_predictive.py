@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from models.bayes.prior_predictive import prior_predictive_summary
-from models.design import CONDITIONS
+from scioc.models.bayes.prior_predictive import prior_predictive_summary
+from scioc.models.design import CONDITIONS
 from tests.models.bayes.test_hierarchical import small_study
 
 

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from scipy import special
 
-from models.bayes.subject_loo import subject_loglik
-from models.maxent import loglik_grad
-from models.segment import prepare_batch
-from models.simulate import Population, simulate_windows
+from scioc.models.bayes.subject_loo import subject_loglik
+from scioc.models.maxent import loglik_grad
+from scioc.models.segment import prepare_batch
+from scioc.models.simulate import Population, simulate_windows
 
 PSI = {"mu_log_theta1": 3.0, "sigma_log_theta1": 0.4, "beta": -0.7, "sigma_beta": 0.2, "mu_log_R": 3.0,
        "beta_log_R": 0.0, "sigma_log_R": 0.3, "sigma_beta_log_R": 0.1, "tau_theta2": 0.05}
@@ -78,7 +78,7 @@ def test_points_that_overflow_get_weight_zero_instead_of_stopping(plant):
     # A chain that wandered (the max-ent study's delayed fit: log θ1 from -145 to 68) widens
     # the proposal until its tails reach log θ1 > 709, where q11 = θ1 R overflows; the
     # kernel's θ check then stopped `scioc human-models`. Such points must weigh 0 and be counted.
-    from models.bayes.subject_loo import representable
+    from scioc.models.bayes.subject_loo import representable
 
     lt = np.array([[3.0, 3.0], [710.0, 3.0], [400.0, 3.0], [300.0, 3.0], [3.0, 3.0]])
     lR = np.array([[3.0, 3.0], [3.0, 3.0], [400.0, 3.0], [-300.0, 3.0], [3.0, -800.0]])
@@ -106,7 +106,7 @@ def test_leave_one_out_ess_predicts_the_scatter_of_the_left_out_density(plant):
     Kong's ESS overstates and the SE it implies is too small (measured: 1.3 nats against 0.36): that
     regime must stay below pipelines.fit.loo.LOSO_ESS_MIN, which then calls the comparison unreliable.
     """
-    from pipelines.fit.loo import LOSO_ESS_MIN
+    from scioc.pipelines.fit.loo import LOSO_ESS_MIN
 
     S = 200
     batch, post = _prior_study(plant, np.random.default_rng(12), S)

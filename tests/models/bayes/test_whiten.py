@@ -8,8 +8,17 @@ import pytest
 from pymc.blocking import DictToArrayBijection, RaveledVars
 from pymc.pytensorf import join_nonshared_inputs
 
-from models.bayes.whiten import (block_column, block_hessian, coordinate_scales, nearest_fold, ridge_curvature,
-                                 subject_blocks, to_unconstrained, whitened_model, whitening_factors)
+from scioc.models.bayes.whiten import (
+    block_column,
+    block_hessian,
+    coordinate_scales,
+    nearest_fold,
+    ridge_curvature,
+    subject_blocks,
+    to_unconstrained,
+    whitened_model,
+    whitening_factors,
+)
 
 
 def _model(n=4):
@@ -187,7 +196,7 @@ def _tailed_banana(b, c=(4.0, -2.0, 9.0), s=(0.5, 0.3, 0.2), t=0.05):
     closed form) and y ~ N(c_i v², t): a pivot with quartic walls, on a parabola."""
     import pytensor.tensor as pt
 
-    from models.bayes.pivot_tails import tail_log_slope
+    from scioc.models.bayes.pivot_tails import tail_log_slope
 
     with pm.Model(coords={"subject": [f"s{i}" for i in range(len(c))]}) as model:
         v = pm.Flat("v", dims="subject")
@@ -217,7 +226,7 @@ def test_a_pivots_tail_map_and_its_jacobian_make_a_walled_banana_a_standard_norm
     np.testing.assert_allclose(values, values[0], rtol=1e-9)
     # to_unconstrained is the same map: the pivot is f_b of its affine coordinate
     x = to_unconstrained(ws, x_hat, groups)
-    from models.bayes.pivot_tails import tail_map
+    from scioc.models.bayes.pivot_tails import tail_map
     np.testing.assert_allclose(x[:, blocks[:, 0]], tail_map(ws[:, blocks[:, 0]] * s, b), rtol=1e-13)
     # negative controls: the affine pivot (no tail map), and the map without its Jacobian, are not standard normals
     affine = whitened_model(logp, flat, x_hat, [(blocks, L, (0, a))]).compile_logp()

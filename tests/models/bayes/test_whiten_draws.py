@@ -9,8 +9,8 @@ factor the check is about left out, or the reflection; each must fail.
 import numpy as np
 import pytest
 
-from models.bayes.whiten import to_unconstrained
-from models.bayes.whiten_draws import covariance_factor, draws_factors, to_white
+from scioc.models.bayes.whiten import to_unconstrained
+from scioc.models.bayes.whiten_draws import covariance_factor, draws_factors, to_white
 
 N_DRAWS = 20_000
 
@@ -133,7 +133,7 @@ def test_a_pivot_with_walls_gets_a_tail_map_that_makes_it_normal_and_without_one
     # about 0.025, so 6 SEs), and with tails=False (the affine pivot) they are not (below -0.5)
     from scipy.stats import kurtosis
 
-    from models.bayes.pivot_tails import tail_map
+    from scioc.models.bayes.pivot_tails import tail_map
 
     rng = np.random.default_rng(12)
     v = tail_map(rng.normal(size=N_DRAWS), 0.7)

@@ -4,9 +4,9 @@ generative loop, and against draws of that loop."""
 import numpy as np
 import pytest
 
-from models.delayed import sample_delayed
-from models.delayed.angles import angle_loglik
-from models.delayed.dense import angle_loglik_dense
+from scioc.models.delayed import sample_delayed
+from scioc.models.delayed.angles import angle_loglik
+from scioc.models.delayed.dense import angle_loglik_dense
 from tests.conftest import random_window_inputs
 
 MODES = ("MC", "SC feedback", "SC exogenous")

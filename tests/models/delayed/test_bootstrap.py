@@ -5,18 +5,18 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from models import adequacy as adq
-from models.assistant import design_assistant, human_feedback
-from models.bootstrap import Chain, bootstrap_records
-from models.delayed import innovations, sample_delayed
-from models.delayed.bootstrap import DelayedChain, delayed_records
-from models.design import ENCODER_STEP, WheelParameters
-from models.lq import lq_policy
-from models.plant import DT_HUMAN, discretize
-from models.reconstruct import apply_reconstruction, fixed_reconstruction
-from models.reference import reference_trajectory
-from models.segment import Feedback, planning_plant, prepare_batch
-from models.simulate import quantize
+from scioc.models import adequacy as adq
+from scioc.models.assistant import design_assistant, human_feedback
+from scioc.models.bootstrap import Chain, bootstrap_records
+from scioc.models.delayed import innovations, sample_delayed
+from scioc.models.delayed.bootstrap import DelayedChain, delayed_records
+from scioc.models.design import ENCODER_STEP, WheelParameters
+from scioc.models.lq import lq_policy
+from scioc.models.plant import DT_HUMAN, discretize
+from scioc.models.reconstruct import apply_reconstruction, fixed_reconstruction
+from scioc.models.reference import reference_trajectory
+from scioc.models.segment import Feedback, planning_plant, prepare_batch
+from scioc.models.simulate import quantize
 
 #: False-failure budget of each seeded statistical test in this module.
 FALSE_FAILURE = 0.001

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from models.delayed.lag import lag_coefficients, lagged_planning_plant
-from models.design import WheelParameters
-from models.plant import discretize, discretize_lagged
+from scioc.models.delayed.lag import lag_coefficients, lagged_planning_plant
+from scioc.models.design import WheelParameters
+from scioc.models.plant import discretize, discretize_lagged
 
 
 @pytest.mark.parametrize("tau", [0.001, 0.01, 0.06, 0.1, 1.0])

@@ -4,9 +4,9 @@ finite differences and itself (held steady state or not)."""
 import numpy as np
 import pytest
 
-from models.delayed import loglik, loglik_dense, loglik_grad, sample_delayed
-from models.maxent import loglik_grad as maxent_loglik_grad
-from models.segment import Segment, prepare_batch
+from scioc.models.delayed import loglik, loglik_dense, loglik_grad, sample_delayed
+from scioc.models.maxent import loglik_grad as maxent_loglik_grad
+from scioc.models.segment import Segment, prepare_batch
 from tests.conftest import random_segment, random_theta, random_window_inputs
 
 MODES = ("MC", "SC feedback", "SC exogenous")
@@ -183,7 +183,7 @@ def test_invalid_arguments_are_refused(plant):
     with pytest.raises(ValueError, match="R must be > 0"):
         loglik_grad([10.0, 0.0, 0.0], batch, plant)
     with pytest.raises(ValueError, match="WheelParameters"):
-        from models.design import WheelParameters
+        from scioc.models.design import WheelParameters
 
         loglik_grad(theta, batch, plant, tau_nm=0.06, params=WheelParameters(inertia=0.05))
     with pytest.raises(TypeError, match="SegmentBatch"):
@@ -194,8 +194,8 @@ def test_a_lag_whose_alpha_rounds_to_one_gives_minus_infinity_not_an_exception(p
     # NUTS once proposed log τ_nm = 34 (τ_nm = 6e14 s) in the unit SBC; in the numba-compiled model
     # α rounded to 1 and the division 1 / (1 - α) raised ZeroDivisionError, which stopped the
     # whole calibration run. A density of 0 (-inf) lets the sampler reject the point instead.
-    from models.delayed.kernel import batch_kernel_serial
-    from models.delayed.lag import arm_torque_recursion
+    from scioc.models.delayed.kernel import batch_kernel_serial
+    from scioc.models.delayed.lag import arm_torque_recursion
 
     rng = np.random.default_rng(29)
     batch = prepare_batch(plant, [window(rng, plant, 60, 10, mode, drawn=False) for mode in MODES])

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from models.delayed import closed_loop, forward_delayed, innovations, lag_coefficients, sample_delayed
-from models.delayed.sample import delayed_setup
-from models.maxent import forward_optimal_control, sample_maxent
-from models.plant import propagate
-from models.segment import Feedback, prepare_batch, plan_inputs
+from scioc.models.delayed import closed_loop, forward_delayed, innovations, lag_coefficients, sample_delayed
+from scioc.models.delayed.sample import delayed_setup
+from scioc.models.maxent import forward_optimal_control, sample_maxent
+from scioc.models.plant import propagate
+from scioc.models.segment import Feedback, plan_inputs, prepare_batch
 
 #: False-failure budget of each seeded statistical check below (two-sided z-tests and a KS test).
 ALPHA = 1e-3

@@ -9,16 +9,16 @@ budget in all, on these fixed seeds a fixed outcome), and each has a negative co
 import numpy as np
 import pytest
 
-from models.delayed import sample_delayed
-from models.delayed.identify import DELAY_GRID_S, START_SIGMA_M, START_TAU_NM, delay_grid, identify_unit_delayed
-from models.delayed.lag import Warmup
-from models.design import WheelParameters
-from models.identify import identify_unit
-from models.plant import discretize
-from models.reference import reference_trajectory
-from models.assistant import design_assistant, human_feedback
-from models.segment import Segment, prepare_batch
-from models.simulate import simulate_windows
+from scioc.models.assistant import design_assistant, human_feedback
+from scioc.models.delayed import sample_delayed
+from scioc.models.delayed.identify import DELAY_GRID_S, START_SIGMA_M, START_TAU_NM, delay_grid, identify_unit_delayed
+from scioc.models.delayed.lag import Warmup
+from scioc.models.design import WheelParameters
+from scioc.models.identify import identify_unit
+from scioc.models.plant import discretize
+from scioc.models.reference import reference_trajectory
+from scioc.models.segment import Segment, prepare_batch
+from scioc.models.simulate import simulate_windows
 
 THETA = np.array([400.0, 0.0, 20.0])  # θ1 = 20 1/rad², the default population's median
 TRUE = dict(tau_nm=0.06, sigma_m=0.25, delay_s=0.12)  # the literature humans' (models.humans)

@@ -4,9 +4,9 @@ tangents, and the whole likelihood's τ_nm-derivative with τ_0 recomputed at ea
 import numpy as np
 import pytest
 
-from models.delayed import loglik_grad, sample_delayed
-from models.delayed.lag import Warmup, arm_torque, lag_coefficients, window_tau0
-from models.segment import Feedback, Segment, prepare_batch
+from scioc.models.delayed import loglik_grad, sample_delayed
+from scioc.models.delayed.lag import Warmup, arm_torque, lag_coefficients, window_tau0
+from scioc.models.segment import Feedback, Segment, prepare_batch
 
 
 def run(rng, plant, n, mode, *, tau_nm, sigma_m, delay, theta=(300.0, 0.2, 10.0)):

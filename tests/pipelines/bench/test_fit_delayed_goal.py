@@ -3,10 +3,15 @@ on the path ``scioc fit --human-model delayed`` runs (ML start, whitening), not 
 
 import pytest
 
-from pipelines.bench.delayed_workflow import (FIT_DELAYED_GOAL_S, bench_delayed_workflow, format_delayed_workflow,
-                                              goal_text, within_goal)
-from pipelines.cli import main
-from pipelines.fit.warmup import PILOT_CHAINS
+from scioc.pipelines.bench.delayed_workflow import (
+    FIT_DELAYED_GOAL_S,
+    bench_delayed_workflow,
+    format_delayed_workflow,
+    goal_text,
+    within_goal,
+)
+from scioc.pipelines.cli import main
+from scioc.pipelines.fit.warmup import PILOT_CHAINS
 
 
 def test_the_goal_applies_to_the_full_size_fit_only():

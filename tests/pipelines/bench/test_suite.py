@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from pipelines.cli import main
+from scioc.pipelines.cli import main
 
 
 def test_bench_quick_writes_json(tmp_path, capsys):

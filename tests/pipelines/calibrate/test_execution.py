@@ -16,8 +16,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipelines.calibrate import FAMILY_ALPHA, CalibrationConfig, calibrate, check_scheduler, format_summary, rep_path
-from pipelines.cli import main
+from scioc.pipelines.calibrate import (
+    FAMILY_ALPHA,
+    CalibrationConfig,
+    calibrate,
+    check_scheduler,
+    format_summary,
+    rep_path,
+)
+from scioc.pipelines.cli import main
 
 # A unit-level run at a reduced size: 100 replications of one 15-s window each (about a
 # minute on two workers). At 40 replications the inertia control was missed for some seeds.

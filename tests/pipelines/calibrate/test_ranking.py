@@ -2,10 +2,10 @@
 
 import numpy as np
 
-from models.maxent import loglik_grad
-from models.segment import prepare_batch
-from pipelines.calibrate.ranking import loglik_draws
-from pipelines.calibrate.simulation import fit_plant, rest_segment, simulate_unit
+from scioc.models.maxent import loglik_grad
+from scioc.models.segment import prepare_batch
+from scioc.pipelines.calibrate.ranking import loglik_draws
+from scioc.pipelines.calibrate.simulation import fit_plant, rest_segment, simulate_unit
 
 
 def test_loglik_draws_is_the_kernels_loglik_summed_over_segments():
@@ -23,7 +23,7 @@ def test_loglik_draws_is_the_kernels_loglik_summed_over_segments():
 def test_thinning_is_arvizs_factor_then_evenly_spaced():
     from arviz_stats.base import array_stats
 
-    from pipelines.calibrate.ranking import thin
+    from scioc.pipelines.calibrate.ranking import thin
 
     rng = np.random.default_rng(0)
     x = rng.normal(size=(2, 500))

@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from pipelines.calibrate.config import CalibrationConfig, level_configs, replication_seed
-from pipelines.calibrate.study import population_targets, study_replication
-from pipelines.experiment import load_experiment
+from scioc.pipelines.calibrate.config import CalibrationConfig, level_configs, replication_seed
+from scioc.pipelines.calibrate.study import population_targets, study_replication
+from scioc.pipelines.experiment import load_experiment
 
 THREE = "data/examples/three-assistants/experiment.toml"
 

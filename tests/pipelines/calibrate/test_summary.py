@@ -7,9 +7,9 @@ import pytest
 import xarray as xr
 from arviz_stats.base import array_stats
 
-from models.sbc import pit_from_rank, rank
-from pipelines.calibrate import CalibrationConfig, calibrate, format_summary, rep_path
-from pipelines.calibrate.ranking import LOGLIK
+from scioc.models.sbc import pit_from_rank, rank
+from scioc.pipelines.calibrate import CalibrationConfig, calibrate, format_summary, rep_path
+from scioc.pipelines.calibrate.ranking import LOGLIK
 
 SMALL = dict(level="unit", replications=4, K=200, chains=2, tune=100, draws=100, L=19, batch_size=2, seed=7)
 

@@ -8,10 +8,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from models.bayes.unit_delayed import UNIT_DELAYED_PARAMETERS, DelayedUnitPrior
-from pipelines.calibrate import CalibrationConfig, calibrate, level_configs
-from pipelines.calibrate.config import replication_seed
-from pipelines.calibrate.unit_delayed import unit_delayed_replication
+from scioc.models.bayes.unit_delayed import UNIT_DELAYED_PARAMETERS, DelayedUnitPrior
+from scioc.pipelines.calibrate import CalibrationConfig, calibrate, level_configs
+from scioc.pipelines.calibrate.config import replication_seed
+from scioc.pipelines.calibrate.unit_delayed import unit_delayed_replication
 
 
 def test_configurations_of_the_delayed_model():

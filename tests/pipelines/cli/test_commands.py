@@ -9,14 +9,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.maxent import loglik_grad
-from models.maxent_dense import loglik_dense
-from models.plant import discretize
-from models.segment import Segment, prepare_batch
-from pipelines.cli import main
-from pipelines.io import load_study
-from pipelines.prepare import with_assistant_model
-from pipelines.storage import write_table_atomic
+from scioc.models.maxent import loglik_grad
+from scioc.models.maxent_dense import loglik_dense
+from scioc.models.plant import discretize
+from scioc.models.segment import Segment, prepare_batch
+from scioc.pipelines.cli import main
+from scioc.pipelines.io import load_study
+from scioc.pipelines.prepare import with_assistant_model
+from scioc.pipelines.storage import write_table_atomic
 from tests.pipelines.test_io import small_table
 
 
@@ -87,8 +87,8 @@ def test_file_without_torque_is_refused(tmp_path, capsys):
 def test_a_measured_torque_without_velocity_is_used_as_measured(tmp_path, capsys):
     # The velocity follows from the plant (the initial state fitted to the angles with the
     # measured torques); the torque is not reconstructed.
-    from models.assistant import design_assistant, feedforward
-    from models.plant import discretize, propagate
+    from scioc.models.assistant import design_assistant, feedforward
+    from scioc.models.plant import discretize, propagate
 
     plant = discretize(0.01)
     K = 300

@@ -6,14 +6,14 @@ from dataclasses import replace
 
 import pytest
 
-from models.design import STUDY
-from pipelines.cli import EXIT_BAD_DATA, EXIT_USAGE, main
-from pipelines.cli.parser import build_parser
-from pipelines.experiment import experiment_hash
-from pipelines.fit.human_models import HUMAN_MODELS_POINTS
-from pipelines.prepare import IdentifySettings
-from pipelines.run import default_human_models
-from pipelines.simulate import simulate_to_dir
+from scioc.models.design import STUDY
+from scioc.pipelines.cli import EXIT_BAD_DATA, EXIT_USAGE, main
+from scioc.pipelines.cli.parser import build_parser
+from scioc.pipelines.experiment import experiment_hash
+from scioc.pipelines.fit.human_models import HUMAN_MODELS_POINTS
+from scioc.pipelines.prepare import IdentifySettings
+from scioc.pipelines.run import default_human_models
+from scioc.pipelines.simulate import simulate_to_dir
 
 
 def fake_fit(folder, *, human_model="maxent", study="study.parquet", settings=None, **extra):
@@ -83,7 +83,7 @@ def test_compare_to_a_folder_it_cannot_be_compared_with_is_a_usage_error_before_
 
 def test_compare_to_accepts_another_adequacy_bootstrap(tmp_path):
     """The adequacy bootstrap's size and seed do not make two fits different studies."""
-    from pipelines.fit.human_models import check_maxent_fit
+    from scioc.pipelines.fit.human_models import check_maxent_fit
 
     study = tmp_path / "study.parquet"
     fake_fit(tmp_path / "maxent", study=study, settings=IdentifySettings(adequacy_boot=0, adequacy_seed=1))
@@ -93,7 +93,7 @@ def test_compare_to_accepts_another_adequacy_bootstrap(tmp_path):
 def test_compare_to_finds_the_study_of_a_fit_made_by_scioc_run(tmp_path):
     """A fit of ``scioc run`` recorded its study inside the run's staging folder, since renamed: the comparison
     finds the study relative to the fit's folder (``study_relative``), as every other reader does."""
-    from pipelines.fit.human_models import check_maxent_fit
+    from scioc.pipelines.fit.human_models import check_maxent_fit
 
     (tmp_path / "run" / "data").mkdir(parents=True)
     study = tmp_path / "run" / "data" / "study.parquet"

@@ -5,11 +5,11 @@ import dataclasses
 
 import pytest
 
-from models.design import STUDY
-from pipelines.calibrate import DEFAULTS
-from pipelines.cli import build_parser, main
-from pipelines.cli.commands import window_settings
-from pipelines.cli.values import PARAMETERIZATION_BLOCKS, PREVIEW, RUN_SECONDS, SAMPLE_TIME, WINDOW
+from scioc.models.design import STUDY
+from scioc.pipelines.calibrate import DEFAULTS
+from scioc.pipelines.cli import build_parser, main
+from scioc.pipelines.cli.commands import window_settings
+from scioc.pipelines.cli.values import PARAMETERIZATION_BLOCKS, PREVIEW, RUN_SECONDS, SAMPLE_TIME, WINDOW
 
 
 def _exit_code(argv, capsys):
@@ -107,7 +107,7 @@ def test_the_parsers_design_defaults_are_the_studys():
 
 
 def test_the_parameterization_options_are_the_models():
-    from models.bayes.hierarchical import Parameterization
+    from scioc.models.bayes.hierarchical import Parameterization
 
     assert PARAMETERIZATION_BLOCKS == {f.name: f.default for f in dataclasses.fields(Parameterization)}
     args = build_parser().parse_args(["bench-fit"])
@@ -115,8 +115,8 @@ def test_the_parameterization_options_are_the_models():
 
 
 def test_the_adequacy_points_are_the_checks():
-    from pipelines.cli.values import ADEQUACY_AT_NAMES
-    from pipelines.fit.checks import ADEQUACY_POINTS
+    from scioc.pipelines.cli.values import ADEQUACY_AT_NAMES
+    from scioc.pipelines.fit.checks import ADEQUACY_POINTS
 
     assert ADEQUACY_AT_NAMES == ADEQUACY_POINTS
     assert build_parser().parse_args(["fit", "S", "--out", "D"]).adequacy_at == "draw"
@@ -125,7 +125,7 @@ def test_the_adequacy_points_are_the_checks():
 
 @pytest.mark.parametrize("text", ["0", "1", "1.2", "-0.5", "nan", "x"])
 def test_fit_target_accept_is_a_rate_between_0_and_1(text, capsys):
-    from pipelines.cli.parser import build_parser
+    from scioc.pipelines.cli.parser import build_parser
 
     with pytest.raises(SystemExit) as exc:
         build_parser().parse_args(["fit", "s.parquet", "--out", "o", "--target-accept", text])

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.fit import mixedlm_check
+from scioc.pipelines.fit import mixedlm_check
 
 
 def test_mixedlm_of_a_balanced_paired_design_is_the_paired_mean_difference():
@@ -38,7 +38,7 @@ def _posterior(chains=3, draws=50, seed=0):
 
 
 def test_the_adequacy_point_is_one_joint_draw_or_the_means():
-    from pipelines.fit.checks import ADEQUACY_POINTS, posterior_point
+    from scioc.pipelines.fit.checks import ADEQUACY_POINTS, posterior_point
 
     post = _posterior()
     point, what = posterior_point(post, "draw", 2018)
@@ -65,7 +65,7 @@ def test_the_draw_point_stays_on_a_curved_ridge_where_the_means_leave_it():
     # the data fix, and the means of log R and σ_m predict less (Jensen). A negative control for the rule.
     import xarray as xr
 
-    from pipelines.fit.checks import posterior_point
+    from scioc.pipelines.fit.checks import posterior_point
 
     rng = np.random.default_rng(1)
     log_R = rng.normal(0.0, 0.8, (4, 500))
@@ -86,7 +86,7 @@ def test_motor_truth_counts_intervals_and_says_how_near_zero(tmp_path):
 
     import xarray as xr
 
-    from pipelines.fit.checks import motor_truth
+    from scioc.pipelines.fit.checks import motor_truth
 
     rng = np.random.default_rng(1)
     subjects = ["S1", "S2", "S3"]

@@ -5,7 +5,7 @@ import pytest
 import xarray as xr
 from arviz_stats import hdi as az_hdi
 
-from pipelines.fit.contrasts import HDI_PROB, condition_change, contrasts, hdi
+from scioc.pipelines.fit.contrasts import HDI_PROB, condition_change, contrasts, hdi
 
 
 def _former_hdi(x, prob=HDI_PROB):

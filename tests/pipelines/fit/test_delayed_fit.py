@@ -10,21 +10,25 @@ import pandas as pd
 import pytest
 import xarray as xr
 
-from models.bayes.delayed_blocks import SIGNED_FORMS, motor_coordinate
-from models.bayes.delayed_model import (PILOT_ADAPTATION_TARGET_ACCEPT, WHITENED_TARGET_ACCEPT, DelayedForm,
-                                        DelayedPriors)
-from models.design import STUDY
-from models.plant import discretize
-from pipelines.fit import fit_to_dir, format_fit
-from pipelines.fit.delayed import unit_delays
-from pipelines.fit.delayed_forms import CENTRED_Z, choose_delayed_form, log_R_form
-from pipelines.fit.human_models import compare_human_models, format_human_models
-from pipelines.identify import identify_to_dir
-from pipelines.fit.whiten import nutpie_setting
-from pipelines.fit.warmup import PILOT_CHAINS, PILOT_MAX_TREE_DEPTH, PILOT_RUNS, PILOT_TARGET_ACCEPT
-from pipelines.io import load_study
-from pipelines.prepare import IdentifySettings, prepare_study
-from pipelines.simulate import simulate_to_dir
+from scioc.models.bayes.delayed_blocks import SIGNED_FORMS, motor_coordinate
+from scioc.models.bayes.delayed_model import (
+    PILOT_ADAPTATION_TARGET_ACCEPT,
+    WHITENED_TARGET_ACCEPT,
+    DelayedForm,
+    DelayedPriors,
+)
+from scioc.models.design import STUDY
+from scioc.models.plant import discretize
+from scioc.pipelines.fit import fit_to_dir, format_fit
+from scioc.pipelines.fit.delayed import unit_delays
+from scioc.pipelines.fit.delayed_forms import CENTRED_Z, choose_delayed_form, log_R_form
+from scioc.pipelines.fit.human_models import compare_human_models, format_human_models
+from scioc.pipelines.fit.warmup import PILOT_CHAINS, PILOT_MAX_TREE_DEPTH, PILOT_RUNS, PILOT_TARGET_ACCEPT
+from scioc.pipelines.fit.whiten import nutpie_setting
+from scioc.pipelines.identify import identify_to_dir
+from scioc.pipelines.io import load_study
+from scioc.pipelines.prepare import IdentifySettings, prepare_study
+from scioc.pipelines.simulate import simulate_to_dir
 
 #: Small fits: the samplers are not meant to converge (numbers are checked for consistency).
 TINY = {"seed": 5, "chains": 2, "draws": 60, "tune": 100}
@@ -190,7 +194,7 @@ def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit
 
 def test_the_delayed_fit_refuses_reconstructed_torques(tmp_path):
     # Its likelihood is the recorded torques'; a reconstructed torque reads as lag (identify uses the angles).
-    from pipelines.io import InputDataError
+    from scioc.pipelines.io import InputDataError
 
     small = replace(SENSOR, run_seconds=8.0, window_start=2.0, window_seconds=4.0, preview=1.0)
     sim = simulate_to_dir(tmp_path / "data", n_subjects=2, seed=3, human="kbl", design=small)
@@ -245,7 +249,7 @@ def test_rhos_block_is_centred_only_where_the_data_pin_it():
 
 
 def test_the_population_of_R_is_lognormal_where_the_estimates_fix_the_R_of_at_least_half_the_subjects():
-    from pipelines.fit.delayed_forms import choose_R_population
+    from scioc.pipelines.fit.delayed_forms import choose_R_population
 
     est = pd.DataFrame({"subject": ["A", "A", "B", "B"], "se_log_R": [0.2, 0.3, 0.5, 0.4]})  # z 10, 6.7; 4, 5
     population, reason = choose_R_population(est, ["A", "B"])
@@ -393,7 +397,7 @@ def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed
     # scioc fit --R-population policy_scale --rho-form polar: each subject's k and fall (pipelines.fit.noise_arcs) are
     # in the sidecar, the subjects whose fall reaches ARC_MIN (and only they) have a k in the form, the whitening bends
     # them along φ (noise_b), and the posterior's ρ and σ_m are the polar block's, positive.
-    from pipelines.fit.noise_arcs import ARC_MIN
+    from scioc.pipelines.fit.noise_arcs import ARC_MIN
 
     paths, side = _small_fit(delayed_study, "fit_polar", delayed_priors=DelayedPriors(R_population="policy_scale"),
                              rho_form="polar")
@@ -440,8 +444,8 @@ def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
 def test_the_adequacy_of_a_finished_fit_is_checked_again_as_the_fit_checked_it(delayed_study, delayed_fit, tmp_path):
     # scioc adequacy FIT: at the fit's own point and seed it reproduces contrasts.json's verdict exactly; at the means
     # it is the former rule; --out writes a file of its own and never one of the fit's.
-    from pipelines import cli
-    from pipelines.fit.recheck import recheck_adequacy
+    from scioc.pipelines import cli
+    from scioc.pipelines.fit.recheck import recheck_adequacy
 
     root, sim, _ = delayed_study
     fit = root / "fit_delayed"
@@ -507,7 +511,7 @@ def test_nutpies_own_low_rank_fit_has_the_same_variables_and_repeats_with_its_se
 
 
 def test_the_whitened_fits_rate_is_08_only_with_the_pilot_and_a_signed_rho():
-    from models.bayes.delayed_model import ADAPTATIONS, PILOT, nutpie_options
+    from scioc.models.bayes.delayed_model import ADAPTATIONS, PILOT, nutpie_options
 
     assert nutpie_options(PILOT, rho_signed=True)["target_accept"] == 0.8
     assert nutpie_options(PILOT, rho_signed=False)["target_accept"] == 0.9

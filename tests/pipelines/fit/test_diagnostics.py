@@ -1,8 +1,8 @@
-"""What ``scioc fit`` advises when its sampler-convergence verdict fails (:func:`pipelines.fit.diagnostics.remedies`)."""
+"""What ``scioc fit`` advises when its sampler-convergence verdict fails (:func:`scioc.pipelines.fit.diagnostics.remedies`)."""
 
 import pytest
 
-from pipelines.fit.diagnostics import ESS_MIN, RHAT_MAX, remedies
+from scioc.pipelines.fit.diagnostics import ESS_MIN, RHAT_MAX, remedies
 
 
 def _diag(divergences=0, population=None):
@@ -82,7 +82,7 @@ def test_a_nan_bulk_or_tail_ess_reads_as_nan_whichever_it_is(bulk, tail):
     # Python's min(nan, x) is nan but min(x, nan) is x: the smaller ESS must not depend on which of the two is NaN
     import math
 
-    from pipelines.fit.diagnostics import smaller_ess
+    from scioc.pipelines.fit.diagnostics import smaller_ess
 
     p = {"ess_bulk": math.nan if bulk is None else bulk, "ess_tail": math.nan if tail is None else tail}
     assert math.isnan(smaller_ess(p))
@@ -99,7 +99,7 @@ def test_the_pooling_factor_is_the_shrinkage_of_the_normal_model(s, expected):
     # Pardoe's λ is s² / (1 + s²). 400 units, 2000 exact posterior draws each.
     import numpy as np
 
-    from pipelines.fit.diagnostics import pooling_factor
+    from scioc.pipelines.fit.diagnostics import pooling_factor
 
     rng = np.random.default_rng(11)
     y = rng.normal(0.0, 1.0, 400) + rng.normal(0.0, s, 400)

@@ -2,10 +2,10 @@
 
 import pytest
 
-from models.bayes.delayed_blocks import DelayedPriors
-from models.bayes.hierarchical import Priors
-from pipelines.fit.human_models import unpooled_log_R_prior
-from pipelines.io import InputDataError
+from scioc.models.bayes.delayed_blocks import DelayedPriors
+from scioc.models.bayes.hierarchical import Priors
+from scioc.pipelines.fit.human_models import unpooled_log_R_prior
+from scioc.pipelines.io import InputDataError
 
 
 def test_unpooled_prior_is_read_from_the_sidecar(tmp_path):

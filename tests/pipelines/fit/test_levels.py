@@ -11,13 +11,13 @@ import pandas as pd
 import pytest
 import xarray as xr
 
-from models.design import AssistantSpec, Design, WheelParameters
-from pipelines.experiment import experiment_hash, load_experiment
-from pipelines.fit import fit_to_dir, format_fit, mixedlm_check
-from pipelines.fit.contrasts import contrasts, hdi
-from pipelines.identify import identify_to_dir
-from pipelines.prepare import IdentifySettings
-from pipelines.simulate import simulate_to_dir
+from scioc.models.design import AssistantSpec, Design, WheelParameters
+from scioc.pipelines.experiment import experiment_hash, load_experiment
+from scioc.pipelines.fit import fit_to_dir, format_fit, mixedlm_check
+from scioc.pipelines.fit.contrasts import contrasts, hdi
+from scioc.pipelines.identify import identify_to_dir
+from scioc.pipelines.prepare import IdentifySettings
+from scioc.pipelines.simulate import simulate_to_dir
 
 LEVELS = ("none", "weak", "strong")
 #: Small enough for a test (4 subjects × 3 levels × 2 trials of 2 s at 200 Hz); the numbers
@@ -169,8 +169,8 @@ def test_mixedlm_of_three_balanced_levels_gives_the_mean_differences():
 def test_the_log_theta1_form_follows_how_tightly_the_data_pin_each_unit():
     import pandas as pd
 
-    from models.bayes.hierarchical import Parameterization
-    from pipelines.fit.stage import CENTRED_SE_LOG_THETA1, choose_parameterization
+    from scioc.models.bayes.hierarchical import Parameterization
+    from scioc.pipelines.fit.stage import CENTRED_SE_LOG_THETA1, choose_parameterization
 
     assert choose_parameterization(None)[0] == Parameterization()
     loose = pd.DataFrame({"se_log_theta1": [0.2, 0.3, 0.4]})  # like the default study cut to 3-s windows

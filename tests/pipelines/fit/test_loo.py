@@ -5,7 +5,7 @@ import pytest
 import xarray as xr
 from arviz_stats import compare
 
-from pipelines.fit.loo import elpd_difference, psis_summary
+from scioc.pipelines.fit.loo import elpd_difference, psis_summary
 
 
 def _tree(rng, shift):
@@ -30,7 +30,7 @@ def test_the_difference_is_compares_and_its_se_is_compares_with_n_minus_1():
 
 
 def test_a_comparison_is_reliable_only_with_low_k_and_enough_importance_points():
-    from pipelines.fit.loo import LOSO_ESS_MIN, comparison_reliability, reliability_words
+    from scioc.pipelines.fit.loo import LOSO_ESS_MIN, comparison_reliability, reliability_words
 
     def summary(n_bad, ess=None):
         s = {"pareto_k": {"n_gt_threshold": n_bad}}

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pipelines.fit.noise_arcs import ARC_MIN, subject_arc
+from scioc.pipelines.fit.noise_arcs import ARC_MIN, subject_arc
 
 
 def _ring(rho2, sigma2, k, width=0.002, tilt=0.0):
@@ -55,7 +55,7 @@ def test_a_subject_without_estimates_for_every_unit_keeps_the_folded_centred_coo
 
     import pandas as pd
 
-    from pipelines.fit.noise_arcs import noise_arcs
+    from scioc.pipelines.fit.noise_arcs import noise_arcs
 
     design = SimpleNamespace(ordered_levels=("MC", "SC"), wheel=None)
     prepared = SimpleNamespace(units={("S1", "MC"): [0], ("S1", "SC"): [1], ("S2", "MC"): [2], ("S2", "SC"): [3]},

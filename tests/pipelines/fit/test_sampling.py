@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from pipelines.fit.sampling import interrupt_guard
+from scioc.pipelines.fit.sampling import interrupt_guard
 
 
 def _swallow_one_ctrl_c_then_wait(seconds: float) -> None:
@@ -48,7 +48,7 @@ def test_progress_lines_report_draws_divergences_and_steps_and_leave_the_draws_a
     import pymc as pm
     import pymc.sampling.mcmc as mcmc
 
-    from pipelines.fit.sampling import progress_lines
+    from scioc.pipelines.fit.sampling import progress_lines
 
     with pm.Model() as model:
         pm.Normal("x", 0.0, 1.0, shape=2)
@@ -73,8 +73,8 @@ def test_the_warm_up_steps_are_counted_and_its_draws_dropped_without_changing_th
     import numpy as np
     import pymc as pm
 
-    from pipelines.fit.diagnostics import diagnostics
-    from pipelines.fit.sampling import sample_model
+    from scioc.pipelines.fit.diagnostics import diagnostics
+    from scioc.pipelines.fit.sampling import sample_model
 
     with pm.Model() as model:
         mu = pm.Normal("mu_log_theta1", 0.0, 1.0)
@@ -99,7 +99,7 @@ def test_target_accept_reaches_the_sampler_and_changes_its_step_size():
     import numpy as np
     import pymc as pm
 
-    from pipelines.fit.sampling import sample_model
+    from scioc.pipelines.fit.sampling import sample_model
 
     with pm.Model() as model:
         mu = pm.Normal("mu", 0.0, 1.0)

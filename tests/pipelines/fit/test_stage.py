@@ -10,11 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from models.adequacy import STATISTICS
-from pipelines import cli
-from pipelines.fit import ESS_MIN, RHAT_MAX, fit_to_dir
-from pipelines.simulate import simulate_to_dir
-from pipelines.storage import write_table_atomic
+from scioc.models.adequacy import STATISTICS
+from scioc.pipelines import cli
+from scioc.pipelines.fit import ESS_MIN, RHAT_MAX, fit_to_dir
+from scioc.pipelines.simulate import simulate_to_dir
+from scioc.pipelines.storage import write_table_atomic
 from tests.pipelines.conftest import N_SUBJECTS, SMALL
 
 NOTEBOOK = Path(__file__).resolve().parents[3] / "reports" / "notebooks" / "posterior_diagnostics.py"
@@ -206,7 +206,7 @@ def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
     out = tmp_path / "fit"
     out.mkdir()
     (out / "contrasts.json").write_text('{"old": true}')
-    cmd = [sys.executable, "-m", "pipelines.cli", "fit", str(root / "data" / "study.parquet"), "--out", str(out),
+    cmd = [sys.executable, "-m", "scioc.pipelines.cli", "fit", str(root / "data" / "study.parquet"), "--out", str(out),
            "--force", "--draws", "200000", "--tune", "200", "--chains", "2", "--window", "20,5"]
     # PYTHONFAULTHANDLER: if it does not stop, SIGABRT makes it print where every thread is.
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -228,7 +228,7 @@ def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
 
 
 def test_the_sidecar_names_a_curved_whitenings_pivots_with_their_subjects_where_there_are_several():
-    from pipelines.fit.stage import sampler_record
+    from scioc.pipelines.fit.stage import sampler_record
 
     record = sampler_record("delayed", "profile", {"adaptation": "diag"},
                             {"curved_along": {"rho_signed": 30, "sigma_m_signed": 12}})

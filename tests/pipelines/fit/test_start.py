@@ -6,7 +6,7 @@ import pymc as pm
 import pytensor
 import pytest
 
-from pipelines.fit.start import scale_estimate, scale_sources, start_point
+from scioc.pipelines.fit.start import scale_estimate, scale_sources, start_point
 
 SUBJECTS = ["S1", "S2", "S3", "S4"]
 LEVELS = ["MC", "SC"]

@@ -1,7 +1,15 @@
 """The delayed fit's pilot run and default warm-up (pipelines/fit/warmup.py)."""
 
-from pipelines.fit.warmup import (PILOT_CHAINS, PILOT_MAX_TREE_DEPTH, PILOT_RUNS, PILOT_TARGET_ACCEPT, TUNE,
-                                  TUNE_AFTER_PILOT, default_tune, pilot_runs)
+from scioc.pipelines.fit.warmup import (
+    PILOT_CHAINS,
+    PILOT_MAX_TREE_DEPTH,
+    PILOT_RUNS,
+    PILOT_TARGET_ACCEPT,
+    TUNE,
+    TUNE_AFTER_PILOT,
+    default_tune,
+    pilot_runs,
+)
 
 
 def test_the_pilot_runs_on_at_most_its_own_chains_and_no_longer_than_the_fit():

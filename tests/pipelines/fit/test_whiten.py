@@ -12,8 +12,8 @@ import numpy as np
 import pymc as pm
 import pytest
 
-from models.bayes.whiten import WHITE, to_unconstrained
-from pipelines.fit.whiten import nutpie_setting, posterior_of, sample_whitened, whitening
+from scioc.models.bayes.whiten import WHITE, to_unconstrained
+from scioc.pipelines.fit.whiten import nutpie_setting, posterior_of, sample_whitened, whitening
 
 N = 6
 Y = np.linspace(-1.0, 2.0, N)

@@ -4,7 +4,7 @@ from html import unescape
 
 import pytest
 
-from pipelines.report.bayes import section_bayes
+from scioc.pipelines.report.bayes import section_bayes
 
 
 @pytest.mark.slow
@@ -19,7 +19,7 @@ def test_report_section_reads_the_fit(small_fit, tmp_path):
 
 
 def test_the_diagnostics_section_advises_only_a_fit_whose_verdict_fails():
-    from pipelines.report.bayes import section_diagnostics
+    from scioc.pipelines.report.bayes import section_diagnostics
 
     def diag(div, ess):
         p = {"rhat": 1.001, "ess_bulk": ess, "ess_tail": ess, "ess_bulk_per_s": 1.0}

@@ -13,12 +13,12 @@ from html import unescape
 
 import pytest
 
-from models.design import STUDY, AssistantSpec, Design, WheelParameters
-from pipelines.prepare import IdentifySettings
-from pipelines.report import build_report
-from pipelines.report.contrasts import label, section_methods
-from pipelines.report.levels import assistant_text, run_experiment
-from pipelines.run import run_all
+from scioc.models.design import STUDY, AssistantSpec, Design, WheelParameters
+from scioc.pipelines.prepare import IdentifySettings
+from scioc.pipelines.report import build_report
+from scioc.pipelines.report.contrasts import label, section_methods
+from scioc.pipelines.report.levels import assistant_text, run_experiment
+from scioc.pipelines.run import run_all
 
 #: Three levels at 200 Hz on another wheel, no encoder, a torque sensor, two trials, a 4-s window at 2 s,
 #: a linear and an MPC assistant: every fact the report states differs from the paper's study.

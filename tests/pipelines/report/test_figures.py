@@ -4,7 +4,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from pipelines.report import figures
+from scioc.pipelines.report import figures
 
 
 def test_the_theta1_histogram_labels_its_log_axis_at_1_2_5_only():

@@ -13,10 +13,17 @@ from html import unescape
 
 import pytest
 
-from models.design import STUDY, AssistantSpec, Design
-from pipelines.report.human_models import (ANGLE_ONLY, LOSO_Z, conclusion, loso_preference, read_models, section,
-                                           supported)
-from pipelines.signed_rank import wilcoxon_signed_rank
+from scioc.models.design import STUDY, AssistantSpec, Design
+from scioc.pipelines.report.human_models import (
+    ANGLE_ONLY,
+    LOSO_Z,
+    conclusion,
+    loso_preference,
+    read_models,
+    section,
+    supported,
+)
+from scioc.pipelines.signed_rank import wilcoxon_signed_rank
 
 MC = [20.0, 22.0, 18.0, 25.0, 21.0, 19.0]
 #: SC a factor of 2 below MC in every subject: the exact test's smallest p for 6 pairs, 2/64.

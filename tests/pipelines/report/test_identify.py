@@ -5,8 +5,8 @@ from html import unescape
 import numpy as np
 import pandas as pd
 
-from pipelines.report.identify import section_identification
-from pipelines.report.truth import section_truth
+from scioc.pipelines.report.identify import section_identification
+from scioc.pipelines.report.truth import section_truth
 
 
 def _estimates(converged=(True, True, True, True), implausible=(False, False, False, False)):

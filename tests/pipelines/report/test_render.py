@@ -4,7 +4,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from pipelines.report.render import MISSING, figure, number, render, table
+from scioc.pipelines.report.render import MISSING, figure, number, render, table
 
 
 def test_values_are_escaped_and_the_templates_markup_is_not():
@@ -29,7 +29,7 @@ def test_a_figure_is_an_embedded_png_with_its_caption_escaped():
 
 
 def test_the_headline_says_at_which_posterior_point_the_fit_was_checked():
-    from pipelines.report.adequacy import headline
+    from scioc.pipelines.report.adequacy import headline
 
     a = {"verdict": "pass", "combined_p": {"variance": 0.5}, "study_alpha": 0.01}
     at_draw = {"verdict": "fail", "point": {"at": "draw", "what": "one joint posterior draw"}}

@@ -1,13 +1,14 @@
 # One command sets up and runs the main job; one sets up and passes the tests.
-#   make run    -> creates .venv with Python >= 3.12 if missing, installs, runs `scioc run`
-#   make test   -> same setup, then the whole test suite
+#   make run       -> creates .venv with Python >= 3.12 if missing, installs, runs `scioc run`
+#   make test      -> same setup, then the fast test tier (every test not marked `validation`)
+#   make validate  -> same setup, then the validation tier; writes docs/validation.md
 VENV ?= .venv
 # Python >= 3.12 (PyMC 6). Tried in order: $(PYTHON) if given, python3.12/3.13 on PATH, pyenv installs.
 PYTHON ?= $(shell for p in python3.12 python3.13 $$HOME/.pyenv/versions/3.12*/bin/python3 $$HOME/.pyenv/versions/3.13*/bin/python3 /usr/bin/python3; do \
 	$$p -c 'import sys; sys.exit(0 if sys.version_info >= (3, 12) else 1)' >/dev/null 2>&1 && { echo $$p; break; }; done)
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test bench calibrate power humans clean
+.PHONY: setup run test validate bench calibrate power humans clean
 
 $(STAMP): pyproject.toml
 	@test -n "$(PYTHON)" || { echo "error: no Python >= 3.12 found (PyMC 6 needs it); pass PYTHON=/path/to/python3.12" >&2; exit 1; }
@@ -22,7 +23,12 @@ run: $(STAMP)
 	$(VENV)/bin/scioc run
 
 test: $(STAMP)
-	$(VENV)/bin/python -m pytest
+	$(VENV)/bin/python -m pytest -m "not validation"
+
+# Reduced-size statistical studies, SBC smoke runs, delayed fits and recovery; their report, stamped
+# with the commit, goes to docs/validation.md.
+validate: $(STAMP)
+	$(VENV)/bin/python -m pytest -m validation --validation-report docs/validation.md
 
 bench: $(STAMP)
 	$(VENV)/bin/scioc bench

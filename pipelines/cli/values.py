@@ -84,7 +84,7 @@ NUTPIE_ADAPTATION_NAMES = ADAPTATION_NAMES[3:5]
 #: Points of the adequacy check at the posterior (:data:`scioc.pipelines.fit.checks.ADEQUACY_POINTS`, tested equal).
 ADEQUACY_AT_NAMES = ("draw", "means")
 ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one joint posterior draw picked by the "
-                     "adequacy seed; means: each parameter's posterior mean, the rule before 2026-12-03)")
+                     "adequacy seed; means: each parameter's posterior mean)")
 
 
 def human_models_list(text: str) -> tuple:

@@ -87,7 +87,7 @@ print(json.dumps(out))
 """
 
 
-@pytest.mark.slow  # two fresh interpreters, the first compiling every kernel: about 2.5 minutes
+@pytest.mark.validation  # two fresh interpreters, the first compiling every kernel: about 2.5 minutes
 def test_the_likelihoods_bits_do_not_depend_on_whether_numba_compiled_them_or_loaded_them(tmp_path):
     # Same seed, same bits must hold in the first process on a new machine (empty caches) as in every later one.
     # Negative controls (measured when this test was written): with the "contract" fast-math flag in the kernels
@@ -135,7 +135,7 @@ print(hashlib.sha256(r.loglik.tobytes() + r.grad.tobytes()).hexdigest())
 """
 
 
-@pytest.mark.slow  # three fresh interpreters, two compiling the delayed kernel: about a minute
+@pytest.mark.validation  # three fresh interpreters, two compiling the delayed kernel: about a minute
 def test_the_kernels_bits_do_not_depend_on_which_caller_compiled_a_callee_first(tmp_path):
     # Negative control (measured 2026-12-06, before every njit stated fastmath and error_model): the arm torque's
     # recursion, compiled first from Python and cached without the kernel's reassociation, made the kernel

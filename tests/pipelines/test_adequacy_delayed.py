@@ -107,7 +107,7 @@ def test_false_alarms_within_budget_on_the_models_own_data(encoder_only):
         assert cols[f"adequacy_p_{k}"].mean() > 0.4  # valid or conservative: not piled up near 0
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_false_alarm_rate_over_200_segments_of_15_s():
     """The measurement behind the stated rate: 100 subjects × MC/SC, the default 15-s window (K = 1500), angle
     only, B = 49: 7 of 200 flagged, 3.5 % (Clopper-Pearson 95 %: 1.4-7.1 %); study verdict pass. The same

@@ -458,7 +458,7 @@ def test_unpooled_baseline_R(plant, study):
         DelayedPriors(R_population="unpooled", sigma_log_R_gamma=(2.0, 4.0))
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_short_fit_recovers_lag_and_motor_noise(plant):
     """4 subjects of the delayed human (each its own lag; motor noise 0.25 N·m), 2 chains × 300 draws: every
     subject's τ_nm and σ_m inside its 94 % interval, and the negative control (a max-ent human) finds σ_m far below.

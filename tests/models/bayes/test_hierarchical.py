@@ -270,7 +270,7 @@ def test_observed_draws_have_the_data_shape(plant):
 MIN_UNITS_COVERED = 13
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_small_fit_recovers_known_parameters(plant):
     """8 simulated subjects × {MC, SC} × K = 1500 (two chains of 600 draws): β, μ_R and the unit R.
 

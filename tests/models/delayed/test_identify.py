@@ -49,7 +49,7 @@ def test_the_grid_is_0_to_300_ms_in_whole_samples():
 
 # In shared control the delay shows less (the assistant's spring takes over part of the correction): from
 # 3 trials of 15 s it came out 9 instead of 12 samples in 2 of 6 units, from 8 trials within one sample in 6 of 6.
-@pytest.mark.slow
+@pytest.mark.validation
 @pytest.mark.parametrize("dt, feedback, trials, seed", [(0.01, False, 3, 0), (0.01, True, 8, 1), (0.005, False, 3, 2)],
                          ids=["100Hz-MC", "100Hz-SC", "200Hz-MC"])
 def test_recovery_on_data_of_the_model(dt, feedback, trials, seed):
@@ -71,7 +71,7 @@ def test_recovery_on_data_of_the_model(dt, feedback, trials, seed):
     assert abs(np.log(me.theta1 / 20.0)) > N_SE * me.se_log_theta1
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_on_max_ent_data_delay_lag_and_motor_noise_add_nothing(plant):
     # Measured on 40 max-ent windows (simulate_windows, seed 11): τ_nm <= 0.6 ms, σ_m <= 0.14 N·m, log-likelihood
     # gain over the max-ent fit <= 4.6 nats, θ1 within 1.2 max-ent SEs of the max-ent estimate. The bounds below
@@ -90,7 +90,7 @@ def test_on_max_ent_data_delay_lag_and_motor_noise_add_nothing(plant):
     assert est.tau_nm > 0.002 and est.sigma_m > 0.2 and est.loglik - me.loglik > 8.0
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 @pytest.mark.parametrize("source", ["delayed-MC", "delayed-SC", "maxent"])
 def test_the_profile_is_the_best_of_other_searches(plant, source):
     """At every delay the profile (two searches: from the max-ent start and chained up from the previous delay)

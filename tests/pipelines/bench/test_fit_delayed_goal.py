@@ -25,7 +25,7 @@ def test_the_goal_applies_to_the_full_size_fit_only():
     assert goal_text({"goal_s": FIT_DELAYED_GOAL_S, "within_goal": False}).endswith("NOT met")
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_the_workflow_benchmark_times_scioc_fits_own_path(tmp_path):
     """Two subjects of the kbl human: the fit is scioc fit's default (whitened, started at the ML estimates), its
     time is the sidecar's, and the numbers derived from it are consistent with the sampler's own. ``keep`` keeps

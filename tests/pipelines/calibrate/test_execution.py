@@ -34,7 +34,7 @@ from scioc.pipelines.cli import main
 UNIT = dict(level="unit", replications=100, K=1500, chains=2, tune=400, draws=400, L=99, batch_size=5, seed=7)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_unit_level_sbc_passes_for_the_correct_model(tmp_path):
     assert FAMILY_ALPHA == 0.01
     summary = calibrate(CalibrationConfig(**UNIT), tmp_path / "unit", show_progress=False)
@@ -44,7 +44,7 @@ def test_unit_level_sbc_passes_for_the_correct_model(tmp_path):
     assert summary["parameters"]["R"]["contraction"] > 0.9
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_unit_level_sbc_catches_a_wrong_inertia(tmp_path):
     # Negative control: the same draws and sizes, fitted with the inertia 10 % too high.
     summary = calibrate(CalibrationConfig(**UNIT, negative_control="inertia"), tmp_path / "neg", show_progress=False)
@@ -96,7 +96,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_dask_cluster_losing_a_worker_gives_the_local_result(tmp_path):
     dask = str(Path(sys.executable).parent / "dask")
     port = _free_port()
@@ -157,13 +157,13 @@ STUDY = dict(level="study", replications=30, K=200, n_subjects=6, chains=2, tune
              batch_size=3, seed=5)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_study_level_sbc_passes_for_the_correct_model(tmp_path):
     summary = calibrate(CalibrationConfig(**STUDY), tmp_path / "study", show_progress=False)
     assert summary["passed"], {k: v["p_value"] for k, v in summary["parameters"].items()}
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_study_level_sbc_catches_a_likelihood_that_ignores_u_A(tmp_path):
     summary = calibrate(CalibrationConfig(**STUDY, negative_control="ignore-uA"), tmp_path / "neg",
                         show_progress=False)

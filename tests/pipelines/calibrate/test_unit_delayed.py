@@ -59,7 +59,7 @@ def test_one_replication_ranks_every_parameter_and_the_loglik():
     assert 0.0 <= res["delay_below"] + res["delay_equal"] <= 1.0
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_small_delayed_sbc_catches_an_ignored_delay(tmp_path):
     # 40 replications of 4-s windows with the delay fixed at 0: ignoring a delay drawn from 0-300 ms biases
     # tau_nm and sigma_m in most replications (100 replications of 6-s windows: KS p about 1e-14). The correct

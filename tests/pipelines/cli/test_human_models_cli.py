@@ -153,7 +153,7 @@ TINY = replace(STUDY, torque_sensor=True, run_seconds=8.0, window_start=2.0, win
 SAMPLER = ["--chains", "2", "--draws", "20", "--tune", "30", "--adequacy-boot", "2", "--seed", "4"]
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_fit_compare_to_and_the_human_models_command_agree(tmp_path, capsys):
     sim = simulate_to_dir(tmp_path / "data", seed=7, human="kbl", design=TINY)
     study = str(sim["study"])

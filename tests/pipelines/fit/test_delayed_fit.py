@@ -55,7 +55,7 @@ def delayed_fit(delayed_study):
     return paths
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_fit):
     root, _, prepared = delayed_study
     side = json.loads(open(delayed_fit["sidecar"]).read())
@@ -147,7 +147,7 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
         "divergent" not in advice[0])
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_delays_without_estimates_are_the_profile_maxima(delayed_study):
     """Without estimates the fit computes each unit's delay by the same profile identify uses."""
     root, _, prepared = delayed_study
@@ -163,7 +163,7 @@ def test_delays_without_estimates_are_the_profile_maxima(delayed_study):
                                   est[["subject", "condition", *cols]].reset_index(drop=True), check_dtype=False)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit):
     root, sim, prepared = delayed_study
     maxent_settings = IdentifySettings.for_design(SENSOR, adequacy_boot=0)
@@ -288,7 +288,7 @@ def test_the_log_R_blocks_are_centred_only_where_no_motor_noise_is_found():
     assert log_R_form(DelayedForm("noncentred", "centred"))[0] == "noncentred"
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_a_given_log_R_form_is_fitted_and_recorded(delayed_study):
     # scioc fit --human-model delayed --log-R-form centred: the blocks take it whatever the data say, the sidecar
     # says it was given, and the posterior has the units' log R without the non-centred z of the baseline level.
@@ -307,7 +307,7 @@ def test_a_given_log_R_form_is_fitted_and_recorded(delayed_study):
                    prepared=prepared, human_model="maxent", log_R_form="centred", **small)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_estimates_without_motor_noise_fold_its_block_end_to_end(delayed_study, tmp_path):
     # Estimates that find no motor noise (every σ_m at its bound 0, no SE, as for the max-ent human): the fit folds
     # σ_m's block, centred (σ_m = |v|, v ~ N(0, s_m) unconstrained), under the inverse gamma on s_m², and centres
@@ -331,7 +331,7 @@ def test_estimates_without_motor_noise_fold_its_block_end_to_end(delayed_study, 
     np.testing.assert_allclose(post["sigma_m_scale"].values, np.sqrt(post["sigma_m_scale_sq"].values), rtol=1e-15)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_sampled_delays_fit_end_to_end(delayed_study):
     # --delay sampled: PyMC's NUTS beside DelayMetropolis; the sidecar records each subject's delay posterior, and
     # every artifact of the profile fit is written. Same seed, same draws.
@@ -360,7 +360,7 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
                    human_model="maxent", delay_mode="sampled", **small)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
     # scioc fit --R-population policy_scale --rho-form folded_centred --adaptation diag: the sidecar records the
     # population, the ρ form and the mass matrix, the lag and noise forms are still the data's, the posterior has ρ
@@ -392,7 +392,7 @@ def _small_fit(delayed_study, out: str, **kwargs):
     return paths, json.loads(open(paths["sidecar"]).read())
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed_study):
     # scioc fit --R-population policy_scale --rho-form polar: each subject's k and fall (pipelines.fit.noise_arcs) are
     # in the sidecar, the subjects whose fall reaches ARC_MIN (and only they) have a k in the form, the whitening bends
@@ -414,7 +414,7 @@ def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed
     assert {"noise_a", "noise_b"} <= set(post.data_vars)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_the_curved_coordinates_take_nutpies_low_rank_mass_matrix_on_request(delayed_study):
     # scioc fit --adaptation curved_low_rank: the same whitened, curved coordinates as the default, sampled with
     # nutpie's low-rank mass matrix at the whitened fit's target acceptance rate, and the sidecar says so.
@@ -424,7 +424,7 @@ def test_the_curved_coordinates_take_nutpies_low_rank_mass_matrix_on_request(del
     assert side["whitening"]["curved_along"]
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
     # scioc fit --R-population policy_scale --rho-form folded_centred, the default whitening (curved, then measured
     # again on a pilot run's draws): each subject's block bends along ρ's signed coordinate
@@ -440,7 +440,7 @@ def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
     assert 0 < scales[0] <= scales[1]
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_the_adequacy_of_a_finished_fit_is_checked_again_as_the_fit_checked_it(delayed_study, delayed_fit, tmp_path):
     # scioc adequacy FIT: at the fit's own point and seed it reproduces contrasts.json's verdict exactly; at the means
     # it is the former rule; --out writes a file of its own and never one of the fit's.
@@ -468,7 +468,7 @@ def test_the_adequacy_of_a_finished_fit_is_checked_again_as_the_fit_checked_it(d
     assert cli.main(["adequacy", str(tmp_path)]) == 2  # not a fit folder: a usage error
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_same_seed_same_delayed_fit(delayed_study, delayed_fit, tmp_path):
     """The delayed fit (the start, the whitening, the jitter, nutpie) repeats bit for bit with its seed."""
     import arviz as az
@@ -482,7 +482,7 @@ def test_same_seed_same_delayed_fit(delayed_study, delayed_fit, tmp_path):
     np.testing.assert_array_equal(a["sample_stats"]["step_size"].values, b["sample_stats"]["step_size"].values)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_nutpies_own_low_rank_fit_has_the_same_variables_and_repeats_with_its_seed(delayed_study, delayed_fit,
                                                                                    tmp_path):
     # scioc fit --adaptation low_rank: nutpie's own mass matrix on the model's coordinates, no whitening; the same

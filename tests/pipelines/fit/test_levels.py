@@ -43,7 +43,7 @@ def three_level_fit(tmp_path_factory):
     return root, sim, design, settings, paths
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_three_level_fit_with_trials(three_level_fit):
     root, sim, design, settings, paths = three_level_fit
     fit = root / "fit"
@@ -111,7 +111,7 @@ def test_three_level_fit_with_trials(three_level_fit):
     assert "weak against none" in text and "strong against none" in text and "true beta (strong) -0.8" in text
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_two_level_sidecar_names_the_built_in_study(small_fit):
     """Without an experiment file the sidecar records the paper's study and no file."""
     root, _, _ = small_fit

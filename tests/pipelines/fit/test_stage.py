@@ -25,7 +25,7 @@ def _cli_main(argv):
     return cli.main(argv)
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_fit_writes_posteriors_sidecar_and_contrasts(small_fit):
     root, _, paths = small_fit
     fit = root / "fit"
@@ -111,7 +111,7 @@ def test_fit_writes_posteriors_sidecar_and_contrasts(small_fit):
     np.testing.assert_allclose(u[u.condition == "SC"].u_H_q95.to_numpy(), np.quantile(draws, 0.95, axis=0))
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_same_seed_same_results(small_fit, tmp_path):
     """The fit from the study file equals the fit from the study prepared once for identify and fit (scioc run)."""
     root, sim, _ = small_fit
@@ -132,7 +132,7 @@ def test_same_seed_same_results(small_fit, tmp_path):
         assert a[group].to_dataset().identical(b[group].to_dataset()), group
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_diagnostics_notebook_runs_on_the_fit(small_fit, tmp_path, monkeypatch):
     import jupytext
     from ipykernel.kernelspec import write_kernel_spec
@@ -193,7 +193,7 @@ def test_fit_options_are_validated(tiny_study):
     assert not (root / "x").exists()
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
     """SIGINT while sampling: exit 130 within seconds, the previous results untouched, no temporary folder."""
     import os

@@ -7,7 +7,7 @@ import pytest
 from scioc.pipelines.report.bayes import section_bayes
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_report_section_reads_the_fit(small_fit, tmp_path):
     root, _, _ = small_fit
     html = unescape(section_bayes(root))

@@ -1,25 +1,9 @@
-"""The MPC haptic assistant (paper Section IV-D) and the 100-Hz closed-loop simulator.
+"""The MPC haptic assistant (paper Section IV-D, Eq. 19) and the closed-loop simulator.
 
-The assistant solves Eq. 19 over ``N_P = 50`` steps of the ``T_C = 0.02``-s
-discretization with θ_A = [5, 0, 1], predicting the wheel with u_H = 0 and previewing
-the reference ``r(t + j T_C)``, j = 1..N_P, and applies the first torque. The paper
-gives the prediction grid, not how often the real-time loop re-solves; we re-solve at
-every 10-ms sample of the 100-Hz loop (``period=0.01``, receding horizon). The
-assistant then acts on the wheel as a time-invariant state feedback plus a feedforward
-from the reference, which a human who knows it feels as a changed wheel (an added
-spring and damper) and which the human model of :mod:`scioc.models.maxent` can plan with
-exactly. ``period=0.02`` (compute every 20 ms, hold for two samples) is available for
-the simulator.
-
-Eq. 19 is an unconstrained LQ tracking problem whose horizon and weights never
-change, so its first optimal torque is a fixed linear function of the current state
-and of the previewed reference::
-
-    u_A(t) = -gain @ x(t) + preview_weights @ [r(t + T_C), ..., r(t + N_P T_C)]
-
-:func:`design_assistant` computes ``gain`` and ``preview_weights`` once with the
-Riccati recursion of :mod:`scioc.models.lq`; solving the quadratic program at every sample
-gives the same torque (tested against the dense solution).
+Eq. 19 is unconstrained LQ tracking with fixed horizon and weights, so its first torque is a fixed affine
+law ``u_A(t) = -gain @ x(t) + preview_weights @ [r(t + T_C), ..., r(t + N_P T_C)]``, computed once by
+:func:`design_assistant`. Re-solved every sample it is a state feedback the human can plan with
+(docs/decisions/assistant-as-state-feedback.md).
 """
 
 from __future__ import annotations
@@ -45,23 +29,8 @@ from scioc.models.segment import Feedback
 
 
 class MPCAssistant(NamedTuple):
-    """The assistant as a fixed affine law of state and reference preview.
-
-    Attributes
-    ----------
-    gain : ndarray, shape (2,)
-        Feedback on (angle, velocity), N·m per (rad, rad/s).
-    preview_weights : ndarray, shape (N_P,)
-        Weights on the previewed reference angles r(t + j T_C), j = 1..N_P, N·m/rad.
-    hold : int
-        Samples between two solutions, for which the torque is held (1: every sample).
-    stride : int
-        Samples per prediction step (T_C / dt = 2): r(t + j T_C) is sample k + stride·j.
-    theta : ndarray, shape (3,)
-        θ_A.
-    plant : DiscretePlant
-        The T_C discretization the assistant predicts with.
-    """
+    """The assistant's law: ``gain`` (2,), N·m per (rad, rad/s); ``preview_weights`` (N_P,), N·m/rad, on r at
+    sample k + ``stride``·j; the torque held ``hold`` samples; ``theta`` = θ_A; ``plant`` its T_C model."""
 
     gain: np.ndarray
     preview_weights: np.ndarray
@@ -79,29 +48,8 @@ def design_assistant(
     params: WheelParameters = WheelParameters(),
     period: float = DT_HUMAN,
 ) -> MPCAssistant:
-    """Precompute the MPC law of Eq. 19.
-
-    Parameters
-    ----------
-    theta_A : array_like, shape (3,)
-        Assistant cost [q11, q22, R]; default [5, 0, 1].
-    horizon : int
-        N_P, default 50.
-    dt_assistant : float
-        T_C in s, default 0.02.
-    dt : float
-        Sample time of the loop it runs in, s (default 0.01); ``dt_assistant`` must be
-        a whole multiple of it.
-    params : WheelParameters
-        Table I by default (the assistant's internal model).
-    period : float
-        How often the assistant re-solves, s (default 0.01: every sample); a whole
-        multiple of ``dt``. The torque is held in between.
-
-    Returns
-    -------
-    MPCAssistant
-    """
+    """The MPC law of Eq. 19 for θ_A, N_P = ``horizon`` steps of T_C = ``dt_assistant``, re-solved every
+    ``period`` in a loop of sample time ``dt`` (times in s, multiples of ``dt``), on the wheel ``params``."""
     theta = validate_theta(theta_A, name="theta_A")
     if int(horizon) != horizon or horizon < 1:
         raise ValueError(f"horizon must be a positive integer; got {horizon!r}")
@@ -127,18 +75,10 @@ def design_assistant(
 
 def linear_assistant(gain, reference_gain: float, dt: float = DT_HUMAN,
                      params: WheelParameters = WheelParameters()) -> MPCAssistant:
-    """A fixed linear assistant, ``u_A,k = -gain @ x_k + reference_gain · r_k``, in the same form as the MPC.
+    """A fixed law ``u_A,k = -gain @ x_k + reference_gain · r_k`` as an :class:`MPCAssistant`.
 
-    It is an :class:`MPCAssistant` with one preview weight on the current reference
-    sample (``stride = 0``) that acts every sample, so the closed-loop simulator,
-    :func:`feedforward` and :func:`human_feedback` treat both kinds alike. ``theta`` is
-    NaN (it has no cost) and ``plant`` is the loop's own discretization.
-
-    Examples
-    --------
-    >>> a = linear_assistant([6.0, 0.3], 6.0)
-    >>> float(assistant_torque(a, [0.1, 0.0], [0.2]))
-    0.6
+    One preview weight on the current sample (``stride = 0``), so every consumer treats both kinds alike;
+    ``theta`` is NaN and ``plant`` the loop's own discretization.
     """
     g = np.asarray(gain, dtype=float).reshape(2)
     rg = float(reference_gain)
@@ -156,35 +96,15 @@ def build_assistant(spec: AssistantSpec, design: Design) -> MPCAssistant:
 
 
 def assistant_torque(assistant: MPCAssistant, x, r_preview) -> float:
-    """The assistant's torque for state ``x`` and previewed reference, N·m.
-
-    Parameters
-    ----------
-    assistant : MPCAssistant
-    x : array_like, shape (2,)
-        Angle (rad) and velocity (rad/s) now.
-    r_preview : array_like, shape (N_P,)
-        Reference angles at t + j T_C, j = 1..N_P, rad.
-    """
+    """Torque, N·m, for the state ``x`` (rad, rad/s) and the reference at t + j T_C, j = 1..N_P, rad."""
     return float(-assistant.gain @ np.asarray(x, float) + assistant.preview_weights @ np.asarray(r_preview, float))
 
 
 def feedforward(assistant: MPCAssistant, angle_ref) -> np.ndarray:
-    """The reference part of the assistant's torque at every sample, N·m.
+    """The reference part of the torque, (K,) N·m, for ``angle_ref`` (K + 1,) rad on the loop's grid.
 
-    ``u_A,k = -gain @ x_k + feedforward[k]`` for an assistant that re-solves every sample
-    (``hold == 1``); the preview beyond the end of ``angle_ref`` repeats its last value,
-    as in :func:`simulate_closed_loop`.
-
-    Parameters
-    ----------
-    assistant : MPCAssistant
-    angle_ref : array_like, shape (K + 1,)
-        Reference angle on the 100-Hz grid, rad.
-
-    Returns
-    -------
-    ndarray, shape (K,)
+    ``u_A,k = -gain @ x_k + feedforward[k]`` when ``hold == 1``; the preview past the end repeats the last
+    reference value, as in :func:`simulate_closed_loop`.
     """
     r = np.asarray(angle_ref, dtype=float)
     if r.ndim != 1 or r.shape[0] < 2:
@@ -199,20 +119,10 @@ def feedforward(assistant: MPCAssistant, angle_ref) -> np.ndarray:
 
 
 def human_feedback(assistant: MPCAssistant, angle_ref) -> Feedback:
-    """The assistant as the human who knows it plans with it (:class:`scioc.models.segment.Feedback`).
+    """The assistant as the human who knows it plans with it: a :class:`scioc.models.segment.Feedback`.
 
-    Parameters
-    ----------
-    assistant : MPCAssistant
-        Must re-solve every sample (``hold == 1``): a held torque is not a state
-        feedback of the current sample.
-    angle_ref : array_like, shape (K + 1,)
-        Reference angle, rad, over the whole run (the preview looks 1 s ahead).
-
-    Returns
-    -------
-    Feedback
-        ``gain`` and ``feedforward`` of shape (K,).
+    ``assistant`` must re-solve every sample (a held torque is no state feedback); ``angle_ref`` (K + 1,),
+    rad, covers the whole run, since the preview looks 1 s ahead.
     """
     if assistant.hold != 1:
         raise ValueError(
@@ -223,17 +133,7 @@ def human_feedback(assistant: MPCAssistant, angle_ref) -> Feedback:
 
 
 class ClosedLoop(NamedTuple):
-    """A 100-Hz closed-loop run.
-
-    Attributes
-    ----------
-    x : ndarray, shape (K + 1, 2)
-        Angle (rad) and velocity (rad/s).
-    u_H : ndarray, shape (K,)
-        Human torque, N·m.
-    u_A : ndarray, shape (K,)
-        Assistant torque, N·m (zeros without assistance).
-    """
+    """A closed-loop run: ``x`` (K + 1, 2) in rad, rad/s; ``u_H``, ``u_A`` (K,) in N·m (u_A = 0 unassisted)."""
 
     x: np.ndarray
     u_H: np.ndarray
@@ -275,31 +175,11 @@ def simulate_closed_loop(
     human_f=None,
     human_noise=None,
 ) -> ClosedLoop:
-    """Step wheel, assistant and a human policy together at the plant's rate.
+    """Step wheel, assistant (None: manual control) and a human policy together at the plant's rate.
 
-    The human acts by ``u_H,k = -human_L[k] @ x_k + human_f[k] + human_noise[k]``
-    (omit all three for a passive human, u_H = 0). The assistant, if given, recomputes
-    its torque from the actual state every ``hold`` samples and holds it; its
-    reference preview beyond the end of ``angle_ref`` repeats the last value.
-
-    Parameters
-    ----------
-    plant : DiscretePlant
-        The 0.01-s wheel.
-    assistant : MPCAssistant or None
-        None for manual control (u_A = 0).
-    x0 : array_like, shape (2,)
-        rad, rad/s.
-    angle_ref : array_like, shape (K + 1,)
-        Reference angle on the plant's time grid, rad.
-    human_L : array_like, shape (K, 2), optional
-    human_f : array_like, shape (K,), optional
-    human_noise : array_like, shape (K,), optional
-        N·m.
-
-    Returns
-    -------
-    ClosedLoop
+    The human acts by ``u_H,k = -human_L[k] @ x_k + human_f[k] + human_noise[k]`` (shapes (K, 2), (K,),
+    (K,); omitted: u_H = 0). The assistant recomputes its torque from the actual state every ``hold``
+    samples. ``x0`` in rad, rad/s; ``angle_ref`` (K + 1,) in rad on the plant's grid.
     """
     r = np.ascontiguousarray(angle_ref, dtype=float)
     K = r.shape[0] - 1

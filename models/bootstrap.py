@@ -1,32 +1,8 @@
 """Parametric bootstrap through the acquisition chain: data sets drawn from a fitted max-ent model.
 
-For the adequacy checks (:mod:`scioc.models.adequacy`) a segment's recorded data and ``B`` data
-sets drawn from the fitted model must pass through the *same* chain: the same reference
-and assistant (in closed loop: the assistant reacts to each replicate's own state), the
-same encoder and the same reconstruction (or, for a recorded torque, the same exact
-measurement), and the same residual pass of the likelihood. :func:`bootstrap_records`
-returns what the statistics see of all ``B + 1`` data sets.
-
-Shortcuts, and why the null stays honest
-----------------------------------------
-* θ is not refitted on each replicate (plug-in). The recorded data were used to choose θ
-  and the replicates were not, so the recorded data look, if anything, a little better
-  than the replicates: the test is conservative, by about 3 parameters in 1500 samples.
-* The reconstruction's two variances are held at the values chosen for the recorded
-  segment; with them fixed the Kalman/RTS smoother is a linear filter whose gains are
-  computed once per segment and applied to every replicate. The recorded segment passes
-  through exactly the same filter.
-* Replicates start at the reconstructed state at the start of the reconstruction span.
-* For a reconstructed torque the fitted R is biased upward (the smoother removes torque
-  variability below the encoder's resolution, so the torque looks less variable), and
-  replicates drawn with it would be smoother still after their own reconstruction. They
-  are therefore drawn with the fitted θ1 and θ2 but with the policy noise the
-  reconstruction measured (its white-torque SD σ_ε, within 2 % of the true policy noise
-  on the default study; ``noise_scale``), and they are standardized with the fitted S
-  like the recorded data. Recorded torques use the fitted R as it is.
-
-These shortcuts are checked where it matters, by the false-alarm rate measured on data from the
-model (``scioc power``, README).
+The recorded segment and B replicates pass the same chain: assistant in closed loop, encoder, fixed
+reconstruction (or exact measurement), residual pass. Why its shortcuts keep the null honest:
+docs/decisions/maxent-adequacy-bootstrap.md.
 """
 
 from __future__ import annotations
@@ -42,16 +18,8 @@ from scioc.models.runtime import njit
 class Records(NamedTuple):
     """What the statistics see of B + 1 data sets of one segment (row 0: the recorded one).
 
-    Attributes
-    ----------
-    angle : ndarray, shape (n, K + 1)
-        Recorded (encoder) angle over the window, rad.
-    error : ndarray, shape (n, K + 1)
-        Tracking error of the angle the likelihood uses (smoothed if reconstructed), rad.
-    torque : ndarray, shape (n, K)
-        Human torque the likelihood uses, N·m.
-    z : ndarray, shape (n, K)
-        Standardized policy residuals.
+    ``angle`` (n, K + 1), the encoder angle, and ``error`` (n, K + 1), the tracking error of the angle the
+    likelihood uses, rad; ``torque`` (n, K), the u_H it uses, N·m; ``z`` (n, K), standardized residuals.
     """
 
     angle: np.ndarray
@@ -61,37 +29,11 @@ class Records(NamedTuple):
 
 
 class Chain(NamedTuple):
-    """A fitted segment and how its data were acquired, for :func:`bootstrap_records`.
+    """A fitted segment over a span of n samples (window ``w0 .. w0 + K``) and how its data were acquired.
 
-    Times are samples of the reconstruction span (row 0 = its first sample); the window
-    starts at ``w0`` and has K steps.
-
-    Attributes
-    ----------
-    A, b : ndarray
-        The wheel (2, 2), (2,).
-    gain : ndarray, shape (2,)
-        The assistant's state feedback the human plans with (zeros: none).
-    known : ndarray, shape (n - 1,)
-        The known input of the plan over the span: the assistant's feedforward (with a
-        gain) or the recorded u_A, N·m.
-    L, f, S : ndarray, shapes (n - 1, 2), (n - 1,), (n - 1,)
-        The fitted model's policy over the span (its plan within the window).
-    x0 : ndarray, shape (2,)
-        State at the span's start, rad, rad/s.
-    angle, velocity, u_H, u_A : ndarray, shape (n,)
-        The recorded span: angle (encoder), and, without reconstruction, the recorded
-        velocity and u_H (else unused); u_A's last entry is unused.
-    ref : ndarray, shape (n,)
-        Angle reference, rad.
-    w0, K : int
-    recon : tuple or None
-        ``(F, Kg, Sv, C)`` of a :class:`scioc.models.reconstruct.FixedReconstruction`, or None
-        when velocity and u_H were recorded.
-    resolution : float
-        Encoder increment, rad (0: not quantized).
-    noise_scale : float
-        The replicates' policy noise is ``noise_scale / √(2 S_k)`` (1: the fitted model's).
+    The plan's feedback ``gain`` and ``known`` input; the fitted policy ``L``, ``f``, ``S`` from ``x0``; the
+    recorded span (velocity, u_H used without reconstruction only); ``recon``, a ``FixedReconstruction``'s
+    arrays or None; the replicates' policy noise ``noise_scale / √(2 S_k)``.
     """
 
     A: np.ndarray
@@ -114,19 +56,13 @@ class Chain(NamedTuple):
     noise_scale: float = 1.0
 
 
-# --------------------------------------------------------------------------- the chain
-
 
 @njit(cache=True, fastmath=False, error_model="python")
 def measure_span(A, b, y, vel, uh, a, ref, recon_on, F, Kg, Sv, C, w0, K, angle_out, err_out, u_out):
-    """One data set of a span through the acquisition chain: what the statistics see of its window.
+    """One data set of a span through the acquisition chain; writes the window into the out rows.
 
-    With ``recon_on`` the angle ``y`` (encoder) goes through the reconstruction with its
-    variances fixed (:func:`scioc.models.reconstruct.apply_reconstruction`, a linear smoother);
-    otherwise ``y``, ``vel`` and ``uh`` are the measured angle, velocity and torque. Writes
-    the window's encoder angle, tracking error and torque into the out rows and returns
-    ``(angle, velocity, u_H)`` over the whole span (shape (n,) each), from which a human
-    model's residual pass starts. ``a`` is the assistant's torque over the span.
+    With ``recon_on`` the encoder angle ``y`` passes the fixed reconstruction, else ``y``, ``vel``, ``uh``
+    are measured. Returns ``(angle, velocity, u_H)`` over the span, where a residual pass starts.
     """
     if recon_on:
         ang, v, u = apply_reconstruction(F, b, A, Kg, Sv, C, y, a)
@@ -175,7 +111,6 @@ def _replicates(A, b, gain, known, L, f, S, x0, ref, noise, scale, step, recon_o
         for k in range(m):
             y[k] = x1
             vel[k] = x2
-            # The assistant reacts to the actual state; the human's plan knows its law.
             ua[k] = known[k] - (gain[0] * x1 + gain[1] * x2)
             uh[k] = -(L[k, 0] * x1 + L[k, 1] * x2) + f[k] + scale * noise[i, k] / np.sqrt(2.0 * S[k])
             tot = uh[k] + ua[k]
@@ -194,21 +129,8 @@ def _replicates(A, b, gain, known, L, f, S, x0, ref, noise, scale, step, recon_o
 
 
 def bootstrap_records(chain: Chain, n_boot: int, rng: np.random.Generator) -> Records:
-    """The recorded segment (row 0) and ``n_boot`` draws of the fitted model, through the same chain.
-
-    Parameters
-    ----------
-    chain : Chain
-    n_boot : int
-        B >= 1.
-    rng : numpy.random.Generator
-        The replicates' only source of randomness.
-
-    Returns
-    -------
-    Records
-        ``n_boot + 1`` rows.
-    """
+    """:class:`Records` of the recorded segment (row 0) and ``n_boot`` >= 1 draws of the fitted model,
+    through the same chain; ``rng`` is the replicates' only source of randomness."""
     c = chain
     n = c.angle.shape[0]
     if n_boot < 1:
@@ -221,7 +143,7 @@ def bootstrap_records(chain: Chain, n_boot: int, rng: np.random.Generator) -> Re
     torque = np.empty((rows, c.K))
     z = np.empty((rows, c.K))
     if c.recon is None:
-        # Unused placeholders of the right types (numba compiles one signature).
+        # Placeholders of the right types: numba compiles one signature.
         F, Kg, Sv, Cm = np.zeros((3, 3)), np.zeros((1, 3)), np.zeros(1), np.zeros((1, 3, 3))
         recon_on = False
     else:

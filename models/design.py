@@ -1,51 +1,10 @@
 """The study design as data: the rig (wheel, sampling, encoder, assistants) and the protocol.
 
-Every literal of the paper's experiment (Inga et al., SMC 2018, Section IV) lives here
-once, as the defaults of :class:`Design`; the module constants below are aliases of
-those defaults for the code that needs only one of them. A lab describes its own
-experiment in an ``experiment.toml`` (:mod:`scioc.pipelines.experiment` reads it into a
-:class:`Design`); without one, every command uses :data:`STUDY`.
-
-=====================  ==========================  ==========================================
-field                  default                     paper
-=====================  ==========================  ==========================================
-``wheel``              0.04 kg·m², 1.146 N·m/rad,  Table I (:class:`WheelParameters`)
-                       0.286 N·m·s/rad
-``dt``                 0.01 s                      100-Hz recording and human model
-``encoder_counts``     40000 per revolution        Section IV-A (0: angle not quantized)
-``levels``             ("MC", "SC")                manual and shared control
-``baseline``           "MC"                        contrasts are taken against it
-``assistants``         SC: the MPC below           Section IV-D, "slight assistance"
-                       θ_A = [5, 0, 1], N_P = 50,
-                       T_C = 0.02 s, re-solved
-                       every 0.01 s
-``run_seconds``        240 s                       a 4-minute run (simulation)
-``subjects``           42                          Section IV-B (simulation)
-``trials``             1                           runs per subject × condition (simulation)
-``torque_sensor``      False                       the rig records the angle only (simulation)
-``effects``            -0.7 per non-baseline       true mean shift of log θ1 (simulation): θ1
-                       level                       about halves in SC, the paper's finding
-``window_start``       210 s                       analysis from 3:30 (Section IV-F)
-``window_seconds``     15 s                        length of the analysis window
-``whole``              False                       True: analyse every trial whole
-``preview``            2 s                         a point of the reference crosses the screen
-=====================  ==========================  ==========================================
-
-How the cost parameters transform with the sample rate
--------------------------------------------------------
-The cost J = Σ_k e_kᵀ Q e_k + R u_k² is a sum over samples: it approximates
-(1/dt) ∫ (eᵀ Q_c e + R_c u²) dt with Q = Q_c dt and R = R_c dt, so the same human
-recorded at another rate has per-sample weights proportional to the sample time.
-Hence:
-
-* θ1 = q11 / R and θ2 = q22 / R are ratios and do not depend on the rate: they are the
-  reported parameters, and their priors hold at any rate.
-* R is a per-sample precision: R ∝ dt. Under maximum entropy the torque's per-sample
-  variance 1 / (2 S) ≈ 1 / (2 R) then grows as 1/dt, which is white noise of the same
-  spectral density at every rate. The rate-free quantity is R at the paper's 100 Hz,
-  ``R · REFERENCE_DT / dt`` (:meth:`Design.r_scale`); the simulator's population and the
-  hierarchical model's prior on log R are stated at :data:`REFERENCE_DT` and shifted by
-  ``log(dt / REFERENCE_DT)``. At 100 Hz nothing changes.
+Every literal of the paper's experiment (Inga et al., SMC 2018, Section IV) lives here once, as the
+defaults of :class:`Design`; the module constants are aliases of them. A lab describes its own
+experiment in an ``experiment.toml`` (read by :mod:`scioc.pipelines.experiment`); without one, every
+command uses :data:`STUDY`. R is stated at the paper's 100 Hz and θ1 = q11/R, θ2 = q22/R are rate-free:
+docs/decisions/cost-rate-scaling.md.
 """
 
 from __future__ import annotations
@@ -54,7 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-#: The sample time R is stated at (the paper's 100 Hz), s; see the module docstring.
+#: The sample time R is stated at (the paper's 100 Hz), s.
 REFERENCE_DT = 0.01
 #: The simulated population's default mean shift of log θ1 from the baseline to another level.
 DEFAULT_EFFECT = -0.7
@@ -63,17 +22,7 @@ ASSISTANT_KINDS = ("mpc", "linear")
 
 
 class WheelParameters(NamedTuple):
-    """Physical parameters of the steering wheel (paper Table I).
-
-    Attributes
-    ----------
-    inertia : float
-        Rotational inertia Θ_L, kg·m². Default 0.04.
-    spring : float
-        Spring constant c, N·m/rad. Default 1.146.
-    damper : float
-        Damping constant d, N·m·s/rad. Default 0.286.
-    """
+    """The steering wheel (paper Table I): inertia Θ_L, kg·m²; spring c, N·m/rad; damper d, N·m·s/rad."""
 
     inertia: float = 0.04
     spring: float = 1.146
@@ -90,16 +39,11 @@ def _finite(value, lo=None, strict=True) -> bool:
 
 @dataclass(frozen=True)
 class AssistantSpec:
-    """One assisted condition's law.
+    """One assisted condition's law; the other kind's fields are unused.
 
-    ``kind = "mpc"``: the paper's model-predictive assistant (Eq. 19) with cost ``theta``
-    = θ_A, ``horizon`` prediction steps of ``step_s`` seconds, re-solved every
-    ``period_s`` seconds (:func:`scioc.models.assistant.design_assistant`).
-
-    ``kind = "linear"``: ``u_A = -gain[0]·angle - gain[1]·velocity + reference_gain·angle_ref``
-    at every sample (:func:`scioc.models.assistant.linear_assistant`).
-
-    The fields of the other kind keep their defaults and are not used.
+    ``"mpc"``: the paper's assistant (Eq. 19, Section IV-D) with θ_A = ``theta``, ``horizon`` steps of
+    ``step_s`` s, re-solved every ``period_s`` s. ``"linear"``:
+    ``u_A = -gain[0]·angle - gain[1]·velocity + reference_gain·angle_ref`` at every sample.
     """
 
     kind: str = "mpc"
@@ -136,44 +80,13 @@ PAPER_ASSISTANT = AssistantSpec()
 
 @dataclass(frozen=True)
 class Design:
-    """The rig and the protocol of a study; the defaults are the paper's (see the module docstring).
+    """The rig and the protocol of a study; the defaults are the paper's (Section IV).
 
-    Attributes
-    ----------
-    wheel : WheelParameters
-        The steering wheel (Table I).
-    dt : float
-        Sample time of the recordings and of the human model, s.
-    encoder_counts : int
-        Encoder increments per revolution of the wheel; 0 for an angle that is not quantized.
-    levels : tuple of str
-        Condition labels, the baseline among them.
-    baseline : str
-        The level every contrast is taken against.
-    assistants : tuple of (str, AssistantSpec)
-        The assisted levels and their laws; a level without an entry has u_A = 0.
-    run_seconds : float
-        Length of one simulated run, s.
-    subjects, trials : int
-        Subjects, and runs per subject × condition, of a simulated study.
-    torque_sensor : bool
-        Whether the simulated rig records u_H besides the angle.
-    effects : tuple of float
-        Simulation truth: the population's mean shift of log θ1 from the baseline to each
-        non-baseline level, in order (default :data:`DEFAULT_EFFECT` for every one).
-    window_start, window_seconds : float
-        Start and length of the analysis window on each trial's own time axis, s.
-    whole : bool
-        Analyse every trial whole instead of one window.
-    preview : float
-        How far the human sees the reference ahead, s (0: the paper's horizon).
-
-    Examples
-    --------
-    >>> Design().window_start, Design().encoder_step
-    (210.0, 0.00015707963267948965)
-    >>> Design().assistant("SC").kind, Design().assistant("MC")
-    ('mpc', None)
+    ``wheel`` (Table I); ``dt``, s; ``encoder_counts`` per revolution (IV-A; 0: not quantized); the assisted
+    levels' laws ``assistants`` (IV-D; others have u_A = 0); ``levels`` and the ``baseline`` of contrasts;
+    the window ``window_start``, ``window_seconds`` (IV-F) on each trial's axis, or ``whole``; ``preview`` (0: the
+    paper's horizon). Simulation only: ``run_seconds``, ``subjects`` (IV-B), ``trials`` per unit,
+    ``torque_sensor``, and the true mean shift of log θ1 per non-baseline level, ``effects``.
     """
 
     wheel: WheelParameters = WheelParameters()
@@ -246,7 +159,7 @@ class Design:
 
     @property
     def r_scale(self) -> float:
-        """``dt / REFERENCE_DT``: a per-sample R at this rate is the 100-Hz R times this (1.0 at 100 Hz)."""
+        """``dt / REFERENCE_DT``: a per-sample R at this rate is the 100-Hz R times this."""
         return self.dt / REFERENCE_DT
 
     @property

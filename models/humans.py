@@ -1,99 +1,21 @@
 """Simulated humans that are not the max-ent LQ agent: negative controls for model adequacy.
 
-The likelihood of :mod:`scioc.models.maxent` assumes a human who sees the wheel's state
-now, plans an LQ-optimal torque on the wheel (closed by the assistant's feedback in
-SC) and varies it with white Gaussian max-ent noise that is the only randomness.
-Each human here breaks that in one named way, with magnitudes from the
-manual-control literature:
+Each breaks one assumption of :mod:`scioc.models.maxent` (sees the state now, plans LQ-optimally, varies
+only by white max-ent noise), with magnitudes from the manual-control literature
+(docs/decisions/simulated-humans.md):
 
-``maxent``
-    The paper's agent, as :func:`scioc.models.simulate.simulate_run` draws it.
-``delay``
-    Perceptual delay of 0.12 s with prediction, plus white motor noise the human does
-    not know. The human sees the state d = 12 samples late and predicts the present
-    with its internal model and its own past commands. With a perfect model and no
-    unknown noise that prediction is exact and the delay is invisible (tested), so the
-    delay shows only through the motor noise, which the human corrects 0.12 s late.
-    The old state is the full state (with a lag, also the arm's torque, felt by
-    proprioception); before the first d samples the human predicts from the known
-    state at rest, z_0.
-``lag``
-    Neuromuscular lag, tau_nm = 0.06 s. The human plans knowing the lag
-    (:func:`scioc.models.lq.lq_tracking_policy` on :func:`scioc.models.plant.discretize_lagged`);
-    its max-ent noise enters before the lag, so the torque the wheel feels is
-    low-passed, not white.
-``coloured``
-    The ``delay`` human's motor-noise intensity, low-passed with 0.1 s before it is
-    added to the torque; no delay, no lag.
-``combined``
-    Delay 0.12 s, lag 0.06 s and white motor noise entering before the lag, as in the
-    optimal control model of Kleinman, Baron & Levison (1970).
-``kbl``
-    ``combined`` with each subject's delay (uniform on 0.10-0.20 s) and lag (0.05-0.10 s)
-    drawn once and kept in every level and trial; the lag colours the motor noise. The
-    ranges (issue 13's) span the literature values below.
-``crossover``
-    Not an LQ controller: McRuer's compensatory operator with remnant (below). Its
-    cost θ is not used.
+- ``maxent``: the paper's agent, as :func:`scioc.models.simulate.simulate_run` draws it.
+- ``delay``: sees the state 0.12 s late (McRuer & Jex 1967; Kleinman, Baron & Levison 1970) and predicts
+  the present with its own commands (from z_0 before the first d samples), plus unknown white motor noise.
+- ``lag``: a neuromuscular lag of 0.06 s (Abbink, Mulder & Boer 2012) it plans with; its noise passes the lag.
+- ``coloured``: the ``delay`` human's motor noise low-passed with 0.1 s; no delay, no lag.
+- ``combined``: delay, lag and motor noise before the lag, as in Kleinman et al. (1970).
+- ``kbl``: ``combined`` with each subject's delay (0.10-0.20 s) and lag (0.05-0.10 s) drawn once.
+- ``crossover``: McRuer & Jex's (1967) compensatory operator with remnant n (θ unused),
+  ``c(s) = K_p (T_L s + 1) / (T_I s + 1) · e^{-τ s} · E(s)``, ``τ_N τ' = c + n - τ``.
 
-Magnitudes and sources
-----------------------
-* Delay 0.12 s. Kleinman, Baron & Levison (1970), "An optimal control model of human
-  response, part I", Automatica 6, use an observation delay of about 0.15-0.2 s; the
-  pure reaction-time delay of McRuer & Jex (1967), "A review of quasi-linear pilot
-  models", IEEE Trans. Human Factors in Electronics 8(3), is of the same order. We take
-  the lower end because the subject also feels the wheel (proprioception is faster
-  than vision).
-* Neuromuscular lag. McRuer & Jex (1967) and Kleinman et al. (1970) use a first-order
-  neuromuscular time constant of about 0.1 s. Abbink, Mulder & Boer (2012), "Haptic
-  shared control: smoothly shifting control authority?", Cognition, Technology & Work
-  14, show that the arm's admittance on a haptic device is set by co-contraction and
-  reflexes; a hand that holds a wheel firmly is faster than a relaxed one. We use
-  0.06 s for the LQ humans and 0.1 s for the crossover operator.
-* Motor noise 0.25 N·m per 10-ms sample (:data:`MOTOR_SD`). Kleinman et al. (1970)
-  give the motor-noise ratio ρ_u ≈ 0.003 (-25 dB) as a white-noise intensity
-  ``V_u = ρ_u π E[u²]``. A white noise of intensity V averaged over a sample of
-  dt = 0.01 s has variance V / dt, so the per-sample SD is
-  ``sqrt(ρ_u π / dt) RMS(u) ≈ 1.0 RMS(u)``. The max-ent human of the default
-  population (θ = [400, 0, 20]) has a command RMS of 0.26 N·m on the study reference
-  (measured; its own max-ent noise SD 1/sqrt(2 S) is 0.15 N·m), hence 0.25 N·m:
-  larger than the max-ent noise, so it is clearly present.
-* Crossover operator (McRuer & Jex 1967, precision model without the very-low-frequency
-  terms)::
-
-      c(s) = K_p (T_L s + 1) / (T_I s + 1) · e^{-τ s} · E(s),   τ_N τ' = c + n - τ
-
-  on the displayed error e = r - phi (a compensatory display). The wheel behaves as a
-  spring (a position-like element) below its 5.4-rad/s resonance, so the operator
-  adopts lag equalization (T_I large, an approximate integrator, McRuer & Jex's
-  adjustment rule for position-like elements) and a little lead against the
-  resonance's phase. τ = 0.15 s of pure delay plus τ_N = 0.1 s gives an effective
-  delay at crossover of about 0.25 s, the order McRuer & Jex report for position- and
-  rate-like elements. K_p = 23 N·m/rad, T_L = 0.3 s, T_I = 10 s put the crossover at
-  2.4 rad/s with a phase margin of 57° and a gain margin of 1.8 in MC; in SC the
-  assistant's spring stiffens the wheel and the crossover drops to 1 rad/s (phase
-  margin 88°). Both are computed from the continuous loop in the tests.
-* Remnant n: white noise of 0.4 N·m per sample through a first-order filter of 0.1 s
-  (``motor_sd``, ``motor_tau``), injected at the operator's output before the
-  neuromuscular lag (McRuer & Jex's output-injected remnant; Levison's remnant is
-  likewise broadband filtered noise). On the study reference the remnant makes 13 %
-  of the torque variance in MC (measured against the same run without it; 40 % in SC,
-  where the operator's own torque is small), of the order of the remnant share these
-  authors report for simple compensatory tasks.
-
-Conventions
------------
-The simulator keeps the data convention "u_H,k acts from t_k to t_{k+1}". Without a
-lag u_H,k is the held torque c_k + m_k and ``x_{k+1} = A x_k + b (u_H,k + u_A,k)``
-exactly. With a lag the torque changes within the sample; u_H,k is then the
-ZOH-equivalent torque that reproduces the velocity x_{k+1}[1] from x_k with the
-2-state wheel, so the velocity relation is exact and the angle relation holds to
-1e-5 rad RMS per step (at most 5e-5); states propagated from x_0 with the recorded
-torques stay within 1e-4 rad of the truth over 4 minutes, less than one encoder
-increment (tested). The lag's torque starts at 0. The assistant acts on
-the true state every sample: ``u_A,k = -gain @ x_k + feedforward_k``
-(:func:`scioc.models.assistant.human_feedback`). The LQ humans use the exact finite-horizon
-recursion over the whole run, as :func:`scioc.models.simulate.simulate_run` does.
+With a lag, u_H,k is the ZOH-equivalent torque: held from t_k to t_{k+1}, it reproduces x_{k+1}'s
+velocity on the 2-state wheel. The lag's torque starts at 0.
 """
 
 from __future__ import annotations
@@ -114,7 +36,7 @@ from scioc.models.runtime import njit
 DELAY_S = 0.12
 #: Neuromuscular time constant of the LQ humans with a lag, s.
 TAU_NM = 0.06
-#: White motor-noise SD per 10-ms sample, N·m (KBL's -25 dB; see the module docstring).
+#: White motor-noise SD per 10-ms sample, N·m (Kleinman et al.'s -25 dB; docs/decisions/simulated-humans.md).
 MOTOR_SD = 0.25
 #: Time constant of the ``coloured`` human's motor-noise filter, s.
 MOTOR_TAU = 0.1
@@ -122,32 +44,11 @@ MOTOR_TAU = 0.1
 
 @dataclass(frozen=True)
 class HumanSpec:
-    """A simulated human.
+    """A simulated human: ``kind`` "lq" (max-ent LQ planner) or "crossover" (McRuer's operator).
 
-    Attributes
-    ----------
-    name : str
-    kind : {"lq", "crossover"}
-        Max-ent LQ planner (cost θ) or McRuer's crossover operator (θ unused).
-    delay_s : float
-        Perceptual delay, s (rounded to whole samples).
-    tau_nm : float
-        Neuromuscular lag time constant, s (0: the command is the torque).
-    motor_sd : float
-        SD of the white motor noise (the remnant for ``crossover``) per sample, N·m,
-        unknown to the human; added to the command before the lag.
-    motor_tau : float
-        If > 0, the motor noise passes a unit-gain first-order low-pass with this time
-        constant, s, first (stationary SD ``motor_sd sqrt((1 - a) / (1 + a))``,
-        ``a = exp(-dt / motor_tau)``).
-    crossover_gain : float
-        K_p, N·m per rad of displayed error (``crossover`` only, > 0).
-    lead_s : float
-        Lead time constant T_L, s (``crossover`` only).
-    lag_s : float
-        Lag time constant T_I, s (``crossover`` only).
-    delay_spread_s, tau_spread : float
-        Each subject's delay (lag) is ``delay_s`` (``tau_nm``) + U[0, spread) (:meth:`for_subject`).
+    In s: ``delay_s``, ``tau_nm`` (0: no lag), ``motor_tau`` (low-pass of the motor noise; 0: white), and for
+    ``crossover`` ``lead_s`` = T_L, ``lag_s`` = T_I, with K_p = ``crossover_gain``, N·m/rad. ``motor_sd``,
+    N·m per sample: the unknown motor noise (remnant) before the lag. :meth:`for_subject` adds U[0, spread).
     """
 
     name: str
@@ -185,7 +86,7 @@ class HumanSpec:
         return self.delay_spread_s > 0 or self.tau_spread > 0
 
     def for_subject(self, rng: np.random.Generator) -> HumanSpec:
-        """One subject: delay and lag drawn from their spreads (two uniforms; without spreads, self, rng unused)."""
+        """One subject: delay and lag drawn from their spreads (two uniforms; without spreads, self)."""
         if not self.varies:
             return self
         u = rng.random(2)
@@ -240,8 +141,7 @@ def _lq_kernel(A, b_c, b_a, A_plan, gain, ff, L, f, eps, w, a_m, d, z0, Aw, bw, 
     tmp = np.empty(n)
     m = 0.0
     for k in range(K):
-        # Prediction: the state d samples ago, run forward on the internal model with the
-        # human's own commands (it does not know the motor noise).
+        # The state d samples ago, run forward on the internal model with the human's own commands.
         j0 = k - d if k >= d else 0
         zh[:] = z[j0]
         for j in range(j0, k):
@@ -303,47 +203,12 @@ def simulate_human(
     *,
     params: WheelParameters = WheelParameters(),
 ) -> ClosedLoop:
-    """Simulate one run of a human of :data:`HUMANS` (or any :class:`HumanSpec`).
+    """Simulate one run of a :class:`HumanSpec` as a :class:`ClosedLoop`.
 
-    Parameters
-    ----------
-    spec : HumanSpec
-    theta : array_like, shape (3,)
-        [q11, q22, R] of an LQ human; ignored by the crossover operator.
-    condition : str
-        The level: ``MC`` is unassisted; any other level is assisted by ``assistant``
-        unless it is None (``SC`` needs one).
-    angle_ref : array_like, shape (K + 1,)
-        Reference angle, rad.
-    plant : DiscretePlant
-        The wheel at the recording's sample time.
-    assistant : MPCAssistant or None
-        The level's assistant; it must re-solve every sample.
-    rng : numpy.random.Generator
-        The only source of randomness. An LQ human draws its max-ent noise first
-        (:func:`scioc.models.maxent.maxent_noise`, as :func:`scioc.models.simulate.simulate_run` does), then
-        the motor noise (the remnant of the crossover operator) as
-        ``rng.standard_normal(K)`` if ``motor_sd > 0``.
-    x0 : array_like, shape (2,)
-        Initial angle (rad) and velocity (rad/s).
-    params : WheelParameters
-        The wheel ``plant`` was discretized from, needed for the lag; checked against it.
-
-    Returns
-    -------
-    ClosedLoop
-        ``x`` (K + 1, 2) in rad, rad/s; ``u_H`` (K,) and ``u_A`` (K,) in N·m, acting from
-        t_k to t_{k+1}.
-
-    Examples
-    --------
-    >>> from models.assistant import design_assistant
-    >>> from models.reference import reference_trajectory
-    >>> ref = reference_trajectory(10.0).angle
-    >>> run = simulate_human(HUMANS["combined"], [400.0, 0.0, 20.0], "SC", ref, discretize(0.01),
-    ...                      design_assistant(), np.random.default_rng(0))
-    >>> run.x.shape, run.u_H.shape, run.u_A.shape
-    ((1001, 2), (1000,), (1000,))
+    ``theta`` = [q11, q22, R] (unused by ``crossover``); ``condition`` ``MC`` is unassisted, another level
+    assisted by ``assistant`` (re-solving every sample) unless None; ``angle_ref`` (K + 1,), rad; ``x0`` in
+    rad, rad/s; ``params``, the wheel ``plant`` came from. ``rng`` draws an LQ human's max-ent noise first
+    (as :func:`scioc.models.simulate.simulate_run`), then the motor noise.
     """
     ref = np.ascontiguousarray(angle_ref, dtype=float)
     if ref.ndim != 1 or ref.shape[0] < 2:
@@ -379,7 +244,7 @@ def simulate_human(
 
     if spec.kind == "lq":
         q11, q22, R = validate_theta(theta)
-        # The human plans on the wheel closed by the assistant's feedback (SC), knowing its lag.
+        # The plan: the wheel closed by the assistant's feedback, with the lag.
         gain = np.zeros(n)
         gain[:2] = gain2
         A_plan = A - np.outer(b_a, gain)

@@ -1,19 +1,10 @@
-"""Maximum-likelihood identification of θ for one demonstration (paper Eq. 17, Section IV-F).
+"""Maximum-likelihood identification of θ for one unit (paper Eq. 17, Section IV-F).
 
-The search runs in ``z = (log θ1, θ2, log R)`` with θ1 = q11/R and θ2 = q22/R (the paper's
-normalized parameters, Section V-A): the optimal policy depends on θ1 and θ2 only, R sets
-how variable the torque is around it, and the log scale makes the Hessian well
-conditioned. θ2 >= 0 is a bound. The optimizer is SciPy's SLSQP (a sequential quadratic
-programming method, as in the paper) with the exact gradient of the linear-time
-likelihood.
-
-It starts from the best θ1 on a coarse grid with θ2 = 0, where R has a closed form: the
-likelihood is ``-R Σ S̃_k v_k² + (K/2) log R + const`` with S̃ = S/R independent of R, so
-``R̂ = K / (2 Σ S̃_k v_k²)``.
-
-Standard errors come from the observed information in z: central differences of the
-exact gradient. At the bound θ2 = 0 the information for θ2 is not a variance, so its
-standard error is reported as NaN and the others come from the (log θ1, log R) block.
+SLSQP (as in the paper) with the exact gradient, in ``z = (log θ1, θ2, log R)``, θ1 = q11/R, θ2 = q22/R
+(Section V-A): the policy depends on θ1, θ2 only, the logs condition the Hessian, θ2 >= 0 is a bound.
+The start is the best θ1 of a grid with θ2 = 0, where R has the closed form ``R̂ = K / (2 Σ S̃_k v_k²)``
+(the log-likelihood is ``-R Σ S̃_k v_k² + (K/2) log R + const``, S̃ = S/R). Standard errors come from the
+observed information (central differences of the gradient); at the bound θ2 = 0 that of θ2 is NaN.
 """
 
 from __future__ import annotations
@@ -32,33 +23,16 @@ from scioc.models.segment import SegmentBatch
 START_GRID = np.geomspace(0.3, 3e4, 21)
 #: θ2 below this counts as on the bound (1/(rad/s)²).
 BOUND_TOL = 1e-8
-#: θ1 outside this range (1/rad², a decade beyond the start grid) is at the edge of what the data can say:
-#: an angle in degrees, or a segment without information, drives the search there.
+#: θ1 beyond a decade outside the start grid (1/rad²) is the edge of the search, not a measurement
+#: (an angle in degrees, or a segment without information).
 PLAUSIBLE_THETA1 = (float(START_GRID[0]) / 10.0, float(START_GRID[-1]) * 10.0)
 
 
 class Estimate(NamedTuple):
-    """Maximum-likelihood θ of one segment.
-
-    Attributes
-    ----------
-    theta : ndarray, shape (3,)
-        Raw [q11, q22, R].
-    theta1, theta2 : float
-        q11/R (1/rad²) and q22/R (1/(rad/s)²).
-    se_log_theta1, se_theta2, se_log_R : float
-        Standard errors from the observed information (NaN where undefined).
-    loglik : float
-        Maximized log-likelihood, nats.
-    converged : bool
-    iterations : int
-    grad_norm : float
-        Norm of the projected gradient in z at the solution.
-    message : str
-    implausible : bool
-        θ1 outside :data:`PLAUSIBLE_THETA1` (the estimate is at the edge of the search, not
-        a measurement; ``scioc compare`` leaves it out).
-    """
+    """Maximum-likelihood θ: ``theta`` [q11, q22, R], ``theta1`` (1/rad²), ``theta2`` (1/(rad/s)²), their
+    standard errors (NaN where undefined), ``loglik`` in nats, SLSQP's ``converged``, ``iterations`` and
+    ``message``, ``grad_norm`` (projected gradient in z per sample), and ``implausible``: θ1 outside
+    :data:`PLAUSIBLE_THETA1` (``scioc compare`` leaves it out)."""
 
     theta: np.ndarray
     theta1: float
@@ -101,8 +75,7 @@ def _start(batches, plant: DiscretePlant) -> np.ndarray:
     for batch in batches:
         for j in range(batch.n):
             res = loglik_grad(theta, batch.repeat(j, n), plant)
-            # At R = 1: Σ S̃ v² = -quad with quad = g_R + θ1 g_q11 - K/2 (Euler, see the kernel's end in
-            # models.maxent).
+            # At R = 1, Σ S̃ v² = -quad, quad = g_R + θ1 g_q11 - K/2 (Euler; models.maxent._finish).
             q = res.grad[2] + START_GRID * res.grad[0] - 0.5 * batch.K
             quad += q
             rest += res.loglik - q
@@ -136,21 +109,9 @@ def identify_segment(batch: SegmentBatch, plant: DiscretePlant, *, maxiter: int 
 
 
 def identify_unit(batches, plant: DiscretePlant, *, maxiter: int = 200) -> Estimate:
-    """Maximize the max-ent likelihood of one unit's segments (its trials) over one θ: paper Eq. 17 with d ≥ 1.
+    """Maximize the summed max-ent likelihood of one unit's trials over one θ: Eq. 17 with d ≥ 1.
 
-    Parameters
-    ----------
-    batches : sequence of SegmentBatch
-        Every row of every batch is a trial of the same unit (batches group trials of
-        equal length, from :func:`scioc.models.segment.prepare_batch`); the log-likelihood is
-        their sum.
-    plant : DiscretePlant
-    maxiter : int
-
-    Returns
-    -------
-    Estimate
-        ``loglik`` is the sum over the trials; ``grad_norm`` is per torque sample of all of them.
+    ``batches``: sequence of :class:`scioc.models.segment.SegmentBatch`, every row a trial of the unit.
     """
     batches = list(batches)
     if not batches or any(b.n < 1 for b in batches):

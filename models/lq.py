@@ -1,32 +1,19 @@
-"""Finite-horizon LQ tracking with a known affine input: the backward Riccati recursion.
+"""Finite-horizon LQ tracking with a known affine input: the one home of the backward Riccati recursion.
 
-This module is the one place where the recursion lives. Both the human model
-(cost θ = [q11, q22, R] on the 0.01-s plant) and the MPC assistant (θ_A on the
-0.02-s plant) are instances of the same problem::
+The human (θ on the 0.01-s plant) and the MPC assistant (θ_A on the 0.02-s plant) both solve::
 
     min_u  sum_{k=1..K} e_kᵀ Q e_k + sum_{k=0..K-1} R u_k²
     s.t.   x_{k+1} = A x_k + b (u_k + a_k),   e_k = x_k - (r_k, 0)
 
-where ``a_k`` is a known torque (the assistant's u_A, from the human's point of view).
+with ``a_k`` a known torque (u_A, to the human). With the cost-to-go ``xᵀ P_k x - 2 s_kᵀ x + const``,
+``P_K = Q``, ``s_K = Q (r_K, 0)``, one step back is
 
-Writing the cost-to-go including the state cost at k as
-``W_k(x) = xᵀ P_k x - 2 s_kᵀ x + const`` with ``P_K = Q`` and ``s_K = Q (r_K, 0)``,
-one step back gives
+* ``S_k = R + bᵀ P_{k+1} b``,  ``L_k = bᵀ P_{k+1} A / S_k``,  ``M_k = A - b L_k``
+* ``f_k = bᵀ (s_{k+1} - P_{k+1} b a_k) / S_k``
+* ``P_k = Q + Aᵀ P_{k+1} A - S_k L_kᵀ L_k``,  ``s_k = Q (r_k, 0) + M_kᵀ (s_{k+1} - P_{k+1} b a_k)``
 
-* ``S_k = R + bᵀ P_{k+1} b``                                    (scalar)
-* ``L_k = bᵀ P_{k+1} A / S_k``, ``M_k = A - b L_k``              (feedback, closed loop)
-* ``f_k = bᵀ (s_{k+1} - P_{k+1} b a_k) / S_k``                   (feedforward)
-* ``P_k = Q + Aᵀ P_{k+1} A - S_k L_kᵀ L_k``
-* ``s_k = Q (r_k, 0) + M_kᵀ (s_{k+1} - P_{k+1} b a_k)``
-
-and the optimal policy is ``u_k = -L_k x_k + f_k``. Completing the square step by
-step gives ``J(u) - min J = sum_k S_k (u_k + L_k x_k - f_k)²`` with ``x_k`` driven by
-the given ``u``: this is what makes the max-ent likelihood linear in K
-(see :mod:`scioc.models.maxent`).
-
-The scalar helpers are compiled with numba and written out element by element for
-the 2-state plant so that the batched likelihood kernel can vectorize across
-segments.
+and ``u_k = -L_k x_k + f_k``. Completing the square gives ``J(u) - min J = sum_k S_k (u_k + L_k x_k - f_k)²``
+at the states driven by ``u``, which makes the max-ent likelihood linear in K (:mod:`scioc.models.maxent`).
 """
 
 from __future__ import annotations
@@ -42,11 +29,7 @@ from scioc.models.runtime import njit
 
 @njit(cache=True, inline="always", error_model="numpy", fastmath=False)
 def riccati_gains(p11, p12, p22, a11, a12, a21, a22, b1, b2, R):
-    """Quantities of one backward step derived from ``P_{k+1}`` (symmetric, 3 entries).
-
-    Returns ``(S, invS, L1, L2, pb1, pb2, m11, m12, m21, m22)`` with ``pb = P b`` and
-    ``M = A - b L``.
-    """
+    """``(S, 1/S, L1, L2, pb1, pb2, m11, m12, m21, m22)`` of a backward step from ``P_{k+1}``; M = A - b L."""
     pb1 = p11 * b1 + p12 * b2
     pb2 = p12 * b1 + p22 * b2
     S = R + b1 * pb1 + b2 * pb2
@@ -62,11 +45,8 @@ def riccati_gains(p11, p12, p22, a11, a12, a21, a22, b1, b2, R):
 
 @njit(cache=True, inline="always", fastmath=False, error_model="numpy")
 def riccati_update(p11, p12, p22, q11, q22, R, L1, L2, m11, m12, m21, m22):
-    """``P_k = Q + Lᵀ R L + Mᵀ P_{k+1} M`` (Joseph form: symmetric, equal to the textbook form).
-
-    The same form gives the tangent: by the envelope theorem (L minimizes the bracket
-    for every x), ``dP_k = dQ + Lᵀ dR L + Mᵀ dP_{k+1} M``, so this helper serves both.
-    """
+    """``P_k = Q + Lᵀ R L + Mᵀ P_{k+1} M`` (Joseph form), and by the envelope theorem also its tangent
+    ``dP_k = dQ + Lᵀ dR L + Mᵀ dP_{k+1} M``."""
     x11 = p11 * m11 + p12 * m21
     x12 = p11 * m12 + p12 * m22
     x21 = p12 * m11 + p22 * m21
@@ -78,18 +58,8 @@ def riccati_update(p11, p12, p22, q11, q22, R, L1, L2, m11, m12, m21, m22):
 
 
 class Policy(NamedTuple):
-    """Time-varying affine optimal policy ``u_k = -L[k] @ x_k + f[k]``.
-
-    Attributes
-    ----------
-    L : ndarray, shape (K, 2)
-        Feedback gains, N·m per (rad, rad/s).
-    f : ndarray, shape (K,)
-        Feedforward torque, N·m.
-    S : ndarray, shape (K,)
-        ``R + bᵀ P_{k+1} b``, 1/(N·m)²: under max-ent, u_k given x_k is Gaussian with
-        variance ``1 / (2 S_k)``.
-    """
+    """Optimal policy ``u_k = -L[k] @ x_k + f[k]``: ``L`` (K, 2), N·m per (rad, rad/s); ``f`` (K,), N·m;
+    ``S`` (K,), 1/(N·m)², the max-ent precision: u_k | x_k has variance ``1 / (2 S_k)``."""
 
     L: np.ndarray
     f: np.ndarray
@@ -121,22 +91,9 @@ def _policy_kernel(A, b, q11, q22, R, r, a):
 
 
 def lq_policy(plant: DiscretePlant, theta, angle_ref, u_A) -> Policy:
-    """Optimal tracking policy for cost θ against a known assistant torque sequence.
+    """Optimal tracking :class:`Policy` for θ = [q11, q22, R] on ``plant``.
 
-    Parameters
-    ----------
-    plant : DiscretePlant
-        Discretized wheel (its ``dt`` sets the step).
-    theta : array_like, shape (3,)
-        ``[q11, q22, R]``.
-    angle_ref : array_like, shape (K + 1,)
-        Angle reference r_0..r_K in rad (r_0 is not used by the cost).
-    u_A : array_like, shape (K,)
-        Known additional torque a_0..a_{K-1} in N·m (zeros in manual control).
-
-    Returns
-    -------
-    Policy
+    ``angle_ref`` (K + 1,), rad (r_0 unused); ``u_A`` (K,), the known torque, N·m (zeros in MC).
     """
     q11, q22, R = validate_theta(theta)
     r = np.ascontiguousarray(angle_ref, dtype=float)
@@ -149,10 +106,7 @@ def lq_policy(plant: DiscretePlant, theta, angle_ref, u_A) -> Policy:
 
 @njit(cache=True, fastmath=False, error_model="python")
 def rollout(A, b, L, f, x0, a, noise):
-    """Run ``u_k = -L_k x_k + f_k + noise_k`` through the plant with extra torque ``a``.
-
-    Returns ``(x, u)`` with shapes (K + 1, 2) and (K,).
-    """
+    """``(x, u)``, shapes (K + 1, 2) and (K,), of ``u_k = -L_k x_k + f_k + noise_k`` with extra torque ``a``."""
     K = a.shape[0]
     x = np.empty((K + 1, 2))
     u = np.empty(K)
@@ -207,7 +161,7 @@ def _general_policy_kernel(A, b_c, b_a, Q, R, x_ref, a):
         for i in range(n):
             for j in range(n):
                 M[i, j] = A[i, j] - b_c[i] * L[k, j]
-        # s_k = Q x_ref_k + Mᵀ w;  P_k = Q + R L Lᵀ + Mᵀ P M (Joseph form, as riccati_update)
+        # s_k = Q x_ref_k + Mᵀ w;  P_k = Q + R L Lᵀ + Mᵀ P M (Joseph form)
         for i in range(n):
             acc = 0.0
             for j in range(n):
@@ -230,41 +184,14 @@ def _general_policy_kernel(A, b_c, b_a, Q, R, x_ref, a):
 
 
 def lq_tracking_policy(A, b_c, b_a, Q, R: float, x_ref, a) -> Policy:
-    """Finite-horizon LQ tracking for an n-state plant with a command and a known input.
-
-    The same recursion as :func:`lq_policy`, with the command ``c`` and the known input
-    ``a`` entering through different vectors::
+    """The recursion of :func:`lq_policy` for an n-state plant whose command and known input enter apart::
 
         min_c  sum_{k=1..K} e_kᵀ Q e_k + sum_{k=0..K-1} R c_k²
         s.t.   z_{k+1} = A z_k + b_c c_k + b_a a_k,   e_k = z_k - x_ref_k
 
-    One backward step: ``S_k = R + b_cᵀ P b_c``, ``L_k = b_cᵀ P A / S_k``,
-    ``w = s_{k+1} - P b_a a_k``, ``f_k = b_cᵀ w / S_k``, ``M_k = A - b_c L_k``,
-    ``s_k = Q x_ref_k + M_kᵀ w``, ``P_k = Q + R L_kᵀ L_k + M_kᵀ P M_k``. Used for the
-    human with a neuromuscular lag (:func:`scioc.models.plant.discretize_lagged`, n = 3); with
-    ``b_c = b_a = b`` and n = 2 it is :func:`lq_policy`.
-
-    Parameters
-    ----------
-    A : array_like, shape (n, n)
-    b_c : array_like, shape (n,)
-        Input vector of the command (N·m).
-    b_a : array_like, shape (n,)
-        Input vector of the known input (N·m).
-    Q : array_like, shape (n, n)
-        Symmetric, positive semi-definite state weight.
-    R : float
-        Command weight, 1/(N·m)², > 0.
-    x_ref : array_like, shape (K + 1, n)
-        State reference (row 0 is not used by the cost).
-    a : array_like, shape (K,)
-        Known input a_0..a_{K-1}, N·m.
-
-    Returns
-    -------
-    Policy
-        ``L`` of shape (K, n) (for this function), ``f`` and ``S`` of shape (K,):
-        ``c_k = -L_k z_k + f_k``; under max-ent ``c_k | z_k ~ N(., 1 / (2 S_k))``.
+    For the human with a neuromuscular lag (:func:`scioc.models.plant.discretize_lagged`, n = 3). ``Q``
+    (n, n) symmetric PSD; ``R`` > 0, 1/(N·m)²; ``x_ref`` (K + 1, n), row 0 unused; ``a`` (K,), N·m.
+    Returns a :class:`Policy` with ``L`` of shape (K, n).
     """
     A = np.ascontiguousarray(A, dtype=float)
     n = A.shape[0] if A.ndim == 2 else -1

@@ -1,41 +1,12 @@
 """Maximum-entropy likelihood of observed human torques (paper Eq. 7-16), exact and in linear time.
 
-Under maximum entropy the observed torque sequence ``u = u_H,0..u_H,K-1`` has density
-``p(u) ∝ exp(-J(u))`` (Eq. 8). J is quadratic in u, so p is Gaussian with mean the
-optimal torques u* and precision the Hessian H = 2 (BᵀQB + R) (Eq. 16)::
-
-    log p(u) = -½ gᵀ H⁻¹ g + ½ log|H| - K/2 log 2π        (Eq. 8, g from Eq. 15)
-
-The dense formula (Eq. 11-16 literally: lifted matrices, Cholesky, O(K³)) lives in
-:mod:`scioc.models.maxent_dense`, as the reference this module is tested against.
-
-:func:`loglik_grad` is exact and O(K). Dynamic programming (see :mod:`scioc.models.lq`)
-gives ``J(u) - min J = sum_k S_k v_k²`` with ``v_k = u_k + L_k x_k - f_k`` the
-deviation from the optimal feedback law at the state x_k driven by the observed
-torques, and ``log|H| = sum_k log(2 S_k)`` (the map u -> v is unit lower
-triangular). Hence the max-ent model is a time-varying linear-Gaussian policy::
-
-    log p(u) = sum_k [ -S_k v_k² + ½ log(2 S_k) - ½ log 2π ].
-
-Because the states are propagated from x_0 with the observed torques, they do not
-depend on θ: they are computed once per data set (:func:`scioc.models.segment.prepare_batch`).
-The gradient with respect to θ comes from forward tangents carried through the same
-single backward sweep.
-
-The Riccati part depends on θ only and becomes stationary to rounding some hundred
-steps from the end (the closed loop contracts). From there on the kernel holds the
-step quantities constant and obtains the gradient of the remaining steps with one
-adjoint sweep instead of three forward tangents; the result agrees with carrying
-tangents through every step to rounding error (tested). Each segment is computed on
-its own, so a segment's result does not depend on the batch it is in.
-
-The kernel (:func:`batch_kernel` and the per-segment function it calls, about 190
-lines) is one documented numba unit: its arithmetic is what every likelihood value of
-the project comes from, and it is kept in one piece.
-
-The generative side is the same factorization read forwards:
-``u_k | x_k ~ N(-L_k x_k + f_k, 1 / (2 S_k))`` (:func:`maxent_noise`,
-:func:`sample_maxent`, :func:`forward_optimal_control`).
+Under maximum entropy the torques u have density ``p(u) ∝ exp(-J(u))`` (Eq. 8): Gaussian with precision
+H = 2 (BᵀQB + R) (Eq. 16), ``log p(u) = -½ gᵀ H⁻¹ g + ½ log|H| - K/2 log 2π``, g from Eq. 15
+(:mod:`scioc.models.maxent_dense` evaluates it literally, as the reference). Dynamic programming
+(:mod:`scioc.models.lq`) gives ``J(u) - min J = sum_k S_k v_k²``, ``v_k = u_k + L_k x_k - f_k`` at the
+states driven by the observed torques (θ-free, computed once), and ``log|H| = sum_k log(2 S_k)``, hence in
+O(K) ``log p(u) = sum_k [-S_k v_k² + ½ log(2 S_k) - ½ log 2π]``: the policy ``u_k | x_k ~ N(-L_k x_k + f_k,
+1 / (2 S_k))``, which also generates demonstrations.
 """
 
 from __future__ import annotations
@@ -53,58 +24,34 @@ from scioc.models.segment import SegmentBatch, prepare_batch
 
 #: ½ log 2π, the Gaussian normalization per observed torque.
 HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
-#: The running product of S_k is logged every 16 steps, or sooner once it leaves [PROD_TINY, PROD_HUGE]:
-#: at an extreme θ (S_k ~ 1e20 per step) 16 factors overflow a double, and log(inf) made the density +inf.
+#: Bounds of the running product of S_k, logged every 16 steps or sooner when it leaves them (at an
+#: extreme θ 16 factors overflow a double).
 PROD_HUGE = 1e150
 PROD_TINY = 1e-150
 
 
 class LoglikGrad(NamedTuple):
-    """Log-likelihood per segment and its gradient.
-
-    Attributes
-    ----------
-    loglik : ndarray, shape (n,)
-    grad : ndarray, shape (3, n)
-        d loglik / d[q11, q22, R].
-    """
+    """``loglik`` (n,), nats, and ``grad`` (3, n), its derivative by [q11, q22, R]."""
 
     loglik: np.ndarray
     grad: np.ndarray
 
 
-# --------------------------------------------------------------------------- kernel
-
-#: The Riccati part counts as stationary once one step changes P and each of its
-#: θ-tangents by at most this much relative to their size (about 4.5 units in the last
-#: place). In floating point P reaches an exact fixed point but a tangent can cycle in
-#: its last bit, so "bit for bit" would never trigger for some θ.
+#: Relative change per step below which P and its θ-tangents count as stationary (a few units in the
+#: last place: a tangent can cycle in its last bit, so an exact fixed point may never come).
 FREEZE_RTOL = 1e-15
 
 
 @njit(cache=True, error_model="numpy", fastmath=False)
 def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
-    """Log-likelihood and θ-gradient of one segment (see the module docstring).
-
-    Phase 1 runs the Riccati recursion backward with forward-mode tangents, from
-    ``P_K = Q`` until P and its tangents are stationary. From there on every step
-    quantity (S, L, M, Pb and their tangents) is constant, so phase 2 runs only the
-    data recursion for s_k backward (storing w_k and v_k in the scratch buffers) and
-    phase 3 sweeps forward with the adjoint of s, collecting the sums that the
-    constants' tangents multiply. Phases 2-3 cost about half of carrying three
-    tangents of s through every step.
-
-    The plan may look past the observed torques: ``a`` and ``r`` may extend beyond
-    ``u`` (preview steps). Those steps shape the policy through s_k but contribute no
-    factor, which is exactly the marginal of the max-ent Gaussian over the longer
-    horizon (its later controls integrate out of the sequential factorization).
-    """
+    """Log-likelihood and θ-gradient of one segment. Once the Riccati part is stationary the step
+    quantities are constant, and an adjoint sweep of s (phase 3) replaces three forward tangents. Preview
+    steps shape s_k but add no factor: the marginal of the max-ent Gaussian over the longer horizon."""
     K_obs = u.shape[0]
     K = a.shape[0]
     a11, a12, a21, a22 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
     b1, b2 = b[0], b[1]
-    # P_K = Q, s_K = Q (r_K, 0), and their tangents with respect to q11 and q22
-    # (the R-derivative follows from homogeneity at the end).
+    # P_K = Q, s_K = Q (r_K, 0) and their q11-, q22-tangents (the R-derivative comes from homogeneity).
     p11, p12, p22 = q11, 0.0, q22
     d11_0, d12_0, d22_0 = 1.0, 0.0, 0.0
     d11_1, d12_1, d22_1 = 0.0, 0.0, 1.0
@@ -118,7 +65,6 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
     nprod = 0
     g0 = 0.0
     g1 = 0.0
-    # Step quantities (assigned in the first pass of phase 1).
     S = iS = L1 = L2 = pb1 = pb2 = m11 = m12 = m21 = m22 = 0.0
     e1_0 = e2_0 = e1_1 = e2_1 = 0.0
     dS_0 = dS_1 = 0.0
@@ -259,12 +205,8 @@ def _segment_kernel(A, b, q11, q22, R, x1, x2, r, u, a, freeze, wbuf, vbuf):
 
 @njit(cache=True, inline="always", fastmath=False, error_model="numpy")
 def _finish(K, q11, q22, R, quad, logs, g0, g1):
-    """Assemble log p = quad + ½ sum log(2 S_k) - K/2 log 2π and the R-derivative.
-
-    J and hence every S_k scale with θ (degree-1 homogeneity), so by Euler's theorem
-    ``q11 ∂/∂q11 + q22 ∂/∂q22 + R ∂/∂R`` of log p equals ``quad + K/2``; this gives
-    ∂/∂R without carrying a third tangent.
-    """
+    """log p = quad + ½ sum log(2 S_k) - K/2 log 2π, and ∂/∂R by Euler: S_k is 1-homogeneous in θ, so
+    ``(q11 ∂/∂q11 + q22 ∂/∂q22 + R ∂/∂R) log p = quad + K/2``."""
     ll = quad + 0.5 * logs + K * (0.5 * math.log(2.0) - HALF_LOG_2PI)
     g2 = (quad + 0.5 * K - q11 * g0 - q22 * g1) / R
     return ll, g0, g1, g2
@@ -272,16 +214,8 @@ def _finish(K, q11, q22, R, quad, logs, g0, g1):
 
 @njit(cache=True, fastmath=False, error_model="python")
 def batch_kernel(A, b, fb, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
-    """Log-likelihood and θ-gradient of every segment of a batch, written into ``ll`` and ``g``.
-
-    The compiled entry point shared by :func:`loglik_grad` and the PyTensor Op
-    (:mod:`scioc.models.bayes.op`). Arguments are C-contiguous float64 arrays: the plant's
-    ``A`` (2, 2) and ``b`` (2,); the arrays of a :class:`scioc.models.segment.SegmentBatch`
-    (``fb`` (n, 2), ``x1``, ``x2`` (n, K + 1), ``r`` (n, K + M + 1), ``u`` (n, K),
-    ``a`` (n, K + M)); ``th`` (3, n) with rows q11, q22, R; ``freeze`` as for
-    :func:`loglik_grad`; outputs ``ll`` (n,) and ``g`` (3, n); scratch ``wbuf``
-    (K + M, 2) and ``vbuf`` (K + M,), which concurrent callers must not share.
-    """
+    """Log-likelihood and θ-gradient of each segment into ``ll`` (n,) and ``g`` (3, n), for :func:`loglik_grad`
+    and the PyTensor Op; scratch ``wbuf`` (K + M, 2), ``vbuf`` (K + M,) is not to be shared between threads."""
     n = u.shape[0]
     Ai = np.empty((2, 2))
     for i in range(n):
@@ -296,45 +230,23 @@ def batch_kernel(A, b, fb, th, x1, x2, r, u, a, freeze, ll, g, wbuf, vbuf):
 
 
 def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: bool = True) -> LoglikGrad:
-    """Exact max-ent log-likelihood and its θ-gradient for a batch of segments, in O(K).
+    """Exact max-ent log-likelihood (Eq. 8) and θ-gradient of a batch of segments, in O(K).
 
     Parameters
     ----------
     theta : array_like, shape (3,) or (3, n)
-        ``[q11, q22, R]``, one for all segments or one column per segment.
+        ``[q11, q22, R]``, shared or one column per segment.
     batch : SegmentBatch
-        From :func:`scioc.models.segment.prepare_batch` (same plant).
-    plant : DiscretePlant
-        The 0.01-s wheel discretization.
+        From :func:`scioc.models.segment.prepare_batch` with the same ``plant``.
     freeze : bool
-        Treat the Riccati part as constant once it is stationary to rounding
-        (:data:`FREEZE_RTOL`) and get the gradient of the rest by an adjoint sweep
-        (default). ``False`` carries forward tangents through every step; it exists
-        to test the fast path.
-
-    Returns
-    -------
-    LoglikGrad
-        ``loglik`` (n,) in nats and ``grad`` (3, n) with respect to q11, q22, R.
-
-    Examples
-    --------
-    >>> from models.plant import discretize
-    >>> from models.segment import Segment
-    >>> plant = discretize(0.01)
-    >>> seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
-    >>> res = loglik_grad([10.0, 0.0, 1.0], prepare_batch(plant, [seg]), plant)
-    >>> res.loglik.shape, res.grad.shape
-    ((1,), (3, 1))
+        Hold the Riccati part once stationary (:data:`FREEZE_RTOL`); ``False`` tests that fast path.
     """
     th = validate_theta(theta)
     n = batch.n
-    # Always a fresh writable C array: one compiled specialization serves every call, so a
-    # segment's bits never depend on how the caller laid out θ.
+    # A fresh C array: one compiled specialization, so a segment's bits do not depend on θ's layout.
     th = np.array(np.broadcast_to(th.reshape(3, -1), (3, n)), dtype=np.float64, order="C")
     ll = np.empty(n)
     g = np.empty((3, n))
-    # O(K) scratch for the adjoint sweep, reused across the batch.
     wbuf = np.empty((batch.a.shape[1], 2))
     vbuf = np.empty(batch.a.shape[1])
     batch_kernel(plant.A, plant.b, np.ascontiguousarray(batch.fb, dtype=np.float64), th, batch.x1, batch.x2,
@@ -343,18 +255,7 @@ def loglik_grad(theta, batch: SegmentBatch, plant: DiscretePlant, *, freeze: boo
 
 
 def loglik_segments(theta, segments, plant: DiscretePlant) -> LoglikGrad:
-    """:func:`loglik_grad` for segments of any lengths (batched by length).
-
-    Parameters
-    ----------
-    theta : array_like, shape (3,) or (3, n)
-    segments : sequence of models.segment.Segment, length n
-    plant : DiscretePlant
-
-    Returns
-    -------
-    LoglikGrad
-    """
+    """:func:`loglik_grad` of n segments of any lengths (batched by length); θ shape (3,) or (3, n)."""
     segs = list(segments)
     th = validate_theta(theta)
     th = np.broadcast_to(th.reshape(3, -1), (3, len(segs)))
@@ -370,72 +271,23 @@ def loglik_segments(theta, segments, plant: DiscretePlant) -> LoglikGrad:
     return LoglikGrad(ll, g)
 
 
-# --------------------------------------------------------------------------- generative side
-
 
 class Demonstration(NamedTuple):
-    """A trajectory generated by the human model.
-
-    Attributes
-    ----------
-    x : ndarray, shape (K + 1, 2)
-        Angle (rad) and velocity (rad/s).
-    u_H : ndarray, shape (K,)
-        Human torque, N·m.
-    """
+    """A generated trajectory: ``x`` (K + 1, 2) in rad, rad/s; ``u_H`` (K,) in N·m."""
 
     x: np.ndarray
     u_H: np.ndarray
 
 
 def maxent_noise(policy: Policy, rng: np.random.Generator) -> np.ndarray:
-    """The max-ent human's deviations from its optimal policy: ``ε_k ~ N(0, 1 / (2 S_k))``, N·m.
-
-    Given the state, the max-ent torque is ``u_k = -L_k x_k + f_k + ε_k`` (the sequential
-    factorization of Eq. 8 used by :func:`loglik_grad`). Every simulator of the max-ent
-    human draws its ε here, as ``rng.standard_normal(K) / sqrt(2 S_k)`` in step order,
-    and then runs them through its own loop: :func:`sample_maxent` (known input),
-    :func:`scioc.models.simulate.simulate_run` (the MPC assistant reacting to the state) and
-    :func:`scioc.models.humans.simulate_human` (delays and lags). The same generator state
-    therefore gives the same deviations in each.
-
-    Parameters
-    ----------
-    policy : Policy
-        From :func:`scioc.models.lq.lq_policy` or :func:`scioc.models.lq.lq_tracking_policy`; ``S`` (K,)
-        in 1/(N·m)².
-    rng : numpy.random.Generator
-
-    Returns
-    -------
-    ndarray, shape (K,)
-    """
+    """The max-ent deviations ``ε_k ~ N(0, 1 / (2 S_k))`` (K,), N·m, of ``u_k = -L_k x_k + f_k + ε_k``.
+    Every max-ent simulator draws ε here, so one generator state gives the same deviations in each."""
     return rng.standard_normal(policy.S.shape[0]) / np.sqrt(2.0 * policy.S)
 
 
 def forward_optimal_control(theta, x0, angle_ref, u_A, plant: DiscretePlant) -> Demonstration:
-    """The human's optimal torques and states for θ (the dashed trajectories of Fig. 6).
-
-    The mean of the max-ent distribution: ``u_k = -L_k x_k + f_k`` against the known
-    assistant torque sequence ``u_A``. For a human who plans with the assistant's law pass
-    the wheel and known input of :func:`scioc.models.segment.plan_inputs`; the states are then those of the
-    closed loop with the assistant.
-
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-    x0 : array_like, shape (2,)
-        rad, rad/s.
-    angle_ref : array_like, shape (K + 1,)
-        rad.
-    u_A : array_like, shape (K,)
-        N·m.
-    plant : DiscretePlant
-
-    Returns
-    -------
-    Demonstration
-    """
+    """The optimal torques ``u_k = -L_k x_k + f_k`` and states for θ (Fig. 6's dashed curves); ``x0`` in rad,
+    rad/s, ``angle_ref`` (K + 1,) in rad, ``u_A`` (K,) the known input in N·m (or see ``plan_inputs``)."""
     pol = lq_policy(plant, theta, angle_ref, u_A)
     a = np.ascontiguousarray(u_A, dtype=float)
     x, u = rollout(plant.A, plant.b, pol.L, pol.f, np.asarray(x0, dtype=float), a, np.zeros(a.shape[0]))
@@ -443,26 +295,7 @@ def forward_optimal_control(theta, x0, angle_ref, u_A, plant: DiscretePlant) -> 
 
 
 def sample_maxent(theta, x0, angle_ref, u_A, plant: DiscretePlant, rng: np.random.Generator) -> Demonstration:
-    """Draw one demonstration from the max-ent distribution ``u ~ N(u*, H⁻¹)`` exactly.
-
-    Sequentially ``u_k | x_k ~ N(-L_k x_k + f_k, 1 / (2 S_k))``, which is the same
-    Gaussian as Eq. 8 (the chain rule of the factorization used by :func:`loglik_grad`).
-
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-    x0 : array_like, shape (2,)
-    angle_ref : array_like, shape (K + 1,)
-    u_A : array_like, shape (K,)
-        Known assistant torques (an open-loop sequence); with :func:`scioc.models.segment.plan_inputs`, the
-        assistant's feedforward on the closed wheel (a draw in closed loop).
-    plant : DiscretePlant
-    rng : numpy.random.Generator
-
-    Returns
-    -------
-    Demonstration
-    """
+    """One exact draw ``u ~ N(u*, H⁻¹)`` of Eq. 8, step by step; arguments as :func:`forward_optimal_control`."""
     pol = lq_policy(plant, theta, angle_ref, u_A)
     a = np.ascontiguousarray(u_A, dtype=float)
     x, u = rollout(plant.A, plant.b, pol.L, pol.f, np.asarray(x0, dtype=float), a, maxent_noise(pol, rng))

@@ -1,15 +1,9 @@
 """The dense K×K reference of the max-ent likelihood: paper Eq. 8 with Eq. 11-16 literally.
 
-Under maximum entropy the observed torque sequence ``u = u_H,0..u_H,K-1`` has density
-``p(u) ∝ exp(-J(u))`` (Eq. 8). J is quadratic in u, so p is Gaussian with mean the
-optimal torques u* and precision the Hessian H = 2 (ΓᵀQΓ + R I) (Eq. 16), with the
-lifted system ``x = Φ x0 + Γ (u_H + u_A)`` of Eq. 11-12::
-
-    log p(u) = -½ gᵀ H⁻¹ g + ½ log|H| - K/2 log 2π        (Eq. 8, g from Eq. 15)
-
-:func:`loglik_dense` evaluates this with a Cholesky factorization of H: O(K²) memory and
-O(K³) time. It exists only as the reference the linear-time kernel of
-:mod:`scioc.models.maxent` is tested against, and for the benchmark; nothing else uses it.
+With the lifted system ``x = Φ x0 + Γ (u_H + u_A)`` (Eq. 11-12), g from Eq. 15 and
+H = 2 (ΓᵀQΓ + R I) (Eq. 16), ``log p(u) = -½ gᵀ H⁻¹ g + ½ log|H| - K/2 log 2π`` (Eq. 8), by a Cholesky
+factorization of H: O(K³). Only the tests and the benchmark use it, as the reference for the linear-time
+kernel of :mod:`scioc.models.maxent`.
 """
 
 from __future__ import annotations
@@ -26,15 +20,7 @@ from scioc.models.segment import Segment, check_segment, plan_inputs
 
 
 def lifted_matrices(plant: DiscretePlant, K: int) -> tuple[np.ndarray, np.ndarray]:
-    """Lifted system of Eq. 11-12: ``x = Φ x0 + Γ (u_H + u_A)`` for states x_1..x_K.
-
-    Dense K×K reference only.
-
-    Returns
-    -------
-    Phi : ndarray, shape (2K, 2)
-    Gamma : ndarray, shape (2K, K)
-    """
+    """``Phi`` (2K, 2) and ``Gamma`` (2K, K) of Eq. 11-12: ``x = Φ x0 + Γ (u_H + u_A)`` for x_1..x_K."""
     A, b = plant.A, plant.b
     Phi = np.empty((2 * K, 2))
     Gamma = np.zeros((2 * K, K))
@@ -51,7 +37,7 @@ def lifted_matrices(plant: DiscretePlant, K: int) -> tuple[np.ndarray, np.ndarra
 
 
 class DenseResult(NamedTuple):
-    """Dense reference evaluation of Eq. 8 and its ingredients."""
+    """Eq. 8 and its ingredients: ``g`` (Eq. 15), ``H`` (Eq. 16), ``u_opt = u - H⁻¹ g``."""
 
     loglik: float
     grad: np.ndarray
@@ -63,24 +49,9 @@ class DenseResult(NamedTuple):
 def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bool = True) -> DenseResult:
     """Max-ent log-likelihood by Eq. 8 with Eq. 11-16 literally (Cholesky of the K×K Hessian).
 
-    The reference implementation: O(K²) memory and O(K³) time. Used by the tests and
-    the benchmark, nowhere else. With :class:`Feedback` it plans on the closed wheel
-    with the feedforward as the known input, and so also propagates the states that
-    way: it equals :func:`scioc.models.maxent.loglik_grad` when the recorded u_A follows the law exactly.
-
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-    segment : Segment
-    plant : DiscretePlant
-    with_grad : bool
-        Also compute the θ-gradient (needs H⁻¹ explicitly for the trace term).
-
-    Returns
-    -------
-    DenseResult
-        ``loglik``, ``grad`` (3,) (NaN if not requested), gradient ``g`` (Eq. 15),
-        Hessian ``H`` (Eq. 16) and the optimal torques ``u_opt = u - H⁻¹ g``.
+    With a :class:`Feedback` it plans on the closed wheel and also propagates the states that way, so it
+    equals :func:`scioc.models.maxent.loglik_grad` when the recorded u_A follows the law exactly.
+    ``grad`` (3,) is NaN unless ``with_grad``.
     """
     q11, q22, R = validate_theta(theta)
     seg = check_segment(segment)
@@ -105,9 +76,8 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bo
     ll = -0.5 * g @ y + 0.5 * logdet - K * HALF_LOG_2PI
     grad = np.full(3, np.nan)
     if with_grad:
-        # d log p = -yᵀ dg + ½ yᵀ dH y + ½ tr(H⁻¹ dH), y = H⁻¹ g, with
-        # dH/dq_ii = 2 Γᵀ E_ii Γ and dH/dR = 2 I: the traces need the weighted column
-        # norms of L⁻¹ Γᵀ and the Frobenius norm of L⁻¹ (H = L Lᵀ).
+        # d log p = -yᵀ dg + ½ yᵀ dH y + ½ tr(H⁻¹ dH), y = H⁻¹ g; dH/dq_ii = 2 Γᵀ E_ii Γ, dH/dR = 2 I,
+        # so the traces are column norms of L⁻¹ Γᵀ and the Frobenius norm of L⁻¹ (H = L Lᵀ).
         Lc = np.tril(c[0])
         W = solve_triangular(Lc, Gamma.T, lower=True)
         col2 = np.sum(W * W, axis=0)  # diag(Γ H⁻¹ Γᵀ)
@@ -121,8 +91,7 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, with_grad: bo
 
 
 def _loglik_dense_marginal(q11, q22, R, seg: Segment, plant: DiscretePlant) -> DenseResult:
-    """Dense reference with preview: the max-ent Gaussian over all K + M controls
-    (Eq. 8 on the longer horizon), marginalized to the K observed ones. Value only."""
+    """With preview: Eq. 8 over all K + M controls, marginalized to the K observed ones (value only)."""
     K, Kt = seg.K, seg.u_A.shape[0]
     Phi, Gamma = lifted_matrices(plant, Kt)
     xref = np.zeros(2 * Kt)

@@ -1,13 +1,6 @@
-"""Steering-wheel dynamics (paper Eq. 18, Table I) and their exact zero-order-hold discretization.
+"""The steering wheel ``J phi'' = -c phi - d phi' + u_H + u_A`` (paper Eq. 18, Table I), exactly discretized.
 
-The wheel is a damped rotational spring driven by the sum of the human torque
-``u_H`` and the assistant torque ``u_A`` (both in N·m, entering through the same
-input vector, so ``B_H = B_A``)::
-
-    d/dt [phi, phi_dot] = [[0, 1], [-c/J, -d/J]] [phi, phi_dot] + [0, 1/J] (u_H + u_A)
-
-State ``x = (phi, phi_dot)`` in (rad, rad/s). The parameters and sample times are the
-study design's (:mod:`scioc.models.design`).
+State ``x = (phi, phi_dot)`` in (rad, rad/s); both torques (N·m) enter alike, ``B_H = B_A``.
 """
 
 from __future__ import annotations
@@ -24,14 +17,7 @@ from scioc.models.runtime import njit
 class DiscretePlant(NamedTuple):
     """Discrete-time plant ``x[k+1] = A x[k] + b (u_H[k] + u_A[k])`` (paper Eq. 1).
 
-    Attributes
-    ----------
-    A : ndarray, shape (2, 2)
-        State transition over one sample.
-    b : ndarray, shape (2,)
-        Input vector for a torque held constant over the sample (ZOH), (rad, rad/s) per N·m.
-    dt : float
-        Sample time, s.
+    ``A`` (2, 2); ``b`` (2,), (rad, rad/s) per N·m of a torque held over the sample; ``dt`` in s.
     """
 
     A: np.ndarray
@@ -40,24 +26,7 @@ class DiscretePlant(NamedTuple):
 
 
 def continuous_matrices(params: WheelParameters = WheelParameters()) -> tuple[np.ndarray, np.ndarray]:
-    """Continuous-time matrices of paper Eq. 18.
-
-    Parameters
-    ----------
-    params : WheelParameters
-        Inertia (kg·m²), spring (N·m/rad) and damper (N·m·s/rad); Table I by default.
-
-    Returns
-    -------
-    A_c : ndarray, shape (2, 2)
-    b_c : ndarray, shape (2,)
-
-    Examples
-    --------
-    >>> A_c, b_c = continuous_matrices()
-    >>> float(b_c[1])
-    25.0
-    """
+    """Continuous-time ``A_c`` (2, 2) and ``b_c`` (2,) of paper Eq. 18 for ``params`` (Table I by default)."""
     J, c, d = (float(v) for v in params)
     if not (J > 0 and c >= 0 and d >= 0 and np.isfinite([J, c, d]).all()):
         raise ValueError(f"wheel parameters must be finite with inertia > 0, spring >= 0, damper >= 0; got {params}")
@@ -67,28 +36,7 @@ def continuous_matrices(params: WheelParameters = WheelParameters()) -> tuple[np
 
 
 def discretize(dt: float = DT_HUMAN, params: WheelParameters = WheelParameters()) -> DiscretePlant:
-    """Exact zero-order-hold discretization of Eq. 18 for sample time ``dt``.
-
-    Uses the block matrix exponential ``expm([[A_c, b_c], [0, 0]] dt)``, which is
-    exact for an input held constant over each sample.
-
-    Parameters
-    ----------
-    dt : float
-        Sample time in s (0.01 for the human, 0.02 for the assistant).
-    params : WheelParameters
-        Table I by default.
-
-    Returns
-    -------
-    DiscretePlant
-
-    Examples
-    --------
-    >>> plant = discretize(0.01)
-    >>> plant.A.shape, plant.b.shape
-    ((2, 2), (2,))
-    """
+    """Exact ZOH discretization of Eq. 18, ``expm([[A_c, b_c], [0, 0]] dt)``, for sample time ``dt``, s."""
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"sample time dt must be a positive number of seconds; got {dt!r}")
     A_c, b_c = continuous_matrices(params)
@@ -102,21 +50,7 @@ def discretize(dt: float = DT_HUMAN, params: WheelParameters = WheelParameters()
 
 
 def propagate(plant: DiscretePlant, x0: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """States driven from ``x0`` by the total torque sequence ``u`` (paper Eq. 11).
-
-    Parameters
-    ----------
-    plant : DiscretePlant
-    x0 : ndarray, shape (2,)
-        Initial angle (rad) and velocity (rad/s).
-    u : ndarray, shape (K,)
-        Total torque ``u_H + u_A`` in N·m acting from t_k to t_{k+1}.
-
-    Returns
-    -------
-    ndarray, shape (K + 1, 2)
-        States x_0 .. x_K.
-    """
+    """States x_0..x_K (K + 1, 2) driven from ``x0`` (rad, rad/s) by the total torque ``u`` (K,), N·m (Eq. 11)."""
     u = np.ascontiguousarray(u, dtype=float)
     x0 = np.asarray(x0, dtype=float)
     return _propagate(plant.A, plant.b, x0[0], x0[1], u)
@@ -134,26 +68,8 @@ def _propagate(A, b, phi0, omega0, u):
 
 
 class LaggedPlant(NamedTuple):
-    """The wheel driven through a first-order neuromuscular lag, sampled with ZOH.
-
-    State ``z = (phi, phi_dot, tau)`` in (rad, rad/s, N·m), where ``tau`` is the torque
-    the arm applies to the wheel::
-
-        z[k+1] = A z[k] + b_c c[k] + b_a u_A[k]
-
-    Attributes
-    ----------
-    A : ndarray, shape (3, 3)
-    b_c : ndarray, shape (3,)
-        Input vector of the command ``c`` into the lag (N·m, held over the sample).
-    b_a : ndarray, shape (3,)
-        Input vector of a torque acting on the wheel directly (the assistant's u_A);
-        equal to ``(b, 0)`` of the plain wheel.
-    dt : float
-        Sample time, s.
-    tau_nm : float
-        Time constant of the lag, s.
-    """
+    """The wheel behind a neuromuscular lag, ``z[k+1] = A z[k] + b_c c[k] + b_a u_A[k]``, z = (phi, phi_dot,
+    tau) in (rad, rad/s, N·m): the command ``c`` drives the lag, ``b_a = (b, 0)``; ``dt``, ``tau_nm`` in s."""
 
     A: np.ndarray
     b_c: np.ndarray
@@ -163,34 +79,7 @@ class LaggedPlant(NamedTuple):
 
 
 def discretize_lagged(tau_nm: float, dt: float = DT_HUMAN, params: WheelParameters = WheelParameters()) -> LaggedPlant:
-    """Exact ZOH discretization of the wheel with a neuromuscular lag on the human torque.
-
-    Continuous dynamics (J, c, d of Table I)::
-
-        J phi'' = -c phi - d phi' + tau + u_A,      tau_nm tau' = c_cmd - tau
-
-    Both inputs (the command ``c_cmd`` and ``u_A``) are held over each sample; the
-    block matrix exponential of the 3-state system gives A, b_c and b_a at once.
-
-    Parameters
-    ----------
-    tau_nm : float
-        Neuromuscular time constant, s (> 0).
-    dt : float
-        Sample time, s (default 0.01).
-    params : WheelParameters
-        Table I by default.
-
-    Returns
-    -------
-    LaggedPlant
-
-    Examples
-    --------
-    >>> lp = discretize_lagged(0.1)
-    >>> lp.A.shape, lp.b_c.shape, float(lp.b_a[2])
-    ((3, 3), (3,), 0.0)
-    """
+    """Exact ZOH discretization of ``J phi'' = -c phi - d phi' + tau + u_A``, ``tau_nm tau' = c_cmd - tau`` (s)."""
     if not (np.isfinite(tau_nm) and tau_nm > 0):
         raise ValueError(f"neuromuscular time constant tau_nm must be a positive number of seconds; got {tau_nm!r}")
     if not (np.isfinite(dt) and dt > 0):

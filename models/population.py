@@ -1,9 +1,7 @@
 """The population the simulated subjects' costs are drawn from, per condition level.
 
-The simulator (:mod:`scioc.models.simulate`) draws each subject's θ = [q11, q22, R] per
-condition level from :class:`Population` with :func:`draw_subjects`. R is given at the
-paper's 100 Hz (:data:`scioc.models.design.REFERENCE_DT`); the simulator converts θ to the
-recording's sample time (see :mod:`scioc.models.design` on how θ transforms with the rate).
+R is stated at the paper's 100 Hz; :mod:`scioc.models.simulate` scales θ to the recording's sample
+time (docs/decisions/cost-rate-scaling.md).
 """
 
 from __future__ import annotations
@@ -18,46 +16,17 @@ from scioc.models.cost import from_log_normalized
 
 @dataclass(frozen=True)
 class Population:
-    """The population θ per subject and condition is drawn from (all logs natural).
-
-    For subject i::
+    """The population θ per subject and condition is drawn from (natural logs). For subject i::
 
         log θ1[i, MC] ~ N(log_theta1_mc, sd_log_theta1)          θ1 = q11 / R, 1/rad²
         log θ1[i, SC] = log θ1[i, MC] + beta + N(0, sd_change)
         log R[i, MC]  ~ N(log_R, sd_log_R)                      R, 1/(N·m)²
         log R[i, SC]  = log R[i, MC] + gamma + N(0, sd_R_change)
-        θ2[i, c] = q22 / R = theta2                             (the paper found 0)
+        θ2[i, c] = q22 / R = theta2
 
-    The defaults make the paper's qualitative findings appear: q22 = 0; in SC the
-    normalized angle weight drops to about half (β = -0.7) for nearly every subject,
-    with between-subject spread. With R around 20 the max-ent torque variability is about
-    0.16 N·m per 10-ms sample, and the tracking error RMS about 0.02-0.05 rad for the
-    0.2-rad RMS reference.
-
-    Attributes
-    ----------
-    log_theta1_mc : float
-        Mean of log θ1 in MC (default log 20).
-    sd_log_theta1 : float
-        Between-subject SD of log θ1 (default 0.5).
-    beta : float
-        Mean SC shift of log θ1 (default -0.7).
-    sd_change : float
-        Between-subject SD of the SC shift (default 0.2).
-    log_R : float
-        Mean of log R in MC (default log 20).
-    sd_log_R : float
-        Between-subject SD of log R (default 0.3).
-    gamma : float
-        Mean SC shift of log R (default 0).
-    sd_R_change : float
-        Between-subject SD of the SC shift of log R (default 0.1).
-    theta2 : float
-        q22 / R for everyone (default 0).
-    betas : tuple of float
-        With more than two condition levels: the mean shift of log θ1 of each
-        non-baseline level in order (empty: ``beta`` for every one). Each level also gets
-        its own ``N(0, sd_change)`` and ``gamma + N(0, sd_R_change)``.
+    The defaults show the paper's qualitative findings: q22 = 0, and in SC θ1 about halves for nearly
+    every subject, with spread. ``betas``: with more levels, each non-baseline level's mean shift
+    (empty: ``beta`` each); every level draws its own changes.
     """
 
     log_theta1_mc: float = float(np.log(20.0))
@@ -94,15 +63,7 @@ class Population:
 
 
 class SubjectTheta(NamedTuple):
-    """True cost parameters of one subject: θ = [q11, q22, R] per condition level, and the run order.
-
-    Attributes
-    ----------
-    thetas : tuple of ndarray
-        θ per level, baseline first (MC, SC by default).
-    order : tuple of int
-        Level indices in the order the runs were performed.
-    """
+    """One subject's true θ per level (``thetas``, baseline first) and the ``order`` its runs were performed in."""
 
     thetas: tuple
     order: tuple
@@ -122,20 +83,7 @@ class SubjectTheta(NamedTuple):
 
 def draw_subjects(population: Population, n_subjects: int, rng: np.random.Generator,
                   n_levels: int = 2) -> list[SubjectTheta]:
-    """Draw θ per condition level and the run order for each subject.
-
-    Parameters
-    ----------
-    population : Population
-    n_subjects : int
-    rng : numpy.random.Generator
-    n_levels : int
-        Condition levels, baseline first (2: MC and SC).
-
-    Returns
-    -------
-    list of SubjectTheta
-    """
+    """A :class:`SubjectTheta` for each of ``n_subjects``: θ per level (``n_levels``, baseline first) and run order."""
     if int(n_subjects) != n_subjects or n_subjects < 1:
         raise ValueError(f"n_subjects must be a positive integer; got {n_subjects!r}")
     if int(n_levels) != n_levels or n_levels < 2:
@@ -145,7 +93,7 @@ def draw_subjects(population: Population, n_subjects: int, rng: np.random.Genera
     betas = p.effects(c)
     out = []
     for _ in range(int(n_subjects)):
-        # Two levels draw exactly as they always did: z = (θ1 base, θ1 change, R base, R change).
+        # z = (θ1 base, θ1 change per level, R base, R change per level).
         z = rng.standard_normal(2 + 2 * c)
         lt1 = p.log_theta1_mc + p.sd_log_theta1 * z[0]
         lr = p.log_R + p.sd_log_R * z[1 + c]

@@ -1,25 +1,11 @@
 """Reconstruct velocity and human torque from the encoder angle (paper Section IV-E).
 
-Only the angle is measured. Inverting the sampled plant step by step is nearly unstable
-(the zero-order-hold plant has a sampling zero at -0.976 at 100 Hz, so the inverse rings)
-and it amplifies quantization: one encoder increment (1.6e-4 rad) is worth about
-0.13 N·m of torque in a single step. We therefore estimate the torque statistically, as
-a Kalman/Rauch-Tung-Striebel smoother of the plant driven by
-
-    u_H,k = s_k + ε_k,   s_{k+1} = s_k + w_k,   w_k ~ N(0, q),   ε_k ~ N(0, σ_ε²)
-
-(a slowly wandering torque plus white torque variability, which is what the max-ent
-human produces: an optimal part that changes smoothly and Gaussian deviations around
-it), observed through ``angle_k = φ_k + n_k`` with the quantization error
-``n_k ~ N(0, Δ²/12)``. The two variances are chosen by maximizing the marginal
-likelihood of the recorded angles (empirical Bayes), per segment.
-
-The smoothed means satisfy the plant equation exactly: with ``û_H,k = ŝ_k + ε̂_k``,
-``x̂_{k+1} = A x̂_k + b (û_H,k + u_A,k)``. What cannot be recovered is the part of the
-torque variability whose effect on the angle stays below the encoder's resolution;
-the smoother shrinks it toward the smooth torque, which makes the reconstructed torque
-less variable than the true one (measured by ``scioc identify`` on simulated data and
-shown in the report).
+Inverting the sampled plant rings (a sampling zero near -1) and amplifies quantization, so a
+Kalman/Rauch-Tung-Striebel smoother estimates the torque ``u_H,k = s_k + ε_k``, ``s_{k+1} = s_k + w_k``
+(w ~ N(0, q), ε ~ N(0, σ_ε²): a smooth optimal part plus white deviations, as the max-ent human's), from
+``angle_k = φ_k + n_k``, n ~ N(0, Δ²/12); q and σ_ε maximize the angles' marginal likelihood (empirical
+Bayes). The smoothed means satisfy the plant equation exactly; variability below the encoder's
+resolution is shrunk, so the reconstructed torque is less variable than the true one.
 """
 
 from __future__ import annotations
@@ -39,26 +25,8 @@ DEFAULT_RESOLUTION = ENCODER_STEP
 
 
 class Reconstruction(NamedTuple):
-    """Velocity and torque reconstructed from the angle.
-
-    Attributes
-    ----------
-    angle : ndarray, shape (K + 1,)
-        Smoothed angle, rad.
-    velocity : ndarray, shape (K + 1,)
-        rad/s.
-    u_H : ndarray, shape (K + 1,)
-        N·m; the last entry is the smooth torque at the last sample (unused downstream).
-    sigma_eps : float
-        Chosen SD of the white torque component, N·m.
-    q : float
-        Chosen random-walk variance of the smooth torque, (N·m)² per sample.
-    loglik : float
-        Marginal log-likelihood of the angles at the chosen variances.
-    smoother : FixedReconstruction
-        The smoother at the chosen variances, to pass other records of the same length
-        through the same linear filter (:func:`apply_reconstruction`).
-    """
+    """Smoothed ``angle``, ``velocity``, ``u_H`` (K + 1,; last u_H unused), the chosen ``sigma_eps`` and ``q``,
+    the angles' marginal ``loglik``, and the ``smoother`` at those variances."""
 
     angle: np.ndarray
     velocity: np.ndarray
@@ -82,17 +50,8 @@ def _transition(A, b, var_eps, q):
 
 @njit(cache=True, fastmath=False, error_model="python")
 def _gains(F, Qn, r, n, smooth):
-    """The data-independent half of the Kalman filter and RTS smoother over n samples.
-
-    With the variances fixed, the covariances, the Kalman gains and the smoother gains do
-    not depend on the angles: they are computed here once, and :func:`smooth_means` applies them
-    to any number of angle records (the reconstruction is then a linear filter).
-
-    Returns
-    -------
-    Kg : (n, 3) Kalman gains; Sv : (n,) innovation variances; C : (n, 3, 3) smoother gains
-    ``Pf[k] Fᵀ Pp[k+1]⁻¹`` (row n - 1 unused; zeros unless ``smooth``).
-    """
+    """The angle-independent half of the filter and smoother: Kalman gains ``Kg`` (n, 3), innovation
+    variances ``Sv`` (n,) and smoother gains ``C`` (n, 3, 3), ``Pf[k] Fᵀ Pp[k+1]⁻¹`` (zeros unless ``smooth``)."""
     Kg = np.empty((n, 3))
     Sv = np.empty(n)
     C = np.zeros((n, 3, 3))
@@ -139,12 +98,8 @@ def _gains(F, Qn, r, n, smooth):
 
 @njit(cache=True, fastmath=False, error_model="python")
 def smooth_means(F, b, y, a, Kg, Sv, C, smooth):
-    """Filter (and RTS smoother) means of one angle record with precomputed gains (:func:`_gains`).
-
-    Returns the marginal log-likelihood of ``y`` and the smoothed (or filtered) means (n, 3).
-    Written out for the 3-state model (no allocation per step): the adequacy bootstrap
-    runs it for every replicate.
-    """
+    """Marginal log-likelihood of the angles ``y`` and the smoothed (or filtered) means (n, 3), from precomputed
+    gains; no allocation per step, as the bootstrap runs it per replicate."""
     n = y.shape[0]
     zf = np.empty((n, 3))
     zp = np.empty((n, 3))
@@ -185,10 +140,7 @@ def _filter(A, b, y, a, var_eps, q, r, smooth):
 
 
 class FixedReconstruction(NamedTuple):
-    """The reconstruction with its variances held fixed: a linear filter for records of one length.
-
-    Build it with :func:`fixed_reconstruction`; apply it with :func:`apply_reconstruction`.
-    """
+    """The reconstruction at fixed variances: a linear filter for records of one length."""
 
     F: np.ndarray
     b: np.ndarray
@@ -200,20 +152,8 @@ class FixedReconstruction(NamedTuple):
 
 def fixed_reconstruction(plant: DiscretePlant, n: int, sigma_eps: float, q: float, *,
                          resolution: float = DEFAULT_RESOLUTION) -> FixedReconstruction:
-    """Precompute the smoother of :func:`reconstruct` for records of ``n`` angles at fixed variances.
-
-    Parameters
-    ----------
-    plant : DiscretePlant
-    n : int
-        Number of angle samples per record (K + 1).
-    sigma_eps : float
-        White-torque SD, N·m.
-    q : float
-        Smooth-torque random-walk variance, (N·m)² per sample.
-    resolution : float
-        Encoder increment, rad.
-    """
+    """The smoother of :func:`reconstruct` for records of ``n`` angles at ``sigma_eps`` (N·m), ``q``
+    ((N·m)² per sample) and encoder ``resolution`` (rad)."""
     F, Qn = _transition(plant.A, plant.b, sigma_eps**2, q)
     Kg, Sv, C = _gains(F, Qn, resolution**2 / 12.0, int(n), True)
     return FixedReconstruction(F, np.asarray(plant.b, dtype=float), np.asarray(plant.A, dtype=float), Kg, Sv, C)
@@ -233,11 +173,7 @@ def torque_from_means(A, b, zs, a):
 
 @njit(cache=True, fastmath=False, error_model="python")
 def apply_reconstruction(F, b, A, Kg, Sv, C, y, a):
-    """Reconstruct angle, velocity and u_H of one record with a :class:`FixedReconstruction`'s arrays.
-
-    Returns ``(angle, velocity, u_H)``, each of shape (n,); numba-compiled so that callers
-    may apply it to many records in a loop.
-    """
+    """``(angle, velocity, u_H)``, each (n,), of one record through a :class:`FixedReconstruction`'s arrays."""
     _, zs = smooth_means(F, b, y, a, Kg, Sv, C, True)
     return zs[:, 0].copy(), zs[:, 1].copy(), torque_from_means(A, b, zs, a)
 
@@ -247,36 +183,8 @@ INITIAL_STATE_SECONDS = 0.5
 
 
 def initial_state(angle, u, plant: DiscretePlant, seconds: float = INITIAL_STATE_SECONDS) -> np.ndarray:
-    """Initial angle and velocity of a record whose torques are measured, fitted to its angles.
-
-    With the total torque ``u = u_H + u_A`` known, the angles are linear in x_0:
-    ``angle_k = [A^k x_0]_0 + Σ_{j<k} [A^{k-1-j} b]_0 u_j``. x_0 is the least-squares fit
-    over the first ``seconds`` (at least 3 samples), so the velocity it implies is
-    consistent with the plant and averages the encoder's quantization over many samples
-    instead of differencing two of them.
-
-    Parameters
-    ----------
-    angle : array_like, shape (K + 1,)
-        Recorded angle, rad.
-    u : array_like, shape (>= K,)
-        Total torque acting on the wheel from t_k to t_{k+1}, N·m.
-    plant : DiscretePlant
-    seconds : float
-
-    Returns
-    -------
-    ndarray, shape (2,)
-
-    Examples
-    --------
-    >>> from models.plant import discretize, propagate
-    >>> plant = discretize(0.01)
-    >>> u = np.sin(np.arange(100) / 10.0)
-    >>> x = propagate(plant, np.array([0.1, -0.3]), u)
-    >>> np.round(initial_state(x[:, 0], u, plant), 12)
-    array([ 0.1, -0.3])
-    """
+    """x_0 (2,) of a record with measured total torque ``u``: least squares of the angles, linear in x_0, over
+    the first ``seconds`` (at least 3 samples), which averages the quantization instead of differencing."""
     y = np.asarray(angle, dtype=float)
     uu = np.asarray(u, dtype=float)
     n = min(y.shape[0], uu.shape[0] + 1, max(3, int(round(seconds / plant.dt)) + 1))
@@ -305,25 +213,10 @@ def reconstruct(
     sigma_eps: float | None = None,
     q: float | None = None,
 ) -> Reconstruction:
-    """Reconstruct velocity and u_H of one segment from its encoder angle and u_A.
+    """Reconstruct velocity (rad/s) and u_H (N·m) of one segment from its encoder ``angle`` (K + 1,), rad.
 
-    Parameters
-    ----------
-    angle : array_like, shape (K + 1,)
-        Recorded angle, rad.
-    u_A : array_like, shape (K + 1,) or (K,)
-        Assistant torque, N·m (zeros in MC); entries beyond K are ignored.
-    plant : DiscretePlant
-        The 0.01-s wheel.
-    resolution : float
-        Encoder increment, rad; sets the measurement variance resolution²/12.
-    sigma_eps, q : float, optional
-        Fix the white-torque SD (N·m) and the smooth-torque random-walk variance
-        ((N·m)² per sample) instead of maximizing the marginal likelihood.
-
-    Returns
-    -------
-    Reconstruction
+    ``u_A`` (K,) or longer, N·m; ``resolution``, the encoder increment, rad; ``sigma_eps`` (N·m) and ``q``
+    ((N·m)² per sample) are fitted unless given.
     """
     y = np.ascontiguousarray(angle, dtype=float)
     a = np.ascontiguousarray(u_A, dtype=float)[: y.shape[0] - 1]
@@ -348,7 +241,6 @@ def reconstruct(
                 z[i] = v
             return negll(z)
 
-        # Nelder-Mead on log-SDs: two smooth parameters, each evaluation an O(K) filter.
         res = minimize(f, start[free], method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-6, "maxiter": 400})
         z = [fixed[0], fixed[1]]
         for i, v in zip(free, res.x):

@@ -1,19 +1,8 @@
 """The reference trajectory of the simulated study (paper Section IV-B, IV-F, Fig. 4).
 
-One smooth trajectory, the same for every subject and both conditions: a 4-minute
-run at 100 Hz whose analysis window starts at 3:30 and lasts 15 s, followed by 15 s
-that are not analysed (the run and the window are the study design's,
-:mod:`scioc.models.design`).
-
-The paper does not publish the trajectory, only that a point of it crosses the
-visualization window in 2 s (so the subject previews 2 s of it). We use a sum of
-sines with incommensurate frequencies between 0.05 and 0.5 Hz (the fastest
-component completes a full cycle in 2 s: one swing visible on screen at once),
-amplitudes falling as 1/f so that the steering rate stays moderate, fixed phases,
-scaled to an RMS angle of 0.2 rad (11.5°, peaks of about ±0.6 rad), and faded in
-over the first 2 s so that the run starts at rest. Its peak angular rate is about
-0.4 rad/s, well inside what a person turns a wheel at (``scioc assistant`` prints
-these numbers).
+One smooth curve for every subject and condition over a whole run: a sum of sines between 0.05 and
+0.5 Hz with amplitudes ∝ 1/f and fixed phases, scaled to :data:`RMS_ANGLE` and faded in over 2 s. The
+paper does not publish its own; why this one: docs/decisions/reference-trajectory.md.
 """
 
 from __future__ import annotations
@@ -33,43 +22,15 @@ PHASE_SEED = 2018
 
 
 class Reference(NamedTuple):
-    """A reference angle on the 100-Hz grid.
-
-    Attributes
-    ----------
-    t : ndarray, shape (N,)
-        s, from 0.
-    angle : ndarray, shape (N,)
-        rad.
-    """
+    """A reference angle ``angle`` (N,), rad, at times ``t`` (N,), s from 0."""
 
     t: np.ndarray
     angle: np.ndarray
 
 
 def reference_trajectory(seconds: float = RUN_SECONDS, dt: float = DT_HUMAN, rms: float = RMS_ANGLE) -> Reference:
-    """The study's reference angle for a whole run.
-
-    Parameters
-    ----------
-    seconds : float
-        Duration, s (default 240: a 4-minute run).
-    dt : float
-        Sample time, s.
-    rms : float
-        RMS of the angle over a whole 4-minute run, rad.
-
-    Returns
-    -------
-    Reference
-        ``round(seconds / dt) + 1`` samples.
-
-    Examples
-    --------
-    >>> ref = reference_trajectory()
-    >>> ref.t.shape
-    (24001,)
-    """
+    """The study's reference: ``round(seconds / dt) + 1`` samples (``seconds``, ``dt`` in s), RMS ``rms`` rad
+    over a whole 4-minute run."""
     n = int(round(seconds / dt)) + 1
     t = np.arange(n) * dt
     phases = np.random.default_rng(PHASE_SEED).uniform(0.0, 2.0 * np.pi, FREQUENCIES.shape[0])

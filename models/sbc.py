@@ -1,15 +1,8 @@
 """Simulation-based calibration statistics (Talts et al. 2018) on plain arrays.
 
-For each replication the true parameter is drawn from the prior, data are simulated,
-the posterior is sampled, and the rank of the truth among L posterior draws thinned to
-near-independence is recorded. If simulator, likelihood and sampler are all right the
-ranks are uniform on {0, ..., L}.
-
-Ranks follow simuk's definition (the number of posterior draws strictly below the
-true value), computed on thinned draws. For tests and ECDF plots the discrete rank is
-turned into a continuous PIT value ``(rank + U) / (L + 1)`` with ``U ~ Uniform(0, 1)``
-drawn from the replication's own seed: exactly Uniform(0, 1) under calibration, so a
-Kolmogorov-Smirnov test has its stated size.
+The rank of the truth among L thinned posterior draws (simuk's: draws strictly below it) is uniform on
+{0, ..., L} if simulator, likelihood and sampler are right; the PIT ``(rank + U) / (L + 1)``, U uniform
+from the replication's seed, is exactly Uniform(0, 1), so a KS test has its stated size.
 """
 
 from __future__ import annotations
@@ -24,10 +17,7 @@ COVERAGE_LEVELS = (0.5, 0.8, 0.9, 0.95)
 
 
 def ess_basic(draws: np.ndarray) -> float:
-    """Effective sample size of a (chains, draws) array by Geyer's initial positive sequence.
-
-    A plain NumPy estimate (rank normalisation is not needed for thinning decisions).
-    """
+    """ESS of a (chains, draws) array by Geyer's initial positive sequence (no rank normalisation: for thinning)."""
     x = np.asarray(draws, dtype=float)
     if x.ndim == 1:
         x = x[None, :]
@@ -44,7 +34,6 @@ def ess_basic(draws: np.ndarray) -> float:
         return float(m * n)
     rho = 1.0 - (W - acov.mean(axis=0)) / var_plus  # Stan's multi-chain autocorrelation
     rho[0] = 1.0
-    # Geyer: sum pairs while positive
     total = 0.0
     t = 0
     while t + 1 < n:
@@ -58,17 +47,9 @@ def ess_basic(draws: np.ndarray) -> float:
 
 
 def thin(draws: np.ndarray, L: int) -> tuple[np.ndarray, float]:
-    """Thin (chains, draws) to L draws spaced as evenly as the ESS allows.
+    """``(kept, ess)``: L draws, evenly spaced among every ``ceil(N / ESS)``-th of the concatenated chains.
 
-    The chains are concatenated; draws are kept every ``ceil(N / ESS)`` steps (near
-    independence) and L of those are taken evenly spaced.
-
-    Returns
-    -------
-    kept : ndarray, shape (L,)
-    ess : float
-        The ESS the thinning was based on; if ``ess < L`` the kept draws are still
-        autocorrelated and the caller should flag the replication.
+    With ``ess < L`` the kept draws are still autocorrelated; the caller flags the replication.
     """
     x = np.asarray(draws, dtype=float)
     if x.ndim == 1:
@@ -121,18 +102,10 @@ def uniformity_test(pit, alpha: float) -> UniformityResult:
 
 
 def ecdf_band(n: int, alpha: float = 0.05, *, n_grid: int = 200, n_sim: int = 2000, seed: int = 0):
-    """Simultaneous (1 - alpha) band for the ECDF difference of n Uniform(0, 1) values.
+    """Simultaneous (1 - alpha) band ``(z, lower, upper)`` for ``ECDF(z) - z`` of n uniforms, on a grid of n_grid.
 
-    Säilynoja, Bürkner & Vehtari (2022): find the pointwise level γ at which the
-    pointwise binomial bands on a grid hold everywhere with probability 1 - alpha,
-    by simulation with a fixed seed (so the band is reproducible).
-
-    Returns
-    -------
-    z : ndarray, shape (n_grid,)
-        Grid on (0, 1).
-    lower, upper : ndarray, shape (n_grid,)
-        Band for ``ECDF(z) - z``.
+    Säilynoja, Bürkner & Vehtari (2022): the pointwise binomial level γ at which the band holds everywhere
+    with probability 1 - alpha, found by simulation with a fixed seed.
     """
     z = (np.arange(1, n_grid + 1)) / (n_grid + 1)
     rng = np.random.default_rng(seed)

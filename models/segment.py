@@ -1,16 +1,7 @@
 """Demonstrations in the data convention and their θ-independent layout for the likelihood.
 
-A :class:`Segment` is one subject × condition window: the initial state, the reference,
-the observed human torques u_H,0..u_H,K-1 and the assistant's torques, optionally with
-the assistant's feedback law (:class:`Feedback`) when the human plans with it. The
-max-ent likelihood (:mod:`scioc.models.maxent`) needs, besides θ, only the states driven from
-x_0 by the *observed* torques (paper Eq. 11 with u = u_H + u_A): they do not depend on θ,
-so :func:`prepare_batch` computes them once per data set and lays equal-length segments
-out as the arrays of a :class:`SegmentBatch`.
-
-A human who plans with the assistant's law ``u_A,k = -gain @ x_k + feedforward_k`` plans
-on the wheel closed by it, ``A - b gainᵀ`` (:func:`planning_plant`), with the
-feedforward as the known input (:func:`plan_inputs`).
+Besides θ, the max-ent likelihood needs only the states driven from x_0 by the observed torques (Eq. 11),
+which :func:`prepare_batch` computes once per data set.
 """
 
 from __future__ import annotations
@@ -23,18 +14,10 @@ from scioc.models.plant import DiscretePlant, propagate
 
 
 class Feedback(NamedTuple):
-    """The assistant as a feedback law the human knows and plans with.
+    """The assistant's law ``u_A,k = -gain @ x_k + feedforward[k]`` as the human knows it.
 
-    ``u_A,k = -gain @ x_k + feedforward[k]``: to the human the assistant is part of the
-    wheel (closed by ``-gain``, an added spring and damper) plus a known input, the
-    feedforward. :func:`scioc.models.assistant.human_feedback` builds it for the MPC assistant.
-
-    Attributes
-    ----------
-    gain : ndarray, shape (2,)
-        N·m per (rad, rad/s).
-    feedforward : ndarray, shape (K + M,)
-        N·m.
+    ``gain`` (2,), N·m per (rad, rad/s), closes the wheel (an added spring and damper); ``feedforward``
+    (K + M,), N·m, is a known input. Built by :func:`scioc.models.assistant.human_feedback`.
     """
 
     gain: np.ndarray
@@ -54,27 +37,9 @@ def planning_plant(plant: DiscretePlant, gain) -> DiscretePlant:
 class Segment(NamedTuple):
     """One demonstration (a subject × condition window) in the data convention.
 
-    Attributes
-    ----------
-    x0 : ndarray, shape (2,)
-        Initial angle (rad) and velocity (rad/s).
-    angle_ref : ndarray, shape (K + M + 1,)
-        Reference angle r_0..r_{K+M}, rad.
-    u_H : ndarray, shape (K,)
-        Observed human torque, N·m, acting from t_k to t_{k+1}.
-    u_A : ndarray, shape (K + M,)
-        Recorded assistant torque, N·m (zeros in manual control).
-    feedback : Feedback or None
-        How the human models the assistant. None is the paper's model (Eq. 15-16):
-        the recorded u_A is a known input sequence. A :class:`Feedback` is a human who
-        knows the assistant's law and plans with the wheel it closes and with its
-        feedforward; the recorded u_A still drives the observed states. The two differ
-        in closed loop: the recorded u_A reacts to the human's own variability, which
-        the paper's model lets the human anticipate.
-
-    M >= 0 preview steps extend the human's planning horizon past the observed torques
-    (the reference and u_A after the window are known from the recording); M = 0 is
-    the paper's model, planning exactly over the window.
+    ``x0`` (2,), rad and rad/s; ``angle_ref`` (K + M + 1,), rad; ``u_H`` (K,) and the recorded ``u_A``
+    (K + M,), N·m. ``feedback`` None is the paper's model (Eq. 15-16: u_A a known sequence); a
+    :class:`Feedback` human plans with the assistant's law. M >= 0 preview steps extend the plan.
     """
 
     x0: np.ndarray
@@ -93,22 +58,11 @@ class Segment(NamedTuple):
 
 
 class SegmentBatch(NamedTuple):
-    """Segments of equal length K, one row each, for the kernel.
+    """n segments of equal K and M, one row each, for the kernel.
 
-    Attributes
-    ----------
-    x1, x2 : ndarray, shape (n, K + 1)
-        Angle (rad) and velocity (rad/s) propagated from x_0 with the observed torques.
-    r : ndarray, shape (n, K + M + 1)
-        Angle reference, rad (M preview steps).
-    u : ndarray, shape (n, K)
-        Human torque, N·m.
-    a : ndarray, shape (n, K + M)
-        The known input of the human's plan, N·m: the recorded assistant torque, or the
-        assistant's feedforward for a segment with :class:`Feedback`.
-    fb : ndarray, shape (n, 2)
-        The assistant's state feedback the human plans with (zeros without Feedback);
-        the plan uses the wheel ``A - b fbᵀ``.
+    ``x1``, ``x2`` (n, K + 1): angle (rad) and velocity (rad/s) driven by the observed torques; ``r``
+    (n, K + M + 1), rad; ``u`` (n, K), N·m; ``a`` (n, K + M), the plan's known input (u_A or the
+    feedforward), N·m; ``fb`` (n, 2), the feedback the plan closes the wheel with, ``A - b fbᵀ``.
     """
 
     x1: np.ndarray
@@ -158,15 +112,7 @@ def check_segment(seg: Segment) -> Segment:
 
 
 def plan_inputs(segment: Segment, plant: DiscretePlant) -> tuple[DiscretePlant, np.ndarray]:
-    """The wheel and the known input the human plans with for this segment.
-
-    Returns
-    -------
-    plant : DiscretePlant
-        ``plant`` itself, or the wheel closed by the assistant's feedback.
-    u_known : ndarray, shape (K + M,)
-        The recorded u_A, or the assistant's feedforward.
-    """
+    """``(plant, u_known)`` the human plans with: ``plant`` and u_A, or the closed wheel and the feedforward."""
     seg = check_segment(segment)
     if seg.feedback is None:
         return plant, seg.u_A
@@ -174,19 +120,7 @@ def plan_inputs(segment: Segment, plant: DiscretePlant) -> tuple[DiscretePlant, 
 
 
 def prepare_batch(plant: DiscretePlant, segments) -> SegmentBatch:
-    """Lay out equal-length segments for :func:`scioc.models.maxent.loglik_grad` (θ-independent, done once).
-
-    Parameters
-    ----------
-    plant : DiscretePlant
-        The 0.01-s discretization of the wheel.
-    segments : sequence of Segment
-        All with the same K.
-
-    Returns
-    -------
-    SegmentBatch
-    """
+    """Lay out segments of equal K and M for :func:`scioc.models.maxent.loglik_grad` (θ-independent, once)."""
     segs = [check_segment(s) for s in segments]
     if not segs:
         raise ValueError("no segments given")

@@ -1,26 +1,9 @@
-"""A faithful simulator of the paper's experiment (Section IV) standing in for its unpublished data.
+"""A simulator of the paper's experiment (Section IV) standing in for its unpublished data.
 
-Each subject performs two 4-minute runs at 100 Hz, manual control (MC) and shared control
-(SC), in random order, tracking the same reference (:mod:`scioc.models.reference`). The
-simulated human is the max-ent LQ agent of :mod:`scioc.models.maxent` with its own θ per
-subject and condition, drawn from :class:`Population`.
-
-Shared control closes two loops. The assistant re-solves its MPC every sample, so it
-acts as a fixed state feedback plus a feedforward from the reference
-(:func:`scioc.models.assistant.human_feedback`). The simulated human knows it, as a
-practised subject feels the assistant's pull as part of the wheel: it plans its
-optimal torque on the wheel closed by the assistant's feedback, with the feedforward
-as a known input. The run samples the human's max-ent variability from the
-linear-Gaussian policy of that plan (``u_H,k = -L_k x_k + f_k + ε_k``,
-``ε_k ~ N(0, 1 / 2 S_k)``) while the assistant reacts to the actual state, so every
-SC torque sequence is an exact draw of the max-ent model with
-:class:`scioc.models.segment.Feedback`. The paper's model, in which the human takes the
-recorded u_A as a known sequence, is then misspecified in SC: the recorded u_A
-reacts to the human's own variability. The recorded angle is quantized by the
-encoder (40000 increments per revolution).
-
-Only what a lab records goes into the study table: angle, reference and u_A. Velocity,
-u_H and θ are kept apart as ground truth.
+Each subject runs every level in random order as the max-ent LQ agent with its own θ per level
+(:class:`Population`). In SC it plans with the assistant's law, so each SC run is an exact draw of the
+max-ent model with :class:`scioc.models.segment.Feedback` (docs/decisions/assistant-as-state-feedback.md).
+The lab's record is the encoder angle, reference and u_A; velocity, u_H and θ are ground truth.
 """
 
 from __future__ import annotations
@@ -50,19 +33,8 @@ from scioc.models.segment import Segment, planning_plant
 
 
 class Run(NamedTuple):
-    """One simulated run with what the lab records and what only the simulator knows.
-
-    Attributes
-    ----------
-    angle : ndarray, shape (K + 1,)
-        Encoder angle (quantized), rad.
-    u_A : ndarray, shape (K + 1,)
-        Assistant torque (0 in MC), N·m; the last entry repeats the held torque.
-    true_angle, true_velocity : ndarray, shape (K + 1,)
-        rad, rad/s.
-    u_H : ndarray, shape (K + 1,)
-        Human torque, N·m; the last entry is unused (0).
-    """
+    """One run, each (K + 1,): recorded ``angle`` (encoder, rad) and ``u_A`` (N·m; the last repeats the
+    held torque); ground truth ``true_angle``, ``true_velocity`` (rad, rad/s) and ``u_H`` (N·m; last 0)."""
 
     angle: np.ndarray
     u_A: np.ndarray
@@ -72,7 +44,7 @@ class Run(NamedTuple):
 
 
 def quantize(angle, step: float = ENCODER_STEP) -> np.ndarray:
-    """Encoder reading: the angle rounded to whole increments, rad (error uniform within ±step/2); step 0: unchanged."""
+    """Encoder reading: the angle rounded to whole increments ``step``, rad (0: unchanged)."""
     a = np.asarray(angle, dtype=float)
     return np.round(a / step) * step if step > 0 else a.copy()
 
@@ -97,30 +69,9 @@ def simulate_run(
     *,
     encoder_step: float = ENCODER_STEP,
 ) -> Run:
-    """Simulate one run of one subject.
-
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-        True [q11, q22, R].
-    condition : str
-        The level: ``MC`` is unassisted whatever ``assistant`` is; any other level is
-        assisted by ``assistant`` unless it is None.
-    angle_ref : array_like, shape (K + 1,)
-    plant : DiscretePlant
-        The wheel at the recording's sample time.
-    assistant : MPCAssistant or None
-        The level's assistant; it must re-solve every sample (``hold == 1``).
-    rng : numpy.random.Generator
-    x0 : array_like, shape (2,)
-        Initial state (the wheel at rest by default).
-    encoder_step : float
-        Encoder increment, rad (0: the angle is not quantized).
-
-    Returns
-    -------
-    Run
-    """
+    """Simulate one run of one subject with true θ = [q11, q22, R]; ``MC`` is unassisted, another level
+    assisted by ``assistant`` unless None. ``angle_ref`` (K + 1,) and ``encoder_step`` in rad, ``x0`` in
+    rad, rad/s."""
     ref = np.asarray(angle_ref, dtype=float)
     K = ref.shape[0] - 1
     x0 = np.asarray(x0, dtype=float)
@@ -157,13 +108,9 @@ def simulate_human_run(human: str, theta, condition: str, angle_ref, plant: Disc
                        assistant: MPCAssistant | None, rng: np.random.Generator, *,
                        encoder_step: float = ENCODER_STEP, design: Design = STUDY,
                        subject: HumanSpec | None = None) -> Run:
-    """One run of the named human of :data:`scioc.models.humans.HUMANS`, recorded like :func:`simulate_run`.
-
-    ``maxent`` is :func:`simulate_run` itself (the paper's agent, bit for bit); every other
-    name is a human the max-ent likelihood does not describe (negative controls).
-    ``design`` gives the wheel of the lagged humans. ``subject`` is the subject's own draw
-    of a human that varies between subjects (:meth:`scioc.models.humans.HumanSpec.for_subject`).
-    """
+    """One run of a human of :data:`scioc.models.humans.HUMANS`, recorded like :func:`simulate_run`
+    (``maxent`` is that function). ``design`` gives the lagged humans' wheel; ``subject`` is this subject's
+    draw of a human that varies between subjects."""
     spec = HUMANS.get(human)
     if spec is None:
         raise ValueError(f"unknown human {human!r}; choose one of {', '.join(HUMANS)}")
@@ -186,34 +133,11 @@ def simulate_study(
     human: str = "maxent",
     design: Design = STUDY,
 ) -> tuple[np.ndarray, list[SimulatedSegment]]:
-    """Simulate the whole experiment.
+    """Simulate the whole experiment: sample times ``t`` (K + 1,), s, and the runs in performed order.
 
-    Parameters
-    ----------
-    n_subjects : int
-    rng : numpy.random.Generator
-        Every subject gets an independent child generator spawned from it, so a subject's
-        data do not depend on how many subjects follow; each of its runs (level × trial)
-        gets a child of that.
-    population : Population
-    seconds : float
-        Length of each run, s (240: 4 minutes).
-    human : str
-        Which simulated human (:data:`scioc.models.humans.HUMANS`); ``maxent`` is the paper's
-        agent, the others are negative controls the likelihood does not describe.
-    design : Design
-        The experiment: sample time, wheel, encoder, levels with their assistants, and
-        ``trials`` runs per subject × level (the paper's study by default). The
-        population's θ (stated at 100 Hz) is scaled by ``design.r_scale``, so that the
-        same subjects recorded at another rate have the same θ1, θ2 and R at 100 Hz.
-
-    Returns
-    -------
-    t : ndarray, shape (K + 1,)
-        Sample times, s.
-    segments : list of SimulatedSegment
-        Subject by subject, in the order the runs were performed (a level's trials one
-        after another); ``trial`` is None with one trial per level.
+    ``rng`` spawns a child per subject (its data do not depend on how many follow) and that one a child per
+    run. ``human``: a name of :data:`scioc.models.humans.HUMANS`; ``seconds``: run length, s. The
+    population's θ is scaled by ``design.r_scale``. ``trial`` is None with one trial per level.
     """
     if human not in HUMANS:
         raise ValueError(f"unknown human {human!r}; choose one of {', '.join(HUMANS)}")
@@ -232,8 +156,7 @@ def simulate_study(
             sub = sub._replace(thetas=tuple(th * scale for th in sub.thetas))
         name = f"S{i + 1:0{width}d}"
         runs = child.spawn(len(levels) * T)  # level-major: level j, trial t is runs[j * T + t]
-        # A human that varies between subjects draws this subject's delay and lag from the next child
-        # (spawned after the runs', so the runs' streams are those of every other human).
+        # Spawned after the runs' children, so the runs' streams are those of every other human.
         spec = HUMANS[human].for_subject(child.spawn(1)[0]) if HUMANS[human].varies else None
         n = 0
         for j in sub.order:
@@ -248,16 +171,7 @@ def simulate_study(
 
 
 class Windows(NamedTuple):
-    """Simulated analysis windows with the true torques, ready for the likelihood.
-
-    Attributes
-    ----------
-    subjects, conditions : list of str
-    segments : list of Segment
-        True x0, u_H and recorded u_A; SC segments carry the assistant's Feedback.
-    theta : ndarray, shape (3, n)
-        True [q11, q22, R] per segment.
-    """
+    """Simulated windows with true x0 and u_H (SC segments with the assistant's Feedback), and true θ (3, n)."""
 
     subjects: list
     conditions: list
@@ -268,14 +182,8 @@ class Windows(NamedTuple):
 def simulate_windows(n_subjects: int, rng: np.random.Generator, population: Population = Population(), *,
                      K: int = round(WINDOW_SECONDS / DT_HUMAN),
                      preview: int = round(PREVIEW_SECONDS / DT_HUMAN)) -> Windows:
-    """Small studies straight from the simulator: each subject's MC and SC runs, first K steps.
-
-    Each run is simulated over K + preview + 200 samples of the study reference (so the
-    simulated human plans past what the likelihood sees, as in a real run) and cut to
-    its first K observed steps plus ``preview`` planning steps (by default the design's
-    15-s window and 2-s preview). No encoder, no reconstruction: the true state and
-    torque, for tests and calibration.
-    """
+    """Small studies for tests and calibration: each subject's MC and SC runs with true state and torque,
+    simulated past what the likelihood sees and cut to K observed plus ``preview`` planning steps."""
     plant = discretize(DT_HUMAN)
     assistant = design_assistant()
     ref = reference_trajectory(DT_HUMAN * (K + preview + 200)).angle

@@ -1,10 +1,8 @@
 """Units of a study: which subject × condition each segment belongs to, and the design check.
 
-A *unit* is one subject in one condition level (by default MC, manual, and SC, shared
-control; an experiment file may name two or more levels with a baseline). Several
-segments (trials) of one unit are replicates of it. The models that compare the
-conditions (:mod:`scioc.models.bayes.hierarchical`) need every subject in every level;
-:func:`index_study` checks that where the labels enter and maps each segment to its unit.
+A *unit* is one subject in one condition level; several segments of a unit are its trials. The models that
+compare levels (:mod:`scioc.models.bayes.hierarchical`) need every subject in every level, which
+:func:`index_study` checks where the labels enter.
 """
 
 from __future__ import annotations
@@ -18,17 +16,8 @@ from scioc.models.design import CONDITIONS
 
 
 class StudyIndex(NamedTuple):
-    """Which unit each segment belongs to.
-
-    Attributes
-    ----------
-    subjects : tuple of str
-        Subject labels in order of first appearance (the ``subject`` coordinate).
-    subject_idx : ndarray of int, shape (n,)
-    condition_idx : ndarray of int, shape (n,)
-        Position of the segment's level in ``levels`` (0: the baseline; by default 0 for
-        MC, 1 for SC).
-    """
+    """Each segment's unit: ``subject_idx`` into ``subjects`` (labels in order of first appearance) and
+    ``condition_idx`` into the levels (0: the baseline), int arrays of shape (n,)."""
 
     subjects: tuple[str, ...]
     subject_idx: np.ndarray
@@ -36,28 +25,11 @@ class StudyIndex(NamedTuple):
 
 
 def index_study(subjects: Sequence, conditions: Sequence, levels: Sequence = CONDITIONS) -> StudyIndex:
-    """Check the design and map each segment to its (subject, condition) unit.
+    """Check the design and map each segment's subject and condition label (compared as strings) to its unit.
 
-    Parameters
-    ----------
-    subjects : sequence, length n
-        Subject label of each segment (compared as strings).
-    conditions : sequence of str, length n
-        Condition level of each segment (several segments of one unit are its trials).
-    levels : sequence of str
-        The levels, baseline first (default MC, SC).
-
-    Returns
-    -------
-    StudyIndex
-
-    Raises
-    ------
-    ValueError
-        If the lengths differ, a condition is not MC or SC (naming the first such
-        segment), there are no SC (or no MC) segments at all (β would not be
-        identified; no fallback model is offered), or a subject lacks one condition
-        (naming the subjects).
+    ``levels``: baseline first (MC, SC). Raises ValueError, naming the segment or subjects, for unequal
+    lengths, an unknown level, a level without any segment (its β is not identified), or a subject
+    missing a level.
     """
     levels = tuple(str(v) for v in levels)
     if len(levels) < 2:

@@ -1,16 +1,10 @@
 """Model adequacy of a fitted study: per-segment bootstrap checks and the study verdict.
 
-Glue between the prepared segments of ``scioc identify``/``scioc fit`` and the
-mathematics in :mod:`scioc.models.adequacy`: for each segment it builds the acquisition chain
-(the fitted model's policy over the reconstruction span, the assistant as the human
-model assumes it, the encoder and the reconstruction with the segment's variances),
-draws the bootstrap, and combines the segments into one verdict. The bootstrap draws
-from the human model the segments were fitted with: ``maxent`` (:mod:`scioc.models.bootstrap`)
-or ``delayed`` (:mod:`scioc.models.delayed.bootstrap`, z its standardized innovations); the
-statistics and their calibration are the same for both, and the summary records which. The verdict judges the
-*human model*, not the sampler or the optimizer: "pass" means no check found the data
-unlike the model's own data; "fail" means the identified costs, and any difference
-between conditions, may be artifacts of model misfit.
+Per prepared segment: the acquisition chain (fitted policy over the reconstruction span, the
+assistant as the human models it, encoder, reconstruction), a bootstrap from the fitted human
+model (``maxent``: :mod:`scioc.models.bootstrap`; ``delayed``: :mod:`scioc.models.delayed.bootstrap`)
+and the statistics of :mod:`scioc.models.adequacy`, combined into one verdict on the *human model*:
+"fail" means the costs, and any difference between conditions, may be artifacts of misfit.
 """
 
 from __future__ import annotations
@@ -78,12 +72,7 @@ def _acquisition(p, assistant):
 
 
 def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chain:
-    """The acquisition chain of one prepared segment (:class:`scioc.pipelines.prepare.PreparedSegment`) at θ.
-
-    The policy over the span is the fitted model's plan (horizon: the window plus its
-    preview); steps after that horizon, if the reconstruction span reaches past it, follow
-    a plan that ends with the span.
-    """
+    """The max-ent acquisition chain of a prepared segment at θ (past the plan's horizon, a plan to the span's end)."""
     d = p.data
     j0, j1 = p.span.start, p.span.stop
     i0, K, M = p.rows.start, p.segment.K, p.segment.preview
@@ -114,12 +103,9 @@ def segment_chain(p, theta, plant, *, resolution: float, assistant=None) -> Chai
 def delayed_segment_chain(p, theta, plant, *, tau_nm: float, sigma_m: float, delay: int, tau0: float,
                           resolution: float, assistant=None, params: WheelParameters = WheelParameters()
                           ) -> DelayedChain:
-    """The acquisition chain of one prepared segment fitted with the ``delayed`` human.
+    """:func:`segment_chain` for the ``delayed`` human at θ, τ_nm (s), σ_m (N·m), delay (samples), ``tau0`` (N·m).
 
-    The same span, assistant, encoder and reconstruction as :func:`segment_chain`; the
-    replicates are drawn at the fitted θ, τ_nm (s), σ_m (N·m), delay (samples) with the
-    arm torque ``tau0`` (N·m) at the window's start, and at the policy noise the model
-    states (:mod:`scioc.models.delayed.bootstrap` says why not the reconstruction's σ_ε).
+    Its policy noise is the model's own (:mod:`scioc.models.delayed.bootstrap` says why).
     """
     d = p.data
     j0, j1 = p.span.start, p.span.stop
@@ -143,8 +129,7 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings, *, delayed
     Parameters
     ----------
     prepared : list of PreparedSegment
-        As :func:`scioc.pipelines.prepare.prepare_segment` made them with ``settings`` (each
-        segment carries the human's model of the assistant).
+        From :func:`scioc.pipelines.prepare.prepare_segment` with ``settings``.
     thetas : array_like, shape (n, 3)
         [q11, q22, R] per segment.
     plant : DiscretePlant
@@ -152,22 +137,17 @@ def assess_study(prepared, thetas, plant, settings: IdentifySettings, *, delayed
         ``adequacy_boot`` data sets per segment (segment i draws from
         ``SeedSequence(adequacy_seed).spawn(n)[i]``) and the encoder ``resolution``.
     delayed : dict, optional
-        None: the human model is ``maxent`` (the bootstrap draws from the max-ent model at
-        θ). Otherwise the ``delayed`` human's other fitted parameters per segment, in the
-        order of ``prepared``: ``tau_nm`` (n,) s, ``sigma_m`` (n,) N·m, ``delay`` (n,)
-        whole samples and ``tau0`` (n,) N·m, the arm torque at the window's start
-        (:func:`delayed_segment_chain`); the bootstrap then draws from that model and z is
-        its standardized innovations. The statistics and their combination are the same.
+        None for the ``maxent`` human; else the ``delayed`` human's :data:`DELAYED_KEYS`, each
+        shape (n,): ``tau_nm`` (s), ``sigma_m`` (N·m), ``delay`` (samples), ``tau0`` (N·m).
 
     Returns
     -------
     columns : DataFrame
-        One row per segment: ``adequacy_p`` (min-P combined), ``adequacy_flagged`` and
-        ``adequacy_p_<check>``. With several trials per unit, one row per unit instead
-        (:func:`_per_unit`), in order of first appearance.
+        Per segment (per unit with trials, :func:`_per_unit`): ``adequacy_p`` (min-P),
+        ``adequacy_flagged`` and ``adequacy_p_<check>``.
     summary : dict
-        The verdict (:func:`scioc.models.adequacy.study_verdict`) with the flagged segments and
-        settings (no timings: the same seed gives the same summary).
+        The verdict (:func:`scioc.models.adequacy.study_verdict`), flagged segments and
+        settings; no timings, so the same seed gives the same summary.
     """
     n_boot, seed, design = settings.adequacy_boot, settings.adequacy_seed, settings.design
     thetas = np.asarray(thetas, dtype=float)
@@ -235,13 +215,10 @@ def _check_delayed(delayed: dict, n: int) -> dict:
 
 
 def _per_unit(cols: pd.DataFrame, keys: list):
-    """Combine the trials of each unit: every p is Fisher's combination of its trials' (:func:`scioc.models.adequacy.fisher`).
+    """Each unit's p-values as Fisher's combination of its trials' (:func:`scioc.models.adequacy.fisher`).
 
-    The trials of a unit are independent given its θ, so the combination is a valid
-    p-value (conservative for the bootstrap's discrete p-values), and the study verdict
-    over units keeps its false-alarm rate; ``adequacy_flagged`` flags the unit at the
-    segment level's 5 %. Returns the columns, one row per unit in order of first
-    appearance, and the units.
+    Trials are independent given θ, so the combination is a valid (conservative) p-value.
+    Returns the columns, one row per unit in order of first appearance, and the units.
     """
     units = list(dict.fromkeys(keys))
     pcols = [c for c in cols.columns if c.startswith("adequacy_p")]

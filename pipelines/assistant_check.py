@@ -1,7 +1,6 @@
 """``scioc assistant``: the MPC assistant alone on the study reference (nobody holds the wheel).
 
-The paper chose θ_A = [5, 0, 1] for "slight assistance": the assistant cannot track
-the reference on its own. This measures how well it does and how much torque it uses.
+The paper's θ_A = [5, 0, 1] gives "slight assistance"; this shows how well it tracks alone and at what torque.
 """
 
 from __future__ import annotations
@@ -14,15 +13,8 @@ from scioc.models.reference import reference_trajectory, window_slice
 
 
 def assistant_alone(seconds: float = 240.0) -> dict:
-    """Closed-loop run of wheel + assistant with u_H = 0 over a whole run (default 4 minutes).
-
-    Returns
-    -------
-    dict
-        Reference RMS and peak (rad, rad/s), tracking error RMS and peak (rad), assistant
-        torque RMS and peak (N·m), for the whole run and the analysis window, and the
-        same error with nobody steering for comparison.
-    """
+    """Wheel + assistant in closed loop with u_H = 0 for ``seconds``: per run and analysis window, the
+    reference's, the tracking error's (also with nobody steering) and the torque's RMS and peak."""
     plant = discretize(DT_HUMAN)
     ref = reference_trajectory(seconds)
     x0 = [ref.angle[0], 0.0]

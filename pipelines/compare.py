@@ -1,20 +1,10 @@
 """``scioc compare``: the paper's hypothesis test (Section IV-G, V-A) on identified parameters.
 
-Wilcoxon matched-pairs signed-rank test of θ1 = q11/R (and θ2 = q22/R) between MC and
-SC (an experiment's baseline and each other level: :func:`compare_estimates`) over
-subjects with both conditions: N non-zero differences, W+ and W−, T = min(W+,
-W−), the exact two-sided p-value (scipy's ``wilcoxon(method="exact")``) and the critical
-value at the chosen α from the exact null distribution of T (Siegel & Castellan 1988; for
-N = 42 and α = 0.1 % two-sided it is 195, the paper's P(0.1; 42); scipy has no critical
-values, hence the table here), and the matched-pairs rank-biserial effect size
-r = (W+ − W−) / (W+ + W−). Zero differences are dropped (Wilcoxon's convention); tied
-absolute differences get average ranks, in which case the exact null (which assumes
-no ties) is approximate and scipy's p-value takes the conservative side (T rounded up).
-
-The estimates enter through :func:`check_estimates`: one row per subject × condition,
-and every unit left out of the test (θ1 not finite and positive, θ2 not finite and
-non-negative, identification not converged, partner condition missing or left out) is
-listed with its reason.
+The exact Wilcoxon matched-pairs signed-rank test (:mod:`scioc.pipelines.signed_rank`) of
+θ1 = q11/R and θ2 = q22/R, each level against the baseline (Holm across levels), with the
+rank-biserial effect size r = (W+ − W−) / (W+ + W−). Zero differences are dropped; ties get
+average ranks, and the exact null is then approximate (scipy's p-value errs conservative).
+:func:`check_estimates` lists every unit left out of the test with its reason.
 """
 
 from __future__ import annotations
@@ -60,28 +50,24 @@ def check_estimates(estimates: pd.DataFrame, path="<table>", *, include_nonconve
     ----------
     estimates : DataFrame
         One row per subject × condition with ``theta1``, ``theta2`` and optionally
-        ``converged`` (and ``message``), as ``scioc identify`` writes.
+        ``converged``, ``implausible`` and ``message``, as ``scioc identify`` writes.
     path : str
         Named in error messages.
     include_nonconverged : bool
-        Keep units whose identification did not converge or ended at the edge of the
-        search (``implausible``; default: leave them out).
+        Keep units that did not converge or ended at the edge of the search.
     levels : sequence of str
-        The condition levels, baseline first (default MC, SC). A unit of another level
-        needs its subject's baseline unit; a baseline unit needs at least one other.
+        Baseline first. A unit needs its subject's baseline unit; a baseline unit, one other.
 
     Returns
     -------
     usable : DataFrame
-        Rows of the subjects whose baseline unit and at least one other are usable.
     excluded : list of dict
-        ``{"subject", "condition", "reason"}`` for every unit left out, in table order.
+        ``{"subject", "condition", "reason"}`` per unit left out, in table order.
 
     Raises
     ------
     StudyFileError
-        A missing column, an unknown condition label, or a subject × condition that
-        appears more than once (naming the rows).
+        A missing column, an unknown label, or a duplicated subject × condition.
     """
     for col in ("subject", "condition", "theta1", "theta2"):
         if col not in estimates.columns:
@@ -161,18 +147,9 @@ def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_
                       path="<table>", levels=CONDITIONS) -> dict:
     """Signed-rank tests of θ1 and θ2 of each level against the baseline on the units :func:`check_estimates` keeps.
 
-    ``levels``: baseline first (default MC, SC). With two levels the result has the
-    ``theta1`` and ``theta2`` tests at the top. With more, ``contrasts`` holds them per
-    non-baseline level (each against the baseline), with Holm-adjusted p-values
-    (``p_holm``, ``reject_holm``) across the levels, per parameter: the family-wise error
-    rate over the contrasts is then at most α.
-
-    Returns
-    -------
-    dict
-        The tests, ``excluded`` (every unit left out, with its reason),
-        ``unpaired_subjects`` (subjects with one condition only in the table) and
-        ``include_nonconverged``.
+    With two levels (baseline first) the ``theta1`` and ``theta2`` tests are at the top; with more,
+    ``contrasts`` holds them per level with Holm-adjusted ``p_holm``/``reject_holm`` (family-wise
+    error at most α). Also ``excluded``, ``unpaired_subjects``, ``include_nonconverged`` and ``adequacy``.
     """
     levels = tuple(levels)
     usable, excluded = check_estimates(estimates, path, include_nonconverged=include_nonconverged, levels=levels)
@@ -199,15 +176,10 @@ def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_
 
 
 def adequacy_of_estimates(estimates: pd.DataFrame, path="<table>") -> dict:
-    """The model-adequacy verdict of the segments in an estimates table (its ``adequacy_p_*`` columns).
+    """The adequacy verdict of an estimates table's ``adequacy_p_*`` columns, as ``scioc identify`` combines them.
 
-    The same combination as ``scioc identify`` (:func:`scioc.models.adequacy.study_verdict`), so
-    the test's result is never shown without the verdict on the model behind it.
-
-    Raises
-    ------
-    StudyFileError
-        A p-value outside (0, 1], naming the file, the column and the first bad row.
+    The test's result is never shown without the verdict on the model behind it. Raises
+    StudyFileError for a p-value outside (0, 1], naming the file, column and first bad row.
     """
     cols = {k: f"adequacy_p_{k}" for k in STATISTICS}
     if not set(cols.values()) <= set(estimates.columns) or "adequacy_p" not in estimates.columns:
@@ -250,10 +222,7 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def estimates_design(estimates_path):
-    """The experiment ``scioc identify`` recorded beside ``estimates_path`` (its ``identify.json``), and its file.
-
-    Returns ``(STUDY, None)`` when there is no such record (estimates made elsewhere).
-    """
+    """The experiment recorded in ``identify.json`` beside ``estimates_path``, and its file; else ``(STUDY, None)``."""
     meta = Path(estimates_path).parent / "identify.json"
     if not meta.is_file():
         return STUDY, None
@@ -264,16 +233,9 @@ def estimates_design(estimates_path):
 
 
 def compare_to_file(estimates_path, out_path, *, alpha: float = ALPHA, include_nonconverged: bool = False) -> dict:
-    """Read ``estimates.parquet``, test, write ``compare.json`` atomically.
+    """Read ``estimates.parquet``, test with the levels of :func:`estimates_design`, write ``compare.json`` atomically.
 
-    The condition levels and the baseline are those of the experiment ``scioc identify``
-    recorded beside the estimates (:func:`estimates_design`); they and its hash go into
-    ``compare.json``.
-
-    Raises
-    ------
-    ValueError
-        If ``out_path`` is the estimates file itself (it would be replaced by the JSON).
+    Raises ValueError if ``out_path`` is the estimates file itself.
     """
     if _same_file(Path(out_path), Path(estimates_path)):
         raise ValueError(f"--out {out_path} is the estimates file itself; write the result elsewhere")

@@ -1,14 +1,11 @@
-"""The experiment file, ``experiment.toml``: a study's rig and protocol as data (issue 12).
+"""The experiment file, ``experiment.toml``: a study's rig and protocol as data.
 
-It lies beside the study file or is named with ``--experiment PATH``; it is read with
-:mod:`tomllib` and validated here, once, into a :class:`scioc.models.design.Design`. Every error is
-an :class:`ExperimentFileError` (an :class:`~scioc.pipelines.io.InputDataError`: ``scioc`` exits with
-status 3) naming the file, the dotted key (``conditions.assistant.strong.gain``), what was given
-and what is allowed; a TOML syntax error names tomllib's line and column. Every key is
-optional; the defaults are the paper's study, so an empty file, or none, gives exactly
-:data:`scioc.models.design.STUDY`. Unknown sections and keys are refused. An "integer" key refuses
-40000.0; a number key takes integers; a boolean is never a number. ``[simulation]`` is
-read by ``scioc simulate`` and ``scioc run`` only.
+Found beside the study file or named with ``--experiment PATH``; read with :mod:`tomllib` and
+validated here, once, into a :class:`scioc.models.design.Design`. Every error is an
+:class:`ExperimentFileError` (exit 3) naming the file, the dotted key, what was given and what is
+allowed. Every key is optional (no file gives :data:`scioc.models.design.STUDY`); unknown keys are
+refused; an integer key refuses 40000.0; a boolean is never a number. ``[simulation]`` is read by
+``scioc simulate`` and ``scioc run`` only.
 
 Keys: ``section.key`` unit, default: meaning
 --------------------------------------------
@@ -42,17 +39,15 @@ Keys: ``section.key`` unit, default: meaning
 
 Rules
 -----
-* Without a ``conditions.assistant`` key the table is the paper's, ``SC = { kind = "mpc" }``,
-  if "SC" is a level, else empty: restating the default levels changes nothing, and other
-  labels get no assistant by accident. A given table (``{}`` for none) replaces it whole.
-* ``kind = "mpc"`` takes missing keys from the paper's MPC; ``kind = "linear"`` needs ``gain``
-  and ``reference_gain`` (no paper default). Only the keys of the entry's kind are allowed.
-* The baseline defaults to "MC" if that is a level, else the file must name it. It is the unassisted
-  reference of every contrast: an entry for it, or baseline "SC" with the default table, is refused.
-* :func:`resolved`: every applicable key written out (floats as floats, each entry's kind's
-  keys, no window keys when ``whole = true``: unused). :func:`experiment_hash` hashes its
-  canonical JSON: equal designs share a hash however written. ``parse_experiment(resolved(d))``
-  and ``load_experiment`` of :func:`to_toml` give back any design a file can describe.
+* Without ``conditions.assistant`` the table is ``SC = { kind = "mpc" }`` if "SC" is a level, else
+  empty, so other labels get no assistant by accident; a given table (``{}`` for none) replaces it.
+* ``kind = "mpc"`` takes missing keys from the paper's MPC; ``kind = "linear"`` needs ``gain`` and
+  ``reference_gain``. Only the keys of the entry's kind are allowed.
+* The baseline defaults to "MC" if that is a level, else must be named. It is the unassisted
+  reference of every contrast, so an assistant for it is refused.
+* :func:`resolved` writes every applicable key out; :func:`experiment_hash` hashes its canonical
+  JSON, so equal designs share a hash however written. Both :func:`parse_experiment` of it and
+  :func:`load_experiment` of :func:`to_toml` give back the design.
 """
 
 from __future__ import annotations
@@ -94,14 +89,7 @@ _FIELD_SECTION = dict.fromkeys(("dt",), "sampling") | {"wheel": "wheel", "encode
 
 
 class ExperimentFileError(InputDataError):
-    """An experiment file scioc cannot use.
-
-    Attributes
-    ----------
-    path : str
-    key : str or None
-        The dotted key (``conditions.assistant.SC.theta``), or None for the file as a whole.
-    """
+    """An experiment file scioc cannot use; ``key`` is the dotted key (``conditions.assistant.SC.theta``) or None."""
 
     def __init__(self, path, message, key=None):
         super().__init__(f"{path}, key '{key}': {message}" if key else f"{path}: {message}")
@@ -255,12 +243,9 @@ def _conditions(r: _Reader, c: dict, dt: float):
 
 
 def parse_experiment(mapping: dict, path="<experiment>") -> Design:
-    """Validate an experiment file's tables (as :func:`tomllib.loads` gives them, or :func:`resolved`) into a Design.
+    """Validate an experiment file's tables (from :func:`tomllib.loads` or :func:`resolved`) into a Design.
 
-    Raises
-    ------
-    ExperimentFileError
-        Naming ``path`` and the key, for anything the module docstring does not allow.
+    Raises ExperimentFileError, naming ``path`` and the key, for anything the module docstring does not allow.
     """
     r = _Reader(path)
     doc = r.table(mapping, None, SECTIONS)
@@ -352,11 +337,7 @@ def experiment_hash(design: Design) -> str:
 
 
 def to_toml(design: Design) -> str:
-    """An experiment file (ASCII) that :func:`load_experiment` reads back to ``design``.
-
-    Every applicable key is written, floats with ``repr`` (they round-trip exactly), and the
-    ``[conditions.assistant]`` table always (empty for none): the file needs no defaults.
-    """
+    """An experiment file (ASCII) that :func:`load_experiment` reads back to ``design``, relying on no default."""
     lines = ["# scioc experiment file: every key is described in pipelines/experiment.py"]
     for section, table in resolved(design).items():
         lines += ["", f"[{section}]"]
@@ -378,11 +359,8 @@ def write_experiment(design: Design, path) -> None:
 
 
 def find_experiment(study_path, explicit=None) -> tuple[Design, str | None]:
-    """The experiment of a study and the file it came from: ``(Design, path)``, or ``(STUDY, None)`` without one.
-
-    ``explicit`` (``--experiment``) must exist; else ``experiment.toml`` beside ``study_path`` is
-    used when present (inside it, if it is a folder; ``study_path`` may be None).
-    """
+    """``(Design, path)`` of ``explicit`` (``--experiment``), else of ``experiment.toml`` beside (or inside)
+    ``study_path``; ``(STUDY, None)`` when there is neither."""
     if explicit is not None:
         return load_experiment(explicit), str(explicit)
     if study_path is not None:

@@ -1,35 +1,19 @@
 """``scioc identify``: per subject × condition maximum-likelihood θ, like the paper (Section IV-F).
 
-Each segment is cut to its analysis window and, where the file lacks u_H,
-reconstructed from the angle by the shared preparation step (:mod:`scioc.pipelines.prepare`,
-which also says how the SC human models the assistant); then the max-ent likelihood is
-maximized (:mod:`scioc.models.identify`) and the model's adequacy checked
-(:mod:`scioc.pipelines.adequacy`).
+Each segment is prepared (:mod:`scioc.pipelines.prepare`), the likelihood maximized
+(:mod:`scioc.models.identify`) and the model's adequacy checked (:mod:`scioc.pipelines.adequacy`).
+The trials of one unit share θ, so their log-likelihoods add (Eq. 17 with d > 1). The model
+validation of Fig. 6 predicts every segment with each level's θ of its subject (forward optimal
+control) and records the RMSE of angle and torque.
 
-It also computes the model validation of Fig. 6: the trajectories that forward optimal
-control generates with θ_MC and with θ_SC of the same subject, and the RMSE of angle
-and torque when each condition's data are predicted with either.
+``human_model="delayed"`` (:func:`scioc.models.delayed.identify_unit_delayed`) also fits the lag τ_nm
+and the motor noise σ_m and profiles the perceptual delay over :data:`scioc.models.delayed.DELAY_GRID_S`
+(column ``profile_loglik``). A unit without a recorded torque is identified from its encoder angles
+(:mod:`scioc.models.delayed.angles`), since the reconstruction's smoothing would read as lag.
 
-With several trials per subject × condition (the ``trial`` column), the trials of a unit
-share one θ: the likelihood maximized is their sum (Eq. 17 with d > 1), and the unit gets
-one estimate (with a ``trials`` column).
-
-The human model (``settings.human_model``, column ``human_model``): ``maxent``, the paper's
-(:func:`scioc.models.identify.identify_unit`), or ``delayed`` (:func:`scioc.models.delayed.identify_unit_delayed`:
-θ of the command cost, the neuromuscular lag τ_nm, the motor noise σ_m and the perceptual
-delay profiled over :data:`scioc.models.delayed.DELAY_GRID_S`; columns ``delay_s``, ``tau_nm``,
-``sigma_m``, ``se_tau_nm``, ``se_sigma_m`` and ``profile_loglik``, the profile
-log-likelihood at each delay of the grid; each window's arm torque at its start from the
-torques before it, :func:`scioc.pipelines.prepare.prepare_segment`). A unit whose torques are
-reconstructed from the encoder (no torque sensor) is identified from its recorded angles
-instead (:mod:`scioc.models.delayed.angles`: the encoder inside the model; the reconstruction's
-smoothing would otherwise read as lag), column ``likelihood`` says which. The adequacy
-bootstrap then draws from the fitted delayed model. ``identify.json`` records the model and the grid.
-
-Artifacts in ``--out DIR``: ``estimates.parquet`` (one row per subject × condition),
-``trajectories.parquet`` (window samples: measured, reconstructed and predicted),
-``validation.parquet`` (cross-prediction RMSE) and ``identify.json`` (settings, timings,
-versions).
+Artifacts in ``--out DIR``: ``estimates.parquet`` (one row per unit), ``trajectories.parquet``
+(window samples: measured, used, predicted), ``validation.parquet`` (cross-prediction RMSE) and
+``identify.json`` (settings, timings, adequacy, experiment, versions).
 """
 
 from __future__ import annotations
@@ -73,36 +57,18 @@ from scioc.pipelines.storage import (
 
 
 class Identification(NamedTuple):
-    """What :func:`identify_study` returns.
+    """What :func:`identify_study` returns."""
 
-    Attributes
-    ----------
-    estimates : DataFrame
-        One row per subject × condition, with the per-segment adequacy columns.
-    trajectories : DataFrame
-        Window samples with measured, used and predicted angle, velocity and torque.
-    validation : DataFrame
-        RMSE of angle and u_H when each condition is predicted with θ_MC and θ_SC.
-    timing : dict
-        Seconds spent reconstructing, optimizing and checking adequacy.
-    adequacy : dict
-        The model-adequacy verdict (:func:`scioc.pipelines.adequacy.assess_study`).
-    """
-
-    estimates: pd.DataFrame
-    trajectories: pd.DataFrame
-    validation: pd.DataFrame
-    timing: dict
-    adequacy: dict
+    estimates: pd.DataFrame  # one row per subject × condition, with the adequacy columns
+    trajectories: pd.DataFrame  # window samples: measured, used and predicted angle, velocity and torque
+    validation: pd.DataFrame  # RMSE of angle and u_H when each level is predicted with each level's θ
+    timing: dict  # seconds reconstructing, optimizing and checking adequacy
+    adequacy: dict  # the verdict of :func:`scioc.pipelines.adequacy.assess_study`
 
 
 def identify_study(study: Study, settings: IdentifySettings = IdentifySettings(), *,
                    show_progress: bool = True) -> Identification:
-    """Identify θ for every segment of a study, check the model's adequacy, cross-predict the conditions.
-
-    Prepares the study (:func:`scioc.pipelines.prepare.prepare_study`) and runs
-    :func:`identify_prepared` on it.
-    """
+    """Prepare a study, identify θ per unit, check adequacy and cross-predict (:func:`identify_prepared`)."""
     return identify_prepared(prepare_study(study, settings, show_progress=show_progress), show_progress=show_progress)
 
 
@@ -235,8 +201,7 @@ def _forward(p, th, plant, wheel):
 def _cross_predict(prepared, est: pd.DataFrame, plant, levels, wheel=None):
     """Each segment's measured trajectories beside each level's θ's mean behaviour, and their RMSEs.
 
-    ``wheel``: the estimates are the ``delayed`` human's (with a ``tau_nm`` column), whose mean behaviour
-    (:func:`scioc.models.delayed.forward_delayed`) plans on the lagged wheel; None for the max-ent human's.
+    ``wheel`` given: the estimates are the ``delayed`` human's (:func:`scioc.models.delayed.forward_delayed`).
     """
     theta = {(r.subject, r.condition): np.array([r.q11, r.q22, r.R]) if wheel is None
              else (np.array([r.q11, r.q22, r.R]), float(r.tau_nm)) for r in est.itertuples()}
@@ -278,16 +243,11 @@ def _cross_predict(prepared, est: pd.DataFrame, plant, levels, wheel=None):
 def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettings(), *, show_progress=True,
                     force: bool = False, prepared: PreparedStudy | None = None,
                     experiment_file: str | None = None) -> dict:
-    """Run :func:`identify_study` on a file and write its artifacts into ``out`` as a whole.
+    """Run :func:`identify_study` on a file and replace ``out`` as a whole (:func:`scioc.pipelines.storage.staged_dir`).
 
-    ``out`` is written through :func:`scioc.pipelines.storage.staged_dir`: it holds this run's
-    artifacts and nothing else, or, if the run fails or is interrupted, what it held
-    before. An existing non-empty ``out`` is replaced only with ``force``.
-
-    ``prepared``: the study file already prepared with ``settings``
-    (:func:`scioc.pipelines.prepare.prepare_study`; ``scioc run`` shares it with the fit), so
-    that it is not reconstructed again. ``experiment_file``: where ``settings.design``
-    came from (recorded in ``identify.json`` beside the resolved experiment and its hash).
+    A non-empty ``out`` is replaced only with ``force``. ``prepared``: the study already prepared with
+    ``settings`` (``scioc run`` shares it with the fit). ``experiment_file``: where ``settings.design``
+    came from, recorded in ``identify.json``.
     """
     configure()
     refuse_inputs_inside(out, study_path)

@@ -1,20 +1,13 @@
 """Reading and validating study files in the data convention (writing results: :mod:`scioc.pipelines.storage`).
 
-The data convention (README "Data format"): a long table, one row per sample of the
-experiment's rate (:class:`scioc.models.design.Design`, 100 Hz without an experiment file),
-with columns ``subject``, ``condition`` (one of the experiment's levels, MC or SC by
-default), ``t`` (s), ``angle`` (rad), ``angle_ref`` (rad), ``u_A`` (N·m) and optionally
-``trial``, ``velocity`` (rad/s) and ``u_H`` (N·m). Parquet, or CSV on input. Rows
-k = 0..K of one (subject, condition, trial) segment give x_k = (angle_k, velocity_k);
-u_H,k and u_A,k act from t_k to t_{k+1}; the last row's torques are unused. Several
-trials of one subject × condition are replicates of that unit.
+The convention (README "Data format"): a long table at the experiment's rate with columns ``subject``,
+``condition``, ``t`` (s), ``angle`` (rad), ``angle_ref`` (rad), ``u_A`` (N·m) and optionally ``trial``,
+``velocity`` (rad/s) and ``u_H`` (N·m); Parquet, or CSV on input. Rows k = 0..K of one (subject,
+condition, trial) segment give x_k = (angle_k, velocity_k); u_H,k and u_A,k act from t_k to t_{k+1}, so
+the last row's torques are unused. Trials of one subject × condition are replicates of that unit.
 
-Validation happens here, once, and every error names the file, the column and the
-first bad row (0-based position in the table; for CSV also the line number). Besides the
-format, values must be plausible for a hand-turned wheel (:data:`MAX_ANGLE`,
-:data:`MAX_VELOCITY`, :data:`MAX_TORQUE`), which catches degrees given for radians and
-torques in N·cm or N·mm. A datetime or timedelta ``t`` is converted to seconds from the
-start of its segment; ``t`` stored as float32 gets a step tolerance that fits float32.
+Validation happens here, once: every error names the file, the column and the first bad row
+(0-based; for CSV also the line). Plausibility limits catch degrees for radians and N·mm for N·m.
 """
 
 from __future__ import annotations
@@ -32,34 +25,20 @@ OPTIONAL = ("trial", "velocity", "u_H")
 NUMERIC = ("t", "angle", "angle_ref", "u_A", "velocity", "u_H")
 #: Allowed deviation of a time step from the experiment's sample time, s (recording clocks print rounded times).
 DT_TOL = 1e-6
-#: Largest plausible |angle| and |angle_ref|, rad: one full turn. The study's reference peaks
-#: at about ±0.6 rad; the same in degrees (±34) lies far beyond.
+#: Largest plausible |angle| and |angle_ref|, rad: one full turn (the study's reference stays within ±0.6 rad).
 MAX_ANGLE = 2 * np.pi
-#: Largest plausible |velocity|, rad/s (about 1700 °/s, beyond the fastest steering people
-#: reach, around 1000 °/s); the study's wheel turns at under 1 rad/s.
+#: Largest plausible |velocity|, rad/s: about 1700 °/s, beyond the fastest human steering (about 1000 °/s).
 MAX_VELOCITY = 30.0
-#: Largest plausible |u_H| and |u_A|, N·m: more than a person exerts on a steering wheel
-#: with both hands; the study's wheel (spring 1.146 N·m/rad) needs 7.2 N·m to hold a full turn.
+#: Largest plausible |u_H| and |u_A|, N·m: more than a person exerts on a steering wheel with both hands.
 MAX_TORQUE = 50.0
 
 
 class InputDataError(ValueError):
-    """Input data scioc cannot use: a file that is missing, unreadable or implausible.
-
-    The ``scioc`` command exits with status 3 on these, and with 2 on usage errors.
-    """
+    """Input data scioc cannot use (missing, unreadable, implausible): ``scioc`` exits 3 (2 on usage errors)."""
 
 
 class StudyFileError(InputDataError):
-    """A study file (or another input table) that does not follow the data convention.
-
-    Attributes
-    ----------
-    path : str
-    column : str or None
-    row : int or None
-        0-based row position in the table.
-    """
+    """A study file (or another input table) that breaks the data convention; ``row`` is 0-based."""
 
     def __init__(self, path, message, column=None, row=None, csv=False):
         where = [str(path)]
@@ -75,39 +54,18 @@ class StudyFileError(InputDataError):
 
 @dataclass(frozen=True)
 class SegmentData:
-    """One (subject, condition, trial) segment as recorded.
-
-    Attributes
-    ----------
-    subject : str
-    condition : str
-        One of the experiment's levels.
-    t : ndarray, shape (K + 1,)
-        Time, s.
-    angle, angle_ref : ndarray, shape (K + 1,)
-        rad.
-    u_A : ndarray, shape (K + 1,)
-        N·m (last entry unused).
-    velocity : ndarray or None, shape (K + 1,)
-        rad/s, if recorded.
-    u_H : ndarray or None, shape (K + 1,)
-        N·m (last entry unused), if recorded.
-    first_row : int
-        Row of the segment's first sample in the file.
-    trial : str or None
-        The ``trial`` label, if the file has that column.
-    """
+    """One (subject, condition, trial) segment as recorded; arrays have shape (K + 1,)."""
 
     subject: str
-    condition: str
-    t: np.ndarray
-    angle: np.ndarray
-    angle_ref: np.ndarray
-    u_A: np.ndarray
-    velocity: np.ndarray | None
-    u_H: np.ndarray | None
-    first_row: int
-    trial: str | None = None
+    condition: str  # one of the experiment's levels
+    t: np.ndarray  # s
+    angle: np.ndarray  # rad
+    angle_ref: np.ndarray  # rad
+    u_A: np.ndarray  # N·m, last entry unused
+    velocity: np.ndarray | None  # rad/s, None if not recorded
+    u_H: np.ndarray | None  # N·m, last entry unused; None if not recorded
+    first_row: int  # row of the segment's first sample in the file
+    trial: str | None = None  # the ``trial`` label, if the file has that column
 
     @property
     def K(self) -> int:
@@ -152,24 +110,7 @@ def read_table(path) -> pd.DataFrame:
 
 
 def load_study(path, design: Design = STUDY) -> Study:
-    """Read and validate a study file in the data convention.
-
-    Parameters
-    ----------
-    path : str or Path
-        ``.parquet`` / ``.pq`` or ``.csv``.
-    design : Design
-        The experiment (rate, levels, assistants) the file must agree with.
-
-    Returns
-    -------
-    Study
-
-    Raises
-    ------
-    StudyFileError
-        Naming the file, the column and the first bad row.
-    """
+    """Read a ``.parquet``/``.pq`` or ``.csv`` study file and validate it against ``design``: :func:`validate_table`."""
     df = read_table(path)
     return validate_table(df, path, csv=Path(path).suffix.lower() == ".csv", design=design)
 
@@ -179,22 +120,10 @@ def _first(mask: np.ndarray) -> int:
 
 
 def validate_table(df: pd.DataFrame, path="<table>", *, csv: bool = False, design: Design = STUDY) -> Study:
-    """Validate a table in the data convention and split it into segments.
+    """Validate a table in the data convention and split it into segments; StudyFileError names the first problem.
 
-    Parameters
-    ----------
-    df : DataFrame
-    path : str
-        Named in error messages.
-    csv : bool
-        Also give CSV line numbers in errors.
-    design : Design
-        The experiment: its sample time, its condition levels (each must appear), and
-        which levels are unassisted (u_A = 0 there).
-
-    Returns
-    -------
-    Study
+    ``design`` gives the sample time, the levels (each must appear) and the unassisted levels (u_A = 0
+    there); ``path`` is named in errors, with CSV line numbers if ``csv``.
     """
 
     def fail(msg, column=None, row=None):

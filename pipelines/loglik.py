@@ -1,22 +1,12 @@
 """``scioc loglik``: the log-likelihood of every segment of a study file under one θ.
 
-Each trial is evaluated whole, with the plan ending where the trial ends, unless the
-experiment file's ``[analysis]`` sets a window or a preview; then the segments are cut
-as ``scioc identify`` cuts them. The file must hold the human torque ``u_H`` (measured,
-or reconstructed beforehand); a missing ``velocity`` follows from the plant
-(:mod:`scioc.pipelines.prepare`).
-
-The human model is the paper's max-ent human (:func:`scioc.models.maxent.loglik_segments`) or
-the ``delayed`` human with a perceptual delay, a neuromuscular lag and motor noise
-(:func:`scioc.models.delayed.loglik_grad`), whose arm torque at a window's start follows from
-the measured torques before it (at rest at a trial's start).
-
-``likelihood="angles"`` evaluates instead the ``delayed`` human's likelihood of the
-encoder's recorded angles, log p(y_1..y_K | y_0) (:func:`scioc.models.delayed.window_loglik`),
-the one ``scioc identify`` uses for units without a recorded torque: the file then needs
-no ``u_H`` (the torques before each window, which set the arm torque at its start, are
-reconstructed where none were recorded). The angle's noise is the encoder's quantization
-(:attr:`scioc.models.design.Design.encoder_sd`).
+Each trial is evaluated whole (the plan ends with the trial) unless the experiment file's
+``[analysis]`` sets a window or preview; then segments are cut as ``scioc identify`` cuts them.
+The human is the paper's max-ent one (:func:`scioc.models.maxent.loglik_segments`) or the
+``delayed`` one (:func:`scioc.models.delayed.loglik_grad`), whose arm torque at a window's start
+follows from the torques before it. ``likelihood="angles"`` evaluates the ``delayed`` human's
+likelihood of the encoder's angles, log p(y_1..y_K | y_0) (:func:`scioc.models.delayed.window_loglik`,
+as identify does without a torque sensor); the file then needs no ``u_H``.
 """
 
 from __future__ import annotations
@@ -41,10 +31,7 @@ from scioc.pipelines.prepare import IdentifySettings, check_human_model, prepare
 
 
 class NonFiniteLoglik(ArithmeticError):
-    """A log-likelihood that double precision cannot represent (θ far outside the data's scale).
-
-    ``scioc loglik`` exits with status 1 on it.
-    """
+    """A log-likelihood double precision cannot represent (θ far outside the data's scale); exit status 1."""
 
 
 def parse_theta(text: str) -> np.ndarray:
@@ -60,29 +47,18 @@ def parse_theta(text: str) -> np.ndarray:
 
 
 class DelayedHuman(NamedTuple):
-    """The ``delayed`` human's parameters besides θ.
+    """The ``delayed`` human's parameters besides θ."""
 
-    Attributes
-    ----------
-    delay : int
-        Perceptual delay, samples.
-    tau_nm : float
-        Neuromuscular time constant, s.
-    sigma_m : float
-        Motor-noise SD per sample, N·m.
-    """
-
-    delay: int
-    tau_nm: float
-    sigma_m: float
+    delay: int  # perceptual delay, samples
+    tau_nm: float  # neuromuscular time constant, s
+    sigma_m: float  # motor-noise SD per sample, N·m
 
 
 def delayed_human(human_model: str, dt: float, delay_s=None, tau_nm=None, sigma_m=None) -> DelayedHuman | None:
     """Check the human model and its parameters (ValueError naming the option); None for ``maxent``.
 
-    ``delay_s`` must be a whole number of samples of ``dt`` within the identification's
-    grid (0 to :data:`scioc.models.delayed.DELAY_GRID_S`'s last, 0.3 s), ``tau_nm`` within
-    [0, :data:`scioc.models.delayed.search.TAU_NM_MAX`] s and ``sigma_m`` finite and >= 0.
+    ``delay_s``: whole samples within the identification's delay grid; ``tau_nm`` within
+    [0, :data:`scioc.models.delayed.search.TAU_NM_MAX`] s; ``sigma_m`` finite and >= 0.
     """
     check_human_model(human_model)
     given = [v is not None for v in (delay_s, tau_nm, sigma_m)]
@@ -128,35 +104,28 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
     Parameters
     ----------
     path : str or Path
-        Study file in the data convention with ``u_H``.
+        Study file in the data convention (with ``u_H`` unless ``likelihood="angles"``).
     theta : array_like, shape (3,)
-        [q11, q22, R].
+        [q11, q22, R]; for the ``delayed`` human, its command cost.
     assistant_model : {"feedback", "exogenous"}
-        How the human on an assisted level models the assistant (:mod:`scioc.pipelines.prepare`).
     design : Design
-        The experiment (rate, wheel, levels and their assistants).
     experiment_file : str, optional
-        The file ``design`` came from; if its ``[analysis]`` sets a window or preview,
-        the segments are cut that way, else each trial is evaluated whole without preview.
+        Where ``design`` came from; an ``[analysis]`` table in it cuts the segments.
     human_model : {"maxent", "delayed"}
     delay_s, tau_nm, sigma_m : float, optional
-        The ``delayed`` human's delay (s, whole samples), lag (s) and motor noise (N·m per
-        sample), all three required for it and refused for ``maxent``
-        (:func:`delayed_human`). θ is then its command cost.
+        The ``delayed`` human's delay (s), lag (s) and motor noise (N·m per sample): required for
+        it, refused for ``maxent`` (:func:`delayed_human`).
     likelihood : {"torques", "angles"}
-        The likelihood of the human torques (needs ``u_H``), or the ``delayed`` human's of
-        the encoder's angles (module docstring).
 
     Returns
     -------
     DataFrame
-        Columns ``subject``, ``condition`` (and ``trial`` if the file has it), ``K``
-        (samples: torques, or angles after the window's first) and ``loglik``, in file order.
+        ``subject``, ``condition`` (``trial`` if present), ``K`` and ``loglik``, in file order.
 
     Raises
     ------
     NonFiniteLoglik
-        If any segment's log-likelihood is not finite, naming the first such segment.
+        If a segment's log-likelihood is not finite (naming the first).
     ValueError
         If the human model or its parameters are not valid.
     """

@@ -1,15 +1,10 @@
 """``scioc power``: how often the adequacy verdict fails, per simulated human, and what the paper's test says.
 
-For each simulated human (:data:`scioc.models.humans.HUMANS`) it simulates ``studies`` studies of
-the default design (42 subjects, MC and SC, 4-minute runs, encoder angles only), runs
-``scioc identify`` on each (with its adequacy checks) and the paper's Wilcoxon test, and
-records the verdict beside the test. On ``maxent`` (the model's own human) the verdict's
-failure rate is its false-alarm rate, and the flagged segments give the per-segment
-false-alarm rate; on every other human it is the power. Study ``i`` of every human uses
-the same seed (``SeedSequence([seed, i])``), so the humans differ only in how they steer.
-
-Artifacts in ``--out DIR``: one JSON file per human × study in ``studies/`` (written as
-each finishes; a rerun resumes and skips what is there, if the settings match),
+Per simulated human (:data:`scioc.models.humans.HUMANS`), ``studies`` default studies (encoder angles
+only) are identified with their adequacy checks and tested with the paper's Wilcoxon test. On
+``maxent`` the verdict's failure rate is its false-alarm rate, on the others its power. Study ``i``
+uses ``SeedSequence([seed, i])`` for every human, so the humans differ only in how they steer.
+Artifacts: ``studies/`` (a JSON per human × study; a rerun with the same settings resumes),
 ``power.json`` (the table) and ``power.parquet`` (one row per human × study).
 """
 

@@ -1,33 +1,19 @@
 """The preparation step shared by ``scioc identify``, ``scioc fit`` and ``scioc loglik``.
 
-For each recorded segment: take the analysis window (the experiment's, by default the
-paper's 15 s from 3:30; any window or the whole trial on request), reconstruct velocity
-and u_H from the angle where the file lacks the torque (:mod:`scioc.models.reconstruct`, over
-the window plus a margin), and cut the arrays the max-ent likelihood needs
-(:class:`scioc.models.segment.Segment`), with the ``preview`` seconds the human's plan looks
-past the window (default 2 s, the time a point of the reference takes to cross the
-screen; 0 is the paper's horizon). A measured u_H is used as measured; where the file
-has no velocity beside it, the initial state is fitted to the angles with the measured
-torques (:func:`scioc.models.reconstruct.initial_state`) and the velocity follows from the plant.
+Each recorded segment is cut to the analysis window (by default the paper's 15 s from 3:30) plus
+``preview`` seconds of reference the human's plan looks past it (default 2 s; 0 is the paper's
+horizon; docs/decisions/plan-preview.md). Where the file lacks u_H, velocity and u_H are reconstructed
+from the angle over the window plus a margin (:mod:`scioc.models.reconstruct`); a measured u_H without
+velocity gets its initial state fitted to the angles (:func:`scioc.models.reconstruct.initial_state`).
 
-On an assisted level the human may model the assistant two ways (``assistant_model``).
-``feedback`` (default): the human knows the assistant's law (the experiment's
-``[conditions.assistant]`` entry; the paper's MPC, Section IV-D, by default) and plans on
-the wheel it closes, with its reference feedforward as the known input
-(:class:`scioc.models.segment.Feedback`); the simulator's humans do this. The recorded u_A must
-then follow that law (:func:`check_assistant_law`). ``exogenous`` is the paper's
-Eq. 15-16: the recorded u_A is a known input sequence. In closed loop the recorded u_A
-reacts to the human's own torque noise, which the exogenous model lets the human
-anticipate; on the simulated study, from the true torques, it puts log θ1 in SC about
-0.55 too low (measured in the report's ground-truth section).
+On an assisted level the human models the assistant as ``feedback`` (default: it plans on the
+wheel the level's law closes, :class:`scioc.models.segment.Feedback`, and the recorded u_A must
+follow that law, :func:`check_assistant_law`) or ``exogenous`` (the paper's Eq. 15-16: the
+recorded u_A is a known input). See docs/decisions/assistant-as-state-feedback.md.
 
-The ``delayed`` human (``human_model``, :mod:`scioc.models.delayed`) has an arm torque that
-lags its commands; at a window's start it follows from the torques before the window, so
-each prepared segment keeps them (:class:`scioc.models.delayed.lag.Warmup`; see
-:func:`_warmup` for which segments have them and from where).
-
-:func:`prepare_study` does this once per study; ``scioc run`` passes its result to both
-the identification and the Bayesian fit.
+For the ``delayed`` human each segment keeps the torques before its window, which set the arm
+torque at its start (:func:`_warmup`). ``scioc run`` shares one :func:`prepare_study` result
+between the identification and the fit.
 """
 
 from __future__ import annotations
@@ -51,15 +37,12 @@ from scioc.pipelines.progress import progress
 
 #: How the human on an assisted level may model the assistant (see the module docstring).
 ASSISTANT_MODELS = ("feedback", "exogenous")
-#: The human models (README "The model"): the paper's max-ent agent, and the ``delayed``
-#: human with perceptual delay, neuromuscular lag and motor noise (:mod:`scioc.models.delayed`).
+#: The paper's max-ent agent and the ``delayed`` human (delay, lag, motor noise; :mod:`scioc.models.delayed`).
 HUMAN_MODELS = ("maxent", "delayed")
 #: Measurement resolution the reconstruction assumes for an angle that is not quantized
 #: (``encoder.counts_per_rev = 0``), rad: a sensor's noise floor, far below any encoder's step.
 UNQUANTIZED_RESOLUTION = 1e-6
-#: The recorded u_A follows the declared law if the RMS of their difference over the
-#: window is at most this fraction of the recorded u_A's RMS plus :data:`LAW_ATOL`
-#: (measured on the simulated study from the reconstructed states: about 0.01).
+#: :func:`check_assistant_law`: RMS(u_A − law) over the window <= LAW_RTOL · RMS(u_A) + :data:`LAW_ATOL`.
 LAW_RTOL = 0.1
 #: Absolute part of the law check's tolerance, N·m.
 LAW_ATOL = 0.01
@@ -79,51 +62,19 @@ def check_human_model(name: str) -> None:
 
 @dataclass(frozen=True)
 class IdentifySettings:
-    """How to cut and treat each segment.
+    """How to cut and treat each segment (times in s, on the file's time axis)."""
 
-    Attributes
-    ----------
-    window_start : float or None
-        Start of the analysis window, s on the file's time axis; None for the whole run.
-    window_seconds : float or None
-        Length of the window, s; None for the whole run.
-    preview : float
-        How far past the window the human plans, s (0: the paper's horizon).
-    margin : float
-        Extra seconds on each side of the window used by the reconstruction.
-    reconstruct : str
-        ``auto`` (only when u_H is missing) or ``always``.
-    resolution : float
-        Encoder increment, rad (sets the reconstruction's measurement noise).
-    assistant_model : str
-        ``feedback`` (the human plans with the assistant's law; default) or
-        ``exogenous`` (the recorded u_A is a known input, the paper's Eq. 15-16).
-    adequacy_boot : int
-        Bootstrap data sets per segment for the model-adequacy checks
-        (:mod:`scioc.pipelines.adequacy`; default 49; 0 skips them and the verdict reads
-        "not checked").
-    adequacy_seed : int
-        Root seed of the adequacy bootstrap.
-    human_model : str
-        ``maxent`` (the paper's human; default) or ``delayed`` (perceptual delay,
-        neuromuscular lag and motor noise; :data:`HUMAN_MODELS`).
-    design : Design
-        The experiment: sample time, wheel, levels and their assistants
-        (:data:`scioc.models.design.STUDY` without an experiment file). :meth:`for_design`
-        takes the window, preview and encoder resolution from it too.
-    """
-
-    window_start: float | None = WINDOW_START
+    window_start: float | None = WINDOW_START  # None, with window_seconds None: the whole run
     window_seconds: float | None = WINDOW_SECONDS
-    preview: float = PREVIEW_SECONDS
-    margin: float = 1.0
-    reconstruct: str = "auto"
-    resolution: float = DEFAULT_RESOLUTION
-    assistant_model: str = "feedback"
-    adequacy_boot: int = N_BOOT
-    adequacy_seed: int = 2018
-    human_model: str = "maxent"
-    design: Design = STUDY
+    preview: float = PREVIEW_SECONDS  # how far past the window the human plans (0: the paper's horizon)
+    margin: float = 1.0  # extra seconds on each side of the window that the reconstruction sees
+    reconstruct: str = "auto"  # "auto" (only where u_H is missing) or "always"
+    resolution: float = DEFAULT_RESOLUTION  # encoder increment, rad: the reconstruction's measurement noise
+    assistant_model: str = "feedback"  # or "exogenous" (:data:`ASSISTANT_MODELS`)
+    adequacy_boot: int = N_BOOT  # bootstrap data sets per segment (pipelines.adequacy); 0: "not checked"
+    adequacy_seed: int = 2018  # root seed of the adequacy bootstrap
+    human_model: str = "maxent"  # or "delayed" (:data:`HUMAN_MODELS`)
+    design: Design = STUDY  # the experiment; :meth:`for_design` also takes window, preview, resolution from it
 
     @classmethod
     def for_design(cls, design: Design, **overrides) -> "IdentifySettings":
@@ -170,16 +121,10 @@ def with_assistant_model(segment: Segment, condition: str, angle_ref_run, start:
                          design: Design = STUDY) -> Segment:
     """``segment`` (rows ``start``.. of its run) with the human's model of the assistant.
 
-    ``feedback`` on an assisted level: the level's law, its feedforward from the run's
-    whole reference ``angle_ref_run`` (the MPC previews past the segment). Otherwise
-    unchanged (the recorded u_A as a known input).
-
-    Raises
-    ------
-    ValueError
-        If the level's assistant holds its torque over several samples (an MPC with
-        ``period_s`` > the sample time): it is then not a state feedback the human can
-        plan with; use ``exogenous``.
+    ``feedback`` on an assisted level attaches the level's law, its feedforward from the whole run's
+    reference (the MPC previews past the segment); otherwise ``segment`` is returned unchanged.
+    Raises ValueError for an assistant that holds its torque over several samples (``period_s`` >
+    the sample time): that is no state feedback to plan with; use ``exogenous``.
     """
     check_assistant_model(assistant_model)
     law = assistant_law(design, condition)
@@ -305,14 +250,10 @@ def prepare_segment(seg: SegmentData, settings: IdentifySettings, plant, path="<
 def _warmup(before, from_start: bool) -> Warmup | None:
     """The torques before a window, from which the ``delayed`` human's arm torque at its start follows.
 
-    A window at the start of its recording (whole trials) starts at rest: None (τ_0 = 0).
-    Measured torques run from the recording's start, where the arm is at rest (τ = 0). A
-    reconstructed torque exists only over the reconstruction's margin before the window;
-    the arm torque at the margin's start is then taken as that first torque (a held
-    torque passes the lag unchanged), and its error decays through the arm-torque
-    recursion by |p| per sample (:mod:`scioc.models.delayed.lag`: below 3e-3 after the default
-    1-s margin for τ_nm <= 0.1 s, and the residual ``u - τ`` it starts from is itself
-    small where the lag is slow).
+    None for a window at its recording's start (at rest, τ_0 = 0); measured torques start at rest.
+    A reconstructed torque covers only the margin: the arm torque at its start is taken as that
+    first torque (a held torque passes the lag unchanged), and the error decays by |p| per sample
+    (:mod:`scioc.models.delayed.lag`; below 3e-3 after the 1-s margin for τ_nm <= 0.1 s).
     """
     if before is None or before.shape[0] == 0:
         return None
@@ -321,23 +262,12 @@ def _warmup(before, from_start: bool) -> Warmup | None:
 
 @dataclass(frozen=True)
 class PreparedStudy:
-    """A study file cut and reconstructed for the likelihood, one entry per segment (file order).
+    """A study file cut and reconstructed for the likelihood, one entry per segment (file order)."""
 
-    Attributes
-    ----------
-    path : str
-        The study file (named in error messages).
-    settings : IdentifySettings
-        The settings the segments were prepared with.
-    segments : tuple of PreparedSegment
-    seconds : float
-        Wall time of the preparation (mostly the reconstruction), s.
-    """
-
-    path: str
-    settings: IdentifySettings
-    segments: tuple
-    seconds: float
+    path: str  # the study file, named in error messages
+    settings: IdentifySettings  # what the segments were prepared with
+    segments: tuple  # of PreparedSegment
+    seconds: float  # wall time of the preparation (mostly the reconstruction), s
 
     @property
     def subjects(self) -> list:
@@ -363,12 +293,8 @@ class PreparedStudy:
 
 
 def check_design(path, subjects, conditions, levels=CONDITIONS) -> None:
-    """Raise :class:`scioc.pipelines.io.InputDataError` unless every subject has every level.
-
-    ``levels``: baseline first (default MC, SC). The message is that of
-    :func:`scioc.models.units.index_study` (a subject without one of the levels, or a level
-    with no segment at all), prefixed with the file ``path``.
-    """
+    """Raise :class:`scioc.pipelines.io.InputDataError` (:func:`scioc.models.units.index_study`'s message
+    after ``path``) unless every subject has every level (``levels``: baseline first)."""
     try:
         index_study(list(subjects), list(conditions), levels)
     except ValueError as exc:  # the data do not have the design the model needs: bad input (exit 3)
@@ -377,13 +303,7 @@ def check_design(path, subjects, conditions, levels=CONDITIONS) -> None:
 
 def prepare_study(study: Study, settings: IdentifySettings = IdentifySettings(), *,
                   show_progress: bool = False) -> PreparedStudy:
-    """Cut and, where needed, reconstruct every segment of a validated study.
-
-    Raises
-    ------
-    pipelines.io.StudyFileError
-        If a segment does not contain the analysis window.
-    """
+    """Cut and, where needed, reconstruct every segment; StudyFileError if a segment lacks the window."""
     if study.design != settings.design:
         raise ValueError("the study file was validated against another experiment than these settings'")
     plant = discretize(settings.design.dt, settings.design.wheel)

@@ -1,16 +1,8 @@
-"""Parameter recovery on a simulated study: estimates (``scioc identify``) against the simulator's truth.
+"""Parameter recovery on a simulated study: ``scioc identify``'s estimates against the simulator's truth.
 
-``scioc recovery ESTIMATES --truth TRUTH`` reports, for any human model,
-
-* per level: the mean error and mean absolute error of log θ1 and the Spearman correlation
-  of θ1 with the truth;
-* per contrast against the baseline: the subjects' mean estimated change of log θ1, their
-  mean true change, and the difference (the bias of the condition effect);
-
-and for estimates of the ``delayed`` model (against any simulated human: ``truth.parquet`` has its
-``delay_s``, ``tau_nm`` and ``motor_sd``, 0 for the paper's agent): how often the delay is
-exact, its mean error and mean absolute error, the same for τ_nm, and σ_m's mean against
-the motor noise's SD. The numbers of the README's human-model table come from here.
+``scioc recovery ESTIMATES --truth TRUTH`` reports per level the error and Spearman correlation of
+θ1, per contrast the bias of the mean change of log θ1, and for ``delayed`` estimates (against any
+simulated human) how often the delay is exact and the errors of the delay, τ_nm and σ_m.
 """
 
 from __future__ import annotations
@@ -34,19 +26,8 @@ def _wide(df: pd.DataFrame, column: str) -> pd.DataFrame:
 def recovery(estimates: pd.DataFrame, truth: pd.DataFrame, levels, baseline: str) -> dict:
     """Recovery of θ1, its condition effects and (for ``delayed``) the delay, lag and motor noise.
 
-    Parameters
-    ----------
-    estimates : DataFrame
-        ``estimates.parquet`` of ``scioc identify``.
-    truth : DataFrame
-        ``truth.parquet`` of ``scioc simulate`` (an LQ human: θ1 finite).
-    levels : sequence of str
-        The experiment's levels; ``baseline`` among them.
-    baseline : str
-
-    Returns
-    -------
-    dict
+    ``estimates`` from ``scioc identify``, ``truth`` from ``scioc simulate`` (an LQ human: θ1 finite),
+    ``levels`` of the experiment with ``baseline`` among them.
     """
     e, t = np.log(_wide(estimates, "theta1")), np.log(_wide(truth, "theta1"))
     if t.isna().all().all():
@@ -84,13 +65,10 @@ PROFILE_DROPS = (3.0, 6.0, 10.0)
 
 
 def delay_profile_spread(estimates: pd.DataFrame) -> dict:
-    """How sharply the data fix each subject's delay: grid delays within 3, 6 and 10 nats of its best.
+    """How sharply the data fix each subject's delay: grid delays within :data:`PROFILE_DROPS` nats of its best.
 
-    Each subject's profile is the sum of its units' ``profile_loglik`` (the log-likelihood
-    maximized over the other parameters at each grid delay, ``scioc identify --human-model
-    delayed``): the delay the hierarchical model shares across a subject's levels. Returns
-    the grid size, the subjects and, per drop, the median and the range over subjects
-    (subjects with a unit whose profile is all NaN are left out).
+    A subject's profile sums its units' ``profile_loglik``, as the hierarchical model shares the delay
+    across levels. Returns the grid size, the subjects and, per drop, the median and range over subjects.
     """
     totals = {}
     for r in estimates.itertuples():

@@ -1,18 +1,11 @@
 """``scioc run``: the whole workflow on the built-in simulated study, ending with the report.
 
-Stages (each writes its own artifacts, each also a command of its own):
-simulate → identify (from angles, like a lab) → identify from the true torques (what the
-reconstruction costs; and with the paper's exogenous-u_A likelihood, what that costs in
-SC) → compare → fit → report.
-
-With the ``delayed`` human model too (``human_models``; by default when the max-ent model
-fails its adequacy checks, :func:`default_human_models`), the run adds its own identify
-(``identify_delayed/``) and Wilcoxon tests (``compare_delayed.json``) and, when the
-experiment records the torque, its fit (``fit_delayed/``) and the leave-one-subject-out
-comparison of the two fits (``human_models.json``,
-:func:`scioc.pipelines.fit.human_models.compare_human_models`), all from the one prepared study.
-Without a torque sensor the delayed model is identified from the encoder's angles and has
-no hierarchical fit (:data:`scioc.pipelines.report.human_models.ANGLE_ONLY`).
+Stages, each also a command of its own: simulate → identify (from angles, like a lab) →
+identify from the true torques (what reconstruction costs; also with the paper's exogenous-u_A
+likelihood) → compare → fit → report. With the ``delayed`` human model (:func:`default_human_models`)
+the run adds ``identify_delayed/`` and ``compare_delayed.json`` and, with a torque sensor,
+``fit_delayed/`` and the leave-one-subject-out comparison ``human_models.json``
+(:func:`scioc.pipelines.fit.human_models.compare_human_models`), all from one prepared study.
 """
 
 from __future__ import annotations
@@ -61,12 +54,8 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
 def default_human_models(design: Design, maxent_verdict: str | None) -> tuple[tuple[str, ...], str]:
     """The human models ``scioc run`` analyses a design with by default, and why.
 
-    Chosen by the data: the max-ent model always; the ``delayed`` model too when the max-ent
-    model does not pass its adequacy checks at identify (``maxent_verdict``,
-    :func:`run_verdicts`' ``maxent``; a fail, or not checked). A max-ent model that fits
-    needs no second model, and the delayed model adds some 30-40 minutes at the paper's size
-    (README "Human models"). Without a torque sensor the delayed model is identified from
-    the angles, without a hierarchical fit (:data:`scioc.pipelines.report.human_models.ANGLE_ONLY`).
+    The max-ent model always; the ``delayed`` model too unless ``maxent_verdict`` (at identify) is
+    "pass". See docs/decisions/run-human-models.md.
     """
     verdict = maxent_verdict or "not checked"
     if verdict == "pass":
@@ -100,16 +89,11 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
             human_models: tuple[str, ...] | None = None) -> Path:
     """Run every stage on the simulated study; returns the report's path.
 
-    ``fit=False`` skips the hierarchical Bayesian fits (minutes) for quick looks. ``human``
-    and ``population`` choose the simulated study (:func:`scioc.pipelines.simulate.simulate_to_dir`):
-    a negative-control human shows what the report says when the model does not fit.
-    ``design`` is the experiment simulated and analysed (the paper's study by default;
-    ``data/experiment.toml`` holds it); ``settings`` default to its ``[analysis]``. The study is
-    reconstructed once (:func:`scioc.pipelines.prepare.prepare_study`) and shared by the
-    identifications and the fits. ``human_models``: ``("maxent",)`` or ``("maxent", "delayed")``
-    (default: chosen by :func:`default_human_models` after the max-ent identification; the
-    choice and its reason go to ``run.json``, :data:`scioc.pipelines.report.human_models.RUN_FILE`);
-    ``settings.human_model`` is ignored, each model takes its own.
+    ``fit=False`` skips the hierarchical fits. ``human`` and ``population`` choose the simulated study
+    (a negative-control human shows what the report says when the model does not fit); ``design``
+    is the experiment (default the paper's) and ``settings`` default to its ``[analysis]``.
+    ``human_models``: ``("maxent",)``, ``("maxent", "delayed")``, or None for
+    :func:`default_human_models`' choice, recorded in :data:`scioc.pipelines.report.human_models.RUN_FILE`.
     """
     configure()
     design = STUDY if design is None else design

@@ -1,9 +1,8 @@
 """The exact Wilcoxon matched-pairs signed-rank test and Holm's correction, for ``scioc compare``.
 
-The exact two-sided p-value is scipy's ``wilcoxon(method="exact")``; the critical value
-at α comes from the exact null distribution of T (Siegel & Castellan 1988; for N = 42
-and α = 0.1 % two-sided it is 195, the paper's P(0.1; 42); scipy has no critical values,
-hence the table here).
+The two-sided p-value is scipy's ``wilcoxon(method="exact")``; scipy has no critical values, so the
+one at α comes from the exact null of T here (Siegel & Castellan 1988; N = 42, α = 0.1 %: 195, the
+paper's P(0.1; 42)).
 """
 
 from __future__ import annotations
@@ -67,20 +66,9 @@ class WilcoxonResult:
 
 
 def wilcoxon_signed_rank(mc, sc, *, parameter: str = "theta1", alpha: float = ALPHA) -> WilcoxonResult:
-    """Exact two-sided Wilcoxon matched-pairs signed-rank test of SC − MC.
+    """Exact two-sided Wilcoxon matched-pairs signed-rank test of SC − MC at ``alpha``.
 
-    Parameters
-    ----------
-    mc, sc : array_like, shape (n_pairs,)
-        Paired values per subject.
-    parameter : str
-        Name for the report.
-    alpha : float
-        Two-sided significance level.
-
-    Returns
-    -------
-    WilcoxonResult
+    ``mc`` and ``sc``: shape (n_pairs,), one pair per subject; ``parameter`` names the result.
     """
     mc = np.asarray(mc, dtype=float)
     sc = np.asarray(sc, dtype=float)

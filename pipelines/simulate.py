@@ -1,17 +1,10 @@
 """``scioc simulate``: write the simulated study in the data convention, with its ground truth apart.
 
-Artifacts in ``--out DIR``:
-
-* ``study.parquet`` — what a lab records: subject, condition (and trial, with several trials
-  per subject × condition), t, angle (encoder), angle_ref, u_A; with a torque sensor
-  (``[simulation] torque_sensor``) also u_H.
-* ``experiment.toml`` — the experiment simulated (:mod:`scioc.pipelines.experiment`): every
-  command finds it beside the study file.
-* ``truth.parquet`` — one row per subject × condition: run order, true q11, q22, R, θ1, θ2 and
-  the human's own delay, lag and motor noise (``delay_s``, ``tau_nm``, ``motor_sd``; 0 for the
-  paper's agent).
-* ``truth_trajectories.parquet`` — true angle, velocity and u_H per sample.
-* ``simulation.json`` — seed, population, design and package versions.
+Artifacts in ``--out DIR``: ``study.parquet`` (what a lab records: subject, condition[, trial], t,
+encoder angle, angle_ref, u_A, and u_H with ``[simulation] torque_sensor``); ``experiment.toml``
+(the experiment simulated, found beside the study by every command); ``truth.parquet`` (per unit:
+run order, q11, q22, R, θ1, θ2 and :data:`BODY_COLUMNS`); ``truth_trajectories.parquet`` (true
+angle, velocity and u_H per sample); ``simulation.json`` (seed, population, design, versions).
 """
 
 from __future__ import annotations
@@ -41,11 +34,7 @@ BODY_COLUMNS = ("delay_s", "tau_nm", "motor_sd")
 
 
 def read_truth(path) -> pd.DataFrame:
-    """``truth.parquet`` with the human's delay, lag and motor noise (:data:`BODY_COLUMNS`).
-
-    Files written before these were recorded for the paper's agent lack them; ``simulation.json``
-    beside the file names the human, and the paper's agent has none (0), so they are filled in.
-    """
+    """``truth.parquet``; missing :data:`BODY_COLUMNS` are 0 when ``simulation.json`` names the paper's agent."""
     path = Path(path)
     truth = read_table(path)
     meta = path.parent / "simulation.json"
@@ -79,37 +68,27 @@ def simulate_to_dir(
     out, *, n_subjects: int | None = None, seed: int = DEFAULT_SEED, population: Population | None = None,
     seconds: float | None = None, human: str = "maxent", force: bool = False, design: Design | None = None,
 ) -> dict:
-    """Simulate the experiment and write its artifacts.
+    """Simulate the experiment and write its artifacts (module docstring); returns their paths.
 
     Parameters
     ----------
     out : str or Path
-        Output folder (created).
     n_subjects : int, optional
-        Default: the design's ``subjects`` (42 for the paper's study).
+        Default: the design's ``subjects``.
     seed : int
         Root seed; subject i uses the i-th child of ``SeedSequence(seed)``.
     population : Population, optional
-        Default: the paper's population with the design's ``effects`` (its
-        ``[simulation] beta``) as the shifts of log θ1. An explicit population's shifts
-        are written into ``experiment.toml`` as the effects simulated.
+        Default: the paper's, with the design's ``effects`` as shifts of log θ1; an explicit
+        population's shifts are written into ``experiment.toml``.
     seconds : float, optional
-        Length of each run, s (default: the design's ``run_seconds``, 240 for the paper's).
+        Length of each run, s (default: the design's ``run_seconds``).
     human : str
-        The simulated human (:data:`scioc.models.humans.HUMANS`): ``maxent`` is the paper's
-        agent; the others are negative controls the likelihood does not describe. The
-        crossover operator has no cost θ: its truth rows carry NaN.
+        :data:`scioc.models.humans.HUMANS`: ``maxent`` is the paper's agent, the others negative
+        controls (the crossover operator has no θ: NaN in the truth).
     force : bool
-        Replace an existing non-empty ``out`` as a whole (:func:`scioc.pipelines.storage.staged_dir`);
-        without it such a folder is refused.
+        Replace a non-empty ``out`` as a whole (:func:`scioc.pipelines.storage.staged_dir`).
     design : Design, optional
-        The experiment to simulate (default the paper's study); written as
-        ``experiment.toml`` beside the study (with ``subjects`` and ``run_s`` as simulated).
-
-    Returns
-    -------
-    dict
-        Paths of the written files.
+        The experiment (default the paper's), written as ``experiment.toml`` as simulated.
     """
     configure()
     design = STUDY if design is None else design

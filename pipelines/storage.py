@@ -26,8 +26,7 @@ def _umask() -> int:
 def atomic_path(path):
     """Yield a temporary path beside ``path``; rename it onto ``path`` only on success.
 
-    Nothing already at ``path`` is lost or half-written if the writer fails. The file gets
-    the permissions of a plainly created one (0o666 less the umask), not ``mkstemp``'s 0o600.
+    The file gets a plainly created file's permissions (0o666 less the umask), not ``mkstemp``'s 0o600.
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -44,13 +43,8 @@ def atomic_path(path):
 
 
 def check_output_dir(out, *, force: bool = False) -> Path:
-    """The checks of :func:`staged_dir`, to run before a long stage starts.
-
-    Raises
-    ------
-    FileExistsError
-        If ``out`` is a non-empty folder and ``force`` is false, or is not a folder.
-    """
+    """:func:`staged_dir`'s checks, to run before a long stage: FileExistsError for a non-folder, or a
+    non-empty folder without ``force``."""
     target = Path(out)
     if target.exists() and not target.is_dir():
         raise FileExistsError(f"{target} exists and is not a folder; choose another output folder")
@@ -64,29 +58,10 @@ def check_output_dir(out, *, force: bool = False) -> Path:
 def staged_dir(out, *, force: bool = False):
     """Yield a fresh temporary folder beside ``out``; on success it replaces ``out`` as a whole.
 
-    A stage writes all its outputs into the yielded folder. When the ``with`` block ends
-    without an exception, an existing ``out`` is renamed aside, the new folder renamed to
-    ``out`` and the old one deleted, so ``out`` never mixes two runs. On an exception
-    (``KeyboardInterrupt`` included) the temporary folder is removed and ``out`` is left
-    as it was; a run killed outright (SIGKILL) leaves ``out`` intact too, plus a hidden
-    ``.NAME.*.tmp`` folder beside it.
-
-    Parameters
-    ----------
-    out : str or Path
-        The output folder.
-    force : bool
-        Replace an existing non-empty ``out``. Without it such a folder is refused.
-
-    Yields
-    ------
-    Path
-        The temporary folder to write into.
-
-    Raises
-    ------
-    FileExistsError
-        If ``out`` is a non-empty folder and ``force`` is false, or is not a folder.
+    On success an existing ``out`` is renamed aside, the new folder renamed to ``out`` and the old one
+    deleted, so ``out`` never mixes two runs. On an exception (``KeyboardInterrupt`` included) the
+    temporary folder is removed and ``out`` left as it was; SIGKILL leaves ``out`` intact plus a hidden
+    ``.NAME.*.tmp`` folder. A non-empty ``out`` is refused (FileExistsError) unless ``force``.
 
     Examples
     --------
@@ -133,16 +108,7 @@ def write_table_atomic(df: pd.DataFrame, path) -> Path:
 
 
 def refuse_inputs_inside(out, *inputs) -> None:
-    """Refuse an output folder that is, or holds, one of a stage's inputs.
-
-    A stage replaces its output folder as a whole (:func:`staged_dir`), so an input inside
-    it would be lost.
-
-    Raises
-    ------
-    ValueError
-        Naming the input and the folder (a usage error, exit 2).
-    """
+    """ValueError (a usage error, exit 2) if ``out`` is or holds one of the inputs, which replacing it would delete."""
     target = Path(out).resolve()
     for p in inputs:
         if p is None:

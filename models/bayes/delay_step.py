@@ -1,30 +1,11 @@
 """Exact sampling of discrete perceptual delays beside NUTS: a Metropolis-within-Gibbs step per group.
 
-The ``delayed`` human's delay d is a whole number of samples on a grid
-(:func:`scioc.models.delayed.identify.delay_grid`, 0-300 ms). Its posterior is not smooth in d
-(a few nats between neighbours) and, on windows of seconds, wide: on 6-s windows the
-likelihood at the true parameters is within 2 nats over 100 ms of delays, and on the
-default study each subject (two 15-s windows) keeps a median of 25 of the 31 grid delays
-within 10 nats of its best. Conditioning on the best delay (a plug-in) therefore ignores
-real uncertainty: the unit-level SBC of the plug-in fails (README "Human models").
-
-Marginalizing the delay inside the likelihood (a log-sum-exp over the grid) is exact but
-evaluates 31 delays at every gradient: measured 37 times the plug-in's sampling time for
-one 6-s unit. Sampling the delay instead costs a few likelihood evaluations per
-iteration. The model gets an integer variable per group (a unit, or a subject whose
-segments share one delay), ``delay_index`` with a uniform prior over the grid, and
-:class:`DelayMetropolis` updates it while NUTS updates the continuous parameters
-(PyMC's compound step: each leaves the joint posterior invariant, so the chain samples
-the joint posterior, and its continuous draws are the delay-marginal posterior).
-
-The update. Given everything else, the groups' delays are independent (each group's
-delay enters only its own segments' likelihood, and the prior is uniform per group), so
-one vectorized Metropolis sweep updates all groups at once: a proposal for every group,
-one evaluation of the per-group log-likelihood at the proposed delays, an independent
-accept/reject per group. The uniform prior cancels; proposals are symmetric:
-alternately a uniform draw from the other grid delays (reaches any delay in one step)
-and a local move of 1-3 grid steps (accepted often where the posterior is peaked; a move
-off the grid is rejected). :data:`SWEEPS` sweeps per iteration.
+Each group (a unit, or a subject's segments) has an integer ``delay_index``, uniform over the delay grid. PyMC's
+compound step leaves the joint posterior invariant, so the continuous draws are delay-marginal
+(docs/decisions/delayed-plugin-delay.md). The groups' delays are independent given the rest, so one vectorized
+sweep proposes for every group, evaluates the per-group log-likelihood once, and accepts each on its own. The
+symmetric proposals alternate a uniform draw from the other grid delays and a local move of up to
+:data:`LOCAL_STEP` grid steps (off the grid: rejected).
 """
 
 from __future__ import annotations
@@ -43,22 +24,9 @@ LOCAL_STEP = 3
 class DelayMetropolis(BlockedStep):
     """Metropolis-within-Gibbs update of per-group delay indices (module docstring).
 
-    Parameters
-    ----------
-    vars : list with one variable
-        The integer delay-index variable (shape (G,) or scalar), uniform over 0..n_grid-1.
-    group_loglik : TensorVariable, shape (G,)
-        The log-likelihood of each group's data as a graph of the model's random
-        variables (it must contain every term that depends on the delay index).
-    n_grid : int
-        Number of grid delays.
-    sweeps : int
-        Sweeps per iteration (default :data:`SWEEPS`).
-    mode : str, optional
-        PyTensor compilation mode of the log-likelihood function (e.g. ``"NUMBA"``).
-    model : pymc.Model, optional
-    rng : optional
-        As PyMC's step methods take it.
+    ``vars``: the integer delay-index variable ((G,) or scalar, uniform over 0..``n_grid``-1); ``group_loglik`` (G,):
+    each group's log-likelihood, a graph with every term the index enters; ``sweeps`` per iteration; ``mode``:
+    PyTensor's compilation mode of ``group_loglik``; ``model``, ``rng``: as PyMC's steps.
     """
 
     name = "delay_metropolis"

@@ -1,31 +1,12 @@
-"""The neuromuscular lag's coefficients inside compiled code: :func:`scioc.models.delayed.lag.lag_coefficients` in numba.
+"""The neuromuscular lag's coefficients in numba: :func:`scioc.models.delayed.lag.lag_coefficients` for compiled code.
 
-The ``delayed`` likelihood Op (:mod:`scioc.models.bayes.delayed_op`) needs the pole a, the mixing
-α and their τ_nm-derivatives at every evaluation, for every segment, inside the numba
-function nutpie calls; :func:`scioc.models.delayed.lag.lag_coefficients` is NumPy/SciPy code.
-:func:`lag_nb` computes the same numbers (tested equal to rounding on both of its
-branches) from the wheel's constants (:func:`wheel_constants`, once per Op):
+:func:`lag_nb` gives the pole a = e^{-μ dt} (μ = 1/τ_nm), the mixing α = v_1 / b_1 and their τ_nm-derivatives from
+the wheel's constants: where every wheel pole is at relative distance > 5 % from -μ, in closed form,
+``v = (A_c + μ I)⁻¹ (Φ - a I) b_w``, ``dv/dμ = (A_c + μ I)⁻¹ (dt a b_w - v)``; otherwise (a real pole near -μ)
+by entire functions of X = (A_c + μ I) dt, with scaling and squaring (``φ1(2Z) = ½ (I + e^Z) φ1(Z)``,
+``ψ(2Z) = ¼ (ψ(Z) + e^Z (φ1(Z) + ψ(Z)))``)::
 
-* where ``A_c + μ I`` (μ = 1/τ_nm) is well conditioned (the criterion of
-  :func:`scioc.models.delayed.lag.lag_coefficients`: every pole λ of the wheel at relative
-  distance > 5 % from -μ) the closed form ``v = (A_c + μ I)⁻¹ (Φ - a I) b_w``,
-  ``dv/dμ = (A_c + μ I)⁻¹ (dt a b_w - v)``, by the explicit 2 × 2 inverse;
-* otherwise (a wheel with a real pole near -μ; never for the paper's wheel, whose poles
-  are complex, but a wheel without a centring spring has one at -damper/inertia) the
-  same integrals as entire functions of X = (A_c + μ I) dt, which have no singularity::
-
-      v = a dt φ1(X) b_w,          φ1(X) = ∫_0^1 e^{X s} ds,
-      dv/dμ = -dt v + a dt² ψ(X) b_w,   ψ(X) = ∫_0^1 s e^{X s} ds,
-
-  by scaling and squaring: Taylor series at X / 2^s (norm <= 1/2, 24 terms), then s
-  doublings ``φ1(2Z) = ½ (I + e^Z) φ1(Z)``, ``ψ(2Z) = ¼ (ψ(Z) + e^Z (φ1(Z) + ψ(Z)))``,
-  ``e^{2Z} = (e^Z)²`` (this replaces SciPy's Fréchet derivative of the block exponential,
-  which numba cannot call).
-
-Then ``α = v_1 / b_1``, ``dα/dτ_nm = -μ² (dv/dμ)_1 / b_1``, ``a = e^{-μ dt}``,
-``da/dτ_nm = a dt μ²``; τ_nm = 0 gives a = α = da = 0 and the one-sided
-``dα/dτ_nm = (Φ b_w)_1 / b_1``, as there. Below :data:`TAU_TINY` α is its first-order
-expansion τ_nm (Φ b_w)_1 / b_1 (exact to rounding there; the closed form would overflow).
+    v = a dt φ1(X) b_w,   dv/dμ = -dt v + a dt² ψ(X) b_w,   φ1(X) = ∫_0^1 e^{X s} ds,   ψ(X) = ∫_0^1 s e^{X s} ds
 """
 
 from __future__ import annotations
@@ -91,8 +72,7 @@ def _phi_series(X):
 def lag_nb(tau_nm, dt, A_c, b_w, Pb, b1, poles):
     """``(a, α, da/dτ_nm, dα/dτ_nm)`` of one τ_nm >= 0 (s); the wheel's constants from :func:`wheel_constants`."""
     if tau_nm < TAU_TINY:
-        # a = e^{-dt/τ} is 0 in double precision, and α = τ (Φ b_w)_1 / b_1 + O(τ²): the O(τ²)
-        # is below rounding here, where μ² would overflow in the closed form's derivatives.
+        # a = e^{-dt/τ} is 0 here and α = τ (Φ b_w)_1 / b_1 + O(τ²) to rounding; μ² would overflow.
         return 0.0, tau_nm * Pb[1] / b1, 0.0, Pb[1] / b1
     mu = 1.0 / tau_nm
     a = math.exp(-dt * mu)

@@ -1,35 +1,12 @@
 """Leave-one-subject-out of the ``delayed`` hierarchical model: its terms in the integrated importance sampling.
 
-:func:`scioc.models.bayes.subject_loo.subject_loglik` integrates each subject's unit parameters
-out by importance sampling, one proposal per subject, and PSIS then reweights the
-population draws. For :mod:`scioc.models.bayes.delayed_model` a subject has, besides the cost
-blocks (log θ1, log R, θ2 per level), its own lag and motor noise: :class:`DelayedSubjectTerms`
-adds them, as ``extra``:
-
-* to the Student-t block of the proposal, as (log τ_nm, log σ_m): logs rather than the
-  values, so that a lag or motor noise far from 0 (a delayed human, σ_m ≈ 0.25 ± 0.02)
-  and one the data leave near 0 (a max-ent human) are both covered by a t fitted to the
-  draws, with the log-Jacobians τ_nm σ_m in the weights; and τ_nm, for half the points, drawn
-  from its population, HalfNormal(s) with s on a geometric grid of :data:`SCALE_GRID` points
-  spanning the posterior draws of s_τ (the defensive mixture of
-  :func:`scioc.models.bayes.subject_loo.subject_loglik`). Where the data leave τ_nm near 0
-  the likelihood is flat below a ceiling and the target under a population draw is its
-  half-normal, with a sharp upper cutoff at that draw's s_τ; the t, fitted to draws pooled over
-  all s_τ (spanning orders of magnitude), spends most of its points above the cutoffs of many
-  draws, and a few points that happen to sit below them carry the weight (found on the
-  12-subject max-ent study of the README's "the paper's study with a torque sensor", which gives
-  the ESS the comparison now reaches);
-* to the conditional prior: ``τ_nm ~ HalfNormal(s_τ)``, ``σ_m ~ HalfNormal(s_m)`` under each
-  population draw (the model's, whatever form the sampler used), and, for a model whose
-  baseline R has the ``policy_scale`` population (:class:`scioc.models.bayes.delayed_model.DelayedPriors`),
-  ``R^(-1/2) ~ HalfNormal(s_ρ)`` in place of N(μ_R, σ_R) on log R, and for an ``unpooled`` one
-  the subject's own fixed N(m, s) (``baseline_log_R_prior``);
-* and the segments' log-likelihood is the delayed one
-  (:func:`scioc.models.delayed.likelihood.loglik_grad`) at the segment's plug-in delay, with
-  τ_0 fixed or following the warm-up at each proposed τ_nm (as the Op computes it).
-
-The elpd of a subject under the two human models is then comparable: both are densities
-of the same observed torques (the delayed one includes the Jacobian of u -> c̃).
+:class:`DelayedSubjectTerms` adds a subject's lag and motor noise to
+:func:`scioc.models.bayes.subject_loo.subject_loglik`: to the Student-t proposal as (log τ_nm, log σ_m), their
+Jacobians in the weights, and for half the points τ_nm from its population on a grid of s_τ (where the data leave
+τ_nm near 0, the target under each draw is that half-normal cut off at its s_τ, which a t fitted to draws pooled
+over all s_τ misses); to the conditional prior, with the baseline log R of a ``policy_scale`` or ``unpooled``
+population; and the segments' likelihood is the delayed one at each segment's plug-in delay. A subject's elpd is
+then comparable between the human models: both are densities of the same torques.
 """
 
 from __future__ import annotations
@@ -51,27 +28,11 @@ SCALE_GRID = 64
 
 
 class DelayedSubjectTerms:
-    """The lag and motor-noise terms of :func:`scioc.models.bayes.subject_loo.subject_loglik` (``extra``).
+    """The lag and motor-noise terms (``extra``) of :func:`scioc.models.bayes.subject_loo.subject_loglik`.
 
-    Parameters
-    ----------
-    post : dict of ndarray
-        Flattened posterior draws (S first) of the delayed model: ``tau_nm`` and
-        ``sigma_m`` (S, n_subjects); ``tau_nm_scale``, ``sigma_m_scale`` (S,).
-    batch : SegmentBatch
-        The segments the model was fitted to.
-    plant : DiscretePlant
-    delay : array_like of int, shape (n_segments,)
-        The plug-in delay of each segment, samples.
-    tau0 : float, array_like (n,) or sequence of Warmup or None
-        As the model was built with (:func:`scioc.models.bayes.delayed_op.pack_tau0`).
-    params : WheelParameters
-    chunk : int
-        Points per kernel call.
-    baseline_log_R_prior : (float, float), optional
-        (m, s) of a model fitted with ``DelayedPriors(R_population="unpooled")``: each subject's
-        baseline log R ~ N(m, s) (:meth:`scioc.models.bayes.delayed_blocks.DelayedPriors.unpooled_log_R_prior`),
-        which its posterior draws do not hold.
+    ``post``: flattened draws (S first) of ``tau_nm``, ``sigma_m`` (S, n_subjects), ``tau_nm_scale``,
+    ``sigma_m_scale`` and ``rho_scale`` if any (S,); ``batch``, ``plant``, ``delay`` (samples), ``tau0``, ``params``
+    as the model was built; ``chunk`` points per kernel call; ``baseline_log_R_prior``: (m, s) of an ``unpooled`` model.
     """
 
     def __init__(self, post: dict, batch: SegmentBatch, plant: DiscretePlant, delay, tau0=0.0,

@@ -1,40 +1,12 @@
 """The batched ``delayed`` log-likelihood as a PyTensor Op, with a numba implementation.
 
-One node computes, in one call of the numba kernel
-(:data:`scioc.models.delayed.kernel.batch_kernel_serial`),
-
-* ``loglik`` (n,): the exact log-likelihood of each segment under the ``delayed`` human
-  (:mod:`scioc.models.delayed.likelihood`), nats, and
-* ``grad`` (5, n): its derivatives in that segment's ``q11, q22, R`` (rows 0-2), ``τ_nm``
-  (row 3) and ``σ_m`` (row 4), in the order of :data:`scioc.models.delayed.PARAMETERS`.
-
-The differentiable inputs are θ (3, n), τ_nm (n,) and σ_m (n,). The delay (whole samples
-per segment) is data: the hierarchical model fixes it per unit (:mod:`scioc.models.bayes.delayed_model`
-says why). So is what fixes the arm torque at each window's start, τ_0: either a number
-per segment (held fixed), or the observed torques before the window
-(:class:`scioc.models.delayed.lag.Warmup`), from which τ_0 follows by the arm's recursion
-(:func:`scioc.models.delayed.lag.arm_torque_recursion`) at the current τ_nm, with its
-tangents, exactly as :func:`scioc.models.delayed.identify.identify_unit_delayed` treats it.
-Warm-ups are stored right-aligned in one (n, J) array with each row's first index
-(:func:`pack_tau0`). A measured torque's warm-up is the whole run before the window (up
-to 21000 samples, 0.7 ms of recursion each: 56 ms per evaluation of 84 segments, four
-times the likelihood's own cost). The recursion forgets its start as |p|^k, p = a - (1 -
-a) α / (1 - α) (:mod:`scioc.models.delayed.lag`: |p| = 0.92 at τ_nm = 0.06 s, 0.97 at 1 s), so
-only its last :func:`warm_samples` samples are run (about 560 at 0.06 s, 1500 at 1 s),
-started from the torque just before them (a held torque passes the lag unchanged): the
-older samples and that guess weigh less than :data:`WARM_EPS` = 1e-20 of τ_0 and its
-tangents, far below rounding (tested against the whole warm-up).
-
-As :mod:`scioc.models.bayes.op` for the max-ent likelihood: the pullback multiplies the
-kernel's gradient by the cotangent, so a compiled logp-and-gradient function runs the
-kernel once per evaluation; second derivatives are refused. The numba implementation
-computes the lag's coefficients (:func:`scioc.models.bayes.delayed_lag.lag_nb`), the warm-ups
-and the batch in the calling thread (the serial kernel: nutpie already runs one chain
-per thread, and a parallel region inside each would oversubscribe the cores), and
-allocates its outputs and scratch per call, so concurrent calls share nothing they write.
-
-:class:`DelayedLoglikDataOp` takes the data as inputs (a model compiled once refits new
-data of the same shape); :class:`DelayedLoglikOp` binds one batch.
+One call of :data:`scioc.models.delayed.kernel.batch_kernel_serial` gives ``loglik`` (n,), nats, and ``grad`` (5, n)
+in each segment's q11, q22, R, τ_nm, σ_m; as for the max-ent Op (:mod:`scioc.models.bayes.op`) the pullback scales
+``grad``, so logp and gradient cost one kernel call. The delay (samples) is data, and so is the arm torque τ_0 at
+each window's start: a number, or the torques before the window (a Warmup), from which τ_0 and its tangents follow
+by the arm's recursion at the current τ_nm. That recursion forgets its start as |p|^k, p = a - (1 - a) α / (1 - α),
+so only its last :func:`warm_samples` samples are run. The numba implementation runs in the calling thread (nutpie
+runs a chain per thread) and allocates per call.
 """
 
 from __future__ import annotations
@@ -64,8 +36,7 @@ DELAYED_DATA_NAMES = (*DATA_NAMES, "delay", "warm", "warm_start", "tau_start")
 N_PARAMETER_INPUTS = 3
 
 
-#: The warm-up's arm-torque recursion forgets its start as |p|^k (:mod:`scioc.models.delayed.lag`): only
-#: the last samples whose start weighs more than this are run.
+#: The weight of the warm-up's start in τ_0 and its tangents below which older samples are not run.
 WARM_EPS = 1e-20
 
 
@@ -128,17 +99,8 @@ def warmups_of(tau0, n: int) -> list | None:
 
 
 def pack_tau0(tau0, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(warm (n, J), warm_start (n,), tau_start (n,))`` for the Op from a τ_0 specification.
-
-    Parameters
-    ----------
-    tau0 : float, array_like (n,), or sequence of Warmup or None (n)
-        A fixed arm torque at each window's start (N·m; J = 0), or per segment the
-        torques before the window (:class:`scioc.models.delayed.lag.Warmup`; None: at rest,
-        τ_0 = 0).
-    n : int
-        Segments.
-    """
+    """``(warm (n, J), warm_start (n,), tau_start (n,))`` for the Op from ``tau0``: a fixed arm torque at each
+    window's start, N·m (J = 0), or per segment the torques before the window (a Warmup; None: at rest)."""
     warmups = warmups_of(tau0, n)
     if warmups is not None:
         lens = [0 if w is None else np.asarray(w.u).shape[0] for w in warmups]
@@ -169,22 +131,9 @@ def _frozen(x, dtype=np.float64) -> np.ndarray:
 class DelayedLoglikDataOp(Op):
     """Per-segment ``delayed`` log-likelihood and its gradient in (θ, τ_nm, σ_m), the data as inputs.
 
-    Parameters
-    ----------
-    plant : DiscretePlant
-        The wheel at the recording's sample time.
-    params : WheelParameters
-        The wheel ``plant`` was discretized from (the lag needs it).
-
-    Notes
-    -----
-    Inputs: ``theta`` (3, n) rows q11, q22, R; ``tau_nm`` (n,), s; ``sigma_m`` (n,), N·m;
-    then :data:`DELAYED_DATA_NAMES`: ``x1, x2, r, u, a, fb`` of a
-    :class:`scioc.models.segment.SegmentBatch`, ``delay`` (n,) int64 samples, and ``warm``,
-    ``warm_start``, ``tau_start`` from :func:`pack_tau0`. Outputs ``loglik`` (n,) and
-    ``grad`` (5, n), as :func:`scioc.models.delayed.loglik_grad` returns them. Parameters are not
-    validated in the graph (the sampler proposes what its transforms allow); a non-finite
-    value gives a non-finite log-likelihood, which the sampler rejects.
+    Inputs: ``theta`` (3, n) rows q11, q22, R; ``tau_nm`` (n,), s; ``sigma_m`` (n,), N·m; :data:`DELAYED_DATA_NAMES`.
+    Outputs ``loglik`` (n,) and ``grad`` (5, n), as :func:`scioc.models.delayed.loglik_grad`'s. ``plant`` is the wheel
+    at the recording's sample time, ``params`` the wheel it was discretized from.
     """
 
     __props__ = ("key",)
@@ -208,8 +157,7 @@ class DelayedLoglikDataOp(Op):
         return Apply(self, [theta, tau_nm, sigma_m, *data], [pt.dvector(), pt.dmatrix()])
 
     def values(self, inputs, grad: bool = True):
-        """(log-likelihood (n,), gradient (5, n)) at a node's input values; with ``grad`` False the gradient is NaN
-        and the log-likelihood the same number in less time (:func:`scioc.models.delayed.kernel.batch_kernel`)."""
+        """(log-likelihood (n,), gradient (5, n)) at a node's input values; ``grad`` False: the value alone."""
         theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:3])
         data = inputs[3:] or self.bound
         data = [np.ascontiguousarray(v, dtype=np.int64 if j in (6, 8) else np.float64) for j, v in enumerate(data)]
@@ -241,33 +189,8 @@ class DelayedLoglikDataOp(Op):
 
 
 class DelayedLoglikOp(DelayedLoglikDataOp):
-    """Per-segment ``delayed`` log-likelihood for fixed data: inputs θ (3, n), τ_nm (n,), σ_m (n,).
-
-    Parameters
-    ----------
-    batch : SegmentBatch
-        From :func:`scioc.models.segment.prepare_batch` with ``plant``.
-    plant : DiscretePlant
-    delay : int or array_like of int (n,)
-        Perceptual delay per segment, samples (>= 0); a fourth input ``delay`` (n,) int64,
-        when given to the call, replaces it (a sampled delay; not differentiable).
-    tau0 : float, array_like (n,) or sequence of Warmup or None
-        As :func:`pack_tau0` (default: every window starts with the arm at rest).
-    params : WheelParameters
-
-    Examples
-    --------
-    >>> import numpy as np, pytensor.tensor as pt
-    >>> from models.segment import Segment, prepare_batch
-    >>> from models.plant import discretize
-    >>> plant = discretize(0.01)
-    >>> seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
-    >>> op = DelayedLoglikOp(prepare_batch(plant, [seg]), plant, delay=3)
-    >>> th, tau, sig = pt.dmatrix("theta"), pt.dvector("tau"), pt.dvector("sig")
-    >>> ll, g = op(th, tau, sig)
-    >>> ll.eval({th: np.array([[10.0], [0.0], [1.0]]), tau: [0.06], sig: [0.2]}).shape
-    (1,)
-    """
+    """Per-segment ``delayed`` log-likelihood for fixed data: inputs θ (3, n), τ_nm (n,), σ_m (n,), and
+    optionally a sampled ``delay`` (n,) in place of the bound one (samples); ``tau0`` as :func:`pack_tau0`."""
 
     __eq__ = object.__eq__
     __hash__ = object.__hash__
@@ -317,8 +240,7 @@ class DelayedLoglikOp(DelayedLoglikDataOp):
 
 @numba_funcify.register(DelayedLoglikDataOp)
 def numba_funcify_delayed_loglik(op: DelayedLoglikDataOp, node=None, grad: bool = True, **kwargs):
-    """Numba implementation of both Ops: the lag, the warm-ups and the serial batch kernel, no object mode (``grad``
-    False: the gradient NaN, for :mod:`scioc.models.bayes.delayed_value`)."""
+    """Numba implementation of both Ops, no object mode; ``grad`` False for the value alone."""
     A, b = op.A, op.b
     dt, A_c, b_w, Pb, b1, poles = op.wheel
     evaluate = _evaluate

@@ -1,17 +1,10 @@
 """The ``delayed`` log-likelihood without its gradient, wherever a graph does not read the gradient.
 
-A :class:`scioc.models.bayes.delayed_op.DelayedLoglikDataOp` node has two outputs, the per-segment log-likelihood and its
-gradient, and computes both whatever its graph reads. PyMC's pointwise log-likelihood
-(``pm.compute_log_likelihood``, :func:`scioc.pipelines.fit.sampling.add_log_likelihood`: every kept draw, 44 s of the
-full-size ``kbl`` fit at f484bf1) reads only the first. The rewrite :func:`local_delayed_loglik_value_only`
-(PyTensor's ``specialize`` phase, in every compiled function once this module is imported, as the model builders
-:mod:`scioc.models.bayes.delayed_model` and :mod:`scioc.models.bayes.unit_delayed` do) replaces such a node by a
-:class:`DelayedLoglikValueOp` on the same inputs, which runs the kernel's value-only path
-(:func:`scioc.models.delayed.kernel.batch_kernel` with ``grad`` False): the same operations up to the log-density, without
-the reverse sweeps (the same number to the last bit through :func:`scioc.models.delayed.loglik`; compiled into a graph of
-its own, to rounding: tests/models/bayes/test_delayed_op.py). A graph that reads the gradient (the sampler's, the
-whitening's mode search) keeps the node as it is. ``scioc bench --parts delayed`` measures the value alone beside
-the value and gradient.
+A :class:`scioc.models.bayes.delayed_op.DelayedLoglikDataOp` node computes value and gradient whatever its graph
+reads; the pointwise log-likelihood (``pm.compute_log_likelihood``, every kept draw) reads only the value. The
+rewrite :func:`local_delayed_loglik_value_only`, registered in PyTensor's ``specialize`` phase on import (the model
+builders import this module), replaces such a node by a :class:`DelayedLoglikValueOp`, which runs the kernel's
+value-only path: the same number, without the reverse sweeps. ``scioc bench --parts delayed`` measures both.
 """
 
 from __future__ import annotations
@@ -29,11 +22,8 @@ from scioc.models.bayes.delayed_op import DelayedLoglikDataOp, numba_funcify_del
 
 
 class DelayedLoglikValueOp(Op):
-    """The first output of ``base`` (a :class:`scioc.models.bayes.delayed_op.DelayedLoglikDataOp`) alone, on its inputs.
-
-    Not differentiable: it only replaces nodes whose gradient output nothing reads, after the graph's gradients are
-    taken (:func:`local_delayed_loglik_value_only`).
-    """
+    """The first output of ``base`` (a :class:`scioc.models.bayes.delayed_op.DelayedLoglikDataOp`) alone; not
+    differentiable, as it replaces only nodes whose gradient nothing reads."""
 
     __props__ = ("base",)
 

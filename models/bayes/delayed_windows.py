@@ -1,15 +1,7 @@
-"""Small studies of the ``delayed`` human straight from its generative model, for tests and benchmarks.
+"""Small studies of the ``delayed`` human from its generative model: the truth fits are checked against.
 
-:func:`delayed_windows` draws each subject's θ per level from :class:`scioc.models.population.Population`
-(as :func:`scioc.models.simulate.simulate_windows` does for the max-ent human), gives every
-subject one perceptual delay, neuromuscular lag and motor-noise SD (kept in every level:
-the human does not change between conditions, as the simulated ``kbl`` human of
-:mod:`scioc.models.humans`), and draws each window exactly from the model the likelihood
-assumes (:func:`scioc.models.delayed.sample_delayed`): MC on the open wheel, SC with the
-assistant's law, the true torques (no encoder, no reconstruction), the arm torque at
-rest at the window's start (τ_0 = 0, known). The window runs from the start of the
-study reference, like :func:`scioc.models.simulate.simulate_windows`. Nothing here is fitted:
-it is the truth the fits are checked against.
+Per subject θ per level from a :class:`scioc.models.population.Population`, one delay, lag and motor noise in all
+levels, and exact windows (:func:`scioc.models.delayed.sample_delayed`; true torques, the arm at rest at the start).
 """
 
 from __future__ import annotations
@@ -27,22 +19,9 @@ from scioc.models.reference import reference_trajectory
 
 
 class DelayedWindows(NamedTuple):
-    """Windows of the ``delayed`` human with their truth, one per subject × level (MC, SC).
-
-    Attributes
-    ----------
-    subjects, conditions : list of str
-    segments : list of Segment
-        True x0 and u_H; SC segments carry the assistant's Feedback.
-    theta : ndarray, shape (3, n)
-        True [q11, q22, R] (command cost) per segment.
-    delay : ndarray of int, shape (n,)
-        Perceptual delay, samples.
-    tau_nm, sigma_m : ndarray, shape (n,)
-        Lag time constant (s) and motor-noise SD (N·m per sample).
-    tau0 : ndarray, shape (n,)
-        Arm torque at each window's start, N·m (0).
-    """
+    """Windows of the ``delayed`` human with their truth, one per subject × level (MC, SC): ``segments`` (true x0
+    and u_H; SC ones carry the assistant's Feedback), ``theta`` (3, n) the command cost, ``delay`` (n,) samples,
+    ``tau_nm`` (n,) s, ``sigma_m`` (n,) N·m per sample, ``tau0`` (n,) N·m (0)."""
 
     subjects: list
     conditions: list
@@ -60,26 +39,9 @@ def delayed_windows(n_subjects: int, rng: np.random.Generator, population: Popul
                     preview: int = round(PREVIEW_SECONDS / DT_HUMAN)) -> DelayedWindows:
     """Draw a study of ``n_subjects`` × (MC, SC) windows of the ``delayed`` human.
 
-    Parameters
-    ----------
-    n_subjects : int
-    rng : numpy.random.Generator
-        θ of every subject first (:func:`scioc.models.population.draw_subjects`), then per
-        subject its delay, lag and motor noise, then its two windows in order MC, SC.
-    population : Population
-        θ per subject and level (R at 100 Hz).
-    delay : (int, int)
-        Range of the subjects' delays, samples: uniform on ``delay[0] .. delay[1]``
-        inclusive (default 0.10-0.20 s, the ``kbl`` human's and issue 13's range).
-    tau_nm, sigma_m : (float, float)
-        Ranges of the subjects' lag (s) and motor-noise SD (N·m): uniform (default: the
-        ``kbl`` human's 0.05-0.10 s and 0.25 N·m).
-    K, preview : int
-        Observed steps and planning steps past them (default: the 15-s window, 2 s).
-
-    Returns
-    -------
-    DelayedWindows
+    ``rng`` draws every subject's θ first, then per subject its delay, lag and motor noise and its windows;
+    ``delay``, ``tau_nm``, ``sigma_m`` are uniform ranges (whole samples, s, N·m; default the ``kbl`` human's); ``K``
+    observed steps and ``preview`` planning steps past them.
     """
     plant = discretize(DT_HUMAN)
     ref = reference_trajectory(DT_HUMAN * (K + preview)).angle

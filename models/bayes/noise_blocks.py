@@ -1,50 +1,16 @@
 """Other forms of a subject's noise scales: ρ centred or folded per subject (``mixed``), ρ = u² (``squared``), and
-ρ and σ_m in polar coordinates (``polar``), the arc the data leave between them made straight.
+ρ and σ_m in polar coordinates (``polar``), which straighten the arc the data leave between them.
 
-The first two are documented at their functions; the rest of this docstring is the polar form's.
-
-Why. The policy noise (variance ∝ ρ², ρ = R^(-1/2)) and the motor noise (∝ σ_m²) share a
-subject's torque variability, so where the data fix both only through their sum the
-posterior follows the ridge ρ² + k σ_m² ≈ c (:func:`scioc.models.bayes.delayed_blocks.ridge_pivots`).
-With ρ and σ_m folded centred (ρ = |ρ̃|, σ_m = |σ̃|, both signed) that ridge is an ellipse in
-(ρ̃, σ̃), and a subject whose data fix ρ away from 0 (the ``kbl`` human's "pinned" subjects)
-has its posterior on a long arc of it: on the full-size ``kbl`` study, with θ, τ_nm and the delay
-held at the ML estimates (:mod:`scioc.pipelines.fit.noise_arcs`, read ad hoc), the maximizing σ_m² of 9
-subjects fell from 1.3-1.8 to 0.16-0.66 times its ML value as ρ² went from half to twice its own.
-No affine map, and no quadratic bend about one point, straightens an arc that long; NUTS then needs
-small steps across it and long trajectories along it. (With τ_nm free the posterior's main
-trade-off turned out to be ρ² against τ_nm, not σ_m²: :mod:`scioc.pipelines.fit.delayed_forms`, "Polar,
-squared, and the low-rank mass matrix", where what polar coordinates bought is measured.)
-
-In polar coordinates::
-
-    ρ̃ = r cos φ,   σ̃ = r sin φ / √k,   a = log r,   b = φ
-
-a is the combination the data fix and b the position along the arc, a line.
-
-The law is the folded centred forms' and so the half-normal populations' of every other form:
-ρ̃ ~ N(0, s_ρ), σ̃ ~ N(0, s_m), independent. The map (a, φ mod 2π) -> (ρ̃, σ̃) is one-to-one onto
-ℝ² without 0, with Jacobian r²/√k. The density of (ρ̃, σ̃) is unchanged by (ρ̃, σ̃) -> (-ρ̃, -σ̃),
-that is φ -> φ + π, so on φ ∈ ℝ it has period π and no finite mass. An envelope w with
-Σ_n w(φ + nπ) = 1 for every φ gives it one without changing the law of φ mod π::
+Where the data fix only the sum of the policy noise (∝ ρ², ρ = R^(-1/2)) and the motor noise (∝ σ_m²), folded
+centred ρ̃, σ̃ (ρ = |ρ̃|, σ_m = |σ̃|) follow a long arc of the ellipse ρ̃² + k σ̃² ≈ c. Polar coordinates
+ρ̃ = r cos φ, σ̃ = r sin φ / √k, a = log r, b = φ keep the law ρ̃ ~ N(0, s_ρ), σ̃ ~ N(0, s_m) with the Jacobian
+r²/√k; as that density has period π in φ, an envelope w with Σ_n w(φ + nπ) = 1 gives it finite mass::
 
     log p(a, φ) = log N(r cos φ; 0, s_ρ) + log N(r sin φ / √k; 0, s_m) + 2a - ½ log k + log w(φ) + log 2
+    w(φ) = N(φ; 0, π) / Σ_n N(φ + nπ; 0, π) = π N(φ; 0, π) / (1 + 2 e^(-2π²) cos 2φ)   (Poisson's formula)
 
-    w(φ) = N(φ; 0, π) / Σ_n N(φ + nπ; 0, π) = π N(φ; 0, π) / (1 + 2 e^(-2π²) cos 2φ)
-
-(the sum by Poisson's formula, whose next term, e^(-8π²) ≈ 6e-35, is below double precision; the
-log 2: φ mod π covers (ρ̃, σ̃) twice). The sampler moves freely across copies of the arc, as
-across ρ̃'s sign in the folded forms; ρ = |ρ̃| and σ_m = |σ̃| are the same on all of them.
-
-Per subject. k > 0 puts a subject in polar coordinates; NaN leaves it in the folded centred
-ones, a = ρ̃ and b = σ̃ (for a subject without such an arc: ρ near 0, or σ_m fixed by the data
-whatever ρ). :func:`scioc.pipelines.fit.noise_arcs.noise_arcs` chooses k from the ML estimates.
-
-PyMC. The joint density of (a, b) is b's log-density, with a as its parameter; a's own is 0. The
-model's density is their sum, the one above. Drawn ancestrally (``pm.draw``, the prior predictive
-checks): a from its marginal (r from independent ρ̃ and σ̃), then b from its law given a: in polar
-coordinates φ ∝ exp(-r² cos² φ / 2s_ρ² - r² sin² φ / 2k s_m²) on [0, π) by rejection from the
-uniform, then its copy n with probability w(φ + nπ); otherwise σ̃ ~ N(0, s_m).
+A subject with k = NaN stays folded centred (a = ρ̃, b = σ̃). In PyMC b carries the joint density with a as its
+parameter; ancestral draws take a from its marginal, then φ given r by rejection and its copy n by w(φ + nπ).
 """
 
 from __future__ import annotations
@@ -72,7 +38,7 @@ def _normal_logp(x, s):
 
 
 def noise_values(a, b, k):
-    """(ρ̃, σ̃) from the block's (a, b), elementwise over subjects; k NaN where a subject is not in polar coordinates."""
+    """(ρ̃, σ̃) from the block's (a, b), elementwise over subjects; k NaN where a subject is not polar."""
     k = np.asarray(k, dtype=float)
     polar = np.isfinite(k)
     root_k = np.sqrt(np.where(polar, k, 1.0))
@@ -92,8 +58,7 @@ def noise_logp(a, b, s_rho, s_m, k):
 
 
 def _phi_given_r(r, s_rho, s_m, kk, rng):
-    """φ given r (module docstring): on [0, π) by rejection from the uniform, then its copy φ + nπ with
-    probability w(φ + nπ)."""
+    """φ given r: on [0, π) by rejection from the uniform, then its copy φ + nπ with probability w(φ + nπ)."""
     A = r**2 / (2.0 * np.asarray(s_rho) ** 2)
     B = np.broadcast_to(r**2 / (2.0 * kk * np.asarray(s_m) ** 2), A.shape)
     phi = np.empty(A.shape)
@@ -115,8 +80,7 @@ def _phi_given_r(r, s_rho, s_m, kk, rng):
 
 
 def draw_a(s_rho, s_m, k, rng, size):
-    """a from its marginal, per subject (last axis): log r of independent ρ̃ ~ N(0, s_ρ), σ̃ ~ N(0, s_m) where k > 0,
-    ρ̃ itself where k is NaN."""
+    """a from its marginal per subject (last axis): log r of independent ρ̃, σ̃ where k > 0, ρ̃ where k is NaN."""
     k = np.asarray(k, dtype=float)
     polar = np.isfinite(k)
     rho_t = rng.normal(0.0, 1.0, size=size) * s_rho
@@ -136,16 +100,8 @@ def draw_b(a, s_rho, s_m, k, rng):
 
 
 def mixed_half_normal_block(name: str, scale, pinned: np.ndarray, *, start: float):
-    """Per subject, ``name`` ~ HalfNormal(``scale``), from one unconstrained free variable ``<name>_free`` v with
-    the form chosen per subject: centred (``name`` = exp(v), as PyMC's log transform of a half-normal) where
-    ``pinned``, folded centred (``name`` = |v|, v ~ N(0, ``scale``)) elsewhere; the same law in both, so the model
-    is the half-normal population of any other form. Starts at ``start`` (v = log ``start`` where pinned).
-
-    Why per subject: a centred block stretches ρ -> 0 into log ρ's infinite tail, where subjects whose data leave
-    ρ near 0 stall; a folded centred one gives a subject whose data fix ρ far from 0 two modes ±ρ, joined only over
-    its ridge's arch, which the sampler crosses with deep trees (:mod:`scioc.pipelines.fit.delayed_forms`, "The form of
-    ρ"). A study of the ``kbl`` human has both kinds of subject.
-    """
+    """Per subject ``name`` ~ HalfNormal(``scale``) from one unconstrained ``<name>_free`` v: centred (exp(v)) where
+    ``pinned``, folded centred (|v|) elsewhere, starting at ``start`` (docs/decisions/delayed-rho-form.md)."""
     pinned = np.asarray(pinned, dtype=bool)
     n = len(pm.modelcontext(None).coords["subject"])
     if pinned.shape != (n,):
@@ -156,8 +112,7 @@ def mixed_half_normal_block(name: str, scale, pinned: np.ndarray, *, start: floa
 
     def logp(v, s):
         half_normal = pm.logp(pm.HalfNormal.dist(s), to_value(v))
-        # pinned: the half-normal density at exp(v) times the Jacobian exp(v); else v ~ N(0, s), whose |v| is
-        # half-normal with density 2 N(|v|; 0, s)
+        # pinned: the density at exp(v) times the Jacobian exp(v); else |v| of v ~ N(0, s): 2 N(|v|; 0, s)
         return pt.switch(pinned, half_normal + v, half_normal - np.log(2.0))
 
     def random(s, rng=None, size=None):
@@ -170,11 +125,8 @@ def mixed_half_normal_block(name: str, scale, pinned: np.ndarray, *, start: floa
 
 
 def squared_half_normal_block(name: str, scale, *, start: float):
-    """Per subject ``name`` ~ HalfNormal(``scale``) as u², u unconstrained (``<name>_root``, dims ``subject``): the
-    density of u is |u| p(u²), p the half-normal's, so ρ = 0 is u = 0, a finite step (no log tail), where the density
-    vanishes like |u|: the two copies ±u of a subject are apart, and a chain need not cross between them (as it must
-    cross ρ̃ = 0 in the folded form, where a subject whose data hold ρ away from 0 has a dip). Starts at
-    u = sqrt(``start``)."""
+    """Per subject ``name`` ~ HalfNormal(``scale``) as u², u unconstrained (``<name>_root``), starting at √``start``:
+    the density of u, |u| p(u²), vanishes at ρ = 0 like |u|, a finite step, so a chain need not cross between ±u."""
     n = len(pm.modelcontext(None).coords["subject"])
 
     def logp(u, s):
@@ -190,10 +142,8 @@ def squared_half_normal_block(name: str, scale, *, start: float):
 
 
 def polar_noise_block(rho_scale, sigma_scale, k, *, start_rho: float, start_sigma: float):
-    """Per subject ρ (``rho``) ~ HalfNormal(``rho_scale``) and σ_m (``sigma_m``) ~ HalfNormal(``sigma_scale``),
-    independent, sampled as (a, b) (``noise_a``, ``noise_b``, dims ``subject``): polar coordinates where ``k`` (one
-    per subject, in the model's order) is > 0, the folded centred ρ̃, σ̃ where it is NaN (module docstring). Starts at
-    ρ = ``start_rho``, σ_m = ``start_sigma``. Returns (ρ, σ_m)."""
+    """Per subject ρ ~ HalfNormal(``rho_scale``) and σ_m ~ HalfNormal(``sigma_scale``) as (``noise_a``, ``noise_b``),
+    polar where ``k`` > 0 (module docstring), starting at ``start_rho``, ``start_sigma``; returns (ρ, σ_m)."""
     k = np.asarray(k, dtype=float)
     n = len(pm.modelcontext(None).coords["subject"])
     if k.shape != (n,):

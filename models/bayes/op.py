@@ -1,33 +1,11 @@
 """The batched max-ent log-likelihood (paper Eq. 8) as a PyTensor Op, with a numba implementation.
 
-One Op wraps the linear-time kernel :func:`scioc.models.maxent.batch_kernel` for use in a PyMC
-model. One node computes, in one kernel call, both
-
-* ``loglik`` (n,): the log-likelihood of each segment, nats, and
-* ``grad`` (3, n): its derivative with respect to that segment's ``[q11, q22, R]``.
-
-Its pullback multiplies the second output by the cotangent of the first, so a compiled
-logp-and-gradient function (what nutpie evaluates at every leapfrog step) contains the
-node once and runs the kernel once per evaluation: there is no second pass for the
-gradient. Second derivatives are not implemented (NUTS needs none).
-
-The data are the θ-independent arrays of a :class:`scioc.models.segment.SegmentBatch`
-(:data:`DATA_NAMES`) and the plant matrices. They enter in one of two ways:
-
-* :class:`MaxEntLoglikDataOp` takes them as graph inputs after θ. With the data in
-  ``pm.Data`` containers a model compiled once (nutpie's numba backend) can be refitted
-  to new data of the same shape with ``compiled.with_data(...)``: what simulation-based
-  calibration does a thousand times. Only θ is differentiable; the data inputs are
-  disconnected from the gradient. Two instances for the same plant compare equal.
-* :class:`MaxEntLoglikOp`, a thin subclass, binds one batch into the instance; its only
-  input is θ. Two instances compare equal only if they are the same object, so PyTensor
-  never merges nodes of different data.
-
-Both share ``perform``, the pullback and the numba implementation
-(:func:`numba_funcify_maxent_loglik`). PyMC 6 compiles with numba and nutpie calls the
-compiled function from several threads at once: the numba implementation calls the
-njit kernel directly with ``freeze=True`` and allocates its outputs and scratch buffers
-per call, so nothing runs in object mode and concurrent calls share no memory they write.
+One node runs :func:`scioc.models.maxent.batch_kernel` once for ``loglik`` (n,), nats, and ``grad`` (3, n) in each
+segment's [q11, q22, R]; the pullback scales ``grad`` by the cotangent, so a logp-and-gradient function (each
+leapfrog step) runs the kernel once. :class:`MaxEntLoglikDataOp` takes the data as inputs, so a model compiled once
+refits new data (``compiled.with_data``, as SBC does); :class:`MaxEntLoglikOp` binds one batch and equals only
+itself, so PyTensor never merges nodes of different data. nutpie calls the compiled function from several
+threads: outputs and scratch are allocated per call.
 """
 
 from __future__ import annotations
@@ -51,8 +29,7 @@ DATA_NAMES = ("x1", "x2", "r", "u", "a", "fb")
 
 @njit(cache=True, fastmath=False, error_model="python")
 def _evaluate(A, b, theta, x1, x2, r, u, a, fb):
-    # Outputs and the kernel's scratch are allocated per call: nutpie evaluates chains in
-    # parallel threads.
+    # Allocated per call: nutpie evaluates chains in parallel threads.
     n = u.shape[0]
     ll = np.empty(n)
     g = np.empty((3, n))
@@ -69,23 +46,9 @@ def _frozen(x) -> np.ndarray:
 
 
 class MaxEntLoglikDataOp(Op):
-    """Per-segment max-ent log-likelihood and θ-gradient, the data as inputs.
-
-    Parameters
-    ----------
-    plant : DiscretePlant
-        The 0.01-s wheel (its matrices are part of the Op).
-
-    Notes
-    -----
-    Inputs: ``theta`` (3, n), rows ``[q11, q22, R]`` (1/rad², 1/(rad/s)², 1/(N·m)²), one
-    column per segment; then ``x1``, ``x2`` (n, K + 1), ``r`` (n, K + M + 1), ``u`` (n, K),
-    ``a`` (n, K + M), ``fb`` (n, 2) as in :class:`scioc.models.segment.SegmentBatch`.
-    Outputs: ``loglik`` (n,) and ``grad`` (3, n), exactly as
-    :func:`scioc.models.maxent.loglik_grad` returns them. θ is not validated inside the graph
-    (a sampler proposes only what its transforms allow); an R <= 0 or a non-finite θ
-    gives a non-finite log-likelihood, which the sampler rejects.
-    """
+    """Per-segment max-ent log-likelihood ``loglik`` (n,) and θ-gradient ``grad`` (3, n), the data as inputs:
+    ``theta`` (3, n), rows [q11, q22, R] (1/rad², 1/(rad/s)², 1/(N·m)²), then :data:`DATA_NAMES`. A non-finite θ
+    gives a non-finite log-likelihood, which NUTS rejects."""
 
     __props__ = ("key",)
     #: The bound data (x1, x2, r, u, a, fb), or None when they are inputs.
@@ -130,31 +93,16 @@ class MaxEntLoglikDataOp(Op):
 
 
 class MaxEntLoglikOp(MaxEntLoglikDataOp):
-    """Per-segment max-ent log-likelihood and its θ-gradient for fixed data.
-
-    Parameters
-    ----------
-    batch : SegmentBatch
-        From :func:`scioc.models.segment.prepare_batch`; n segments of K observed steps, whose
-        plan may look M >= 0 steps further (u_A and the reference of length K + M).
-    plant : DiscretePlant
-        The 0.01-s wheel discretization the batch was prepared with.
-
-    Notes
-    -----
-    Input: ``theta``, a float64 tensor of shape (3, n), as for :class:`MaxEntLoglikDataOp`,
-    in the order of the batch. Outputs as there.
+    """Per-segment max-ent log-likelihood and its θ-gradient for fixed data: input θ (3, n) in the batch's order.
 
     Examples
     --------
     >>> import numpy as np, pytensor.tensor as pt
-    >>> from models.segment import Segment, prepare_batch
-    >>> from models.plant import discretize
-    >>> plant = discretize(0.01)
-    >>> seg = Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
-    >>> op = MaxEntLoglikOp(prepare_batch(plant, [seg]), plant)
+    >>> from scioc.models.segment import Segment, prepare_batch
+    >>> from scioc.models.plant import discretize
+    >>> plant, seg = discretize(0.01), Segment(np.zeros(2), np.zeros(11), np.zeros(10), np.zeros(10))
     >>> theta = pt.dmatrix("theta")
-    >>> ll, g = op(theta)
+    >>> ll, g = MaxEntLoglikOp(prepare_batch(plant, [seg]), plant)(theta)
     >>> ll.eval({theta: np.array([[10.0], [0.0], [1.0]])}).shape
     (1,)
     """
@@ -169,8 +117,7 @@ class MaxEntLoglikOp(MaxEntLoglikDataOp):
             _frozen(getattr(batch, name)) for name in DATA_NAMES)
         self.n = int(self.u.shape[0])
         self.K = int(self.u.shape[1])
-        # The plan may look M >= 0 steps past the observed torques (u_A and the reference
-        # run on); the kernel's scratch covers the whole plan.
+        # The plan may look M >= 0 steps past the observed torques; the kernel's scratch covers it.
         self.K_plan = int(self.a.shape[1])
 
     def __str__(self):
@@ -193,12 +140,7 @@ class MaxEntLoglikOp(MaxEntLoglikDataOp):
 
 @numba_funcify.register(MaxEntLoglikDataOp)
 def numba_funcify_maxent_loglik(op: MaxEntLoglikDataOp, node=None, **kwargs):
-    """Numba implementation of both Ops: :func:`scioc.models.maxent.batch_kernel`, no object mode.
-
-    Bound data become globals of the compiled function (numba embeds small ones as
-    constants and references large ones by address; the Op keeps them alive). The
-    compiled graph is not cached across sessions: the bound Op has no cache key.
-    """
+    """Numba implementation of both Ops, no object mode; bound data are globals of the compiled function."""
     A, b = op.A, op.b
     evaluate = _evaluate
     if op.bound is None:
@@ -220,20 +162,7 @@ def numba_funcify_maxent_loglik(op: MaxEntLoglikDataOp, node=None, **kwargs):
 
 
 def maxent_loglik(theta, batch: SegmentBatch, plant: DiscretePlant):
-    """Symbolic per-segment max-ent log-likelihood (a new :class:`MaxEntLoglikOp` applied to θ).
-
-    Parameters
-    ----------
-    theta : TensorVariable, shape (3, n)
-        ``[q11, q22, R]`` per segment.
-    batch : SegmentBatch
-    plant : DiscretePlant
-
-    Returns
-    -------
-    TensorVariable, shape (n,)
-        Log-likelihood of each segment, nats; differentiable in θ.
-    """
+    """Symbolic per-segment max-ent log-likelihood, nats, shape (n,), of θ (3, n): a new :class:`MaxEntLoglikOp`."""
     ll, _ = MaxEntLoglikOp(batch, plant)(theta)
     return ll
 

@@ -1,36 +1,15 @@
 """Leave-one-subject-out predictive densities of the hierarchical model, by integrated importance sampling.
 
-PSIS-LOO over segments fails here: one segment holds all the data on its unit's θ, so
-leaving it out moves that θ's posterior far and the importance ratios have Pareto k
-well above 0.7. The question the model comparison asks ("does a condition effect
-predict new subjects better?") is anyway one about subjects. For subject i with data
-y_i (its segments in every level, every trial) and unit parameters φ_i, and ψ the population parameters::
+PSIS-LOO over segments fails here (a segment holds all the data on its unit's θ), and the comparison's question
+is about new subjects. With unit parameters φ_i and population parameters ψ::
 
     p(y_i | y_-i) = E_{ψ ~ p(ψ | y_-i)} [ p(y_i | ψ) ],   p(y_i | ψ) = ∫ p(y_i | φ) p(φ | ψ) dφ.
 
-Leaving one of 42 subjects out barely moves ψ, so PSIS over the posterior draws of ψ with
-the *integrated* log-likelihood ``log p(y_i | ψ_s)`` as the pointwise term is reliable
-(Vehtari, Mononen, Tolvanen, Sivula and Winther 2016, "Bayesian leave-one-out
-cross-validation approximations for Gaussian latent variable models", Section 3.4;
-Merkle, Furr and Rabe-Hesketh 2019 for mixed models). The inner integral is computed by
-importance sampling with one proposal per subject: a multivariate Student-t (ν = 4) with
-the mean and 1.5²× the covariance of the subject's own posterior draws in (log θ1, log R);
-for the L θ2 ≥ 0 (one per level) a defensive mixture, half of it independent half-t's (ν = 4) scaled
-to 1.5× the draws' root mean square, half the population's own half-normals with τ on a
-64-point geometric grid spanning its posterior draws (every level from the same τ).
-The second half matters when the data leave θ2 at the prior's scale (the paper's
-θ2 = 0): τ's posterior then spreads over orders of magnitude, and a small-τ draw
-would otherwise find no proposal points.
-The same M proposal points serve every ψ_s, so the exact max-ent likelihood is evaluated
-only M times per segment. Returned with each value: the importance-sampling effective
-sample size, min over ψ_s, so a poor proposal shows.
-
-Unit parameters per subject, with L levels (baseline first; MC, SC by default): condition
-model (log θ1 of each level, log R of each level, θ2 of each level: 3L); pooled model
-(log θ1 shared, then the same: 2L + 1). The conditional prior of a non-baseline level c is
-N(baseline value + β_c, σ_β,c), as :mod:`scioc.models.bayes.hierarchical` states it (whatever form
-the sampler used: the forms are the same model). Trials are further segments of their
-unit: their log-likelihoods add.
+Leaving one subject out barely moves ψ, so PSIS over the draws of ψ with ``log p(y_i | ψ_s)`` as the pointwise
+term is reliable (Vehtari et al. 2016, Section 3.4; Merkle, Furr and Rabe-Hesketh 2019). The inner integral is
+importance sampling, the same M points for every ψ_s: a Student-t fitted to the subject's draws of
+(log θ1, log R), and for θ2 >= 0 a defensive mixture of fitted half-t's and the population's half-normals on a
+grid of τ (τ's posterior spreads over orders of magnitude where the data leave θ2 at the prior's scale).
 """
 
 from __future__ import annotations
@@ -55,27 +34,9 @@ _LOG_SQRT_2PI = 0.5 * np.log(2.0 * np.pi)
 
 
 class SubjectLoglik(NamedTuple):
-    """Integrated log-likelihood of each subject's data under each population draw.
-
-    Attributes
-    ----------
-    loglik : ndarray, shape (S, n_subjects)
-        ``log p(y_i | ψ_s)``, nats.
-    is_ess : ndarray, shape (n_subjects,)
-        Importance-sampling effective sample size of the inner integral, the smallest over ψ_s
-        (a worst case: one extreme ψ_s, e.g. a σ_β near 0, sets it).
-    is_ess_loo : ndarray, shape (n_subjects,)
-        The effective number of proposal points behind the subject's leave-one-out density
-        p(y_i | y_-i) ≈ 1 / mean_s(1 / p(y_i | ψ_s)) (raw importance weights over ψ_s). To
-        first order its log moves by Σ_s v_s δ_s, δ_s the relative error of the inner estimate
-        at ψ_s and v_s ∝ 1 / p(y_i | ψ_s) the normalized leave-one-out weights; so each point's
-        weight is its normalized inner weight averaged over ψ_s with the v_s, W_m, and the ESS
-        is 1 / Σ_m W_m² (Kong's ESS of those weights; PSIS's smoothing of the v_s is left out).
-        The draws that dominate the leave-one-out density set it, not the single worst one.
-    n_outside : ndarray of int, shape (n_subjects,)
-        Proposal points of each subject at which the parameters are not representable
-        (θ1 R, R or an ``extra`` parameter overflows or underflows): weight 0, see :func:`representable`.
-    """
+    """Integrated log-likelihood ``loglik`` (S, n_subjects), nats, of each subject's data under each population draw,
+    with the inner integral's importance-sampling ESS (``is_ess``, smallest over ψ_s; ``is_ess_loo``, of the weights
+    averaged with the leave-one-out weights ∝ 1 / p(y_i | ψ_s)) and the points not representable (``n_outside``)."""
 
     loglik: np.ndarray
     is_ess: np.ndarray
@@ -121,16 +82,8 @@ def _segment_loglik(batch: SegmentBatch, j: int, plant: DiscretePlant, lt1, lR, 
 
 
 def representable(lt, lR, t2, extra=None, z=None) -> np.ndarray:
-    """(M,) bool: the points whose cost (every level) and ``extra`` parameters are finite numbers.
-
-    The Student-t proposal's tails reach log θ1 or log R of hundreds (a posterior with a
-    wandering chain widens it further), where ``from_normalized`` gives q11 = inf or R = 0. The
-    integrand there is p(y_i | φ) p(φ | ψ) / q(φ): its prior factor, a normal in log θ1 and log R
-    with the population's SDs, is below the smallest double long before overflow (exp(-745)
-    underflows; log θ1 = 709 is more than 38 SDs from a centre near 3 for any SD below 18), so
-    weight 0 is the integrand's floating-point value, not an approximation. The points are
-    counted (``n_outside``), not hidden.
-    """
+    """(M,) bool: the points whose cost (every level) and ``extra`` parameters are finite. Elsewhere the prior
+    factor underflows long before, so weight 0 is the integrand's floating-point value, not an approximation."""
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         R = np.exp(lR)
         ok = np.all(np.isfinite(from_normalized(np.exp(lt), t2, R)), axis=(0, 2)) & np.all(R > 0, axis=1)
@@ -142,47 +95,18 @@ def representable(lt, lR, t2, extra=None, z=None) -> np.ndarray:
 def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, plant: DiscretePlant,
                    rng: np.random.Generator, *, condition_effects: bool = True, M: int = 2000,
                    extra=None) -> SubjectLoglik:
-    """``log p(y_i | ψ_s)`` for every subject i and population draw s.
+    """``log p(y_i | ψ_s)`` for every subject i and population draw s (module docstring).
 
     Parameters
     ----------
     post : dict of ndarray
-        Flattened posterior draws (S first): population parameters ``mu_log_theta1``,
-        ``sigma_log_theta1``, ``mu_log_R``, ``beta_log_R``, ``sigma_log_R``,
-        ``sigma_beta_log_R``, ``tau_theta2`` and, with condition effects, ``beta`` and
-        ``sigma_beta``, each (S,), or (S, L - 1) with more than two levels (``beta_log_R``,
-        ``sigma_beta_log_R``, ``beta``, ``sigma_beta``: one column per non-baseline level);
-        unit parameters ``log_theta1``, ``log_R``, ``theta2``, each (S, n_subjects, L) with
-        the levels baseline first (MC, SC by default).
-    batch : SegmentBatch
-        The segments the model was fitted to.
-    subject_idx, condition_idx : array_like of int, shape (n_segments,)
-        Each segment's subject and level (0 = the baseline), as in
-        :func:`scioc.models.units.index_study`; several segments of one unit are its trials.
-    plant : DiscretePlant
-    rng : numpy.random.Generator
-        For the proposal points.
-    condition_effects : bool
-        The condition model (True) or the pooled one (log θ1 shared by all levels).
-    M : int
-        Proposal points per subject.
-    extra : SubjectTerms, optional
-        Further per-subject parameters of another human model and its likelihood
-        (:class:`scioc.models.bayes.delayed_loo.DelayedSubjectTerms`): their posterior draws
-        join the Student-t block, their conditional prior joins the weights, and the
-        segments' log-likelihood is theirs; one with ``grid_columns`` (indices into its columns),
-        ``prior_grid_draw`` (rng, M) -> (M, len(grid_columns)) and ``prior_grid_logpdf`` (M,
-        len(grid_columns)) -> (M,) draws those parameters for half the points from that density
-        (their population on a grid of its scales: a defensive mixture); an ``extra`` with a
-        ``baseline_log_R_logpdf`` method (M,) -> (S, M) replaces the N(μ_R, σ_R) of the subjects' baseline log R
-        (``mu_log_R``, ``sigma_log_R`` are then not needed); one with a ``representable`` method
-        (M, k) -> (M,) bool marks its points at which a parameter overflows (weight 0,
-        :func:`representable`). None (default): the max-ent
-        model, exactly.
-
-    Returns
-    -------
-    SubjectLoglik
+        Flattened draws (S first): population parameters (S,) or (S, L - 1), unit parameters ``log_theta1``,
+        ``log_R``, ``theta2`` (S, n_subjects, L), baseline first.
+    batch, subject_idx, condition_idx, plant, rng, M, condition_effects
+        The fitted segments, each one's subject and level, the wheel; the proposal's generator and points per subject;
+        the condition model, or the pooled one.
+    extra : optional
+        Another human model's per-subject terms (:class:`scioc.models.bayes.delayed_loo.DelayedSubjectTerms`).
     """
     s_idx = np.asarray(subject_idx)
     c_idx = np.asarray(condition_idx)
@@ -201,7 +125,6 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
     tau = post["tau_theta2"][:, None]
     if condition_effects:
         beta, sigb = per_level("beta"), per_level("sigma_beta")
-    # The τ grid of the θ2 proposal's prior half (the same for every subject).
     tau_lo, tau_hi = np.min(post["tau_theta2"]) + 1e-300, np.max(post["tau_theta2"]) + 1e-300
     taus = np.geomspace(tau_lo, max(tau_hi, tau_lo), TAU_GRID)
     out = np.empty((S, n_subj))
@@ -224,9 +147,7 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         x, chol = _mvt_draw(rng, mean, cov, M)
         logq = _mvt_logpdf(x, mean, chol)
         if hasattr(extra, "prior_grid_draw"):
-            # Defensive mixture for some extra parameters: half the points keep the t's other
-            # coordinates (their marginal is the t with those rows of the covariance) and draw these
-            # from their population on a grid of its scales, as θ2's prior half below.
+            # Half the points draw these columns from their population; the other columns keep the t's marginal.
             g = n_cost + np.asarray(extra.grid_columns)
             rest = np.setdiff1d(np.arange(x.shape[1]), g)
             from_grid = rng.uniform(size=M) < 0.5
@@ -252,7 +173,6 @@ def subject_loglik(post: dict, batch: SegmentBatch, subject_idx, condition_idx, 
         else:
             lt = np.column_stack([x[:, 0]] * L)
         lR = x[:, n_cost - L : n_cost]
-        # Likelihood of the subject's segments at the M points (-inf where not representable).
         ok = representable(lt, lR, t2, extra, x[:, n_cost:])
         outside[i] = M - int(ok.sum())
         ll = np.where(ok, 0.0, -np.inf)

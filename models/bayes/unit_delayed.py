@@ -1,31 +1,14 @@
 """Bayesian model of one unit of the ``delayed`` human: the per-unit posterior that unit-level SBC checks.
 
-The max-ent unit model (:mod:`scioc.models.bayes.unit_model`) with the lag and the motor noise
-of :mod:`scioc.models.delayed.likelihood`::
+The max-ent unit model (:mod:`scioc.models.bayes.unit_model`) with the lag and motor noise, θ the commands' cost::
 
     log θ1 ~ N(log 20, 0.75)      θ2 ~ HalfNormal(0.05)      log R ~ N(log 20, 0.5)
-    log τ_nm ~ N(log 0.06, 0.5)   τ_nm in s: 0.02-0.16 s (central 95 %)
-    σ_m ~ HalfNormal(0.3)         motor-noise SD, N·m per sample
-    d ~ uniform on the delay grid (0-300 ms, :func:`scioc.models.delayed.identify.delay_grid`)
+    log τ_nm ~ N(log 0.06, 0.5)   σ_m ~ HalfNormal(0.3)      d ~ uniform on the delay grid (0-300 ms)
     u_H ~ delayed(θ, τ_nm, σ_m, d | x0, angle_ref, assistant, τ_0)
 
-θ is the cost of the commands. The cost priors are the max-ent unit's (R at 100 Hz,
-shifted by log(dt / 0.01) for another rate as :meth:`DelayedUnitPrior.for_design` does);
-τ_nm's covers the neuromuscular time constants of the manual-control literature
-(McRuer & Jex 1967, Kleinman, Baron & Levison 1970: about 0.1 s; a firm grip faster),
-σ_m's the motor noise of KBL's -25 dB (0.25 N·m per 10-ms sample on the study's torques,
-:mod:`scioc.models.humans`) with room on both sides.
-
-The delay is sampled (``delay=None``): an integer ``delay_index`` uniform over the grid,
-updated by :class:`scioc.models.bayes.delay_step.DelayMetropolis` beside NUTS
-(:class:`UnitDelayedSampler`), so the continuous parameters' draws are their posterior with
-the delay marginalized. Given a number instead, the model conditions on that delay: the
-``no-delay`` negative control conditions on 0, and a plug-in delay (the maximum of the
-profile likelihood) was measured to miscalibrate R, τ_nm and σ_m (README "Human models").
-
-The data, the delay and the arm torque at the window's start enter through ``pm.Data``
-containers (:data:`scioc.models.bayes.delayed_op.DELAYED_DATA_NAMES`), so one compiled model
-serves every data set of the same shape.
+τ_nm's prior covers the neuromuscular time constants of manual control (about 0.1 s: McRuer & Jex 1967; Kleinman,
+Baron & Levison 1970), σ_m's KBL's motor noise (0.25 N·m per sample) with room on both sides. The delay is
+sampled (docs/decisions/delayed-plugin-delay.md), or given (the ``no-delay`` negative control gives 0).
 """
 
 from __future__ import annotations
@@ -102,32 +85,9 @@ def unit_delayed_data(batch: SegmentBatch, delay, tau0=0.0) -> dict:
 
 def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: DelayedUnitPrior = DelayedUnitPrior(),
                              *, delay=0, tau0=0.0, params: WheelParameters = WheelParameters()) -> pm.Model:
-    """PyMC model of one unit's segments (one θ, τ_nm, σ_m) under the ``delayed`` human, data in ``pm.Data``.
-
-    Parameters
-    ----------
-    batch : SegmentBatch
-        The unit's segments (n >= 1, equal K).
-    plant : DiscretePlant
-        The wheel the likelihood assumes.
-    prior : DelayedUnitPrior
-    delay : int, array_like (n,) or None
-        The delay the model conditions on, samples (a data container: ``with_data`` changes
-        it); None samples it (``delay_index`` uniform over ``prior.delays()``, all segments
-        one delay; sample with :class:`UnitDelayedSampler`).
-    tau0 : float, array_like (n,) or sequence of Warmup
-        The arm torque at each window's start, as :func:`scioc.models.bayes.delayed_op.pack_tau0` takes it.
-    params : WheelParameters
-        The wheel ``plant`` was discretized from.
-
-    Returns
-    -------
-    pymc.Model
-        Free variables ``log_theta1``, ``theta2``, ``log_R``, ``log_tau_nm``, ``sigma_m``
-        (and ``delay_index`` if ``delay`` is None);
-        deterministics ``theta1``, ``R``, ``tau_nm``; data of
-        :data:`scioc.models.bayes.delayed_op.DELAYED_DATA_NAMES`; the likelihood as a potential.
-    """
+    """PyMC model of one unit's segments (one θ, τ_nm, σ_m) under the ``delayed`` human, data in ``pm.Data``,
+    the likelihood a potential. ``delay``: the delay conditioned on, samples, or None to sample one (``delay_index``,
+    with :class:`UnitDelayedSampler`); ``tau0``: as :func:`scioc.models.bayes.delayed_op.pack_tau0`."""
     op = DelayedLoglikDataOp(plant, params)
     values = unit_delayed_data(batch, delay, tau0)
     n = batch.n
@@ -153,19 +113,9 @@ def build_unit_delayed_model(batch: SegmentBatch, plant: DiscretePlant, prior: D
 
 
 class UnitDelayedSampler:
-    """A sampled-delay unit model compiled once, for every data set of one shape (unit-level SBC).
-
-    Builds :func:`build_unit_delayed_model` with ``delay=None`` on ``batch`` (its data are
-    placeholders) and compiles its two steps once: PyMC's NUTS for the continuous
-    parameters and :class:`scioc.models.bayes.delay_step.DelayMetropolis` for the delay, both
-    compiled by numba (measured: half the time of PyTensor's default C backend, whose
-    Python-level ``perform`` of the likelihood Op dominates on 6-s windows). Compiling them
-    took about 18 s of every 50-s replication on 6-s windows when each replication built
-    its own. :meth:`sample` swaps a data set into the model's ``pm.Data`` containers and
-    restores the steps' initial sampling state (PyMC also resets the tuning of every chain),
-    so a fit does not depend on the fits before it: same data and seed, same draws, bit for
-    bit (tested in ``tests/pipelines/calibrate/test_unit_delayed.py``).
-    """
+    """A sampled-delay unit model with its NUTS and :class:`scioc.models.bayes.delay_step.DelayMetropolis` steps
+    compiled once (numba) for every data set of one shape; :meth:`sample` swaps the data in and restores the steps'
+    initial state, so a fit does not depend on the fits before it."""
 
     def __init__(self, batch: SegmentBatch, plant: DiscretePlant, prior: DelayedUnitPrior = DelayedUnitPrior(), *,
                  params: WheelParameters = WheelParameters()):
@@ -180,11 +130,7 @@ class UnitDelayedSampler:
         self._initial = [step.sampling_state for step in self.steps]
 
     def sample(self, batch: SegmentBatch, *, tau0=0.0, draws: int, tune: int, chains: int, seed: int):
-        """Sample the posterior given ``batch`` (the shape the sampler was built for), chains in turn, one process.
-
-        Returns PyMC's DataTree (``posterior`` with ``delay_index``; ``sample_stats`` with
-        ``diverging`` and ``delay_accept``).
-        """
+        """Sample the posterior given ``batch`` (of the built shape), chains in turn: PyMC's DataTree."""
         shapes = tuple(arr.shape for arr in batch)
         if shapes != self.shapes:
             raise ValueError(f"the sampler was built for segment arrays of shapes {self.shapes}; got {shapes}")

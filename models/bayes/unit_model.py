@@ -1,19 +1,11 @@
-"""Bayesian model of one unit (one subject in one condition): the per-unit posterior.
+"""Bayesian model of one unit (one subject in one condition): the per-unit posterior of unit-level SBC.
 
-Used by unit-level simulation-based calibration. θ = [q11, q22, R] is written in the
-normalized parameters of the paper (Section V-A)::
+θ in the paper's normalized parameters (Section V-A), the prior centred on the simulated study's population::
 
     log θ1 ~ N(log 20, 0.75)      θ1 = q11 / R, 1/rad²
     θ2     ~ HalfNormal(0.05)     θ2 = q22 / R, 1/(rad/s)²
-    log R  ~ N(log 20, 0.5)       R, 1/(N·m)²
+    log R  ~ N(log 20, 0.5)       R, 1/(N·m)², at 100 Hz (R ∝ dt: :meth:`UnitPrior.for_design`)
     u_H    ~ max-ent(θ | x0, angle_ref, u_A)          (paper Eq. 8)
-
-The prior is centred on the simulated study's population (:class:`scioc.models.simulate.Population`)
-and wide enough to cover it: θ1 from about 5 to 90 and R from 7 to 55 (central 95 %),
-i.e. torque variability per sample from about 0.1 to 0.27 N·m. R is stated at 100 Hz;
-:meth:`UnitPrior.for_design` shifts log R's centre by log(dt / 0.01) for another sample
-time (R ∝ dt, :mod:`scioc.models.design`). The data enter through
-``pm.Data`` containers, so a model compiled once serves any data set of the same shape.
 """
 
 from __future__ import annotations
@@ -64,23 +56,8 @@ class UnitPrior:
 
 
 def build_unit_model(batch: SegmentBatch, plant: DiscretePlant, prior: UnitPrior = UnitPrior()) -> pm.Model:
-    """PyMC model of one or more segments sharing one θ, data in ``pm.Data``.
-
-    Parameters
-    ----------
-    batch : SegmentBatch
-        The unit's segments (n >= 1, equal K).
-    plant : DiscretePlant
-        The wheel the likelihood assumes (0.01 s).
-    prior : UnitPrior
-
-    Returns
-    -------
-    pymc.Model
-        Free variables ``log_theta1``, ``theta2``, ``log_R``; deterministics ``theta1``
-        and ``R``; data ``x1, x2, r, u, a, fb`` (update with ``pm.set_data`` or nutpie's
-        ``with_data``); the likelihood as a potential.
-    """
+    """PyMC model of segments sharing one θ: free ``log_theta1``, ``theta2``, ``log_R``, the data in ``pm.Data``
+    (:data:`scioc.models.bayes.op.DATA_NAMES`, for ``pm.set_data`` or ``with_data``), the likelihood a potential."""
     op = MaxEntLoglikDataOp(plant)
     with pm.Model() as model:
         data = [pm.Data(name, getattr(batch, name)) for name in DATA_NAMES]

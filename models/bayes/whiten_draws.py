@@ -1,32 +1,10 @@
-"""The per-subject whitening of :mod:`scioc.models.bayes.whiten` measured on posterior draws instead of at a Hessian.
+"""The per-subject whitening of :mod:`scioc.models.bayes.whiten` measured on posterior draws instead of a Hessian.
 
-Why. The whitening's factors L_i come from the Hessian at x̂, the mode with the population's
-scales held. Where a subject's posterior is far from Gaussian there, they describe it badly. On
-the twelve subjects of the ``kbl`` human that sample worst (:mod:`scioc.pipelines.fit.delayed_forms`,
-"Polar, squared, and the low-rank mass matrix"), the curved fit's draws in the whitened
-coordinates w (saved ad hoc by a wrapper; 2 chains × 300 kept draws, seed 1) had SDs from 0.75
-to 28 (log σ_m's tail towards 0, which the Hessian at the mode does not see), and within a subject correlations whose matrix had eigenvalues from 0.0095 to 4.8:
-nutpie's diagonal mass matrix rescales the first, not the second, and NUTS's step is then set by
-the thinnest direction. Whitened again by each block's own posterior covariance (the same draws,
-ad hoc), the whole 106-dimensional covariance had eigenvalues from 0.11 to 3.0, about what 600
-autocorrelated draws of an identity give. The subjects are independent given the population, so
-nothing between blocks is left for a dense matrix to learn. Measured: README, "Speed".
-
-What. :func:`draws_factors` takes draws x of the posterior (a short pilot run on the Hessian's
-whitening, :func:`scioc.pipelines.fit.whiten.sample_whitened`) and gives each block of the same groups
-a new centre, factor and, where curved, curvature:
-
-* an affine block: its draws' mean and the Cholesky factor of their covariance;
-* a curved block (pivot p): the pivot's centre is 0 where it is signed (a folded coordinate, whose
-  law is symmetric about 0: the draws are counted twice, as drawn and reflected about 0, which is
-  exact for the posterior and halves the Monte Carlo error of the even moments) and its mean
-  otherwise. With δ = x_p - centre, every other coordinate is regressed on (1, δ, δ²): the
-  intercept is its centre, the δ² coefficient its curvature a, so that x - centre - a δ² is what the
-  affine factor L must hold (:func:`scioc.models.bayes.whiten.to_unconstrained`'s map, with x̂ the centre).
-
-The map stays one-to-one with a constant Jacobian (a_p = 0), so the sampled posterior is still
-exactly the model's, whatever the pilot's draws were: they choose coordinates, not the law. A block
-whose draws did not move (no positive variance) keeps its Hessian factor.
+The Hessian at the mode misses what lies away from it (log σ_m's tail towards 0); a pilot run's draws see it
+(docs/decisions/delayed-pilot-run.md). :func:`draws_factors` gives an affine block its draws' mean and the
+Cholesky factor of their covariance; a curved block (pivot p) the pivot's centre (0 where it is signed, its draws
+then counted twice, as drawn and reflected), the other coordinates' centres and curvatures a by regression on
+(1, δ, δ²), δ = x_p - centre, and the pivot's tail scale b. The draws choose coordinates, not the law.
 """
 
 from __future__ import annotations
@@ -52,12 +30,9 @@ def covariance_factor(cov: np.ndarray, floor: float = EIGEN_FLOOR) -> np.ndarray
 
 def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds, tails: bool = True
                   ) -> tuple[np.ndarray, list, int]:
-    """(x̂, groups, kept): ``groups`` (as :func:`scioc.models.bayes.whiten.to_unconstrained` takes them) measured again on
-    posterior draws ``x`` (..., D) (module docstring); ``kept`` counts the blocks whose draws did not move, which
-    keep their factor and centre from ``x_hat`` and ``groups``.
-
-    ``folds``: one entry per group, None, or for a curved group (n,) bool: is that subject's pivot signed?
-    """
+    """(x̂, groups, kept): ``groups`` (as :func:`scioc.models.bayes.whiten.to_unconstrained` takes them) measured
+    again on the draws ``x`` (..., D); ``folds``: per group None or (n,) bool, each subject's pivot signed; ``kept``
+    counts the blocks whose draws did not move, which keep their centre and factor."""
     x_hat = np.asarray(x_hat, dtype=float)
     X = np.asarray(x, dtype=float).reshape(-1, x_hat.shape[0])
     if X.shape[0] < 2 or not np.all(np.isfinite(X)):
@@ -103,8 +78,7 @@ def draws_factors(x: np.ndarray, x_hat: np.ndarray, groups, folds, tails: bool =
 
 
 def to_white(x: np.ndarray, x_hat: np.ndarray, groups) -> np.ndarray:
-    """w from x (..., D): the inverse of :func:`scioc.models.bayes.whiten.to_unconstrained` (δ read off the pivot's x,
-    m = f_b⁻¹(δ) in its place, then w = L⁻¹ (x - x̂ - a δ²) per block)."""
+    """w from x (..., D): the inverse of :func:`scioc.models.bayes.whiten.to_unconstrained`."""
     x = np.asarray(x, dtype=float)
     w = x - x_hat
     for blocks, L, *curve in groups:

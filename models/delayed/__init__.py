@@ -1,22 +1,15 @@
 """The ``delayed`` human: perceptual delay, neuromuscular lag and motor noise, with an exact likelihood.
 
-=========================  ===========================================================
-module                     what it holds
-=========================  ===========================================================
-:mod:`.likelihood`         the model, its derivation, :func:`loglik_grad`, :func:`innovations`
-:mod:`.lag`                τ_nm -> (a, α) with derivatives; the plant the human plans on; the
-                           arm torque from observed torques (a window's τ_0 from its warm-up)
-:mod:`.riccati`            the plan: 3-state LQ recursion, its tape and stationary adjoint (numba)
-:mod:`.reverse`            the plan's reverse sweep: its derivative in q11, q22 and the lag (numba)
-:mod:`.innovations`        log N(r; 0, Σ) for banded Σ: Schur algorithm, rows, reverse mode (numba)
-:mod:`.schur`              one Schur step on a banded Toeplitz generator, and its reverse (numba)
-:mod:`.kernel`             one segment and the batch: assembly and chain rule (numba)
-:mod:`.sample`             the generative closed loop, :func:`sample_delayed` and :func:`forward_delayed`
-:mod:`.dense`              the dense joint Gaussian, the reference of the tests
-:mod:`.angles`             the likelihood of the encoder's angles (Kalman filter), for recordings
-                           without a torque sensor, and its dense reference
-:mod:`.identify`           maximum likelihood: θ, τ_nm, σ_m, and the delay by profile
-=========================  ===========================================================
+- :mod:`.likelihood`: the model; :func:`loglik_grad`, :func:`innovations`
+- :mod:`.lag`: τ_nm -> (a, α); the planning plant; the arm torque from observed torques
+- :mod:`.riccati`, :mod:`.reverse`: the plan (3-state LQ recursion) and its reverse sweep (numba)
+- :mod:`.innovations`, :mod:`.schur`: log N(r; 0, Σ) for banded Σ and its reverse mode (numba)
+- :mod:`.kernel`: one segment and the batch: assembly and chain rule (numba)
+- :mod:`.sample`: the generative closed loop, :func:`sample_delayed`, :func:`forward_delayed`
+- :mod:`.dense`: the dense joint Gaussians, references of the tests
+- :mod:`.angles`: the likelihood of encoder angles (Kalman filter), without a torque sensor
+- :mod:`.identify`, :mod:`.search`: maximum likelihood, the delay by profile
+- :mod:`.bootstrap`: the parametric bootstrap of the adequacy checks
 
 With delay, lag and motor noise at zero the model is the paper's (:mod:`scioc.models.maxent`).
 """

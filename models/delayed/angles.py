@@ -1,57 +1,16 @@
 """The ``delayed`` human seen through the encoder: the exact likelihood of the recorded angles.
 
-Why a second likelihood
------------------------
-:mod:`scioc.models.delayed.likelihood` is the density of the human's *torques*. The paper's rig
-records only the wheel angle (an encoder of q rad per count); scioc then reconstructs the
-torque, and that reconstruction smooths it. The delayed model reads the smoothing as
-neuromuscular lag (on angle-only ``kbl`` data τ_nm ran to its 1-s bound in 81 of 84 units,
-README "Human models"), and it cannot be undone: inverting the lag turns torque noise into
-command noise ×1/(1 - α), about ×12 at τ_nm = 60 ms. So for angle-only data the model must
-describe the angles themselves, with the encoder inside it. This module does that.
+For recordings without a torque sensor (docs/decisions/delayed-angle-likelihood.md). On the
+physically lagged wheel, with ``c_k = -L_k ẑ_k + f_k + ε_k`` (:mod:`.likelihood`), the loop is::
 
-The model
----------
-The closed loop of :func:`scioc.models.delayed.sample.closed_loop` (physically lagged wheel, as
-:func:`scioc.models.delayed.sample.sample_delayed` draws it), with z = (angle, velocity, arm
-torque), the human's plan (L_k, f_k, S_k) for the command cost θ on its planning plant
-(Ā, b_c, b_a) (:func:`scioc.models.delayed.sample.delayed_setup`; with the assistant's law Ā
-contains it), white policy noise ε_k ~ N(0, 1/(2 S_k)) and white motor noise
-m_k ~ N(0, σ_m²) that the human does not know. The truth moves as
-``z_{k+1} = Ā z_k + b_c (c_k + m_k) + b_a κ_k`` (κ the known input: the assistant's
-feedforward with its law, or its recorded torque), and the human, seeing z_{k-d} and
-predicting with its own commands, acts on ``ẑ_k = z_k - e_k``,
-``e_k = Σ_{j=1..d} G_j m_{k-j}``, ``G_j = Ā^{j-1} b_c`` (derived in
-:mod:`scioc.models.delayed.likelihood`). With ``c_k = -L_k ẑ_k + f_k + ε_k``::
+    z_{k+1} = (Ā - b_c L_k) z_k + b_c (sum_{j=1..d} h_{k,j} m_{k-j} + ε_k + m_k + f_k) + b_a κ_k,
 
-    z_{k+1} = (Ā - b_c L_k) z_k + b_c (Σ_{j=1..d} h_{k,j} m_{k-j} + ε_k + m_k + f_k) + b_a κ_k,
-    h_{k,j} = L_k G_j   (the MA coefficients of the torque likelihood).
-
-The encoder reads ``y_k = angle_k + v_k``, k = 0..K, with v_k ~ N(0, σ_y²) white: the
-quantization of a step q as noise of variance q²/12 (Widrow's model; exact in the
-second moments when the angle moves over many counts between samples, as on the study
-reference, and an approximation of the quantizer's distribution otherwise).
-
-So ``s_k = (z_k, m_{k-1}, ..., m_{k-d})`` (3 + d states) is a linear Gaussian state-space
-model in the noises (ε_k, m_k, v_k), and ``log p(y_1..y_K | y_0)`` is the sum of the Kalman
-filter's innovation terms. What is conditioned on: the reference, the known input and the
-parameters; z_0 has the Gaussian prior N(``z0_mean``, ``z0_cov``) (the caller's: e.g. the
-angle and velocity the recording gives at the window's start and the arm torque that the
-torques before it imply, with their uncertainty) and is updated by y_0, which is not
-scored; the pre-window motor noises have their prior N(0, σ_m²), independent of z_0 (the
-torque likelihood's convention).
-
-Computation
------------
-The filter's covariance is (3 + d)², but the transition is sparse: the z-block depends on
-the history only through the scalar Σ_j h_{k,j} m_{k-j}, and the history only shifts. One
-prediction costs O(d²) (the product of the history block with h, and the shift) and the
-scalar update O((3 + d)²). The covariance does not depend on the data, and where the plan
-is stationary (all of a window but its last steps when the plan looks past it) it
-converges: once it moves by at most :data:`FREEZE_RTOL` in a step, it and the filter's
-gain are held and only the mean moves, O(d) per step, until the plan moves again (tested:
-equal to the unheld filter to rounding). Against O(K³) for the dense joint Gaussian
-(:func:`scioc.models.delayed.dense.angle_loglik_dense`, the reference of the tests).
+κ the known input, and the encoder reads ``y_k = angle_k + v_k``, v_k ~ N(0, σ_y²).
+``s_k = (z_k, m_{k-1}, ..., m_{k-d})`` is a linear Gaussian state, and ``log p(y_1..y_K | y_0)``
+the sum of its Kalman filter's innovation terms, given z_0's prior N(``z0_mean``, ``z0_cov``)
+(updated by y_0, not scored) and the pre-window noises'. A step costs O((3 + d)²): the z-block
+sees the history only through ``sum_j h_{k,j} m_{k-j}``, which shifts. Where the plan is
+stationary the covariance converges and is held (:data:`FREEZE_RTOL`): O(d) per step.
 """
 
 from __future__ import annotations
@@ -70,22 +29,13 @@ from scioc.models.segment import Feedback
 
 
 class AngleLoglik(NamedTuple):
-    """log p(y_1..y_K | y_0) of one window's recorded angles under the ``delayed`` human.
-
-    Attributes
-    ----------
-    loglik : float
-        Nats.
-    innovations : ndarray, shape (K,)
-        The filter's standardized innovations of y_1..y_K: iid N(0, 1) under the model.
-    """
+    """log p(y_1..y_K | y_0) of one window's angles (nats), and the filter's standardized innovations (K,)."""
 
     loglik: float
     innovations: np.ndarray
 
 
-#: The filter is held (:func:`angle_filter`) once its covariance after an update moves by at most this,
-#: relative to its largest entry, in one step, while the plan's gain and S_k move by at most this too.
+#: The filter is held once its covariance, the plan's gain and S_k move by at most this, relative, in a step.
 FREEZE_RTOL = 1e-13
 
 
@@ -93,9 +43,8 @@ FREEZE_RTOL = 1e-13
 def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn, freeze):
     """The Kalman filter of the module docstring; returns log p(y_1..y_K | y_0), fills ``inn`` (K,).
 
-    State (z_k, m_{k-1}, ..., m_{k-d}), the history in lag order (it shifts every step). With
-    ``freeze``, once the covariance is stationary (:data:`FREEZE_RTOL`) and while the plan is,
-    only the mean moves, with the held gain: O(d) per step instead of O(d²).
+    State (z_k, m_{k-1}, ..., m_{k-d}), history in lag order. With ``freeze``, once the
+    covariance is stationary and while the plan is, only the mean moves, with the held gain.
     """
     K = y.shape[0] - 1
     n = 3 + d
@@ -123,7 +72,6 @@ def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn, freez
     Mw = np.zeros(3)
     gain = np.zeros(n)
     ll = 0.0
-    # y_0: conditioned on, not scored
     s = P[0, 0] + s2y
     if s > 0.0:
         nu = y[0] - mu[0]
@@ -245,13 +193,13 @@ def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn, freez
 
 
 def angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params):
-    """The plan and the loop of one window (:func:`scioc.models.delayed.sample.delayed_setup`, physically lagged)."""
+    """The plan and the loop of one window (:func:`.sample.delayed_setup`, physically lagged)."""
     return delayed_setup(theta, angle_ref, plant, u_A=u_A, feedback=feedback, tau_nm=tau_nm, params=params,
                          physical=True)
 
 
 def check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov):
-    """The arguments of :func:`angle_loglik` checked: (y, d, z0 mean, z0 covariance); ValueError otherwise."""
+    """:func:`angle_loglik`'s arguments checked: (y, d, z0 mean, z0 covariance); ValueError otherwise."""
     y = np.ascontiguousarray(angles, dtype=float)
     n_plan = setup.known.shape[0]
     if y.ndim != 1 or not 2 <= y.shape[0] <= n_plan + 1:
@@ -276,35 +224,12 @@ def check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov):
 def angle_loglik(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None, feedback: Feedback | None = None,
                  tau_nm: float = 0.0, sigma_m: float = 0.0, delay: int = 0, sigma_y: float, z0_mean, z0_cov,
                  params: WheelParameters = WheelParameters(), freeze: bool = True) -> AngleLoglik:
-    """log p(y_1..y_K | y_0) of one window's recorded angles under the ``delayed`` human (module docstring).
+    """log p(y_1..y_K | y_0) of one window's recorded angles ``angles`` (K + 1,), rad, under the ``delayed`` human.
 
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-        Command cost [q11, q22, R].
-    angles : array_like, shape (K + 1,)
-        The recorded angles y_0..y_K, rad.
-    angle_ref : array_like, shape (K + M + 1,)
-        The reference over the plan, rad.
-    plant : DiscretePlant
-    u_A : array_like, shape (K + M,), optional
-        The assistant's recorded torque (the human knows it).
-    feedback : Feedback, optional
-        The assistant's law, acting on the true state; the human plans with it.
-    tau_nm, sigma_m, delay : float, float, int
-        Lag time constant (s), motor-noise SD (N·m per sample), delay (samples).
-    sigma_y : float
-        SD of the angle's measurement noise, rad (an encoder step q: q / sqrt(12)).
-    z0_mean, z0_cov : array_like, shapes (3,), (3, 3)
-        Prior of (angle, velocity, arm torque) at the window's start.
-    params : WheelParameters
-    freeze : bool
-        Hold the filter's covariance once it is stationary (:func:`angle_filter`; the result
-        equals the unheld filter's to rounding, tested).
-
-    Returns
-    -------
-    AngleLoglik
+    ``theta``, ``angle_ref``, ``plant``, ``u_A``, ``feedback``, ``tau_nm``, ``sigma_m``, ``delay``
+    and ``params`` as :func:`.sample.sample_delayed`'s. ``sigma_y``: the angle's noise SD, rad
+    (encoder step q: q / sqrt(12)). ``z0_mean`` (3,), ``z0_cov`` (3, 3): the prior of (angle,
+    velocity, arm torque) at the window's start. ``freeze``: hold the filter once stationary.
     """
     setup = angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params)
     y, d, mu0, P0 = check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov)
@@ -316,29 +241,17 @@ def angle_loglik(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None, fe
     return AngleLoglik(float(ll), inn)
 
 
-#: Prior SDs of the velocity (rad/s) and the arm torque (N·m) at a recorded window's start
-#: (:func:`window_loglik`): the reconstruction's velocity and the arm torque its torques imply are
-#: the means, and these SDs are wide against what the first samples' angles then tell (a torque
-#: moves the angle by about 1e-4 rad within 0.05 s, some counts of the encoder).
+#: Prior SDs of velocity (rad/s) and arm torque (N·m) at a window's start: wide against what its first angles tell.
 START_SD = (0.05, 0.1)
 
 
 class AngleWindow(NamedTuple):
     """One recorded window for :func:`window_loglik`.
 
-    Attributes
-    ----------
-    angles : ndarray, shape (K + 1,)
-        The encoder's angles y_0..y_K, rad.
-    angle_ref : ndarray, shape (K + M + 1,)
-    u_A : ndarray or None, shape (K + M,)
-        The assistant's recorded torque, when it is a given input (None with ``feedback``).
-    feedback : Feedback or None
-    velocity0 : float
-        The velocity at the window's start the angle implies (the reconstruction's), rad/s.
-    warmup : Warmup or None
-        The (reconstructed) torques before the window: the arm torque at the start follows
-        from them at each τ_nm (None: at rest).
+    ``angles`` (K + 1,) rad; ``angle_ref`` (K + M + 1,); ``u_A`` (K + M,), the assistant's recorded
+    torque when it is a given input (None with ``feedback``); ``velocity0``, the reconstruction's
+    velocity at the start, rad/s; ``warmup``, the reconstructed torques before the window
+    (:class:`.lag.Warmup`, None: at rest).
     """
 
     angles: np.ndarray

@@ -1,24 +1,9 @@
-"""The dense reference of the ``delayed`` likelihood: the joint Gaussian of the observed torques.
+"""The dense references of the ``delayed`` likelihoods: the joint Gaussians of the torques and of the angles.
 
-The generative closed loop (:func:`scioc.models.delayed.sample.closed_loop`) is affine in the
-noises ξ = (ε_0..ε_{K-1}, m_{-d}..m_{K-1}): ``u_H = μ + G ξ``. μ is the loop with every
-noise zero; the columns of G are the loop with every offset zero (initial state,
-reference, feedforward or recorded u_A) driven by one unit impulse each. With
-``ξ ~ N(0, diag(1/(2 S_k), σ_m²))``::
-
-    u_H ~ N(μ, G diag(...) Gᵀ),   log p(u_H) by a Cholesky factorization.
-
-What this conditions on is what the fast kernel conditions on: the initial state z_0 =
-(x_0, τ_0), the reference and the plan's known input, the assistant (a given torque
-sequence, or its law acting on the simulated state), θ, and the pre-window motor noises
-at their prior, independent of z_0. It never uses the recorded states: with the law,
-the fast kernel's observed states come from the recorded u_A, so the two agree when the
-recorded u_A follows the law (as in a draw of :func:`scioc.models.delayed.sample.sample_delayed`).
-
-O(K²) memory and O(K³) time (and O(K² d) for the loop); for tests and the benchmark only.
-
-:func:`angle_loglik_dense` is the same for the encoder's angles, the reference of
-:mod:`scioc.models.delayed.angles`.
+The closed loop (:func:`.sample.closed_loop`) is affine in the noises ξ: ``u_H = μ + G ξ``, μ
+the loop without noise, G's columns the loop without offsets driven by unit impulses, and
+``u_H ~ N(μ, G Cov(ξ) Gᵀ)``. It never uses the recorded states: with the assistant's law it
+agrees with the fast kernel when the recorded u_A follows the law. O(K³): for tests only.
 """
 
 from __future__ import annotations
@@ -37,17 +22,7 @@ from scioc.models.segment import Feedback, Segment, check_segment
 
 
 class DelayedDense(NamedTuple):
-    """The joint Gaussian of one window's observed torques and the log-density of the recorded ones.
-
-    Attributes
-    ----------
-    loglik : float
-        Nats.
-    mean : ndarray, shape (K,)
-        N·m.
-    cov : ndarray, shape (K, K)
-        (N·m)².
-    """
+    """One window's torques: log-density of the recorded ones (nats), mean (K,) N·m, covariance (K, K) (N·m)²."""
 
     loglik: float
     mean: np.ndarray
@@ -56,22 +31,10 @@ class DelayedDense(NamedTuple):
 
 def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, tau_nm: float = 0.0, sigma_m: float = 0.0,
                  delay: int = 0, tau0: float = 0.0, params: WheelParameters = WheelParameters()) -> DelayedDense:
-    """log p(u_H) of one window under the ``delayed`` human, from the dense joint Gaussian.
+    """log p(u_H) of one window from the dense joint Gaussian; arguments as :func:`.likelihood.loglik_grad`.
 
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-    segment : Segment
-        With :class:`scioc.models.segment.Feedback` the assistant is its law (the recorded u_A
-        is not used); otherwise the recorded u_A is a given input.
-    plant : DiscretePlant
-    tau_nm, sigma_m, delay, tau0 : float, float, int, float
-        As :func:`scioc.models.delayed.likelihood.loglik_grad`.
-    params : WheelParameters
-
-    Returns
-    -------
-    DelayedDense
+    With :class:`scioc.models.segment.Feedback` the assistant is its law and the recorded u_A is
+    not used; otherwise the recorded u_A is a given input.
     """
     seg = check_segment(segment)
     K, d = seg.K, int(delay)
@@ -105,14 +68,7 @@ def loglik_dense(theta, segment: Segment, plant: DiscretePlant, *, tau_nm: float
 
 
 class AngleDense(NamedTuple):
-    """The joint Gaussian of one window's recorded angles y_0..y_K and log p(y_1..y_K | y_0).
-
-    Attributes
-    ----------
-    loglik : float
-    mean : ndarray, shape (K + 1,)
-    cov : ndarray, shape (K + 1, K + 1)
-    """
+    """One window's angles y_0..y_K: log p(y_1..y_K | y_0) (nats), mean (K + 1,) and covariance."""
 
     loglik: float
     mean: np.ndarray
@@ -122,14 +78,10 @@ class AngleDense(NamedTuple):
 def angle_loglik_dense(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None,
                        feedback: Feedback | None = None, tau_nm: float = 0.0, sigma_m: float = 0.0, delay: int = 0,
                        sigma_y: float, z0_mean, z0_cov, params: WheelParameters = WheelParameters()) -> AngleDense:
-    """The dense reference of :func:`angle_loglik`: the angles' joint Gaussian from the generative loop.
+    """The dense reference of :func:`.angles.angle_loglik`: the angles' joint Gaussian from the physically lagged loop.
 
-    The loop (:func:`scioc.models.delayed.sample.closed_loop`, physically lagged) is affine in
-    z_0 and the noises: its mean is the loop at z0_mean with every noise zero, and its
-    covariance comes from the loop with every offset zero driven by the columns of
-    z0_cov's square root, by each ε_k and each m_k (k = -d..K-1) as unit impulses; the
-    encoder's noise adds σ_y² on the diagonal. Then log N(y) - log N(y_0). O(K²) memory
-    and O(K³) time: for tests only.
+    The covariance comes from the loop driven by the columns of z0_cov's square root and by
+    unit impulses in each ε_k and m_k, plus σ_y² on the diagonal; then log N(y) - log N(y_0).
     """
     setup = angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params)
     y, d, mu0, P0 = check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov)

@@ -1,52 +1,23 @@
 """Exact Gaussian log-density of a residual sequence with banded covariance, and its reverse mode (numba).
 
-The residuals r of the ``delayed`` model (:mod:`scioc.models.delayed.likelihood`) are Gaussian
-with a covariance Σ of bandwidth d. Its factorization ``Σ = L D Lᵀ`` (L unit lower
-triangular, bandwidth d) gives the innovations ``y = L⁻¹ r`` with variances D: these
-are exactly the innovations and innovation variances of the Kalman filter over the
-motor noises (m_k, ..., m_{k-d}) (the factorization is unique)::
+The residuals r of :mod:`.likelihood` have a covariance Σ of bandwidth d, factored
+``Σ = L D Lᵀ`` (L unit lower triangular); ``y = L⁻¹ r`` are the innovations of the Kalman
+filter over the motor noises, D their variances, and
+``log N(r; 0, Σ) = -½ sum_k (y_k² / D_k + log D_k) - K/2 log 2π``.
 
-    log N(r; 0, Σ) = -½ sum_k y_k² / D_k - ½ sum_k log D_k - K/2 log 2π.
+* Rows 0..k_R (the plan stationary, Σ Toeplitz): the Schur algorithm by columns, O(d) each.
+  The displacement ``Σ - Z Σ Zᵀ = x xᵀ - y yᵀ`` has rank 2; column k is
+  ``L_{k+t,k} = x_t / x_0``, ``D_k = x_0²``, and a hyperbolic rotation zeroing y's leading entry
+  gives the next generator (:mod:`.schur`). y decays and moves x only at second order, so
+  once d + 1 columns agree to :data:`scioc.models.maxent.FREEZE_RTOL` and |y| <= Y_RTOL |x|
+  (column k_f) the later columns are held; their solves carry the neighbouring row's term in a
+  register, one multiplication and one subtraction per step on the dependency chain.
+* Later rows: L D Lᵀ row by row from the d rows before, O(d²) each.
 
-Rows 0..k_R of Σ are Toeplitz (the plan is stationary there), the rows after k_R are
-not (the plan's last steps).
-
-* Toeplitz rows: the Schur algorithm, by columns. The displacement
-  ``Σ - Z Σ Zᵀ = x xᵀ - y yᵀ`` (Z the shift) has rank 2; step k reads the Cholesky
-  column x (``L_{k+t,k} = x_t / x_0``, ``D_k = x_0²``) and passes to the generator of
-  the next Schur complement by a hyperbolic rotation that zeroes y's leading entry (in
-  mixed form): O(d) per column instead of the d²/2 of a row of Cholesky (it is the
-  Chandrasekhar form of the Kalman filter). The generator is all the state there is. Its
-  y part decays (the reflection coefficients ρ = y_1 / x_0 of a moving average go to
-  zero) and changes x only at second order (``x' - x = O(ρ²) x + O(ρ) y``), so once
-  d + 1 consecutive columns agree to :data:`scioc.models.maxent.FREEZE_RTOL` and
-  ``|y| <= Y_RTOL |x|`` (the filter's steady state, at step k_f) every later column is
-  the same to rounding and is not computed again. The solves run by columns there; in both
-  solves (y = L⁻¹ r forward, ω backward) the term of the neighbouring row is carried in a
-  register rather than added into the accumulator q and read back, so that each step's
-  dependence on the last is one multiplication and one subtraction (the rest of the row is
-  not on that path). ``scioc bench --parts delayed``, run twice before (642b0ad) and twice
-  after, alternating, 2026-12-06 (one thread, min): delay 10, 7.82 and 8.01 ms before, 7.60
-  and 7.60 after; delay 30, 17.05 and 17.03, 16.37 and 16.97; delay 0 unchanged.
-* Rows after k_R: L D Lᵀ row by row, O(d²) each, from the d rows before (the last
-  Toeplitz rows are written out as rows for them).
-
-Reverse mode. With ``ω = Σ⁻¹ r = L⁻ᵀ D⁻¹ y``::
-
-    ∂/∂r = -ω,   ∂/∂L_ij = ω_i y_j,   ∂/∂D_i = ½ (y_i² / D_i - 1) / D_i;
-
-the rows after k_R are reversed row by row (giving ∂/∂Σ for their entries), the
-Toeplitz columns one by one and through the Schur steps back to the first generator,
-``x = y = γ / sqrt(γ_0)`` (giving ∂/∂γ_t). The held columns add their adjoints to the
-steady column's, so the gradient is the exact derivative of the computation with the
-steady state held (equal to the one without it to about the tolerance times the
-transient's length; tested).
-
-Storage: row i of L (rows after k_R and the d before) is ``Lr[i, s] = L_{i, i-d+s}``,
-s = 0..d-1 (zero before column 0); y, ω and the solves' accumulators are padded with d
-leading zeros (row i at i + d), so every inner loop runs over contiguous memory. Inner
-loops index with unsigned integers (``U``) and never slice: numba then needs neither
-wraparound checks nor reference counts there, and LLVM vectorizes them.
+Reverse mode, with ``ω = Σ⁻¹ r``: ``∂/∂r = -ω``, ``∂/∂L_ij = ω_i y_j``,
+``∂/∂D_i = ½ (y_i² / D_i - 1) / D_i``, back through the later rows (∂/∂Σ) and the Schur steps
+to the first generator ``x = y = γ / sqrt(γ_0)`` (∂/∂γ); the held columns add their adjoints
+to the steady column's, so the gradient is that of the held computation.
 """
 
 from __future__ import annotations
@@ -57,49 +28,20 @@ from scioc.models.delayed.schur import U, schur_step, schur_step_adjoint
 from scioc.models.maxent import FREEZE_RTOL, HALF_LOG_2PI, PROD_HUGE, PROD_TINY
 from scioc.models.runtime import FASTMATH, njit
 
-#: The Schur columns count as stationary once d + 1 consecutive steps change x by at most
-#: FREEZE_RTOL relative and y (which drives every later change of x, to second order) is below
-#: this fraction of x.
+#: The Schur columns are stationary once d + 1 consecutive steps change x by at most FREEZE_RTOL
+#: relative and y, which drives every later change of x, is below this fraction of x.
 Y_RTOL = 1e-7
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def banded_loglik(d, gam, k_R, tailS, r, freeze, grad, Lr, D, yb_, ob_, q, Lbar, Dbar, Sbar, w, wb, XY, gbar):
-    """log N(r; 0, Σ), ω = Σ⁻¹ r, ∂/∂γ (Toeplitz rows) and ∂/∂Σ (the other rows), Σ of bandwidth d.
+    """Return (log N(r; 0, Σ), k_f) and fill ω = Σ⁻¹ r, ∂/∂γ (Toeplitz rows) and ∂/∂Σ (later rows).
 
-    Parameters
-    ----------
-    d : int
-        Bandwidth (the delay in samples).
-    gam : ndarray, shape (d + 1,)
-        ``γ_t = Σ_{i, i-t}`` of the rows i <= k_R.
-    k_R : int
-        Last Toeplitz row (-1: none).
-    tailS : ndarray, shape (K, d + 1)
-        ``Σ_{i, i-t}`` for the rows i > k_R (only those rows are read).
-    r : ndarray, shape (K,)
-    freeze : bool
-        Hold the factorization once stationary (module docstring).
-    grad : bool
-        False: stop after the log-density (y and D are written; ω, Sbar and gbar are not).
-    Lr, D, Lbar, Dbar : ndarray, shapes (K, >= d), (K,), (K, >= d), (K,)
-        Scratch: rows of L (module docstring), D (returned: every row's), and adjoints.
-    yb_, ob_, q : ndarray, shape (>= K + d,)
-        Scratch, padded: the innovations y (returned: ``yb_[d:K + d]``), ω (returned:
-        ``ob_[d:K + d]``), the solves' accumulator.
-    Sbar : ndarray, shape (K, >= d + 1)
-        Out: ``∂ log N / ∂Σ_{i, i-t}`` for the rows i > k_R (Σ_{i, i-t} = Σ_{i-t, i} is one number).
-    w, wb : ndarray, shape (>= d + 1,)
-        Scratch.
-    XY : ndarray, shape (K + 1, 4, >= d + 1)
-        Scratch: the Schur generators and their adjoints.
-    gbar : ndarray, shape (>= d + 1,)
-        Out: ``∂ log N / ∂γ_t``, t = 0..d.
-
-    Returns
-    -------
-    (float, int)
-        The log-density and k_f, the first column of the steady state (nA = min(k_R + 1, K)
-        if the columns never became steady).
+    Σ has bandwidth ``d``: ``gam`` (d + 1,) holds ``Σ_{i, i-t}`` of the rows i <= ``k_R`` (-1: none),
+    ``tailS`` (K, d + 1) that of the later rows. ``r`` (K,). ``grad`` False stops after the
+    log-density. Out: ``D`` (K,), y in ``yb_[d:K + d]``, ω in ``ob_[d:K + d]`` (padded with d leading
+    zeros), ∂/∂Σ_{i, i-t} of the later rows in ``Sbar``, ∂/∂γ_t in ``gbar``. Scratch: ``Lr``,
+    ``Lbar`` (K, >= d; ``Lr[i, s] = L_{i, i-d+s}``), ``Dbar``, ``q``, ``w``, ``wb``, ``XY`` (the Schur
+    generators and their adjoints). k_f is the first steady column (min(k_R + 1, K) if none).
     """
     K = r.shape[0]
     ud = U(d)
@@ -165,9 +107,7 @@ def banded_loglik(d, gam, k_R, tailS, r, freeze, grad, Lr, D, yb_, ob_, q, Lbar,
             if k > k_f:
                 break
         if k < nA:
-            # the columns after the first steady one share its x: l_t = x_t / x_0 in w; the term of the column just
-            # before (l_1 y_{k-1}) is carried in a register, not through q, so that the recursion's path from y_{k-1}
-            # to y_k is one multiply and one subtraction (module docstring)
+            # the held columns share x: l_t = x_t / x_0 in w; l_1 y_{k-1} is carried in a register (module docstring)
             ix0 = 1.0 / XY[k_f, 0, 0]
             Dk = D[k_f]
             for t in range(ud + U(1)):

@@ -1,35 +1,14 @@
 """The ``delayed`` likelihood of one segment and of a batch: assembly and chain rule (numba).
 
-One segment (see :mod:`scioc.models.delayed.likelihood` for the model and its derivation):
-
-1. the plan (:func:`scioc.models.delayed.riccati.plan_recursion`): S_k, L_k, f_k, and the tape
-   of its non-stationary steps for the reverse sweep of step 5;
-2. the data: the arm torque τ_k and the effective command c̃_k from the observed
-   torques (tangents in a and α, :func:`scioc.models.delayed.lag.arm_torque_recursion`, seeded
-   with τ_0's own tangents), the residual ``r_k = c̃_k + L_k z_k - f_k``;
-3. the MA coefficients ``c_{k,0} = 1``, ``c_{k,j} = L_k g_j`` with ``g_j = Ā^{j-1} b_c``,
-   and the band of Σ = diag(1/(2 S_k)) + σ_m² C Cᵀ::
-
-       Σ_{i, i-t} = [t = 0] / (2 S_i) + σ_m² sum_{j=t..d} c_{i,j} c_{i-t, j-t};
-
-4. log N(r; 0, Σ), ω = Σ⁻¹ r and ∂/∂Σ (:func:`scioc.models.delayed.innovations.banded_loglik`);
-5. the chain rule back to (q11, q22, R, τ_nm, σ_m): F's adjoints of f_k, S_k and L_k go
-   back through the plan in reverse mode (:func:`scioc.models.delayed.riccati.plan_adjoint` over
-   the stationary steps, then :func:`scioc.models.delayed.reverse.plan_reverse` over the recorded
-   ones) to q11, q22 and the lag's (a, α); R by homogeneity (L and f do not change when θ is
-   scaled, S scales with it, so ``θ · ∇_θ log p = sum_k S_k ∂/∂S_k``).
-
-Rows k <= k_R share one S and L (the stationary plan), so their adjoints are summed
-before they enter the reverse sweep at the step whose values they hold. The batch runs its segments in parallel chunks
-(``prange``), each with its own scratch, and every segment on its own: its result does
-not depend on the batch it is in.
-
-The kernel (this module, :mod:`scioc.models.delayed.riccati`, :mod:`scioc.models.delayed.reverse` and
-:mod:`scioc.models.delayed.innovations`) is written for numba: no array views in inner loops
-(each costs reference counting), unsigned indices where LLVM should vectorize. numba's
-on-disk cache lives in a folder named by a hash of every source of ``models`` (:mod:`scioc.models`),
-so an edited callee is never served stale. The kernels' sums may be reassociated but not
-contracted into fused multiply-adds (:data:`scioc.models.FASTMATH` says why).
+Per segment (the model in :mod:`.likelihood`): the plan (:func:`.riccati.plan_recursion`); τ_k,
+c̃_k and their (a, α) tangents (:func:`.lag.arm_torque_recursion`); the residual
+``r_k = c̃_k + L_k z_k - f_k``; the MA coefficients ``c_{k,0} = 1``, ``c_{k,j} = L_k Ā^{j-1} b_c``
+and the band ``Σ_{i, i-t} = [t = 0] / (2 S_i) + σ_m² sum_{j=t..d} c_{i,j} c_{i-t, j-t}``;
+log N(r; 0, Σ) (:func:`.innovations.banded_loglik`); then the chain rule back through the MA
+coefficients, the data and the plan (:mod:`.riccati`, :mod:`.reverse`). R follows from
+homogeneity: L and f are unchanged when θ is scaled and S scales with it, so
+``θ · ∇_θ log p = sum_k S_k ∂/∂S_k``. A segment's result does not depend on its batch.
+See docs/decisions/delayed-kernel.md.
 """
 
 from __future__ import annotations
@@ -49,20 +28,16 @@ from scioc.models.runtime import FASTMATH, njit
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def segment_kernel(A, b, fb, q11, q22, R, a, al, da, dal, sig, d, tau0, dtau0_a, dtau0_al, x1, x2, r, u, ua, freeze,
                    grad, sc, out, inn):
-    """Log-likelihood and gradient of one segment, written into ``out`` (8,): ll, then
-    d/d[q11, q22, R, τ_nm, σ_m], then (as floats) k_R and the first steady column k_f of the factorization.
+    """Log-likelihood and gradient of one segment into ``out`` (8,): ll, d/d[q11, q22, R, τ_nm, σ_m], k_R, k_f.
 
-    ``tau0`` is the arm torque at the start, ``dtau0_a`` and ``dtau0_al`` its derivatives in a and α
-    (0 for a fixed τ_0). ``sc`` is the scratch tuple of :func:`make_scratch`. If ``inn`` has K entries it receives
-    the standardized innovations ``y_k / sqrt(D_k)`` (iid N(0, 1) under the model). ``grad`` False stops after the
-    log-likelihood, the same number (the same operations), and leaves NaN for the gradient.
+    ``dtau0_a``, ``dtau0_al``: d tau0 / d[a, α]; ``sc``: :func:`make_scratch`'s tuple; ``inn`` (K or
+    0,) receives the standardized innovations. ``grad`` False leaves the gradient NaN.
     """
     (f, Sbk, S_t, L_t, tape, seed, cst, tau, dtau, dct, rr, g, dg, cs, ctail, tailS, Lr, D, y, om, q, Lbar, Dbar,
      Sbar, w, wb, cbt, cbs, gb, Lbt, XY, gbar, tailP, W, frozen) = sc
     K = u.shape[0]
     if not al < 1.0:
-        # α = 1 (τ_nm so long that e^{-dt/τ_nm} rounds to 1; a sampler's wild proposal): the map from
-        # torques to commands is singular and the density 0. -inf, so a sampler rejects the point.
+        # α rounds to 1 (a huge τ_nm): u -> c̃ is singular, the density 0; -inf lets a sampler reject the point
         out[0] = -np.inf
         for m in range(1, 8):
             out[m] = 0.0
@@ -295,14 +270,11 @@ def _max_delay(delay):
 def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, grad, nchunks, out, inn):
     """Every segment of a batch, each on its own, in ``nchunks`` parallel chunks (``prange``).
 
-    Arguments are C-contiguous float64 arrays (``delay`` int64): the wheel ``A`` (2, 2),
-    ``b`` (2,); ``fb`` (n, 2); ``th`` (3, n) rows q11, q22, R; ``lag`` (4, n) rows a, α,
-    da/dτ_nm, dα/dτ_nm; ``sig`` (n,) σ_m; ``delay`` (n,); ``tau0`` (n,) and its tangents in
-    (a, α) ``dtau0`` (n, 2); the arrays of a
-    :class:`scioc.models.segment.SegmentBatch`; output ``out`` (6, n): log-likelihood, then
-    the gradient in q11, q22, R, τ_nm, σ_m (NaN with ``grad`` False: the value alone, the same number, without
-    the reverse sweeps; ``scioc bench --parts delayed`` times both); ``inn`` (n, K) receives the standardized
-    innovations, or has shape (n, 0) to skip them.
+    C-contiguous float64 arguments (``delay`` int64): the wheel ``A``, ``b``; ``fb`` (n, 2);
+    ``th`` (3, n) q11, q22, R; ``lag`` (4, n) a, α, da/dτ_nm, dα/dτ_nm; ``sig``, ``delay``, ``tau0``
+    (n,), ``dtau0`` (n, 2); a :class:`scioc.models.segment.SegmentBatch`'s arrays. Out: ``out`` (6, n),
+    the log-likelihood and the gradient in q11, q22, R, τ_nm, σ_m (NaN unless ``grad``); ``inn``
+    (n, K) the standardized innovations, or (n, 0) to skip them.
     """
     dmax = _max_delay(delay)
     for c in prange(nchunks):
@@ -312,15 +284,10 @@ def batch_kernel(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, f
 
 @njit(cache=True, fastmath=False, error_model="python")
 def batch_kernel_serial(A, b, fb, th, lag, sig, delay, tau0, dtau0, x1, x2, r, u, ua, freeze, grad, nchunks, out, inn):
-    """:func:`batch_kernel` in the calling thread. A parallel region costs a wake-up of every thread and
-    waits for the slowest, which on a busy machine measured 7 ms for a single 1500-step segment whose own
-    work takes 0.15 ms (the optimizer calls it thousands of times).
+    """:func:`batch_kernel` in the calling thread, for a batch too small to pay for a parallel region.
 
-    Two functions, not one function compiled twice: numba's cache keys a function by its file, name and
-    first line, so two dispatchers of one function (``njit(parallel=True)(f)`` and ``njit(f)``) shared
-    their cache entries, and the parallel kernel loaded the serial one's code: two threads ran the
-    default study batch in the time of one (measured 2026-12-04; ``tests/test_layout.py`` now requires
-    every cached kernel to have its own function).
+    A separate function, not a second dispatcher of one: numba's cache keys a function by file,
+    name and first line (docs/decisions/delayed-kernel.md).
     """
     dmax = _max_delay(delay)
     for c in range(nchunks):

@@ -1,14 +1,7 @@
 """The reverse sweep of the ``delayed`` human's plan: F's derivative in q11, q22, a and α (numba).
 
-Step 3 of :mod:`scioc.models.delayed.riccati` (which states the recursion and records the tape). With
-P = P_{k+1}, s' = s_{k+1} and F's adjoints of step k's outputs known (x̄ = ∂F/∂x), one step
-backwards through::
-
-    P b_c, S = R + b_cᵀ P b_c, L = Aᵀ P b_c / S, M = A - b_c Lᵀ, P b_a, w = s' - P b_a a_k,
-    f_k = b_cᵀ w / S, s_k = Mᵀ w + q11 r_k e_0, P_k = Q + R L Lᵀ + Mᵀ P M
-
-gives, in this order (sums over repeated indices; P̄ is kept symmetric, as only symmetric
-perturbations of P exist)::
+Step 3 of :mod:`.riccati`, one step of its recursion backward (P = P_{k+1}, s' = s_{k+1},
+x̄ = ∂F/∂x), in this order, P̄ kept symmetric as only symmetric perturbations of P exist::
 
     s_k:  w̄ = M s̄_k,  M̄ = w s̄_kᵀ,  q̄11 += r_k s̄_k[0]
     f_k:  w̄ += b_c f̄ / S,  b̄ += w f̄ / S,  S̄ -= f_k f̄ / S
@@ -19,11 +12,9 @@ perturbations of P exist)::
     L, S: S̄ -= Lᵀ L̄ / S;  c = A L̄ / S + b_c S̄;  Ā += (P b_c) L̄ᵀ / S;  b̄ += (P b_c) S̄ + P c;
           P̄ += sym(c b_cᵀ)
 
-At step k_z the held steps' constants (β = b_c / S, M, P b_a, S and L of the stationary rows)
-add their adjoints, and s̄_{k_z} starts from :func:`scioc.models.delayed.riccati.plan_adjoint`'s λ.
-At the end, P_N = Q and s_N = q11 r_N e_0. Finally ``G[p] += Āᵢⱼ ∂Aᵢⱼ/∂p + b̄ᵢ ∂bᵢ/∂p``.
-Written with scalars, not 3 × 3 arrays: the same sweep on small arrays took twice as long
-(LLVM kept them in memory).
+At step k_z the held steps' constants add their adjoints and s̄_{k_z} starts from
+:func:`.riccati.plan_adjoint`'s λ; at the end P_N = Q, s_N = q11 r_N e_0, and
+``G[p] += Āᵢⱼ ∂Aᵢⱼ/∂p + b̄ᵢ ∂bᵢ/∂p``. Written with scalars: LLVM keeps small arrays in memory.
 """
 
 from __future__ import annotations
@@ -33,14 +24,12 @@ from scioc.models.runtime import FASTMATH, njit
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def plan_reverse(Ab, bc, ba, dAb, dbc, r, ua, K_obs, k_z, tape, fbar, Sbar, Lbar, Sc_bar, Lc_bar, seed, G):
-    """Add F's derivative in :data:`scioc.models.delayed.riccati.DIRECTIONS` through the recorded steps to G (4,).
+    """Add F's derivative in :data:`.riccati.DIRECTIONS` through the recorded steps to G (4,).
 
-    ``fbar``, ``Sbar``, ``Lbar`` (K,), (K,), (K, 3): F's adjoints of f_k, S_k and L_k, read for the observed
-    steps k >= k_z. If k_z > 0, ``Sc_bar`` and ``Lc_bar`` (3,) are F's adjoints of the stationary S and L
-    (``cst`` of :func:`scioc.models.delayed.riccati.plan_recursion`, through the stationary observed rows) and
-    ``seed`` those of :func:`scioc.models.delayed.riccati.plan_adjoint`; they belong to step k_z, whose quantities
-    the stationary steps hold.
-    ``dAb``, ``dbc``: the derivatives of Ab and bc in the directions (3, 3, 4), (3, 4).
+    ``fbar``, ``Sbar``, ``Lbar`` (K,), (K,), (K, 3): F's adjoints of f_k, S_k, L_k of the observed
+    steps. If k_z > 0, ``Sc_bar`` and ``Lc_bar`` are F's adjoints of the stationary S and L
+    (through the stationary observed rows) and ``seed`` :func:`.riccati.plan_adjoint`'s; they
+    belong to step k_z. ``dAb`` (3, 3, 4), ``dbc`` (3, 4): Ab's and bc's derivatives in the directions.
     """
     N = ua.shape[0]
     a00, a01, a02, a10, a11, a12, a20, a21, a22 = (Ab[0, 0], Ab[0, 1], Ab[0, 2], Ab[1, 0], Ab[1, 1], Ab[1, 2], Ab[2, 0],

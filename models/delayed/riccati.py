@@ -1,37 +1,15 @@
-"""The ``delayed`` human's plan: the 3-state LQ recursion, and its reverse-mode derivative in q11, q22, a and α (numba).
+"""The ``delayed`` human's plan: the 3-state LQ recursion and its reverse-mode derivative in q11, q22, a, α (numba).
 
-The same recursion as :func:`scioc.models.lq.lq_tracking_policy` (P_{K+M} = Q, s_{K+M} = Q x_ref,
-``S_k = R + b_cᵀ P b_c``, ``L_k = b_cᵀ P A / S_k``, ``w = s_{k+1} - P b_a a_k``,
-``f_k = b_cᵀ w / S_k``, ``M_k = A - b_c L_k``, ``s_k = Q x_ref_k + M_kᵀ w``,
-``P_k = Q + R L_kᵀ L_k + M_kᵀ P M_k``, P = P_{k+1}) on the plant of
-:func:`scioc.models.delayed.lag.lagged_planning_plant`. The likelihood needs the derivative of a
-scalar F (its log-density) that depends on the plan through f_k, S_k and L_k; it gets it in
-reverse mode, once F's adjoints of those are known (:mod:`scioc.models.delayed.kernel`):
+:func:`scioc.models.lq.lq_tracking_policy`'s recursion on :func:`.lag.lagged_planning_plant`
+(P = P_{k+1}; P_{K+M} = Q, s_{K+M} = Q x_ref)::
 
-1. :func:`plan_recursion` runs the recursion backward and records each step's P, P b_c,
-   S, L, w and f (the tape) until P is stationary (step k_z, some hundred steps from the
-   end); from there on S, L, M and P b_a are constants and only the s-recursion runs (it
-   carries the reference and the known input), recording its w_k.
-2. :func:`plan_adjoint` sweeps the stationary steps forward with the adjoint of s and
-   returns F's adjoints of the constants and of s_{k_z}.
-3. :func:`scioc.models.delayed.reverse.plan_reverse` sweeps the recorded steps forward, from k_z
-   to the end, with the adjoints of P and s, and contracts the adjoints of A and b_c it
-   collects with their derivatives in the :data:`DIRECTIONS`. The R-direction follows from
-   homogeneity (L and f do not change when θ is scaled, S scales with it), so it is not needed.
+    S_k = R + b_cᵀ P b_c,  L_k = b_cᵀ P A / S_k,  w = s_{k+1} - P b_a a_k,  f_k = b_cᵀ w / S_k,
+    M_k = A - b_c L_k,  s_k = Q x_ref_k + M_kᵀ w,  P_k = Q + R L_kᵀ L_k + M_kᵀ P M_k.
 
-Reverse through P_k. By the envelope theorem (L minimizes the Joseph-form bracket for every
-state) the P-update's derivative in L is zero at the optimal L, so P_k's adjoint flows to
-P_{k+1}, to Q, and to A and b_c through M at fixed L; every other use of L goes through
-``L = Aᵀ P b_c / S`` (:mod:`scioc.models.delayed.reverse` has the step). Until 2026-12-05 the plan
-carried forward tangents in the four directions through every recorded step instead, about
-nine times the primal step's arithmetic; the reverse sweep costs about twice it, and the whole
-kernel took 30 % less time for it (``scioc bench --parts delayed``, README "Speed").
-
-Holding the stationary part is exact to rounding: P stops changing at the last bit
-(:data:`scioc.models.maxent.FREEZE_RTOL`), and the derivative is that of the held computation. The
-held P's tangents, which converge at the same geometric rate as P, differ from their limits by
-about the number of recorded steps times the last bit, some 1e-13 relative: ``freeze=False``
-records every step, and the two agree to that (tested).
+:func:`plan_recursion` records each step (the tape) until P is stationary to
+:data:`scioc.models.maxent.FREEZE_RTOL` at step k_z, then runs the s-recursion only. Reverse
+mode: :func:`plan_adjoint` over the stationary steps, :func:`.reverse.plan_reverse` over the
+recorded ones; by the envelope theorem the P-update's derivative in L vanishes.
 """
 
 from __future__ import annotations
@@ -52,36 +30,13 @@ SEED = 19
 def plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K_obs, freeze, f, S_t, L_t, cst, frozen, W, tape):
     """Run the recursion backward over the plan's K + M steps; return (k_R, k_z).
 
-    Parameters
-    ----------
-    Ab, bc, ba : ndarray, shapes (3, 3), (3,), (3,)
-        The planning plant (closed by the assistant's feedback), command and known-input
-        vectors; ``ba[2]`` must be 0.
-    q11, q22, R : float
-    r : ndarray, shape (K + M + 1,)
-        Angle reference, rad.
-    ua : ndarray, shape (K + M,)
-        Known input, N·m.
-    K_obs : int
-        Observed steps K.
-    freeze : bool
-        Hold the step quantities once P is stationary (module docstring).
-    f, S_t, L_t : ndarray, shapes (K,), (K,), (K, 3)
-        Out: f_k for the observed steps; S_k, L_k for the observed steps k > k_R.
-    cst : ndarray, shape (4,)
-        Out: S and L of the stationary steps (those of step k_z).
-    frozen : tuple of ndarray
-        Out: M (3, 3) and P b_a (3,) of the stationary steps.
-    W : ndarray, shape (K + M, 3)
-        Out: ``w_k = s_{k+1} - P b_a a_k`` of the steps k < k_z.
-    tape : ndarray, shape (K + M, TAPE)
-        Out: the recorded steps k >= k_z (:data:`TAPE`).
-
-    Returns
-    -------
-    (int, int)
-        k_R: every observed step k <= k_R has the constant S, L of ``cst`` (-1: none);
-        k_z: the steps k < k_z have constant step quantities (0: none).
+    ``Ab``, ``bc``, ``ba``: the planning plant closed by the assistant's feedback (``ba[2]`` = 0);
+    ``r`` (K + M + 1,) the angle reference, rad; ``ua`` (K + M,) the known input, N·m; ``K_obs`` = K.
+    Out: ``f`` (K,); ``S_t``, ``L_t`` (K,), (K, 3) of the observed steps k > k_R; ``cst`` (4,) the
+    stationary S and L; ``frozen`` the stationary M (3, 3) and P b_a (3,); ``W`` (K + M, 3) the w_k
+    of the steps k < k_z; ``tape`` (K + M, :data:`TAPE`) the recorded steps k >= k_z. The
+    observed steps k <= k_R (-1: none) have the stationary S and L; the steps k < k_z (0: none)
+    all stationary step quantities.
     """
     M, pba = frozen
     K = ua.shape[0]
@@ -204,14 +159,12 @@ def plan_recursion(Ab, bc, ba, q11, q22, R, r, ua, K_obs, freeze, f, S_t, L_t, c
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def plan_adjoint(bc, S, r, ua, om, K_obs, k_z, frozen, W, seed):
-    """F's adjoints of the stationary constants, from ``F = sum_{k < k_z, k < K} om_k f_k``, into ``seed`` (:data:`SEED`).
+    """F's adjoints of the stationary constants into ``seed`` (:data:`SEED`), F = sum_{k < k_z, K} om_k f_k.
 
-    For the steps k < k_z the step quantities are constants, ``f_k = βᵀ w_k`` with
-    β = b_c / S, ``w_k = s_{k+1} - P b_a a_k``, ``s_k = Q x_ref_k + Mᵀ w_k``. With
-    λ_k = ∂F/∂s_k (λ_0 = 0) the adjoint runs forward: ``o_k = ρ_k β + M λ_k``,
-    ``λ_{k+1} = o_k``; F's derivatives with respect to β, M, P b_a and q11 (through Q x_ref)
-    are sums over k, and λ_{k_z} is its derivative with respect to s_{k_z}. ``om`` is ρ over
-    the observed steps (ρ_k = 0 in the preview).
+    For k < k_z, ``f_k = βᵀ w_k`` (β = b_c / S), ``w_k = s_{k+1} - P b_a a_k``,
+    ``s_k = Q x_ref_k + Mᵀ w_k``. λ_k = ∂F/∂s_k runs forward from λ_0 = 0,
+    ``λ_{k+1} = ρ_k β + M λ_k`` (ρ = ``om``, 0 in the preview); the derivatives in β, M, P b_a and
+    q11 are sums over k, and λ_{k_z} is that in s_{k_z}.
     """
     M = frozen[0]
     iS = 1.0 / S

@@ -1,24 +1,9 @@
 """The ``delayed`` human as a generative closed loop: exact draws, and the affine map the dense reference uses.
 
-:func:`closed_loop` runs the model of :mod:`scioc.models.delayed.likelihood` forward, literally:
-at step k the human takes the state it saw d samples ago, z_{k-d} (angle, velocity and
-arm torque), runs its internal model Ā forward with its own past commands and the known
-input (the assistant's feedforward with its law, or the recorded u_A), and commands
-``c_k = -L_k ẑ_k + f_k + ε_k``; the motor noise m_k joins the command
-(``c̃_k = c_k + m_k``), the arm torque lags it, the wheel moves with the ZOH-equivalent
-torque ``u_H,k = α τ_k + (1 - α) c̃_k`` plus the assistant's torque (its law on the true
-state, or the given sequence). Nothing here uses the MA coefficients or the
-innovations of the likelihood.
-
-Before the window (k < d) the state seen, z_{k-d}, lies before z_0. The true
-dynamics from it to z_0 differ from the human's prediction only by the motor noises
-m_{k-d}..m_{-1}, so the human's view of z_0 is ``z_0 - sum_{i=1..d-k} Ā^{i-1} b_c m_{-i}``,
-run forward from there with its commands since t_0. The pre-window noises are drawn
-from their prior, independent of z_0: the conditioning the likelihood states.
-
-The loop is affine in the noises (ε_0..ε_{K-1}, m_{-d}..m_{K-1}): with every offset
-zero (initial state, feedforward, known input, reference) it is their linear map, which
-:func:`scioc.models.delayed.dense.loglik_dense` evaluates on unit impulses.
+:func:`closed_loop` runs the model of :mod:`.likelihood` forward, literally, without its MA
+coefficients: the human predicts z_k from z_{k-d} with Ā and its own commands. For k < d its
+view of z_0 is ``z_0 - sum_{i=1..d-k} Ā^{i-1} b_c m_{-i}``, the pre-window noises drawn from
+their prior, independent of z_0: the likelihood's conditioning.
 """
 
 from __future__ import annotations
@@ -40,47 +25,14 @@ from scioc.models.segment import Feedback, Segment
 
 @njit(cache=True, fastmath=False, error_model="python")
 def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps, m, d, At, bt, physical):
-    """Run the closed loop for every column of the noises.
+    """Run the closed loop for every column N of the noises; return z (K + 1, 3, N), u_H and u_A (K, N).
 
-    Parameters
-    ----------
-    Aw, bw : ndarray, shapes (2, 2), (2,)
-        The wheel.
-    a, al : float
-        The lag's pole and mixing (:func:`scioc.models.delayed.lag.lag_coefficients`).
-    Ab, bc, ba : ndarray, shapes (3, 3), (3,), (3,)
-        The planning plant (:func:`scioc.models.delayed.lag.lagged_planning_plant`).
-    gain : ndarray, shape (2,)
-        The assistant's state feedback (used if ``feedback``).
-    feedback : bool
-        The assistant is ``u_A,k = -gain x_k + known_k`` on the true state; otherwise
-        ``u_A,k = known_k``, a given sequence.
-    known : ndarray, shape (>= K,)
-        The human's known input: feedforward or recorded u_A, N·m.
-    L, f : ndarray, shapes (>= K, 3), (>= K,)
-        The policy over the plan (its first K steps are used).
-    z0 : ndarray, shape (3,)
-        Initial angle, velocity, arm torque.
-    eps : ndarray, shape (K, N)
-        Max-ent deviations ε_k, N·m.
-    m : ndarray, shape (K + d, N)
-        Motor noise m_{-d}..m_{K-1}, N·m.
-    d : int
-        Delay, samples.
-    At, bt : ndarray, shapes (3, 3), (3,)
-        The physically lagged wheel (:func:`scioc.models.plant.discretize_lagged`: A and b_c),
-        used if ``physical``.
-    physical : bool
-        The true state moves on the physically lagged wheel (the arm torque acts
-        continuously within the sample) and u_H is its ZOH-equivalent torque, read off
-        the velocity row; otherwise it moves with u_H = α τ + (1 - α) c̃ held over the
-        sample (the likelihood's convention).
-
-    Returns
-    -------
-    z : ndarray, shape (K + 1, 3, N)
-    u_H : ndarray, shape (K, N)
-    u_A : ndarray, shape (K, N)
+    ``Aw``, ``bw``: the wheel; ``a``, ``al``: the lag; ``Ab``, ``bc``, ``ba``: the planning plant;
+    ``u_A,k = -gain x_k + known_k`` on the true state if ``feedback``, else ``known_k``; ``known``
+    (>= K,) is the human's known input, N·m; ``L``, ``f``: the policy; ``z0`` (3,); ``eps`` (K, N):
+    ε_k; ``m`` (K + d, N): m_{-d}..m_{K-1}. With ``physical`` the truth moves on the physically
+    lagged wheel ``At``, ``bt`` (:func:`scioc.models.plant.discretize_lagged`) and u_H is its
+    ZOH-equivalent torque; otherwise u_H = α τ + (1 - α) c̃, held over the sample.
     """
     K, N = eps.shape
     z = np.empty((K + 1, 3, N))
@@ -134,8 +86,8 @@ def closed_loop(Aw, bw, a, al, Ab, bc, ba, gain, feedback, known, L, f, z0, eps,
     return z, uH, uA
 
 
-#: The physically lagged wheel by (τ_nm, dt, params), kept: a matrix exponential costs about as much as a
-#: window's angle likelihood (:mod:`scioc.models.delayed.angles`), and a search moves τ_nm in one of five coordinates.
+#: The physically lagged wheel, cached: a matrix exponential per call would cost as much as a
+#: window's angle likelihood.
 _lagged_wheel = lru_cache(maxsize=64)(discretize_lagged)
 
 
@@ -161,11 +113,9 @@ def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback:
                   physical: bool = False) -> DelayedSetup:
     """The lag, the planning plant, the assistant and the policy (command cost θ) of one window.
 
-    ``angle_ref`` has K + M + 1 entries; ``u_A`` (given sequence) or ``feedback`` (the law,
-    its feedforward over K + M steps) describes the assistant; neither is manual control.
-    ``physical``: the true state moves on the physically lagged wheel (:func:`closed_loop`),
-    and the human plans and predicts with it; the same as the likelihood's convention when
-    τ_nm = 0.
+    ``angle_ref`` has K + M + 1 entries; the assistant is ``u_A`` (a given sequence) or
+    ``feedback`` (its law and feedforward), neither for manual control. ``physical``
+    (τ_nm > 0): the human plans and predicts on the physically lagged wheel it moves.
     """
     q11, q22, R = validate_theta(theta)
     check_wheel(plant, params)
@@ -188,8 +138,6 @@ def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback:
     pp = lagged_planning_plant(plant, lag.a, lag.alpha, gain)
     physical = bool(physical) and float(tau_nm) > 0.0
     if physical:
-        # A physical arm: the wheel moves on the physically lagged plant, and the human plans and
-        # predicts with that plant (as models.humans' humans do).
         lp = _lagged_wheel(float(tau_nm), float(plant.dt), params)
         true_A, true_b = lp.A.copy(), lp.b_c.copy()
         pp = pp._replace(A=true_A - np.outer(pp.b_a, np.append(gain, 0.0)), b_c=true_b)
@@ -203,21 +151,10 @@ def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback:
 
 
 class DelayedDraw(NamedTuple):
-    """Draws of the ``delayed`` human; a trailing axis of length ``size`` if one was asked for.
+    """Draws: ``x`` (K + 1, 2) rad, rad/s; ``u_H``, ``u_A`` (K,) N·m; arm torque ``tau`` (K + 1,); ``segments``.
 
-    Attributes
-    ----------
-    x : ndarray, shape (K + 1, 2[, size])
-        Angle (rad) and velocity (rad/s).
-    u_H : ndarray, shape (K[, size])
-        Observed (ZOH-equivalent) human torque, N·m.
-    u_A : ndarray, shape (K[, size])
-        Assistant torque, N·m.
-    tau : ndarray, shape (K + 1[, size])
-        Arm torque, N·m.
-    segments : list of Segment
-        Each draw as a window for :func:`scioc.models.segment.prepare_batch` (the plan's
-        reference and known input included).
+    A trailing axis of length ``size`` if one was asked for; ``segments`` are the draws as
+    windows for :func:`scioc.models.segment.prepare_batch`.
     """
 
     x: np.ndarray
@@ -233,42 +170,14 @@ def sample_delayed(theta, x0, angle_ref, plant: DiscretePlant, rng: np.random.Ge
                    params: WheelParameters = WheelParameters(), physical: bool = True) -> DelayedDraw:
     """Draw (x, u_H, u_A) from the ``delayed`` human in closed loop, exactly.
 
-    Parameters
-    ----------
-    theta : array_like, shape (3,)
-        Command cost [q11, q22, R].
-    x0 : array_like, shape (2,)
-        Initial angle (rad) and velocity (rad/s).
-    angle_ref : array_like, shape (K + M + 1,)
-        Reference over the plan, rad.
-    plant : DiscretePlant
-    rng : numpy.random.Generator
-        Draws ε (shape (K, size), scaled by 1/sqrt(2 S_k)) first, then the motor noise
-        m_{-d}..m_{K-1} (shape (K + d, size), scaled by σ_m).
-    u_A : array_like, shape (K + M,), optional
-        A given assistant torque sequence (the human knows it).
-    feedback : Feedback, optional
-        The assistant's law, acting on the true state; the human plans with it.
-    tau_nm, sigma_m, delay, tau0 : float, float, int, float
-        Lag time constant (s), motor-noise SD (N·m per sample), delay (samples), arm
-        torque at the start (N·m).
-    n_obs : int, optional
-        Steps to simulate, K (default: the whole plan, K + M).
-    size : int, optional
-        Number of independent draws (a trailing axis); None for one draw without it.
-    params : WheelParameters
-    physical : bool
-        The wheel feels the arm torque continuously within each sample (the physically
-        lagged wheel, :func:`scioc.models.plant.discretize_lagged`; default), as a real arm
-        does, and the human plans and predicts on that wheel; the recorded u_H is its
-        ZOH-equivalent torque. ``False``: the state moves
-        with that torque held over the sample, the convention in which
-        :mod:`scioc.models.delayed.likelihood` is exact; the two differ in the angle by about
-        1e-5 rad per step (:mod:`scioc.models.humans`).
-
-    Returns
-    -------
-    DelayedDraw
+    ``theta`` [q11, q22, R]; ``x0`` (2,) initial angle (rad) and velocity (rad/s); ``angle_ref``
+    (K + M + 1,) rad. The assistant is ``u_A`` (K + M,), a torque sequence the human knows, or
+    ``feedback``, its law on the true state. ``tau_nm`` (s), ``sigma_m`` (N·m per sample),
+    ``delay`` (samples), ``tau0`` (N·m): lag, motor noise, delay, initial arm torque. ``n_obs``:
+    steps simulated (default K + M); ``size``: draws along a trailing axis (None: one, no axis).
+    ``rng`` draws ε (K, size), then m_{-d}..m_{K-1} (K + d, size). ``physical``: the wheel feels
+    the arm torque within each sample, as with a real arm (default); ``False``: the torque held
+    over the sample, the likelihood's convention. Returns a :class:`DelayedDraw`.
     """
     setup = delayed_setup(theta, angle_ref, plant, u_A=u_A, feedback=feedback, tau_nm=tau_nm, params=params,
                           physical=physical)
@@ -298,12 +207,8 @@ def forward_delayed(theta, x0, angle_ref, plant: DiscretePlant, *, u_A=None, fee
                     params: WheelParameters = WheelParameters(), physical: bool = True) -> Demonstration:
     """The ``delayed`` human's mean behaviour for θ: its closed loop with every noise at zero.
 
-    The counterpart of :func:`scioc.models.maxent.forward_optimal_control` (the dashed trajectories
-    of Fig. 6) for this model: the loop is affine in its noises, so the noise-free run is
-    the mean of :func:`sample_delayed`'s draws. Without motor noise the human's prediction
-    is exact, so the delay does not enter; the lag does (the arm torque starts at ``tau0``).
-    Arguments as :func:`sample_delayed`'s; ``u_H`` is the observed (ZOH-equivalent) torque.
-    """
+    The counterpart of :func:`scioc.models.maxent.forward_optimal_control` (Fig. 6's dashed trajectories);
+    without motor noise the delay does not enter. Arguments as :func:`sample_delayed`'s."""
     setup = delayed_setup(theta, angle_ref, plant, u_A=u_A, feedback=feedback, tau_nm=tau_nm, params=params,
                           physical=physical)
     n_plan = setup.known.shape[0]

@@ -1,8 +1,7 @@
-"""One step of the Schur algorithm on a banded Toeplitz matrix's generator, and its reverse mode (numba).
+"""One Schur step on a banded Toeplitz matrix's generator, and its reverse mode (numba).
 
-Used by :func:`scioc.models.delayed.innovations.banded_loglik` (whose docstring derives the algorithm): the generator
-(x, y) of a Schur complement, rows ``XY[k, 0]`` and ``XY[k, 1]`` of length d + 1, passes to the next by the
-hyperbolic rotation that zeroes y's leading entry; ``XY[k, 2:4]`` hold their adjoints.
+For :func:`.innovations.banded_loglik`, which derives the algorithm: ``XY[k, 0:2]`` hold the
+generator (x, y) of a Schur complement (length d + 1), ``XY[k, 2:4]`` their adjoints.
 """
 
 from __future__ import annotations
@@ -13,7 +12,7 @@ import numpy as np
 
 from scioc.models.runtime import FASTMATH, njit
 
-#: Unsigned index type of the delayed kernels' inner loops (:mod:`scioc.models.delayed.innovations` says why).
+#: Unsigned index type of the kernels' inner loops: no wraparound checks, so LLVM vectorizes them.
 U = np.uint64
 
 
@@ -41,11 +40,10 @@ def schur_step(XY, k, d):
 
 @njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def schur_step_adjoint(XY, k, d):
-    """Reverse of :func:`schur_step`: the adjoints XY[k - 1, 2:4] of (x, y) at k - 1, overwritten,
-    from those of step k.
+    """Reverse of :func:`schur_step`: the adjoints XY[k - 1, 2:4] from those of step k (overwritten).
 
     Forward, with ỹ_j = y_{j+1} (ỹ_d = 0), ρ = ỹ_0 / x_0, c = sqrt(1 - ρ²):
-    ``x'_j = (x_j - ρ ỹ_j) / c`` and ``y'_j = c ỹ_j - ρ x'_j`` (j >= 1; y'_0 = 0 is a constant).
+    ``x'_j = (x_j - ρ ỹ_j) / c``, ``y'_j = c ỹ_j - ρ x'_j`` (j >= 1; y'_0 = 0).
     """
     a = U(k - 1)
     b = U(k)

@@ -1,18 +1,9 @@
-"""The search at one delay of :mod:`scioc.models.delayed.identify`: log-likelihood in z, bounds, L-BFGS-B, information.
+"""The search at one delay of :mod:`.identify`: log-likelihood in z, bounds, L-BFGS-B, information.
 
-A unit's parameters at delay d, in the optimizer's coordinates::
-
-    z = (log θ1 in LOG_THETA1_RANGE, θ2 >= 0, w = R_0 / R in [1/R_SPAN, R_SPAN], τ_nm in [0, TAU_NM_MAX],
-         σ_m >= 0)
-
-with R_0 the max-ent estimate's R (:mod:`scioc.models.delayed.identify` says why w and not
-log R). σ_m is held at 0 for d = 0. The objective handed to L-BFGS-B is minus the
-log-likelihood per torque sample, with τ_nm and σ_m in the units of :data:`Z_SCALE`.
-
-A unit is its torques (:func:`scioc.models.delayed.likelihood.loglik_grad`, exact gradient) or,
-for angle-only recordings, its encoder angles (:func:`scioc.models.delayed.angles.window_loglik`;
-``SearchUnit.angles``), whose gradient in z is taken by central differences
-(:func:`_angle_loglik_grad_z`).
+z = (log θ1, θ2, w = R_0 / R, τ_nm, σ_m) within :func:`limits`, R_0 the max-ent estimate's R.
+L-BFGS-B minimizes minus the log-likelihood per scored sample, in the units of :data:`Z_SCALE`,
+with the exact gradient of :func:`.likelihood.loglik_grad`, or with central differences of
+:func:`.angles.window_loglik` for angle-only units. See docs/decisions/delayed-profile-search.md.
 """
 
 from __future__ import annotations
@@ -30,37 +21,26 @@ from scioc.models.design import WheelParameters
 from scioc.models.identify import BOUND_TOL, PLAUSIBLE_THETA1
 from scioc.models.plant import DiscretePlant
 
-#: Largest τ_nm searched, s (McRuer & Jex: about 0.1 s; 10 times that is no longer a neuromuscular lag).
+#: Largest τ_nm searched, s: ten times McRuer & Jex's neuromuscular lag of about 0.1 s.
 TAU_NM_MAX = 1.0
-#: Units of z's coordinates in the optimizer: τ_nm in 0.1 s, σ_m in 0.1 N·m, the others as they are.
+#: Units of z in the optimizer: τ_nm in 0.1 s, σ_m in 0.1 N·m, the others as they are.
 Z_SCALE = np.array([1.0, 1.0, 1.0, 0.1, 0.1])
 #: τ_nm (s) or σ_m (N·m) below this counts as on its bound 0.
 LAG_NOISE_TOL = 1e-6
-#: R is searched within this factor of the max-ent estimate's R (1/R_SPAN <= w <= R_SPAN). Up: the
-#: policy noise then has 1/1000 of the SD it has in the max-ent fit, a bound like θ2 = 0. Down:
-#: only against overflow.
+#: R is searched within this factor of R_0; at R = R_SPAN R_0 the policy noise is negligible.
 R_SPAN = 1e6
-#: log θ1 is searched within a decade beyond :data:`scioc.models.identify.PLAUSIBLE_THETA1` (an estimate
-#: outside that is flagged implausible anyway); without a bound a likelihood that rises without
-#: end, as on a torque smoother than any lag explains, drives θ1 to overflow.
+#: log θ1 is searched within a decade beyond :data:`scioc.models.identify.PLAUSIBLE_THETA1`: a likelihood
+#: rising without end (a torque smoother than any lag explains) would drive θ1 to overflow.
 LOG_THETA1_RANGE = (float(np.log(PLAUSIBLE_THETA1[0] / 10.0)), float(np.log(PLAUSIBLE_THETA1[1] * 10.0)))
-#: A search counts as converged where the largest projected gradient component in the
-#: optimizer's units, per torque sample, is at most this (L-BFGS-B's line search can stop
-#: on rounding just short of its own tolerance).
+#: Converged: the largest projected gradient component per sample, in the optimizer's units, is below this.
 CONVERGED_GTOL = 1e-6
 #: σ_m (N·m) at which a search that ended at σ_m = 0 checks the slope (:func:`maximize`).
 SADDLE_PROBE = 1e-3
 
 
 class SearchUnit(NamedTuple):
-    """One unit's data and the search's fixed settings.
-
-    ``warmups`` per batch, one :class:`scioc.models.delayed.lag.Warmup` or None per row; ``K`` the
-    torque samples of all rows (the scored angle samples with ``angles``); ``R0`` the max-ent
-    estimate's R (the scale of w). ``angles``: the unit's windows as
-    :class:`scioc.models.delayed.angles.AngleWindow`; the likelihood is then that of the angles
-    (encoder noise SD ``sigma_y``, rad) and ``batches`` only gave R0.
-    """
+    """One unit's data: per batch one :class:`.lag.Warmup` or None per row; ``K`` scored samples; ``R0``, w's
+    scale. With ``angles`` (noise SD ``sigma_y``, rad) the angles' likelihood replaces the torques'."""
 
     batches: list
     warmups: list
@@ -84,16 +64,14 @@ def _angle_loglik_z(z, d: int, unit: SearchUnit) -> float:
                for w in unit.angles)
 
 
-#: Smallest |z| the finite-difference steps in z scale with (:func:`observed_information`, :func:`_angle_loglik_grad_z`).
+#: Smallest |z| the finite-difference steps in z scale with.
 STEP_FLOOR = np.array([1.0, 1e-3, 1.0, 1e-2 * Z_SCALE[3], 1e-2 * Z_SCALE[4]])
-#: Relative step of the angle likelihood's central differences in z (above :data:`STEP_FLOOR`);
-#: the truncation error is O(h²) and the rounding O(eps / h) relative: both about 1e-10.
+#: Relative step of the angle likelihood's central differences (truncation and rounding both near 1e-10).
 ANGLE_FD_STEP = 1e-5
 
 
 def _angle_loglik_grad_z(z, d: int, unit: SearchUnit):
-    """The angle likelihood in z and its gradient by central differences (one-sided, second order, at a lower
-    bound; a coordinate held at 0, σ_m at d = 0, gets 0)."""
+    """The angle likelihood in z and its central-difference gradient (one-sided at a lower bound, 0 if held)."""
     lo, hi = limits(d)
     ll = _angle_loglik_z(z, d, unit)
     g = np.zeros(5)
@@ -179,8 +157,6 @@ def _lbfgsb(z0, d: int, unit: SearchUnit, maxiter: int) -> SearchResult:
     res = minimize(fun, z0 / Z_SCALE, jac=True, method="L-BFGS-B", bounds=bounds,
                    options={"maxiter": maxiter, "ftol": 1e-13, "gtol": 1e-8})
     z = np.array(res.x, dtype=float) * Z_SCALE
-    # Converged: the optimizer says so, or it stopped (a line search that cannot improve on
-    # rounding) where the projected gradient per sample is below CONVERGED_GTOL.
     g = -np.asarray(res.jac) / Z_SCALE * unit.K
     kkt = np.max(np.abs(projected(g, z, d) * Z_SCALE)) / unit.K <= CONVERGED_GTOL
     return SearchResult(z, -float(res.fun) * unit.K, bool(res.success) or bool(kkt), int(res.nit), str(res.message))
@@ -189,9 +165,8 @@ def _lbfgsb(z0, d: int, unit: SearchUnit, maxiter: int) -> SearchResult:
 def maximize(z0, d: int, unit: SearchUnit, maxiter: int) -> SearchResult:
     """The profile's inner maximization at delay d from z0 (unscaled).
 
-    σ_m = 0 is a stationary point at every d (the likelihood depends on σ_m²); if the
-    search ends there although the likelihood rises with σ_m² (the derivative at
-    σ_m = :data:`SADDLE_PROBE`, divided by 2σ_m, is positive), it is restarted from that σ_m.
+    σ_m = 0 is stationary at every d; a search ending there while the likelihood rises at
+    σ_m = :data:`SADDLE_PROBE` restarts from it.
     """
     z0 = np.array(z0, dtype=float)
     if d == 0:

@@ -31,11 +31,9 @@ def timeit(fn: Callable[[], object], *, min_time: float = 0.3, max_repeat: int =
 
 
 def default_study_segments(n_subjects: int = 42, seed: int = 2018, window_seconds: float = WINDOW_SECONDS) -> dict:
-    """The default simulated study's analysis windows, reconstructed from the angle as ``scioc run`` does.
+    """The default simulated study's windows (``window_seconds`` long), reconstructed as ``scioc run`` does.
 
-    ``window_seconds`` shortens the window (from its usual start) for studies with less
-    data per unit. Returns a dict with the prepared segments for preview 0 s and 2 s, the
-    true θ per segment (3, n) and the reconstruction time.
+    Returns the prepared segments for preview 0 s and 2 s, the true θ (3, n) and the reconstruction times.
     """
     t, sim = simulate_study(n_subjects, np.random.default_rng(np.random.SeedSequence(seed)))
     study = validate_table(study_table(t, sim), "<default study>")

@@ -1,15 +1,9 @@
 """Benchmark of the ``delayed`` likelihood with gradient on the default study batch, beside the max-ent kernel.
 
-The batch is the default simulated study's analysis windows as ``scioc run`` prepares them
-(84 segments × K = 1500, the plan looking 2 s = 200 steps further), each with its true θ.
-Delay, lag and motor noise are those of the simulated ``combined`` human
-(:mod:`scioc.models.humans`: τ_nm = 0.06 s, σ_m = 0.25 N·m); the delay is varied. The cost of
-the kernel depends on them (the lengths of the transients), not on the data. All
-timings are measured in the same run; the max-ent kernel is timed on the same batch.
-
-:func:`bench_angles` times the likelihood of the same windows' encoder angles
-(:mod:`scioc.models.delayed.angles`, no gradient: identify takes it by central differences), one
-core, beside its dense reference on a shorter window.
+The batch is the default study's windows as ``scioc run`` prepares them, each at its true θ; lag and
+motor noise are the simulated humans' (:mod:`scioc.models.humans`), and the delay is varied, since the
+kernel's cost depends on them, not on the data. :func:`bench_angles` times the likelihood of the same
+windows' encoder angles (:mod:`scioc.models.delayed.angles`) on one core, beside its dense reference.
 """
 
 from __future__ import annotations
@@ -38,28 +32,12 @@ DELAYS = (0, 10, 30)
 
 def bench_delayed(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m: float = MOTOR_SD,
                   threads=None, preview: float = 2.0) -> dict:
-    """Time ``delayed`` log-likelihood + gradient of the study batch per delay and thread count.
+    """Time the ``delayed`` log-likelihood + gradient of the study batch per delay (samples) and thread count.
 
-    Parameters
-    ----------
-    study : dict
-        From :func:`scioc.pipelines.bench.common.default_study_segments`.
-    delays : sequence of int
-        Delays in samples.
-    tau_nm, sigma_m : float
-        Lag time constant (s) and motor-noise SD (N·m per sample).
-    threads : sequence of int, optional
-        Numba thread counts to time (default: 1 and all).
-    preview : float
-        Which of the study's preparations to use (2.0 s: scioc's default).
-
-    Returns
-    -------
-    dict
-        ``n``, ``K``, ``preview_steps``, ``maxent`` (timing dict of
-        :func:`scioc.pipelines.bench.common.timeit`) and ``rows``: one per (delay, threads)
-        with ``min_s``, ``median_s``, the ratio to the max-ent kernel and ``value_min_s``, the log-likelihood
-        alone (:func:`scioc.models.delayed.loglik`, without the gradient's reverse sweeps).
+    ``study`` from :func:`scioc.pipelines.bench.common.default_study_segments`; ``tau_nm`` (s), ``sigma_m``
+    (N·m per sample); ``threads`` default 1 and all. Returns ``n``, ``K``, ``preview_steps``, ``maxent``
+    (:func:`scioc.pipelines.bench.common.timeit`) and per (delay, threads) ``min_s``, ``median_s``, the
+    ratio to the max-ent kernel and ``value_min_s`` (the log-likelihood alone).
     """
     plant = discretize(DT_HUMAN)
     batch = prepare_batch(plant, [p.segment for p in study[preview]])
@@ -101,12 +79,8 @@ def format_delayed(res: dict) -> str:
 
 def bench_angles(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m: float = MOTOR_SD,
                  preview: float = 2.0, dense_K: int = 500) -> dict:
-    """Time the angle likelihood of every window of the study batch (one core) per delay, and its dense reference.
-
-    Returns ``n``, ``K``, ``rows`` (per delay: ``min_s`` and ``median_s`` for all windows) and
-    ``dense`` (per delay, the dense joint Gaussian of the first window cut to ``dense_K`` samples
-    against the filter on the same cut, s).
-    """
+    """Time the angle likelihood of every window (one core) per delay, and the dense joint Gaussian against the
+    filter on the first window cut to ``dense_K`` samples; times in s."""
     plant = discretize(DT_HUMAN)
     segs = study[preview]
     theta = study["theta"]

@@ -1,30 +1,16 @@
 """The speed goal of the ``delayed`` hierarchical fit, measured on the path a user runs (``scioc bench --parts fit_delayed``).
 
-Issue 13's goal: the full hierarchical fit of the ``delayed`` human on a default-size study
-(84 segments × 1500 samples, 4 chains × 1000 draws) in at most 15 minutes on this 2-core
-machine. :func:`bench_delayed_workflow` measures it as a user meets it, by the same
-functions and defaults as::
+:func:`bench_delayed_workflow` runs the functions of these commands, with their defaults, and times them::
 
     scioc simulate --experiment data/examples/paper-torque-sensor/experiment.toml --human H --out D
     scioc identify D/study.parquet --out D/identify_delayed --human-model delayed
     scioc fit D/study.parquet --out D/fit_delayed --human-model delayed \\
         --estimates D/identify_delayed/estimates.parquet
 
-that is, the paper's study with a torque sensor (the hierarchical delayed model is that of
-recorded torques), each subject's delay at its profile maximum, the chains started at the
-ML estimates and sampled on the subjects' whitened coordinates (:mod:`scioc.pipelines.fit.start`,
-:mod:`scioc.pipelines.fit.whiten`). The time judged is the fit's own (``posterior.json``,
-``seconds.total_s``: preparing, the start and whitening, compiling, sampling, the
-log-likelihood, predictive draws and the adequacy check at the posterior); the
-identification is reported beside it.
-
-Humans (:data:`scioc.models.humans.HUMANS`): ``maxent``, the paper's agent (the default study; its
-ML delays, lags and motor noise sit near 0), and ``kbl``, Kleinman-Baron-Levison's operator
-with delays of 10-20 samples, a neuromuscular lag and motor noise (the kernel's cost grows with
-the delay, :mod:`scioc.pipelines.bench.delayed`). ``scioc bench-fit --human-model delayed``
-(:mod:`scioc.pipelines.bench.fit_delayed`) is the other measurement: a study drawn from the delayed
-model itself with true delays, no ML start and so no whitening, for comparing
-parameterizations; its times are not the goal's.
+(the paper's study with a torque sensor, each subject's delay at its profile maximum, chains started at
+the ML estimates on whitened coordinates). The time judged is the fit's own ``seconds.total_s``.
+:data:`WORKFLOW_HUMANS`: ``maxent`` (the paper's agent) and ``kbl`` (Kleinman-Baron-Levison's operator,
+whose longer delays make the kernel dearer). :mod:`scioc.pipelines.bench.fit_delayed` measures another path.
 """
 
 from __future__ import annotations
@@ -43,7 +29,7 @@ from scioc.pipelines.io import load_study
 from scioc.pipelines.prepare import IdentifySettings, prepare_study
 from scioc.pipelines.simulate import simulate_to_dir
 
-#: The issue's goal for the full delayed fit (``scioc fit``'s ``seconds.total_s``), s.
+#: The goal for the full delayed fit (``scioc fit``'s ``seconds.total_s``), s.
 FIT_DELAYED_GOAL_S = 900.0
 #: The size the goal is for: the default study's segments, chains and draws per chain.
 FIT_DELAYED_GOAL_SIZE = {"segments": 84, "chains": 4, "draws": 1000}
@@ -66,23 +52,10 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
                            keep=None) -> dict:
     """Simulate, identify and fit the ``delayed`` human as ``scioc`` does (module docstring) and time it.
 
-    ``n_subjects`` (default the experiment's 42) and ``adequacy_boot`` (default the
-    experiment's) exist to test this function at small size; a smaller fit gets no verdict
-    on the goal (:func:`within_goal`). ``keep``: a folder (created; refused if it exists and is
-    not empty) that keeps the study (``data/``), the estimates (``identify_delayed/``) and the
-    fit (``fit_delayed/``) for a closer look, e.g. ``scioc human-models`` against a max-ent fit;
-    by default they are written to a temporary folder and removed.
-
-    Returns
-    -------
-    dict
-        ``settings``; ``seconds``: ``identify`` (``scioc identify --human-model delayed``),
-        ``fit`` (the fit's ``seconds.total_s``), ``sample`` (nutpie's sampling of the
-        condition model); ``sampler``: leapfrog steps per warm-up and kept draw (and per
-        tenth of the warm-up), divergences, gradients and milliseconds per gradient on a core
-        (sampling time × cores used / gradients); ``convergence_verdict`` and ``worst``
-        (population parameters); ``adequacy`` (verdict, segments flagged); ``truth``: β and
-        the units' τ_nm and σ_m against the simulated truth; ``goal_s`` and ``within_goal``.
+    ``n_subjects`` and ``adequacy_boot`` shrink it for tests (no verdict on the goal, :func:`within_goal`).
+    ``keep``: a new folder that keeps ``data/``, ``identify_delayed/`` and ``fit_delayed/`` (default: a
+    temporary one). Returns :func:`summarize`'s dict: settings, seconds (identify, fit, sample), the
+    sampler's steps and gradients, convergence, adequacy, recovery of the truth and the goal's verdict.
     """
     design = load_experiment(EXPERIMENT)
     settings = IdentifySettings.for_design(design, human_model="delayed")

@@ -1,9 +1,7 @@
 """Benchmark of the second built-in example (``data/examples/three-assistants``): identification and the full fit.
 
-The example differs from the paper's study in every respect (200 Hz, another wheel, a
-torque sensor, three levels with linear assistants, three trials per subject × level,
-16 subjects; README "Experiment file"). Both stages run as ``scioc identify`` and
-``scioc fit`` do, on the study ``scioc simulate --experiment`` writes with seed 2018.
+The example differs from the paper's study in every respect (rate, wheel, torque sensor, three levels
+with linear assistants, trials). Both stages run as ``scioc identify`` and ``scioc fit`` do.
 """
 
 from __future__ import annotations

@@ -1,16 +1,9 @@
 """Measured cost of the hierarchical fit of the default study, as ``scioc fit`` runs it.
 
-The default simulated study (42 subjects × MC and SC, the 15-s window, K = 1500, the plan
-looking 2 s further, u_H reconstructed from the encoder angle) is fitted with the
-condition model of :func:`scioc.models.bayes.hierarchical.build_model` through
-:func:`scioc.pipelines.fit.sampling.sample_model` (PyMC's nutpie sampler, 4 chains × 1000 draws after
-1000 tuning draws, chains in parallel on all cores). Reported: wall time of building,
-compiling and sampling; the sampler's diagnostics and verdict
-(:func:`scioc.pipelines.fit.diagnostics.diagnostics`), ESS per second for every population parameter; β
-against the simulator's population; and what the same fit would cost with the dense
-O(K³) likelihood: the number of logp-and-gradient evaluations the sampler made after
-tuning (tuning needs about as many again, uncounted: a lower bound) times the measured
-dense evaluation of all segments.
+The default study's condition model (:func:`scioc.models.bayes.hierarchical.build_model`) is sampled by
+:func:`scioc.pipelines.fit.sampling.sample_model` with chains in parallel on all cores. Reported: wall
+times, the sampler's diagnostics, ESS per second, β against the truth, and a lower bound on the same
+fit with the dense O(K³) likelihood: the gradient evaluations after tuning times a dense evaluation.
 """
 
 from __future__ import annotations
@@ -30,34 +23,18 @@ from scioc.pipelines.fit.contrasts import hdi
 from scioc.pipelines.fit.diagnostics import diagnostics
 from scioc.pipelines.fit.sampling import sample_model
 
-#: The issue's speed goal for the full fit (build, compile and sample), s.
+#: The speed goal for the full fit (build, compile and sample), s.
 FIT_GOAL_S = 180.0
 
 
 def bench_fit(study: dict, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int = 1000,
               dense_s_per_segment: float | None = None, linear_s_per_batch: float | None = None,
               parameterization=None) -> dict:
-    """Fit the default study once and time it.
+    """Fit the default study's 2-s-preview segments once and time it.
 
-    Parameters
-    ----------
-    study : dict
-        From :func:`scioc.pipelines.bench.common.default_study_segments` (its 2-s-preview segments are used).
-    seed, chains, draws, tune
-        As ``scioc fit``.
-    dense_s_per_segment : float, optional
-        Measured dense likelihood-and-gradient time of one K = 1500 segment, s.
-    linear_s_per_batch : float, optional
-        Measured linear-time likelihood-and-gradient time of the whole batch, s.
-    parameterization : models.bayes.hierarchical.Parameterization, optional
-        The model's default if None.
-
-    Returns
-    -------
-    dict
-        ``seconds`` (build, compile_and_sample, sample, total), ``diagnostics`` (see
-        :func:`scioc.pipelines.fit.diagnostics`), ``beta`` (mean, 94 % HDI, truth, inside),
-        ``grad_evals_after_tuning``, ``dense`` (projected time and ratio) and the goal check.
+    ``dense_s_per_segment`` and ``linear_s_per_batch``: likelihood-and-gradient times (s) of one dense
+    segment and of the linear-time batch, for the dense projection. Returns ``settings``, ``seconds``,
+    ``diagnostics``, ``beta`` (mean, 94 % HDI, truth), ``grad_evals_after_tuning``, ``dense`` and the goal.
     """
     form = parameterization or Parameterization()
     prepared = study[2.0]
@@ -126,13 +103,8 @@ def bench_parameterization(parameterization: Parameterization, *, study_seed: in
                            window_seconds: float = WINDOW_SECONDS, seed: int = 2018) -> dict:
     """One fit of the default simulated study in ``parameterization`` (``scioc bench-fit``).
 
-    What the parameterization table of :mod:`scioc.models.bayes.hierarchical` was measured with::
-
-        scioc bench-fit --study-seed 2018 --theta1-mc centred [--window-seconds 3]
-
-    ``study_seed`` seeds the simulated study, ``window_seconds`` shortens its analysis
-    window (less data per unit), ``seed`` seeds the sampler. Returns :func:`bench_fit`'s
-    result with the study's seed and window added to its settings.
+    ``study_seed`` seeds the study, ``window_seconds`` shortens its window, ``seed`` seeds the sampler;
+    returns :func:`bench_fit`'s result with the study's seed and window in its settings.
     """
     res = bench_fit(default_study_segments(seed=study_seed, window_seconds=window_seconds), seed=seed,
                     parameterization=parameterization)

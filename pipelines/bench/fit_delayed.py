@@ -1,24 +1,11 @@
 """Measured cost of the hierarchical ``delayed`` fit, and how sharply the data fix the delay.
 
-Two measurements (``scioc bench --parts fit_delayed``):
-
-* :func:`bench_delay_profile`: on windows drawn from the ``delayed`` model at default-like
-  settings (1500 samples, 2-s preview, delay 12 samples, τ_nm 0.06 s, σ_m 0.25 N·m, θ of
-  the default population; :func:`scioc.models.bayes.delayed_windows.delayed_windows`), the ML
-  profile log-likelihood over the delay grid of every unit
-  (:func:`scioc.models.delayed.identify.identify_unit_delayed`) and its drop one and two
-  samples from its maximum, per level: the measurement behind the plug-in delay of
-  :mod:`scioc.models.bayes.delayed_model`.
-* :func:`bench_fit_delayed`: the full hierarchical fit of a default-size study of the
-  ``delayed`` human (42 subjects × MC and SC, K = 1500, preview 200, each subject's delay,
-  lag and motor noise drawn as the ``kbl`` human's; true torques, delays at their true
-  values, τ_0 = 0 known), as :func:`scioc.pipelines.fit.sampling.sample_model` runs it (nutpie,
-  4 chains × 1000 draws after 1000 tuning draws, chains in parallel on all cores): wall
-  times, the sampler's diagnostics, recovery of τ_nm, σ_m and β (``scioc bench-fit
-  --human-model delayed``: how the tables of :mod:`scioc.models.bayes.delayed_blocks` compare
-  parameterizations). Without ML estimates it has no start near them and no whitening, the
-  default of ``scioc fit``, so its times are not the issue's goal (15 minutes), which
-  :mod:`scioc.pipelines.bench.delayed_workflow` measures on the path a user runs.
+* :func:`bench_delay_profile`: the drop of each unit's ML profile log-likelihood one and two samples
+  from its maximum (:func:`scioc.models.delayed.identify.identify_unit_delayed`) on windows drawn from
+  the ``delayed`` model, which backs the plug-in delay of :mod:`scioc.models.bayes.delayed_model`.
+* :func:`bench_fit_delayed` (``scioc bench-fit --human-model delayed``): the full fit of a default-size
+  study drawn from the ``delayed`` model at true delays, to compare parameterizations. It has no ML
+  start and no whitening, so its times are not the goal :mod:`scioc.pipelines.bench.delayed_workflow` judges.
 """
 
 from __future__ import annotations
@@ -55,13 +42,8 @@ def bench_delay_profile(n_subjects: int = 6, *, seed: int = 2018, delay: int = 1
                         sigma_m: float = 0.25) -> dict:
     """The ML profile over the delay of each unit of a small study drawn from the ``delayed`` model.
 
-    Returns
-    -------
-    dict
-        ``units``: per unit its level, the profile's argmax (samples), and the drops
-        ``profile[argmax ± j] - max`` for j = 1, 2 (nats, NaN off the grid) and at the
-        true delay; ``summary`` per level: median and range of each drop and of the
-        argmax's error; ``seconds``.
+    Per unit: its argmax (samples) and the drops ``profile[argmax ± j] - max``, j = 1, 2, and at the
+    truth (nats, NaN off the grid); per level, their medians and ranges and the argmax's errors.
     """
     plant = discretize(DT_HUMAN)
     w = delayed_windows(n_subjects, np.random.default_rng(seed), delay=(delay, delay), tau_nm=(tau_nm, tau_nm),
@@ -98,14 +80,8 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
                       nuts: dict | None = None, idata_path=None) -> dict:
     """Fit a default-size study of the ``delayed`` human once and time it (module docstring).
 
-    Returns
-    -------
-    dict
-        ``settings``, ``seconds`` (build, compile_and_sample, sample, fit), ``diagnostics``
-        (:func:`scioc.pipelines.fit.diagnostics.diagnostics` over the cost and the lag and
-        motor-noise population parameters), ``recovery`` (β, τ_nm, σ_m against the truth),
-        and ``grad_evals``. ``idata_path``: also write the posterior there.
-        ``nuts``: nutpie's options (default :data:`scioc.models.bayes.delayed_model.DELAYED_NUTS`).
+    Returns ``settings``, ``seconds``, ``diagnostics``, ``recovery`` (β, τ_nm, σ_m) and ``grad_evals``;
+    ``idata_path`` also keeps the posterior; ``nuts`` default :data:`scioc.models.bayes.delayed_model.DELAYED_NUTS`.
     """
     plant = discretize(DT_HUMAN)
     w = delayed_windows(n_subjects, np.random.default_rng(np.random.SeedSequence(seed)))

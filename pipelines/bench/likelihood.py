@@ -28,11 +28,7 @@ BENCH_THETA = (60.0, 0.0, 1.0)
 
 
 def synthetic_segments(n: int, K: int, seed: int = 0) -> list[Segment]:
-    """``n`` max-ent demonstrations of length K under :data:`BENCH_THETA`, half with a random u_A.
-
-    The reference is a sum of three sines (0.1-0.5 Hz, about ±0.5 rad); what matters for
-    speed is only K.
-    """
+    """``n`` max-ent demonstrations of length K under :data:`BENCH_THETA` (sines as reference), half with a u_A."""
     rng = np.random.default_rng(seed)
     plant = discretize(DT_HUMAN)
     t = np.arange(K + 1) * DT_HUMAN
@@ -49,16 +45,8 @@ def synthetic_segments(n: int, K: int, seed: int = 0) -> list[Segment]:
 
 
 def bench_likelihood(study: dict, *, dense_k=DENSE_K, long_k: int = LONG_K, seed: int = 0) -> dict:
-    """Time dense vs linear-time likelihood with gradient, the long run and the study batch.
-
-    ``study`` comes from :func:`scioc.pipelines.bench.common.default_study_segments`.
-
-    Returns
-    -------
-    dict
-        ``rows`` (one per K with dense and linear timings and their ratio), ``long``
-        and ``batch`` entries; times in seconds.
-    """
+    """Time dense vs linear-time likelihood with gradient per K (``rows``), a whole run (``long``) and the
+    study batch of :func:`scioc.pipelines.bench.common.default_study_segments`; times in s."""
     plant = discretize(DT_HUMAN)
     rows = []
     for K in dense_k:

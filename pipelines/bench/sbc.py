@@ -9,11 +9,8 @@ from scioc.pipelines.calibrate import CalibrationConfig, calibrate
 
 
 def bench_sbc(n_reps: int = 200, seed: int = 99) -> dict:
-    """Unit-level SBC throughput with one and with two local Dask workers.
-
-    Wall time includes starting the cluster and compiling the model once per worker (about
-    15 s), so ``n_reps`` is large enough for the fits to dominate.
-    """
+    """Unit-level SBC throughput with one and with two local Dask workers; ``n_reps`` is large enough for the
+    fits to outweigh starting the cluster and compiling once per worker."""
     out = {}
     for workers in (1, 2):
         cfg = CalibrationConfig(level="unit", replications=n_reps, seed=seed, batch_size=5)

@@ -1,9 +1,4 @@
-"""``scioc bench``: measured speed of the likelihood kernels, the identification, the full fit and SBC.
-
-All ratios are measured in the same run on the same machine (:mod:`scioc.pipelines.bench.likelihood`,
-:mod:`scioc.pipelines.bench.identify`, :mod:`scioc.pipelines.bench.fit`, :mod:`scioc.pipelines.bench.sbc`), and the
-second built-in example's identification and fit (:mod:`scioc.pipelines.bench.example`).
-"""
+"""``scioc bench``: the parts of :mod:`scioc.pipelines.bench` in order; all ratios are measured in the same run."""
 
 from __future__ import annotations
 
@@ -22,25 +17,15 @@ PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "sbc", "exam
 def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, keep=None) -> dict:
     """Run the benchmarks; print tables; optionally write JSON (atomically).
 
-    Parameters
-    ----------
-    json_path : str or Path, optional
-    quick : bool
-        Smaller sizes (for tests of the command itself; not for quoting). Leaves out the
-        fits and SBC, which have no small version worth timing.
-    parts : sequence of str
-        Any of :data:`PARTS`. The fit's dense comparison needs the likelihood part.
-    humans : sequence of str, optional
-        The simulated humans of the ``fit_delayed`` part's fits as ``scioc fit`` runs them
-        (default :data:`scioc.pipelines.bench.delayed_workflow.WORKFLOW_HUMANS`; each fit takes
-        15-35 minutes at full size).
-    keep : str or Path, optional
-        Keep each of those fits' study, estimates and fit in ``keep/<human>/`` (default: removed).
+    ``quick``: small sizes to test the command, without the fits and SBC. ``parts``: any of :data:`PARTS`
+    (the fit's dense comparison needs ``likelihood``). ``humans``: the ``fit_delayed`` part's simulated
+    humans (default :data:`scioc.pipelines.bench.delayed_workflow.WORKFLOW_HUMANS`), whose study,
+    estimates and fit ``keep`` keeps in ``keep/<human>/``.
     """
     unknown = set(parts) - set(PARTS)
     if unknown:
         raise ValueError(f"unknown benchmark part(s) {sorted(unknown)}; choose from {', '.join(PARTS)}")
-    if keep is not None and "fit_delayed" in parts:  # refused now, not after an hour of the parts before
+    if keep is not None and "fit_delayed" in parts:  # refused before the long parts run
         from scioc.pipelines.bench.delayed_workflow import WORKFLOW_HUMANS, refuse_used_folder
 
         for human in WORKFLOW_HUMANS if humans is None else humans:

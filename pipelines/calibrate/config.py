@@ -22,50 +22,22 @@ DELAYED_GENERATOR = ("3: the likelihood's held-torque convention; the delay samp
 
 @dataclass(frozen=True)
 class CalibrationConfig:
-    """What to calibrate and how.
+    """What to calibrate and how (``chains``, ``tune``, ``draws``: the sampler's settings per fit)."""
 
-    Attributes
-    ----------
-    level : {"unit", "study"}
-    replications : int
-    seed : int
-    L : int
-        Posterior draws per rank after thinning (ranks take L + 1 values).
-    chains, tune, draws : int
-        Sampler settings per fit.
-    K : int
-        Samples per segment (window length × the experiment's rate).
-    n_subjects : int
-        Subjects per simulated study (study level only).
-    negative_control : str or None
-        ``None`` for the correct model; ``"inertia"`` fits with the wheel inertia 10 %
-        too high; ``"ignore-uA"`` fits a likelihood that attributes the assistant's
-        torque to the human.
-    batch_size : int
-        Replications per Dask task.
-    experiment : dict or None
-        The experiment calibrated, in the resolved form of :func:`scioc.pipelines.experiment.resolved`
-        (its rate, wheel, levels and assistants, window); None for the paper's study.
-    human_model : {"maxent", "delayed"}
-        The human model simulated and fitted (``delayed``: unit level only,
-        :mod:`scioc.pipelines.calibrate.unit_delayed`; its negative control ``no-delay`` fits
-        with the delay fixed at 0 instead of the profile's).
-    """
-
-    level: str = "unit"
+    level: str = "unit"  # or "study"
     replications: int = 1000
     seed: int = 2018
-    L: int = 99
+    L: int = 99  # posterior draws per rank after thinning (ranks take L + 1 values)
     chains: int = 2
     tune: int = 500
     draws: int = 500
-    K: int = 1500
-    n_subjects: int = 8
-    negative_control: str | None = None
-    batch_size: int = 10
+    K: int = 1500  # samples per segment (window length × the experiment's rate)
+    n_subjects: int = 8  # subjects per simulated study (study level only)
+    negative_control: str | None = None  # None: the correct model; else one of NEGATIVE_CONTROLS[human_model]
+    batch_size: int = 10  # replications per Dask task
     extra: dict = field(default_factory=dict)
-    experiment: dict | None = None
-    human_model: str = "maxent"
+    experiment: dict | None = None  # pipelines.experiment.resolved form; None: the paper's study
+    human_model: str = "maxent"  # or "delayed" (unit level only: pipelines.calibrate.unit_delayed)
 
     def __post_init__(self):
         if self.level not in ("unit", "study"):
@@ -88,32 +60,27 @@ class CalibrationConfig:
             raise ValueError(f"chains × draws = {self.chains * self.draws} cannot give L = {self.L} draws")
 
     def fingerprint(self) -> str:
-        """Hash of everything that changes a replication's result.
-
-        Not ``batch_size`` (how work is grouped) nor ``replications`` (replication i is the
-        same in a run of 100 or of 1000, so a run can be extended).
-        """
+        """Hash of everything that changes a replication's result: not ``batch_size`` nor ``replications``
+        (replication i is the same in a run of 100 or of 1000, so a run can be extended)."""
         d = asdict(self)
         d.pop("batch_size")
         d.pop("replications")
         if d["experiment"] is None:
-            d.pop("experiment")  # the paper's study: the fingerprints of earlier runs stay valid
+            d.pop("experiment")  # a default is left out, so stored runs of the paper's study keep resuming
         if d["human_model"] == "maxent":
             d.pop("human_model")  # likewise for the paper's human model
-        d["generator"] = GENERATOR  # results of an older simulator must not be resumed
+        d["generator"] = GENERATOR  # a changed simulator invalidates stored replications
         if d.get("human_model") == "delayed":
             d["delayed_generator"] = DELAYED_GENERATOR
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 #: The human models a calibration can simulate and fit (:data:`scioc.pipelines.prepare.HUMAN_MODELS`).
 HUMAN_MODELS = ("maxent", "delayed")
-#: The negative controls each human model can run.
+#: Negative controls (same data, a wrong fit): ``inertia`` fits a wheel 10 % too heavy, ``ignore-uA`` gives the
+#: assistant's torque to the human, ``no-delay`` fixes the delayed human's delay at 0.
 NEGATIVE_CONTROLS = {"maxent": ("inertia", "ignore-uA"), "delayed": ("no-delay", "inertia")}
 
-#: Default designs. The study level is reduced (documented in the README): 6 subjects,
-#: 2-s windows, 2 chains × 200 draws ranked against L = 39, so that 200 replications fit
-#: in well under an hour on two cores; σ_β mixes slowest (about 0.15 effective draws per
-#: draw), hence the smaller L.
+#: Default sizes per level; the study level is reduced (docs/decisions/sbc-study-level-size.md).
 DEFAULTS = {
     "unit": {"replications": 1000, "K": 1500, "chains": 2, "tune": 500, "draws": 500, "batch_size": 10, "L": 99},
     "study": {"replications": 200, "K": 200, "n_subjects": 6, "chains": 2, "tune": 300, "draws": 200, "batch_size": 3,
@@ -133,30 +100,14 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
                   human_model: str = "maxent") -> list[tuple[str, CalibrationConfig]]:
     """The calibration of one level and, unless ``negative_control == "none"``, its negative control.
 
-    Parameters
-    ----------
-    level : {"unit", "study"}
-    seed : int
-    replications, batch_size, n_subjects : int, optional
-        Override the level's :data:`DEFAULTS`.
-    seconds : float, optional
-        Window length, s (K = seconds / the experiment's sample time). Default: the
-        level's :data:`DEFAULTS` for the paper's study; the experiment's analysis window
-        (or its whole run) at the unit level of another experiment.
-    negative_control : {"inertia", "ignore-uA", "none"}, optional
-        Default :data:`NEGATIVE_DEFAULT` of the level.
-    design : Design, optional
-        The experiment to calibrate (``scioc calibrate --experiment``); None or the
-        paper's study gives the paper's configurations.
-    human_model : {"maxent", "delayed"}
-        ``delayed``: unit level only, default negative control ``no-delay``, folders
-        ``unit-delayed`` and ``unit-delayed-negative``.
+    ``replications``, ``batch_size`` and ``n_subjects`` override the level's :data:`DEFAULTS`.
+    ``seconds``: window length, s (default: :data:`DEFAULTS` for the paper's study, else the
+    experiment's analysis window or whole run at the unit level). ``negative_control``: one of
+    :data:`NEGATIVE_CONTROLS` or "none" (default :data:`NEGATIVE_DEFAULT`). ``design``: the
+    experiment (None: the paper's study). ``human_model="delayed"``: unit level only.
 
-    Returns
-    -------
-    list of (str, CalibrationConfig)
-        ``(level, correct)`` and ``(level + "-negative", wrong)``: the folder names under
-        the output folder and their validated configurations.
+    Returns the folder names and validated configurations: ``(stem, correct)`` and
+    ``(stem + "-negative", wrong)``, the stem being the level (``unit-delayed`` for the delayed human).
     """
     if level not in DEFAULTS:
         raise ValueError(f"level must be 'unit' or 'study'; got {level!r}")

@@ -1,22 +1,11 @@
 """``scioc calibrate``: simulation-based calibration run on a Dask cluster, resumable.
 
-Every replication i draws its own child seed ``SeedSequence(seed, spawn_key=(i,))``
-(the i-th child of ``SeedSequence(seed).spawn``), so its result depends on neither the
-worker nor the order it ran in. Replications are grouped into tasks of ``batch_size``
-so that one compiled model serves several fits (workers cache compiled models). Each
-finished replication is written at once to ``OUT/reps/rep_NNNNN.json`` (temporary file
-and rename) by the worker, and again by the client from the task's result if the
-worker's file system is not the client's; a rerun skips every replication whose file
-exists, so an interrupted run resumes and a worker that dies costs only the
-replications it had not finished.
-
-The statistics (ranks, PIT, uniformity tests, coverage, contraction) are computed from
-the replication files by :func:`scioc.pipelines.calibrate.summary.summarize`, in replication
-order; the files and their rules live in :mod:`scioc.pipelines.calibrate.store`.
-
-An existing scheduler is first asked who it is (:func:`check_scheduler`), under one hard
-deadline: distributed's connect timeout stops applying once TCP connects, so an address
-that accepts connections but is no scheduler would otherwise hang the client for good.
+Replication i draws the child seed ``SeedSequence(seed, spawn_key=(i,))``, so its result depends on
+neither the worker nor the order. Tasks group ``batch_size`` replications so that one compiled model
+serves several fits. The worker writes each finished replication at once (the client writes it again if
+their file systems differ); a rerun skips those already written (:mod:`scioc.pipelines.calibrate.store`),
+so a dead worker costs only its unfinished replications. An existing scheduler is first asked who it is
+under one hard deadline (:func:`check_scheduler`): distributed's connect timeout ends once TCP connects.
 """
 
 from __future__ import annotations
@@ -85,9 +74,8 @@ async def _identity(address: str, timeout: float):
 def check_scheduler(address: str, timeout: float) -> None:
     """Return within ``timeout`` s if ``address`` answers as a Dask scheduler, else raise OSError.
 
-    Connecting, distributed's handshake and the reply to an ``identity`` request share
-    one deadline, so a server that accepts and never answers (an HTTP server) or answers
-    garbage (which distributed reads as a frame of exabytes) fails quickly and clearly.
+    Connect, handshake and ``identity`` reply share one deadline, so a server that never answers or
+    answers garbage (read by distributed as a frame of exabytes) fails quickly and clearly.
     """
     try:
         reply = asyncio.run(asyncio.wait_for(_identity(address, timeout), timeout))
@@ -118,23 +106,9 @@ def calibrate(config: CalibrationConfig, out_dir, *, scheduler: str | None = Non
               show_progress: bool = True, timeout: float = 5.0) -> dict:
     """Run every missing replication on Dask and summarize all of them.
 
-    Parameters
-    ----------
-    config : CalibrationConfig
-    out_dir : str or Path
-    scheduler : str, optional
-        ``tcp://HOST:PORT`` of an existing scheduler; default an in-process local cluster.
-    n_workers : int
-        Workers of the local cluster (one thread each).
-    show_progress : bool
-    timeout : float
-        Seconds to wait for a scheduler before giving up with a clear error.
-
-    Returns
-    -------
-    dict
-        The summary (also written to ``OUT/summary.json``; every replication also goes
-        into ``OUT/sbc.nc``, :func:`scioc.pipelines.calibrate.summary.sbc_tree`).
+    ``scheduler``: ``tcp://HOST:PORT`` of an existing scheduler (waited for ``timeout`` s), else a local
+    cluster of ``n_workers`` single-threaded workers. Returns the summary, also written to
+    ``OUT/summary.json``; all replications go to ``OUT/sbc.nc`` (:func:`scioc.pipelines.calibrate.summary.sbc_tree`).
     """
     from dask.distributed import as_completed  # lazy: Dask takes seconds to import
 
@@ -174,12 +148,8 @@ def calibrate(config: CalibrationConfig, out_dir, *, scheduler: str | None = Non
 
 
 def calibrate_runs(runs, out, *, scheduler: str | None = None, n_workers: int = 2) -> list[dict]:
-    """``scioc calibrate``: several calibrations (a level and its negative control), each into ``out/NAME``.
-
-    ``runs`` is a list of (folder name, :class:`CalibrationConfig`), as
-    :func:`scioc.pipelines.calibrate.config.level_configs` gives. Every folder is checked
-    (:func:`scioc.pipelines.calibrate.store.earlier_summary`) before anything runs.
-    """
+    """``scioc calibrate``: each (name, config) of ``runs`` (:func:`scioc.pipelines.calibrate.config.level_configs`)
+    into ``out/NAME``; every folder is checked before anything runs."""
     for name, cfg in runs:
         earlier_summary(cfg, Path(out) / name)
     return [calibrate(cfg, Path(out) / name, scheduler=scheduler, n_workers=n_workers) for name, cfg in runs]

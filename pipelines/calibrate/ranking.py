@@ -1,19 +1,11 @@
 """The one SBC replication loop after the data: sample, thin, rank, randomize the PIT, keep the thinned draws.
 
-Both levels (:mod:`scioc.pipelines.calibrate.unit`, :mod:`scioc.pipelines.calibrate.study`) simulate
-their data and then call :func:`sample_and_rank` with their targets: each target names
-the posterior draws of one scalar quantity and its true value. Ranks follow simuk's
-definition (draws strictly below the truth, :func:`scioc.models.sbc.rank`) among L draws
-thinned to near independence by ArviZ's bulk- and tail-ESS factor (:func:`thin`); the randomized PIT
-``(rank + U) / (L + 1)`` takes its U from the replication's own generator, one per target
-in target order. The thinned draws are returned too, so that the replication can be
-re-ranked later (simuk's ``prior_sbc`` layout, :mod:`scioc.pipelines.calibrate.summary`).
-
-Besides the parameters, every replication ranks one test quantity that depends on the
-data: the log-likelihood of the simulated data (Modrák et al. 2023, *Simulation-based
-calibration checking for Bayesian computation: the choice of test quantities shapes
-sensitivity*, Bayesian Analysis), evaluated at each posterior draw and at the truth
-with the likelihood the fit uses (:func:`loglik_draws`).
+Each level simulates its data and calls :func:`sample_and_rank` with its targets (the draws of one
+scalar and its true value). Ranks follow simuk (draws strictly below the truth,
+:func:`scioc.models.sbc.rank`) among L draws thinned by ArviZ's ESS factor (:func:`thin`); the PIT
+``(rank + U) / (L + 1)`` takes U from the replication's generator, one per target in order. Besides
+the parameters every replication ranks the log-likelihood of its data at each draw and at the truth
+(:func:`loglik_draws`), a test quantity that depends on the data (Modrák et al. 2023).
 """
 
 from __future__ import annotations
@@ -39,18 +31,11 @@ class Target(NamedTuple):
 
 
 def thin(draws: np.ndarray, L: int) -> tuple[np.ndarray, float]:
-    """L of the (chains, draws) ``draws``, thinned to near independence by ArviZ, then evenly spaced.
+    """L of the (chains, draws) ``draws``: each chain thinned by ArviZ's ``ceil(N / min(bulk, tail ESS))``,
+    then L evenly spaced (from all draws if fewer than L remain).
 
-    Each chain is thinned by ArviZ's factor ``ceil(N / min(bulk ESS, tail ESS))``
-    (``arviz_stats`` ``thin_factor`` and ``thin``); L draws are taken evenly spaced from
-    the chains' thinned draws in chain order (all draws if fewer than L remain).
-
-    Returns
-    -------
-    kept : ndarray, shape (L,)
-    ess : float
-        min(bulk ESS, tail ESS) of the draws; below L the kept draws are still
-        autocorrelated, and the summary counts the replication (``low_ess``).
+    Returns the kept draws, shape (L,), and min(bulk ESS, tail ESS); below L the kept draws are still
+    autocorrelated and the summary counts the replication (``low_ess``).
     """
     x = np.atleast_2d(np.asarray(draws, dtype=float))
     ess = float(min(array_stats.ess(x, method="bulk", chain_axis=0, draw_axis=1),
@@ -63,19 +48,10 @@ def thin(draws: np.ndarray, L: int) -> tuple[np.ndarray, float]:
 
 
 def loglik_draws(thetas, batch, plant) -> np.ndarray:
-    """Log-likelihood (nats) of a batch's data, summed over its segments, at each of many θ.
+    """Log-likelihood (nats) of a batch's data, summed over its n segments, at each θ of ``thetas``.
 
-    Parameters
-    ----------
-    thetas : ndarray, shape (..., 3, n)
-        [q11, q22, R] of each of the batch's n segments, per draw (leading dims).
-    batch : SegmentBatch
-    plant : DiscretePlant
-        The plant the fit assumes.
-
-    Returns
-    -------
-    ndarray, shape (...)
+    ``thetas``: shape (..., 3, n), [q11, q22, R] per segment; ``plant``: the one the fit assumes.
+    Returns shape (...).
     """
     thetas = np.asarray(thetas, dtype=float)
     flat = thetas.reshape((-1,) + thetas.shape[-2:])
@@ -88,25 +64,21 @@ def sample_and_rank(compiled, config, rng: np.random.Generator, targets, prior_v
 
     Parameters
     ----------
-    compiled : nutpie compiled model, with the replication's data set (None with ``sample``)
+    compiled : nutpie compiled model with the replication's data (None with ``sample``)
     config : CalibrationConfig
-        Chains, tune, draws and L.
     rng : numpy.random.Generator
-        The replication's generator (the sampler's seed, then one U per target).
+        The replication's generator: the sampler's seed, then one U per target.
     targets : callable
-        ``targets(posterior) -> list of Target``, given the posterior Dataset.
+        ``targets(posterior) -> list of Target``.
     prior_var : dict
-        Prior variance of each target label (for the contraction; targets without one,
-        like the log-likelihood, get none).
+        Prior variance per target label, for the contraction.
     sample : callable, optional
-        ``sample(seed) -> DataTree`` with ``posterior`` and ``sample_stats.diverging``,
-        in place of nutpie (the ``delayed`` unit with its sampled delay).
+        ``sample(seed) -> DataTree`` with ``posterior`` and ``sample_stats.diverging``, in place of nutpie.
 
     Returns
     -------
     dict
-        ``truth``, ``ranks``, ``pit_u``, ``ess``, ``contraction`` and ``thinned`` (the
-        L kept draws) per target label, and ``divergences``.
+        Per target label ``truth``, ``ranks``, ``pit_u``, ``ess``, ``contraction`` and ``thinned``; ``divergences``.
     """
     seed = int(rng.integers(2**62))
     if sample is not None:

@@ -1,17 +1,10 @@
 """What both SBC levels share: the fitted wheel, the window, the exact demonstration per level, a per-worker cache.
 
-Runs inside Dask workers. Compiled models and other slow-to-build objects are cached per
-worker process (compiling takes seconds, a unit fit a fraction of one), keyed by
-everything that changes them (:func:`cached`).
-
-Everything follows the experiment being calibrated (:class:`scioc.models.design.Design`; the
-paper's study by default): its sample time, wheel, levels and their assistants, and its
-analysis window (from the window's start on the study reference, or from the start of a
-trial when it is analysed whole).
-
-Negative controls (same draws, same sizes, a wrong fit): ``inertia`` fits with the wheel
-inertia 10 % too high (0.044 instead of 0.04 kg·m² on the paper's wheel), ``ignore-uA``
-attributes the assistant's torque to the human.
+Runs inside Dask workers, which cache compiled models keyed by everything that changes them
+(:func:`cached`): compiling takes longer than a unit fit. Everything follows the calibrated experiment
+(the paper's study by default): sample time, wheel, levels, assistants and analysis window. The negative
+controls fit the same draws wrongly: ``inertia`` with the wheel inertia :data:`INERTIA_ERROR` too high,
+``ignore-uA`` with the assistant's torque given to the human.
 """
 
 from __future__ import annotations
@@ -56,10 +49,7 @@ def window_start(design: Design = STUDY) -> float:
 
 
 def window_inputs(K: int, design: Design = STUDY):
-    """The window's reference (K + 1,) and each level's assistant feedback over it (None where unassisted).
-
-    Returns ``(ref, {level: Feedback or None})``.
-    """
+    """``(ref, {level: Feedback or None})``: the window's reference (K + 1,) and each level's assistant feedback."""
 
     def build():
         dt = design.dt
@@ -84,11 +74,8 @@ def simulate_unit(theta, condition: str, K: int, negative_control, rng: np.rando
                   design: Design = STUDY) -> Segment:
     """One exact max-ent demonstration over the analysis window, as the fit will see it.
 
-    An unassisted level: u_A = 0. An assisted one: the human plans with the assistant's
-    law on the closed wheel (the simulator's human), the assistant's recorded torque is
-    ``-gain @ x_k + feedforward_k`` along the sampled trajectory. The returned segment
-    carries the Feedback the likelihood plans with, except for ``ignore-uA``, which
-    attributes the assistant's torque to the human and plans without it.
+    On an assisted level the human plans on the wheel the assistant's law closes, and the recorded
+    u_A is ``-gain @ x_k + feedforward_k`` along the draw; ``ignore-uA`` adds it to u_H instead.
     """
     ref, laws = window_inputs(K, design)
     fb = laws[condition]

@@ -1,10 +1,8 @@
 """Where a calibration keeps its results: one JSON file per replication, the configuration, the summary.
 
-Each finished replication is written at once to ``OUT/reps/rep_NNNNN.json`` (temporary
-file and rename); a rerun skips every replication whose file exists, so an interrupted
-run resumes. ``OUT/config.json`` holds the configuration's fingerprint (another
-configuration is refused), ``OUT/summary.json`` the summary, which names how many
-replications it covers (a rerun with fewer is refused rather than replacing it).
+``OUT/reps/rep_NNNNN.json`` is written atomically when a replication finishes; a rerun skips those
+that exist. ``OUT/config.json`` holds the fingerprint (another configuration is refused) and
+``OUT/summary.json`` the summary (a rerun with fewer replications is refused rather than replacing it).
 """
 
 from __future__ import annotations
@@ -49,13 +47,7 @@ def prepare_out(config: CalibrationConfig, out_dir: Path) -> None:
 
 
 def earlier_summary(config: CalibrationConfig, out_dir) -> dict:
-    """The summary already in ``out_dir`` ({} if none); refuses a run smaller than it.
-
-    Raises
-    ------
-    ValueError
-        If the folder's summary covers more replications than ``config`` asks for.
-    """
+    """The summary already in ``out_dir`` ({} if none); ValueError if it covers more replications than ``config``."""
     path = Path(out_dir) / "summary.json"
     earlier = read_json(path, "summary") if path.exists() else {}
     if earlier.get("replications", 0) > config.replications:

@@ -1,17 +1,10 @@
 """Study-level SBC replication: the hierarchical model against studies drawn from its own prior.
 
-Per replication: population and unit parameters are drawn from the prior of
-:func:`scioc.models.bayes.hierarchical.build_model` (by PyMC itself, from the model graph, so
-the draws follow exactly the model that is fitted); a whole study is simulated exactly
-from the max-ent model (``n_subjects`` × every level of the experiment, windows of K
-samples of the reference from rest; on an assisted level the human plans with the
-assistant's law and the assistant reacts to the sampled trajectory,
-:func:`scioc.pipelines.calibrate.simulation.simulate_unit`); the model compiled once per worker
-(data in ``pm.Data`` containers) is refitted with nutpie; ranks of the population
-parameters (with more than two levels, β, σ_β, β_R and σ_βR once per non-baseline level,
-labelled ``beta[weak]``), of the first subject's unit parameters and of the study's
-log-likelihood are recorded. The negative controls are those of the unit level
-(:mod:`scioc.pipelines.calibrate.simulation`).
+Per replication: population and unit parameters drawn by PyMC from the model graph of
+:func:`scioc.models.bayes.hierarchical.build_model`; a study simulated exactly from the max-ent model
+(:func:`scioc.pipelines.calibrate.simulation.simulate_unit`); the model, compiled once per worker with
+``pm.Data`` containers, refitted with nutpie. Ranked: the population parameters (per non-baseline level,
+``beta[weak]``, with more than two levels), the first subject's unit parameters, the log-likelihood.
 """
 
 from __future__ import annotations
@@ -43,11 +36,8 @@ def study_labels(n_subjects: int, levels=("MC", "SC")):
 
 
 def population_targets(name: str, draws: np.ndarray, truth, levels) -> list:
-    """Targets of one population parameter: itself, or with a ``contrast`` axis (more than two levels) one per level.
-
-    ``draws`` (chains, draws) or (chains, draws, L - 1); ``truth`` a scalar or (L - 1,);
-    ``levels`` baseline first.
-    """
+    """Targets of one population parameter: ``draws`` (chains, draws) and a scalar ``truth``, or with a contrast
+    axis (chains, draws, L - 1) and (L - 1,), one target per non-baseline level of ``levels``."""
     draws = np.asarray(draws, dtype=float)
     if draws.ndim == 2:
         return [Target(name, draws, float(truth))]

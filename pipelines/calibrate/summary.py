@@ -1,12 +1,8 @@
 """The statistics of a calibration from its replication files, and their plain-text form.
 
-Per ranked quantity: the Kolmogorov-Smirnov test of the randomized PIT (the verdict,
-Bonferroni over the quantities at the family-wise false-failure rate
-:data:`FAMILY_ALPHA`), ArviZ's PIT uniformity test (``pot_c``, Tesso et al.; reported
-beside it), coverage of central intervals and posterior contraction. The replications'
-ranks, PIT values, truths and thinned draws are also gathered into one DataTree in
-simuk's layout (:func:`sbc_tree`): ``prior_sbc`` holds the ranks, so ArviZ's and
-simuk's tools read it, and the thinned draws allow re-ranking with another test quantity.
+Per ranked quantity: the uniformity verdict (docs/decisions/sbc-ks-verdict.md), ArviZ's ``pot_c``
+test beside it, coverage of central intervals and posterior contraction. :func:`sbc_tree` gathers the
+replications into one DataTree in simuk's layout, which ArviZ's and simuk's tools read.
 """
 
 from __future__ import annotations
@@ -35,13 +31,8 @@ def pits(reps: list[dict], L: int) -> dict:
 def summarize(out_dir, config: CalibrationConfig) -> dict:
     """Uniformity tests, coverage and contraction over all replications, per ranked quantity.
 
-    The verdict per quantity is the Kolmogorov-Smirnov test of the randomized PIT at
-    ``FAMILY_ALPHA / (number of quantities)``; ``pot_c_p_value`` is ArviZ's PIT
-    uniformity test (``arviz_stats`` ``uniformity_test``, method ``pot_c``) of the same
-    values, reported beside it. The KS test stays the verdict because its size under the
-    randomized PIT is exact, so the stated false-failure budget holds, and the README's
-    calibration results were measured with it; ``pot_c`` has more power against local
-    departures and is there to be read beside it.
+    The verdict: KS of the randomized PIT at ``FAMILY_ALPHA / (number of quantities)``; ``pot_c_p_value``:
+    ArviZ's ``pot_c`` test of the same values (docs/decisions/sbc-ks-verdict.md).
     """
     reps = load_replications(out_dir, config.replications)
     alpha = FAMILY_ALPHA / len(reps[0]["ranks"])
@@ -79,14 +70,9 @@ def summarize(out_dir, config: CalibrationConfig) -> dict:
 
 
 def sbc_tree(out_dir, config: CalibrationConfig) -> xr.DataTree:
-    """Every replication of a calibration as one DataTree in simuk's layout.
-
-    Groups (dims ``chain`` of length 1 and ``draw`` = replication, as simuk's ``prior_sbc``):
-    ``prior_sbc`` the ranks (draws strictly below the truth), ``prior`` the true values,
-    ``pit`` the randomized PIT (what ``arviz_plots.plot_ecdf_pit(tree, group="pit")`` plots),
-    and ``thinned_posterior`` the L kept draws of each quantity (extra dim ``thinned``), from
-    which another test quantity or another rank can be computed without refitting.
-    """
+    """Every replication of a calibration as one DataTree in simuk's layout (``chain`` of length 1, ``draw`` =
+    replication): ``prior_sbc`` the ranks, ``prior`` the truths, ``pit`` the randomized PIT, and
+    ``thinned_posterior`` the L kept draws (dim ``thinned``), to re-rank without refitting."""
     reps = load_replications(out_dir, config.replications)
     names = list(reps[0]["ranks"])
     coords = {"chain": [0], "draw": np.arange(len(reps))}

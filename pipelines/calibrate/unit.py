@@ -1,16 +1,10 @@
 """Unit-level SBC replication: one subject in one condition, θ from its prior, one analysis window.
 
-θ ~ :class:`scioc.models.bayes.unit_model.UnitPrior`; one exact max-ent demonstration over the
-experiment's analysis window (the fixed reference; by default the paper's 15 s) from rest
-at the reference; replication i is in level i mod L of the experiment's L levels
-(baseline first: for the paper's study even replications are manual control, u_A = 0,
-odd ones shared control), where on an assisted level the human plans with the
-assistant's feedback law and the assistant reacts to the actual state
-(:func:`scioc.pipelines.calibrate.simulation.simulate_unit`, the simulator's SC human); the
-likelihood is the :class:`scioc.models.segment.Feedback` model, as in the pipeline; the
-posterior is sampled with nutpie, one chain after the other (``cores=1``: the
-parallelism is across replications, one worker per core; nutpie seeds each chain on its
-own, so the draws do not depend on this).
+θ ~ :class:`scioc.models.bayes.unit_model.UnitPrior`; one exact max-ent demonstration over the analysis
+window from rest (:func:`scioc.pipelines.calibrate.simulation.simulate_unit`); replication i is in level
+i mod L of the experiment's L levels (baseline first). The likelihood plans with the assistant's
+:class:`scioc.models.segment.Feedback`, as the pipeline does. nutpie runs the chains one after the other
+(``cores=1``): the parallelism is across replications.
 """
 
 from __future__ import annotations

@@ -1,25 +1,13 @@
 """Unit-level SBC replication of the ``delayed`` human: one unit, its parameters from the prior, one window.
 
-θ, τ_nm, σ_m and the delay d ~ :class:`scioc.models.bayes.unit_delayed.DelayedUnitPrior`; one
-draw of the delayed human over the experiment's analysis window from rest at the
-reference, exactly as the likelihood describes it (:func:`scioc.models.delayed.sample_delayed`
-with ``physical=False``: the observed torque is held over each sample, the model's own
-convention; what a physically lagged arm costs is measured apart, README "Human
-models"); replication i is in level i mod L of the experiment's levels, and on an
-assisted level the human plans with the assistant's law, which acts on the true state.
-The fit samples the posterior of θ1, θ2, R, τ_nm, σ_m and the delay together
+θ, τ_nm, σ_m and the delay d ~ :class:`scioc.models.bayes.unit_delayed.DelayedUnitPrior`; one draw over
+the analysis window from rest, exactly as the likelihood describes it
+(:func:`scioc.models.delayed.sample_delayed` with ``physical=False``: the torque held over each sample).
+The fit samples θ1, θ2, R, τ_nm, σ_m and the delay together
 (:class:`scioc.models.bayes.unit_delayed.UnitDelayedSampler`: NUTS and
-:class:`scioc.models.bayes.delay_step.DelayMetropolis`), so the delay's uncertainty is in the
-other parameters' posterior. Ranked: those five and the log-likelihood of the data (at
-each draw's delay; at the truth's).
-
-Negative controls (same draws, a wrong fit): ``no-delay`` conditions on d = 0 (a human
-whose delay is ignored; sampled with nutpie); ``inertia`` fits with the wheel inertia
-10 % too high.
-
-History: the first version simulated a physically lagged arm and conditioned on the
-profile-likelihood delay (a plug-in); its 500 replications failed (R, τ_nm, σ_m and the
-log-likelihood, p down to 1e-6; θ1, θ2 passed).
+:class:`scioc.models.bayes.delay_step.DelayMetropolis`), so the delay's uncertainty reaches the other
+parameters. Ranked: those and the log-likelihood. Negative controls: ``no-delay`` conditions on d = 0
+(sampled with nutpie), ``inertia`` fits a wheel 10 % too heavy.
 """
 
 from __future__ import annotations

@@ -1,25 +1,15 @@
-"""``scioc fit``: the hierarchical Bayesian fit of a study (:mod:`scioc.pipelines.fit.stage`) and its parts.
+"""``scioc fit``: the hierarchical Bayesian fit of a study (:func:`fit_to_dir`, in :mod:`.stage`) and its parts.
 
-=========================  ===========================================================
-module                     what it holds
-=========================  ===========================================================
-:mod:`.sampling`           nutpie through ``pm.sample``: seeds, clean stdout, Ctrl-C, log lines
-:mod:`.start`              where the chains start: near the ML estimates
-:mod:`.whiten`             sampling on each subject's whitened coordinates (and after a pilot run)
-:mod:`.warmup`             how long the warm-up is: the default, and the delayed fit's pilot run
-:mod:`.diagnostics`        R-hat, ESS, E-BFMI, divergences and the sampler's verdict
-:mod:`.contrasts`          β, exp(β), P(β < 0), HDIs, per-subject contrasts
-:mod:`.loo`                PSIS-LOO over segments and leave-one-subject-out
-:mod:`.ppc`                posterior predictive draws and ``constant_data``
-:mod:`.checks`             mixed model, truth check, adequacy at a posterior point
-:mod:`.delayed`            the delayed human's fit: delays, sampling, results, adequacy
-:mod:`.human_models`       leave-one-subject-out between a max-ent and a delayed fit
-:mod:`.recheck`            ``scioc adequacy``: a finished fit's adequacy, again
-:mod:`.stage`              :func:`fit_to_dir` (the artifacts)
-:mod:`.summary`            :func:`format_fit`: the lines ``scioc fit`` prints
-=========================  ===========================================================
+* :mod:`.sampling`: nutpie through ``pm.sample``; :mod:`.start`: where the chains start, near the ML estimates;
+  :mod:`.whiten`: sampling on each subject's whitened coordinates; :mod:`.warmup`: how long the warm-up is.
+* :mod:`.diagnostics`: R-hat, ESS, E-BFMI, divergences and the sampler's verdict.
+* :mod:`.contrasts`: β, exp(β), P(β < 0), HDIs; :mod:`.loo`: PSIS-LOO over segments and leaving subjects out;
+  :mod:`.ppc`: posterior predictive draws; :mod:`.checks`: mixed model, truth check, adequacy at a posterior point.
+* :mod:`.delayed`, :mod:`.delayed_forms`, :mod:`.noise_arcs`: the delayed human's fit and its blocks' forms.
+* :mod:`.human_models`: max-ent against delayed by leaving subjects out; :mod:`.recheck`: ``scioc adequacy``;
+  :mod:`.summary`: the lines ``scioc fit`` prints.
 
-Importing this package imports PyMC (seconds): the CLI imports it only to fit.
+Importing this package imports PyMC, which is slow: the CLI imports it only to fit.
 """
 
 from scioc.pipelines.fit.checks import mixedlm_check, truth_check

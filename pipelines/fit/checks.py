@@ -27,19 +27,11 @@ def _fixed_effect(fit, column: str) -> dict:
 
 
 def mixedlm_check(estimates: pd.DataFrame, levels=CONDITIONS) -> dict:
-    """Frequentist cross-check: linear mixed model of log θ1 from the per-unit ML estimates.
+    """Frequentist cross-check: a linear mixed model of log θ1 on the per-unit ML estimates.
 
-    ``log θ1 ~ 1 + SC`` with a random intercept per subject (REML, statsmodels
-    ``MixedLM``); the SC coefficient estimates β. With more than two ``levels`` (baseline
-    first) one indicator, and one coefficient, per non-baseline level (treatment coding
-    against the baseline), reported under ``coefficients``. The ML estimates enter as
-    data, one row per subject × level (``scioc identify`` gives one estimate per unit,
-    whatever its number of trials): their own standard errors are ignored.
-
-    Raises
-    ------
-    ValueError
-        If a subject × level has more than one row (trials must be one value per unit).
+    ``log θ1 ~ 1 + SC`` with a random intercept per subject (REML, statsmodels ``MixedLM``): the SC coefficient
+    estimates β; with more ``levels``, one coefficient per non-baseline level. The estimates enter as data, one row per
+    unit (ValueError if a unit has several); their SEs are ignored.
     """
     levels = tuple(levels)
     d = estimates[["subject", "condition", "theta1"]].copy()
@@ -117,18 +109,10 @@ def _contrast_truth(post, level: str, b: dict, true_change: pd.Series) -> tuple[
 def truth_check(idata, truth_dir, estimates: pd.DataFrame | None = None, design: Design = STUDY) -> dict:
     """Compare the posterior with the simulator's truth (``simulation.json``, ``truth.parquet``).
 
-    Returns the true β, whether it is in the 94 % HDI and by how much the posterior mean
-    misses it (also in posterior SDs); the realized mean of the true changes; every
-    population parameter against its true value (a scale whose truth is 0 against the
-    one-sided interval [0, q94]); how many per-subject HDIs hold the true change; and,
-    with ``estimates``, the mean log error of the ML θ1 per level (the closed-loop
-    bias of the likelihood plus the reconstruction). With more than two levels ``beta``
-    and ``subjects`` are given per non-baseline level under ``contrasts``, and the
-    population parameters with a level are named ``beta[level]`` and so on. The true
-    μ_R is the population's log R (stated at 100 Hz) at ``design``'s sample time. A
-    ``truth.parquet`` with a ``trial`` column repeats its unit's θ per trial: one truth
-    per unit is used. None when the simulated human has no cost θ (``truth.parquet``
-    holds NaN).
+    The true β, whether the 94 % HDI holds it and the posterior mean's miss (also in posterior SDs); every population
+    parameter against its truth (a scale whose truth is 0 against the one-sided [0, q94]); how many per-subject HDIs
+    hold the true change; with ``estimates``, the ML θ1's mean log error per level. With more than two levels, per
+    level under ``contrasts``. None when the simulated human has no cost θ.
     """
     truth_dir = Path(truth_dir)
     sim = json.loads((truth_dir / "simulation.json").read_text())
@@ -169,14 +153,8 @@ def truth_check(idata, truth_dir, estimates: pd.DataFrame | None = None, design:
 
 
 def motor_truth(idata, truth_dir) -> dict | None:
-    """The delayed fit's per-subject τ_nm and σ_m against the simulator's lag and motor-noise SD.
-
-    Per parameter: how many subjects' intervals hold their truth (the 94 % HDI; the one-sided
-    [0, q94] where the truth is 0, as for the population scales, :func:`_interval`), the mean
-    error of the posterior means, the median over subjects of the posterior medians and the
-    largest upper end of the subjects' intervals. For the paper's agent (truth 0) the last two
-    say how near zero the fit puts its lag and motor noise. None when the truth has neither.
-    """
+    """The delayed fit's per-subject τ_nm and σ_m against the simulator's: how many intervals hold the truth, the
+    mean error, the median posterior median and the largest upper end; None when the truth has neither."""
     truth = read_truth(Path(truth_dir) / "truth.parquet")
     if not {"tau_nm", "motor_sd"} <= set(truth.columns):
         return None
@@ -197,41 +175,16 @@ def motor_truth(idata, truth_dir) -> dict | None:
     return out
 
 
-#: Where the adequacy check at the posterior takes its one parameter point (``scioc fit --adequacy-at``).
-#:
-#: ``draw`` (default): one joint posterior draw, picked by the adequacy seed. If the model and its
-#: prior are right, a posterior draw and the data are distributed as the truth and the data (the
-#: argument of simulation-based calibration), so the bootstrap's p-values at that draw are uniform
-#: (Johnson 2007, Bayesian Analysis 2(4), "Bayesian model assessment using pivotal quantities").
-#: ``means``: each parameter's posterior mean on its own (log θ1, log R, θ2; τ_nm and σ_m of the
-#: delayed human), the rule before 2026-12-03. It sits near the best fit, so its p-values lean
-#: towards 1 (the plug-in p-value is conservative: Bayarri & Berger 2000), and where parameters
-#: trade off along a curved ridge it leaves the posterior: the delayed human's torque variance is
-#: split between policy noise (R) and motor noise (σ_m), and the means of log R and σ_m predict less
-#: variance than the draws on the ridge do (measured: README, "At the posterior").
+#: Where the adequacy check at the posterior takes its one parameter point (``scioc fit --adequacy-at``): ``draw``,
+#: one joint posterior draw (the default), or ``means``, each parameter's posterior mean on its own
+#: (docs/decisions/adequacy-at-a-posterior-draw.md).
 ADEQUACY_POINTS = ("draw", "means")
 
 
 def posterior_point(post, at: str, seed: int):
-    """The parameter point of the adequacy check at the posterior (:data:`ADEQUACY_POINTS`), and what it is.
-
-    Parameters
-    ----------
-    post : xarray.Dataset
-        The posterior group (dimensions ``chain`` and ``draw`` first).
-    at : {"draw", "means"}
-    seed : int
-        The adequacy seed: ``draw`` takes the draw ``numpy.random.default_rng([seed, 1])`` picks
-        uniformly among all chains × draws (a stream apart from the bootstrap's
-        ``SeedSequence(seed).spawn``).
-
-    Returns
-    -------
-    point : xarray.Dataset
-        Every posterior variable at that point, without ``chain`` and ``draw``.
-    described : dict
-        ``at`` and, for ``draw``, the chain and draw taken.
-    """
+    """The parameter point of the adequacy check at the posterior ``post`` (:data:`ADEQUACY_POINTS`): every posterior
+    variable without ``chain`` and ``draw``, and what it is (``at``; for ``draw`` the chain and draw that
+    ``default_rng([seed, 1])`` picks uniformly among all chains × draws)."""
     if at not in ADEQUACY_POINTS:
         raise ValueError(f"the adequacy check's point must be one of {', '.join(ADEQUACY_POINTS)}; got {at!r}")
     if at == "means":
@@ -255,13 +208,8 @@ def unit_theta(point, prepared: PreparedStudy) -> np.ndarray:
 
 
 def posterior_adequacy(idata, prepared: PreparedStudy, plant, at: str = "draw") -> dict:
-    """Model adequacy (:func:`scioc.pipelines.adequacy.assess_study`) at one posterior point of θ.
-
-    The point (``at``, :func:`posterior_point`) gives each segment the θ of its subject ×
-    condition: the trials of a unit share it, and the verdict then counts units
-    (:func:`scioc.pipelines.adequacy.assess_study`). ``plant`` is the wheel at the recording's
-    sample time; the assistants and the encoder come from the study's settings.
-    """
+    """Model adequacy (:func:`scioc.pipelines.adequacy.assess_study`) at one posterior point of θ (``at``,
+    :func:`posterior_point`), each segment at its unit's θ; ``plant`` is the wheel at the recording's sample time."""
     if prepared.settings.adequacy_boot == 0:
         return not_checked("switched off (adequacy bootstrap size 0)")
     point, described = posterior_point(idata["posterior"], at, prepared.settings.adequacy_seed)

@@ -1,8 +1,4 @@
-"""The paper's question on the posterior: β, exp(β), P(β < 0) and the per-subject contrasts against the baseline.
-
-With two levels (the paper's MC and SC) the summary has one β at the top level; with more,
-one block of the same layout per non-baseline level under ``contrasts``.
-"""
+"""The paper's question on the posterior: β, exp(β), P(β < 0) and the per-subject contrasts against the baseline."""
 
 from __future__ import annotations
 
@@ -14,13 +10,8 @@ HDI_PROB = 0.94
 
 
 def hdi(x, prob: float = HDI_PROB) -> list:
-    """Highest-density interval of the draws ``x`` (flattened over chains and draws): ``[low, high]``.
-
-    ArviZ's ``hdi`` (method "nearest"): the shortest interval between two draws that holds
-    ``floor(prob · n) + 1`` of the n draws. Until scioc 0.1 the fit used its own interval of
-    ``ceil(prob · n)`` draws; the two agree unless ``prob · n`` is an integer (4000 draws at
-    94 %: then ArviZ's holds one draw more; ``tests/pipelines/fit/test_contrasts.py``).
-    """
+    """Highest-density interval ``[low, high]`` of the draws ``x`` (flattened): ArviZ's ``hdi`` (method "nearest"),
+    the shortest interval between two draws that holds ``floor(prob · n) + 1`` of the n draws."""
     low, high = az.hdi(np.ravel(np.asarray(x, dtype=float)), prob=prob)
     return [float(low), float(high)]
 
@@ -37,11 +28,8 @@ def levels_of(posterior) -> tuple[str, ...]:
 
 
 def condition_change(posterior, name: str = "log_theta1", level: str | None = None):
-    """Per-subject draws of ``name``[level] − ``name``[baseline], dims (chain, draw, subject).
-
-    ``level`` defaults to the first non-baseline level (SC in the paper's study); the
-    baseline is the first level of the ``condition`` coordinate.
-    """
+    """Per-subject draws of ``name``[level] − ``name``[baseline], dims (chain, draw, subject); ``level`` defaults
+    to the first non-baseline level (SC in the paper's study)."""
     v = posterior[name]
     conds = [str(c) for c in v.coords["condition"].values]
     level = conds[1] if level is None else level
@@ -55,7 +43,7 @@ def effect_draws(posterior, name: str, level: str) -> np.ndarray:
 
 
 def level_contrast(posterior, level: str) -> dict:
-    """β, exp(β), σ_β, β_R and the per-subject changes of log θ1 of a non-baseline ``level``, against the baseline."""
+    """β, exp(β), σ_β, β_R and the per-subject changes of log θ1 of a non-baseline ``level``."""
     beta = effect_draws(posterior, "beta", level)
     ratio = np.exp(beta)
     change = condition_change(posterior, level=level)
@@ -79,14 +67,10 @@ def contrasts(idata) -> dict:
     Returns
     -------
     dict
-        Two levels: ``hdi_prob``, ``beta`` (mean, sd, median, 94 % HDI, ``p_negative``),
-        ``ratio`` (exp β: the factor by which SC multiplies the population median θ1;
-        median, mean, HDI of the exp-transformed draws), ``beta_log_R`` and
-        ``sigma_beta`` summaries, and ``subjects``: per subject log θ1[SC] − log θ1[MC]
-        (mean, sd, HDI, P(< 0)). More levels: ``hdi_prob``, ``baseline``, ``levels``
-        (baseline first) and ``contrasts``: per non-baseline level a block with those
-        keys (``beta``, ``ratio``, ``sigma_beta``, ``beta_log_R``, ``subjects``,
-        ``subjects_with_hdi_below_zero``).
+        Two levels: ``hdi_prob`` and :func:`level_contrast`'s keys: ``beta`` (with ``p_negative``), ``ratio``
+        (exp β: the factor by which SC multiplies the population median θ1), ``sigma_beta``, ``beta_log_R``,
+        ``subjects`` (per subject log θ1[SC] − log θ1[MC]) and ``subjects_with_hdi_below_zero``. More levels:
+        ``hdi_prob``, ``baseline``, ``levels`` and ``contrasts``, one such block per non-baseline level.
     """
     post = idata["posterior"]
     levels = levels_of(post)

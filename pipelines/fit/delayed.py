@@ -1,25 +1,9 @@
 """``scioc fit`` with the ``delayed`` human (:func:`scioc.pipelines.fit.stage.fit_to_dir`, ``human_model="delayed"``).
 
-The model is :func:`scioc.models.bayes.delayed_model.build_delayed_model`: the max-ent model's
-cost blocks with the commands' cost, plus each subject's neuromuscular lag and motor noise.
-What differs from the max-ent fit:
-
-* **Delays.** Each subject's perceptual delay is fixed (plug-in; the model docstring says
-  why) at the maximum of the sum of its units' profile log-likelihoods over 0-300 ms:
-  from the estimates file's ``profile_loglik`` (``scioc identify --human-model delayed``)
-  when it has one, else computed here by the same profile
-  (:func:`scioc.models.delayed.identify.identify_unit_delayed`, its trials together)
-  (:func:`unit_delays`). The sidecar records the delay of every unit and where it came from.
-* **Arm torque at each window's start.** It follows from the torques before the window
-  (:attr:`scioc.pipelines.prepare.PreparedSegment.warmup`) at every τ_nm the sampler visits,
-  with its tangents (:mod:`scioc.models.bayes.delayed_op`).
-* **One model.** No pooled model is fitted (its only use is the condition-effect LOO of
-  the max-ent fit, and it would double the fit's cost); the PSIS-LOO over segments is
-  reported for this model alone. The comparison with the max-ent human is
-  :func:`scioc.pipelines.fit.human_models.compare_human_models`, on two fit folders.
-* Posterior predictive draws and the adequacy check at the posterior draw from the
-  delayed human (:func:`scioc.pipelines.fit.ppc.posterior_predictive`, ``delayed=``;
-  :func:`scioc.pipelines.adequacy.assess_study`, ``delayed=``).
+The model is :func:`scioc.models.bayes.delayed_model.build_delayed_model`: the max-ent model's cost blocks, plus each
+subject's neuromuscular lag and motor noise. Each subject's perceptual delay is fixed at the maximum of its units'
+summed profile log-likelihoods (:func:`unit_delays`; docs/decisions/delayed-plugin-delay.md) or sampled. No pooled
+model is fitted: the comparison with the max-ent human is :func:`scioc.pipelines.fit.human_models.compare_human_models`.
 """
 
 from __future__ import annotations
@@ -73,18 +57,9 @@ DELAYED_UNITS = ("log_theta1", "log_R", "theta2", "tau_nm", "sigma_m")
 
 
 class Delays(NamedTuple):
-    """The plug-in delay of every segment and how it was chosen.
-
-    Attributes
-    ----------
-    samples : ndarray of int, shape (n_segments,)
-    by_unit : dict
-        ``"subject/condition" -> {"delay_samples", "delay_s"}``.
-    source : str
-    estimates : DataFrame or None
-        The per-unit ML lag and motor noise with their SEs when computed here (for
-        :func:`choose_delayed_form`).
-    """
+    """The plug-in delay of every segment (``samples``, shape (n_segments,), in samples), per unit (``by_unit``:
+    "subject/condition" -> ``delay_samples``, ``delay_s``), where they came from (``source``) and the per-unit ML
+    estimates when computed here (``estimates``, else None)."""
 
     samples: np.ndarray
     by_unit: dict
@@ -93,13 +68,8 @@ class Delays(NamedTuple):
 
 
 def check_recorded_torques(prepared) -> None:
-    """Refuse a study whose torques are reconstructed: the hierarchical delayed model is that of recorded torques.
-
-    Its likelihood is the torques' (:mod:`scioc.models.bayes.delayed_model`); a reconstructed torque is
-    smoothed, which the model reads as neuromuscular lag (README "Human models"). Such units are
-    identified from their angles by ``scioc identify --human-model delayed``
-    (:mod:`scioc.models.delayed.angles`), which has no hierarchical counterpart yet.
-    """
+    """Refuse a study whose torques are reconstructed (InputDataError): a reconstructed torque is smoothed, which the
+    delayed model's likelihood of the torques would read as neuromuscular lag."""
     rec = [p for p in prepared.segments if p.reconstructed]
     if rec:
         raise InputDataError(
@@ -112,17 +82,10 @@ def check_recorded_torques(prepared) -> None:
 def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=None) -> Delays:
     """Each segment's delay: its subject's maximum of the summed profile log-likelihoods of its units.
 
-    The profiles (log-likelihood maximized over θ, τ_nm and σ_m at each delay of
-    :func:`scioc.models.delayed.identify.delay_grid`) come from the estimates' ``profile_loglik``
-    (``scioc identify --human-model delayed``) or are computed here
-    (:func:`scioc.models.delayed.identify.identify_unit_delayed`, the unit's trials together).
-    One delay per subject, as the model has one τ_nm and σ_m per subject: in SC the
-    assistant's feedback makes the unit's own profile nearly flat (measured in
-    :mod:`scioc.models.bayes.delayed_model`), and the subject's MC data fix it. Estimates with
-    ``delay_s`` but no profile give each unit its own ``delay_s``.
-
-    The first step of the delayed fit, so it refuses reconstructed torques first
-    (:func:`check_recorded_torques`, InputDataError).
+    The profiles (over :func:`scioc.models.delayed.identify.delay_grid`) come from the estimates' ``profile_loglik``
+    or are computed here (:func:`scioc.models.delayed.identify.identify_unit_delayed`, a unit's trials together);
+    estimates with ``delay_s`` but no profile give each unit its own. Reconstructed torques are refused first
+    (:func:`check_recorded_torques`).
     """
     check_recorded_torques(prepared)
     dt = float(plant.dt)
@@ -153,8 +116,7 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
                                         params=prepared.settings.design.wheel,
                                         tau0=[[prepared.segments[i].warmup] for i in idx])
             profiles[(str(s), str(c))] = np.asarray(est.profile, dtype=float)
-            # The unit's ML point at its own best delay, as identify writes it: the start's targets
-            # (pipelines.fit.start), the cost's as well as the lag's and motor noise's.
+            # The unit's ML point at its own best delay, as identify writes it: the start's targets.
             rows.append({"subject": s, "condition": c, "theta1": est.theta1, "se_log_theta1": est.se_log_theta1,
                          "R": est.theta[2], "se_log_R": est.se_log_R, "theta2": est.theta2,
                          "se_theta2": est.se_theta2, "tau_nm": est.tau_nm, "se_tau_nm": est.se_tau_nm,
@@ -197,9 +159,8 @@ class DelayedFit(NamedTuple):
     sidecar: dict
 
 
-#: How ``scioc fit --human-model delayed`` treats the delays: ``profile`` fixes each subject's at the
-#: maximum of its profile likelihood (nutpie); ``sampled`` samples them (PyMC's NUTS beside
-#: :class:`scioc.models.bayes.delay_step.DelayMetropolis`), so the other parameters' draws are delay-marginal.
+#: How the delayed fit treats the delays: ``profile`` fixes each subject's at its profile maximum (nutpie);
+#: ``sampled`` samples them (PyMC's NUTS beside :class:`scioc.models.bayes.delay_step.DelayMetropolis`).
 DELAY_MODES = ("profile", "sampled")
 
 
@@ -230,19 +191,11 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                          target_accept: float | None = None) -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
-    ``delayed_priors``: None chooses the population of R by the data
-    (:func:`scioc.pipelines.fit.delayed_forms.choose_R_population`), the other priors their defaults.
-    ``form``: the log θ1 blocks' forms as :func:`scioc.pipelines.fit.stage.choose_parameterization`
-    chose them; θ2's is :data:`scioc.pipelines.fit.delayed_forms.THETA2_FORM`; the log R blocks take ``log_R``
-    (:data:`scioc.pipelines.fit.delayed_forms.LOG_R_FORMS`), by default :func:`scioc.pipelines.fit.delayed_forms.log_R_form`'s choice by the data.
-    ``delay_mode`` (:data:`DELAY_MODES`): ``profile`` conditions on ``delays``; ``sampled``
-    samples one delay per subject (``delays`` then only supplies the lag and noise estimates
-    that choose the blocks' forms), and the returned fit's delays are the posterior modes.
-    ``rho_form`` (:data:`scioc.models.bayes.delayed_blocks.RHO_FORMS`, with ``R_population="policy_scale"``)
-    replaces the ρ form of the chosen (or given) ``delayed_form``. ``adaptation``
-    (:data:`scioc.models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None: the first, curved)
-    chooses the coordinates and nutpie's mass matrix; ``target_accept`` (None: the adaptation's, e.g.
-    :data:`scioc.models.bayes.delayed_model.WHITENED_TARGET_ACCEPT`) the sampler's target acceptance rate.
+    ``form``: the log θ1 blocks' forms; θ2 takes ``THETA2_FORM``, the log R blocks ``log_R``. None for ``log_R``,
+    ``delayed_priors`` or ``delayed_form``: chosen by the data (:mod:`scioc.pipelines.fit.delayed_forms`).
+    ``delay_mode``: ``sampled`` samples one delay per subject (the returned delays: its posterior modes). ``rho_form``
+    replaces ρ's form; ``adaptation`` (:data:`scioc.models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None:
+    ``pilot``) chooses the coordinates and mass matrix; ``target_accept`` (None: the adaptation's) the rate.
     """
     if delay_mode not in DELAY_MODES:
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
@@ -339,12 +292,8 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
 
 
 def per_segment_motor(point, prepared, plant, delays: Delays, own_delay: bool = False) -> dict:
-    """Per segment at a posterior point (:func:`scioc.pipelines.fit.checks.posterior_point`): its subject's τ_nm and σ_m,
-    its delay and its arm torque at the start (for the adequacy check).
-
-    The delay is the point's own with ``own_delay`` (a draw of a fit that sampled the delays), else
-    the plug-in ``delays.samples`` (profile delays, or the sampled delays' modes).
-    """
+    """Per segment at a posterior point: its subject's τ_nm and σ_m, its delay (the point's own with ``own_delay``,
+    else ``delays.samples``) and its arm torque at the window's start, for the adequacy check."""
     t = np.array([float(point["tau_nm"].sel(subject=s)) for s in prepared.subjects])
     sig = np.array([float(point["sigma_m"].sel(subject=s)) for s in prepared.subjects])
     delay = delays.samples
@@ -372,13 +321,8 @@ def delayed_adequacy(idata, prepared, plant, delays: Delays, at: str = "draw") -
 
 def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subject: str, rng_ppc, *,
                     n_draws: int) -> tuple[dict, object, object]:
-    """contrasts.json of the delayed fit, and the posterior predictive (bands, draws).
-
-    β and the per-subject contrasts as for the max-ent fit (:func:`scioc.pipelines.fit.contrasts.contrasts`),
-    PSIS-LOO over segments of this model alone, the mixed model of the estimates, the truth
-    check (with each subject's τ_nm and σ_m when the simulator recorded them), the
-    posterior predictive bands from the delayed human and the adequacy at the posterior.
-    """
+    """contrasts.json of the delayed fit (as the max-ent fit's, with PSIS-LOO of this model alone and the truth of
+    τ_nm and σ_m), and the posterior predictive (bands, draws) from the delayed human."""
     design = prepared.settings.design
     levels = design.ordered_levels
     idata = fit.idata

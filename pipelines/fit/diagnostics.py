@@ -12,7 +12,7 @@ from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS
 #: Unit-level quantities (subject × condition) whose diagnostics are reported too.
 UNITS = ("log_theta1", "log_R", "theta2")
 
-#: Acceptance criteria of a fit (population parameters).
+#: The convergence verdict's criteria (every population parameter).
 RHAT_MAX = 1.01
 ESS_MIN = 400
 
@@ -27,12 +27,9 @@ LOOSE_POOLING = 0.5
 
 
 def pooling_factor(eps: np.ndarray) -> float:
-    """Gelman & Pardoe's (2006) pooling factor λ = 1 - V_j(E[ε_j]) / E[V_j(ε_j)] of draws ``eps`` (..., J), each
-    unit's deviation from its population mean; V_j is the sample variance over the J units, E over the draws.
-
-    In the normal model (ε_j ~ N(0, σ²), data of variance s² on each) λ is the shrinkage s² / (s² + σ²): near 0
-    where each unit's data fix it, near 1 where its posterior is the population's (the data barely inform it).
-    """
+    """Gelman & Pardoe's (2006) pooling factor λ = 1 - V_j(E[ε_j]) / E[V_j(ε_j)] of draws ``eps`` (..., J) of each
+    unit's deviation from its population mean (V_j over the units, E over the draws). In the normal model it is the
+    shrinkage s² / (s² + σ²): near 0 where each unit's data fix it, near 1 where the population does."""
     e = np.asarray(eps, dtype=float).reshape(-1, np.shape(eps)[-1])
     return float(1.0 - np.var(e.mean(axis=0), ddof=1) / np.mean(np.var(e, axis=1, ddof=1)))
 
@@ -50,21 +47,14 @@ def _elements(draws):
 def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, unit_names=UNITS) -> dict:
     """Sampler and convergence diagnostics of one fit, with the verdict.
 
-    Population parameters get R-hat (rank-normalized), bulk and tail ESS and bulk ESS
-    per second of sampling; unit-level quantities the worst of each over their elements.
-    With more than two condition levels the condition effects (``beta``, ``sigma_beta``,
-    ``beta_log_R``, ``sigma_beta_log_R``) have one value per non-baseline level, each
-    reported and judged on its own as ``beta[level]``.
-    The verdict requires no divergences, R-hat ≤ :data:`RHAT_MAX` and bulk and tail ESS
-    ≥ :data:`ESS_MIN` for every population parameter; E-BFMI and tree depth are reported
-    beside it. ``parameters`` and ``unit_names`` name what is judged and reported (the max-ent
-    model's by default; the ``delayed`` model adds its lag and motor-noise blocks).
+    Population parameters (one per non-baseline level, ``beta[level]``) get R-hat (rank-normalized), bulk and tail ESS
+    and bulk ESS per second; unit quantities the worst of each. The verdict requires no divergences, R-hat ≤
+    :data:`RHAT_MAX` and bulk and tail ESS ≥ :data:`ESS_MIN` for every population parameter.
     """
     post = idata["posterior"].to_dataset()
     ss = idata["sample_stats"].to_dataset()
     names = [v for v in parameters if v in post]
-    # Select before calling ArviZ: with var_names, arviz-stats 1.x leaves the Dataset's
-    # cached accessor holding only those variables for later calls.
+    # Select first: with var_names, arviz-stats 1.x leaves the Dataset's cached accessor holding only those variables.
     pop = post[names]
     rhat, bulk, tail = az.rhat(pop), az.ess(pop, method="bulk"), az.ess(pop, method="tail")
     population = {}
@@ -126,8 +116,7 @@ def diagnostics(idata, sample_seconds: float, parameters=POPULATION_PARAMETERS, 
 
 
 def smaller_ess(p: dict) -> float:
-    """The smaller of a parameter's bulk and tail ESS, NaN where either is (a quantity that did not move: Python's
-    ``min`` would return NaN or the other value depending on their order)."""
+    """The smaller of a parameter's bulk and tail ESS, NaN where either is (Python's ``min`` depends on the order)."""
     return float(np.minimum(p["ess_bulk"], p["ess_tail"]))
 
 
@@ -143,23 +132,12 @@ NUTPIE_TARGET_ACCEPT = 0.8
 def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None) -> list[str]:
     """What to try when a fit's sampler-convergence verdict fails, from the fit's own numbers; [] when it passes.
 
-    * Divergent transitions: refit with a higher target acceptance rate, halving the distance
-      to 1 (0.8 -> 0.9 -> 0.95): a smaller step size, so deeper trees (more gradients per
-      draw). Divergences that persist mark a region the sampler cannot enter; the draws are
-      then biased away from it, and the remedy is another form of the model, not more draws.
-    * Bulk or tail ESS below :data:`ESS_MIN`: the draws per chain at which the slowest such
-      parameter would reach it, if its ESS grows in proportion to the draws (as it does for a
-      chain at stationarity; a projection, rounded up to 100, not a promise).
-    * R-hat above :data:`RHAT_MAX`: the chains disagree; a longer warm-up and more draws, then
-      the verdict again. An R-hat that stays high means chains in different modes or regions.
-    * Kept draws at the largest tree depth (nutpie's 10): their trajectories were cut short; valid draws, but less
-      independent ones.
-    * μ_R or σ_R failing in a delayed fit whose subjects' baseline log R has a pooling factor of at
-      least :data:`LOOSE_POOLING` (:func:`pooling_factor`; the data barely fix each subject's R, as
-      where motor noise explains the variability that policy noise would): the policy-scale
-      population of R, which converged where the lognormal one did not (README, "Why the steps
-      grew"; on 12 subjects the lognormal population's pooling factor was 0.94 there, 0.17 on the
-      max-ent human).
+    * Divergent transitions: a target acceptance rate halfway to 1; divergences that persist call for another form.
+    * ESS below :data:`ESS_MIN`: the draws at which the slowest parameter would reach it, if its ESS grows in
+      proportion (a projection, not a promise). R-hat above :data:`RHAT_MAX`: a longer warm-up and more draws.
+    * Draws at the largest tree depth: valid but less independent ones, which more draws make up for.
+    * μ_R or σ_R failing in a delayed fit whose baseline log R has a pooling factor of at least
+      :data:`LOOSE_POOLING`: the policy-scale population of R (docs/decisions/delayed-R-population.md).
     """
     if diag.get("passed", False):
         return []
@@ -171,8 +149,7 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
         out.append(f"{n_div} divergent transition{'s' * (n_div != 1)}: refit with --target-accept {higher:g} "
                    f"(this fit: {ta:g}; smaller steps, deeper trees); divergences that persist mark a region the "
                    "sampler cannot enter, and the model's form must change there, not the number of draws")
-    # NaN (a parameter that never moved) fails the verdict's checks, so it is advised on here too; a sidecar stores
-    # NaN as null (posterior.json), e.g. the R-hat of a one-chain fit
+    # NaN (a parameter that never moved) fails the verdict, so it is advised on too; a sidecar stores it as null.
     pop = {k: {m: math.nan if p.get(m) is None else float(p[m]) for m in ("ess_bulk", "ess_tail", "rhat")}
            for k, p in diag["population"].items()}
     low = {k: smaller_ess(p) for k, p in pop.items() if not smaller_ess(p) >= ESS_MIN}

@@ -1,22 +1,9 @@
 """Which human model the data support, subject by subject: leave-one-subject-out of the max-ent and delayed fits.
 
-:func:`compare_human_models` takes two ``scioc fit`` folders of the same study and settings,
-one fitted with the ``maxent`` human and one with the ``delayed`` human, and computes for
-each the leave-one-subject-out ELPD of every subject by integrated PSIS
-(:func:`scioc.pipelines.fit.loo.subject_elpd`: the subject's unit parameters integrated out by
-importance sampling, :mod:`scioc.models.bayes.subject_loo`; for the delayed model with its lag
-and motor noise, :mod:`scioc.models.bayes.delayed_loo`). Both are log densities of the same
-observed torques, so their difference per subject says which model predicts that subject
-better, and the sum over subjects ± its SE (``sqrt(n) sd``, as
-:func:`scioc.pipelines.fit.loo.elpd_difference`) which predicts new subjects better.
-
-It runs after the two fits (they are minutes each): ``scioc fit --human-model delayed
---compare-to MAXENT_FIT`` after the delayed fit, ``scioc human-models`` on two finished
-folders, ``scioc run`` when it fits both. The delayed fit's plug-in delays are read from
-its ``posterior.json``, its arm torques follow the prepared segments' warm-ups, as in the
-fit. Beside the comparison, ``human_models.json`` carries each fit's adequacy verdict at
-its posterior θ (from its ``contrasts.json``): which model predicts better is never shown
-without whether each describes the data.
+:func:`compare_human_models` computes each subject's leave-one-subject-out ELPD under two fits of the same study by
+integrated PSIS (:func:`scioc.pipelines.fit.loo.subject_elpd`): log densities of the same torques, so their difference
+says which model predicts each subject, and its sum ± SE new subjects, better. Each fit's adequacy verdict goes
+beside it: which model predicts better is never shown without whether each describes the data.
 """
 
 from __future__ import annotations
@@ -42,29 +29,18 @@ from scioc.pipelines.storage import write_text_atomic
 
 #: Human models compared, in the order of the difference (second minus first).
 HUMAN_MODELS_COMPARED = ("maxent", "delayed")
-#: Importance-sampling points per subject when the two human models are compared (both models alike):
-#: twice the condition-vs-pooled comparison's, as the delayed model's two further parameters per
-#: subject lower its ESS; at 2000 its smallest per-subject ESS on the full-size max-ent study was
-#: 93 and 99 with seeds 0 and 1 (README, "the paper's study with a torque sensor").
+#: Importance-sampling points per subject for both models: twice the condition-vs-pooled comparison's, as the
+#: delayed model's two further parameters per subject lower the importance-sampling ESS.
 HUMAN_MODELS_POINTS = 2 * LOSO_POINTS
-#: The comparison's file, in the delayed fit's folder (``scioc fit --compare-to``) or the run folder.
+#: The comparison's file, in the delayed fit's folder (``--compare-to``) or the run folder.
 HUMAN_MODELS_FILE = "human_models.json"
-#: What a fit folder must hold to be compared.
 _FIT_FILES = ("posterior.json", "posterior.nc", "contrasts.json")
-#: Keys of ``posterior.json`` the comparison reads.
 _SIDECAR_KEYS = ("study", "identify_settings")
 
 
 def fit_sidecar(folder) -> dict:
-    """The ``posterior.json`` of a finished ``scioc fit`` folder.
-
-    Raises
-    ------
-    ValueError
-        If ``folder`` is not a finished fit folder (a usage error: the wrong folder named).
-    pipelines.io.InputDataError
-        If its ``posterior.json`` is not JSON or lacks a key the comparison reads (naming both).
-    """
+    """The ``posterior.json`` of a finished ``scioc fit`` folder (ValueError if it is none; InputDataError if its
+    sidecar is unreadable or lacks a key the comparison reads)."""
     folder = Path(folder)
     missing = [f for f in _FIT_FILES if not (folder / f).is_file()]
     if missing:
@@ -80,8 +56,7 @@ def fit_sidecar(folder) -> dict:
     return side
 
 
-#: Settings that do not change what is fitted (the human model is what is compared; the adequacy
-#: bootstrap's size and seed change only the verdict beside the posterior).
+#: Settings that do not change what is fitted (the adequacy bootstrap changes only the verdict beside it).
 _NOT_THE_DATA = ("human_model", "adequacy_boot", "adequacy_seed")
 
 
@@ -111,17 +86,9 @@ def _differences(a: dict, b: dict) -> list[str]:
 
 
 def check_maxent_fit(folder, study_path, settings: IdentifySettings) -> dict:
-    """Refuse, before a delayed fit of ``study_path`` starts, a ``folder`` it could not be compared with.
-
-    ``folder`` must be a finished max-ent ``scioc fit`` folder of the same study file with
-    the same window, preview, reconstruction, assistant model and experiment as
-    ``settings`` (the adequacy bootstrap's size and seed may differ). Returns its sidecar.
-
-    Raises
-    ------
-    ValueError
-        Naming the folder and what differs.
-    """
+    """Refuse, before a delayed fit of ``study_path`` starts, a ``folder`` it could not be compared with; return its
+    sidecar. ``folder`` must be a finished max-ent fit of the same study, settings and experiment (ValueError
+    naming what differs)."""
     side = fit_sidecar(folder)
     if side.get("human_model", "maxent") != "maxent":
         raise ValueError(f"{folder} is a {side['human_model']} fit; compare with a max-ent fit "
@@ -148,12 +115,8 @@ def fit_settings(side: dict, folder) -> IdentifySettings:
 
 
 def located_study(side: dict, folder) -> str:
-    """Where the study file a fit read is now (the path its sidecar records, which may not exist).
-
-    A fit records the path as it was given (relative to the folder the fit ran in) and
-    relative to its own folder (``study_relative``): a run's folder, staged elsewhere and
-    moved into place, still finds it by the second.
-    """
+    """Where the study file a fit read is now: the path as given, or else the one relative to the fit's folder
+    (``study_relative``), which survives a run folder moved into place."""
     study, relative = str(side["study"]), side.get("study_relative")
     if not Path(study).is_file() and relative is not None and (Path(folder) / relative).is_file():
         return str(Path(folder) / relative)
@@ -161,13 +124,7 @@ def located_study(side: dict, folder) -> str:
 
 
 def fit_study(side: dict, folder, study=None) -> Path:
-    """The study file a fit read: ``study`` if given, else where its sidecar says (:func:`located_study`).
-
-    Raises
-    ------
-    pipelines.io.InputDataError
-        If the file is not there.
-    """
+    """The study file a fit read: ``study`` if given, else :func:`located_study` (InputDataError if not there)."""
     folder = Path(folder)
     if study is None:
         study = located_study(side, folder)
@@ -178,13 +135,8 @@ def fit_study(side: dict, folder, study=None) -> Path:
 
 
 def sidecar_delays(side: dict, folder, prepared) -> np.ndarray:
-    """The delay (samples) a delayed fit used for each segment of ``prepared`` (its sidecar's ``delay.by_unit``).
-
-    Raises
-    ------
-    pipelines.io.InputDataError
-        If the sidecar has no delays, or none for a unit of the study.
-    """
+    """The delay (samples) a delayed fit used for each segment of ``prepared``, from its sidecar's ``delay.by_unit``
+    (InputDataError if it has none for a unit)."""
     path = Path(folder) / "posterior.json"
     by_unit = side.get("delay", {}).get("by_unit")
     if by_unit is None:
@@ -205,7 +157,7 @@ def adequacy_brief(adequacy: dict | None, where: str) -> dict:
 
 
 def unpooled_log_R_prior(side: dict, folder: Path):
-    """(m, s) of a delayed fit whose subjects' baseline log R had no population (``--R-population unpooled``), else None."""
+    """(m, s) of the baseline log R's prior of a delayed fit with ``--R-population unpooled``, else None."""
     population = side.get("delayed_priors", {}).get("R_population", "lognormal")
     if population != "unpooled":
         return None
@@ -237,44 +189,26 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
     Parameters
     ----------
     maxent_dir, delayed_dir : str or Path
-        Finished ``scioc fit`` folders of the same study with ``human_model`` maxent and delayed.
+        Finished ``scioc fit`` folders of the same study and settings, one per human model (else ValueError).
     settings : IdentifySettings, optional
-        The settings both fits used (window, preview, reconstruction, experiment); checked
-        against both sidecars. Default: those the max-ent fit's ``posterior.json`` records.
+        The settings both fits used, checked against both sidecars (default: the max-ent fit's).
     prepared : PreparedStudy, optional
-        The study as the fits prepared it (default: loaded from ``study`` and prepared with
-        ``settings``).
+        The study as the fits prepared it (default: the study file prepared with ``settings``).
     seed : int
         Seeds the importance sampling (``SeedSequence(seed).spawn(2)``: max-ent, delayed).
     points : int
-        Importance-sampling points per subject, for both models (:data:`HUMAN_MODELS_POINTS`).
-    out : str or Path, optional
-        Write the result as :data:`HUMAN_MODELS_FILE` in this folder (atomically).
-    study : str or Path, optional
-        The study file (default: the path the sidecars record; a fit records it as it was
-        given, relative to the folder the fit ran in).
-    relative_to : str or Path, optional
-        Record the fit folders relative to this folder when they are inside it (``scioc run``: its run
-        folder, which it stages under another name and renames at the end, so that a path as given would
-        point nowhere); by default as given.
+        Importance-sampling points per subject, for both models.
+    out, study, relative_to : str or Path, optional
+        Where to write :data:`HUMAN_MODELS_FILE`; the study file (default: :func:`located_study`); a folder to record
+        the fit folders relative to (``scioc run``'s, renamed at its end).
 
     Returns
     -------
     dict
-        ``by_subject``: per subject ``elpd_maxent``, ``elpd_delayed``, ``difference``
-        (delayed - maxent) and ``preferred``; ``difference``: ``elpd_diff`` ± ``se``, ``z``,
-        ``preferred``, ``n_preferring_delayed``, ``n``, ``reliable``, ``unreliable_because``
-        and ``importance`` (:func:`scioc.pipelines.fit.loo.comparison_reliability`: the Pareto k and the
-        importance sampling); ``maxent`` and ``delayed``: each model's PSIS summary with the
-        importance-sampling ESS; ``adequacy``: each fit's verdict at its posterior θ
-        (:func:`adequacy_brief`); ``convergence``: each fit's sampler-convergence verdict.
-
-    Raises
-    ------
-    ValueError
-        If the folders are not one max-ent and one delayed fit of the same study and settings.
-    pipelines.io.InputDataError
-        If a sidecar is unreadable, or the study file is not where it says and no ``study`` is given.
+        ``by_subject`` (each model's ELPD, the difference delayed - maxent, ``preferred``); ``difference`` (the sum
+        ± ``se``, ``z``, ``preferred``, ``n_preferring_delayed``, ``n`` and
+        :func:`scioc.pipelines.fit.loo.comparison_reliability`); ``maxent`` and ``delayed`` (PSIS summaries);
+        ``adequacy`` (:func:`adequacy_brief`) and ``convergence`` (verdict) of each fit.
     """
     folders = {"maxent": Path(maxent_dir), "delayed": Path(delayed_dir)}
     sides = {k: fit_sidecar(v) for k, v in folders.items()}
@@ -325,7 +259,7 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         "adequacy": {k: adequacy_brief(json.loads((v / "contrasts.json").read_text()).get("adequacy"),
                                        f"at the posterior θ ({_shown_path(v / 'contrasts.json', relative_to)})")
                      for k, v in folders.items()},
-        # Whether each fit's sampler converged (the model with condition effects): its draws feed the ELPD.
+        # Each fit's draws feed the ELPD, so whether its sampler converged goes beside it.
         "convergence": {k: (side.get("convergence_verdict") or {}).get("condition") for k, side in sides.items()},
     }
     if out is not None:
@@ -350,12 +284,8 @@ def _adequacy_line(name: str, a: dict | None) -> str:
 
 
 def format_human_models(res: dict) -> str:
-    """The comparison in a few lines, each model's adequacy verdict beside it.
-
-    The total difference ± SE and z, how many subjects each model predicts better, whether
-    the estimates are reliable (Pareto k, importance sampling), and which model the ELPD
-    prefers; a caveat when that model fails its adequacy checks.
-    """
+    """The comparison in a few lines, each model's adequacy verdict beside it, with a caveat when a fit did not
+    converge or the preferred model fails its adequacy checks."""
     d = res["difference"]
     n, k = d["n"], d["n_preferring_delayed"]
     se = "n/a" if d.get("se") is None or not np.isfinite(d["se"]) else f"{d['se']:.1f}"

@@ -14,12 +14,8 @@ from scioc.models.units import index_study
 
 
 def psis_summary(data, var_name: str, dim: str) -> tuple[dict, np.ndarray]:
-    """PSIS-LOO of one model: ELPD, SE, p_loo and the Pareto k summary; and the pointwise ELPD.
-
-    ``dim`` names the left-out unit (the k of each are listed under ``by_<dim>``). A k that
-    cannot be estimated (NaN: degenerate tail, e.g. repeated draws of a stuck chain)
-    counts as above the threshold.
-    """
+    """PSIS-LOO of one model: ELPD, SE, p_loo and the Pareto k summary (per left-out ``dim`` under ``by_<dim>``; a
+    NaN k counts as above the threshold); and the pointwise ELPD."""
     reff = relative_ess(data)
     log_weights, pareto_k = psis_weights(data["log_likelihood"][var_name], dim, reff)
     with warnings.catch_warnings():
@@ -51,14 +47,8 @@ def relative_ess(data) -> float:
 
 
 def psis_weights(log_lik: xr.DataArray, dim: str, reff: float) -> tuple[xr.DataArray, xr.DataArray]:
-    """Pareto-smoothed log weights and k of each observation along ``dim`` (ArviZ's ``psislw``).
-
-    An observation whose largest importance ratios are all equal (the draws of a stuck chain
-    repeat one value) has no tail to fit, and ArviZ raises for the whole data set; here that
-    observation keeps its raw self-normalized weights and a NaN k, which :func:`psis_summary`
-    counts as above the threshold, so the comparison says it is unreliable instead of the
-    fit failing after its sampling.
-    """
+    """Pareto-smoothed log weights and k of each observation along ``dim`` (ArviZ's ``psislw``); an observation
+    with no tail to fit (a stuck chain), for which ArviZ raises, keeps its raw weights and a NaN k instead."""
     weights, ks = [], []
     for i in range(log_lik.sizes[dim]):
         one = log_lik.isel({dim: slice(i, i + 1)})
@@ -75,23 +65,15 @@ def psis_weights(log_lik: xr.DataArray, dim: str, reff: float) -> tuple[xr.DataA
     return xr.concat(weights, dim), xr.concat(ks, dim)
 
 
-#: The smallest leave-one-out importance-sampling ESS (``is_ess_loo``, :mod:`scioc.models.bayes.subject_loo`)
-#: of any subject for a leave-one-subject-out comparison to count as reliable: a subject's log
-#: density then has a Monte Carlo SE of about 1 / sqrt(ESS) ≤ 0.1 nats (delta method), and the
-#: weights are past the few-points regime in which Kong's ESS, estimated from the weights
-#: themselves, overstates (``tests/models/bayes/test_subject_loo.py``).
+#: The smallest importance-sampling ESS (``is_ess_loo``) of any subject for a leave-one-subject-out comparison to
+#: count as reliable: a Monte Carlo SE of about 1 / sqrt(ESS) ≤ 0.1 nats (docs/decisions/loso-reliability.md).
 LOSO_ESS_MIN = 100
 
 
 def comparison_reliability(a: dict, b: dict) -> dict:
-    """Whether the ELPD difference of two models' summaries (:func:`psis_summary`, :func:`subject_elpd`) holds.
-
-    ``reliable``: every Pareto k of both below its threshold and, for leave-one-subject-out,
-    every subject's importance-sampling ESS (``is_ess_loo``) at least :data:`LOSO_ESS_MIN`;
-    ``unreliable_because``: which failed. ``importance`` (leave-one-subject-out only): the
-    smallest ESS and the Monte Carlo SE of the difference, sqrt(Σ 1 / ESS) over both models'
-    subjects (independent proposal points per model).
-    """
+    """Whether the ELPD difference of two models' summaries holds: ``reliable`` (every Pareto k below its threshold
+    and, leaving subjects out, every importance-sampling ESS at least :data:`LOSO_ESS_MIN`), ``unreliable_because``
+    and ``importance`` (the smallest ESS and the difference's Monte Carlo SE, sqrt(Σ 1 / ESS) over both models)."""
     why = []
     if a["pareto_k"]["n_gt_threshold"] + b["pareto_k"]["n_gt_threshold"]:
         why.append("Pareto k above the threshold")
@@ -113,17 +95,8 @@ def reliability_words(d: dict) -> str:
 
 
 def elpd_difference(out: dict, pointwise: dict) -> dict:
-    """ELPD(condition) − ELPD(pooled) ± SE from the pointwise values, the preference and its reliability.
-
-    Reliability as :func:`comparison_reliability` says (the Pareto k; for leave-one-subject-out also
-    the importance sampling).
-
-    Not ArviZ's ``compare``, although it gives the same difference
-    (``tests/pipelines/fit/test_loo.py``): its SE is ``sqrt(n · var(d))`` with the variance
-    over n, where R's loo package (``loo_compare``: ``sqrt(n) · sd(d)``, Vehtari et al.
-    2017, Eq. 24) and this function use n − 1. With 42 subjects the two differ by 1.2 %; with
-    one subject ArviZ reports an SE of 0, this one none (undefined).
-    """
+    """ELPD(condition) − ELPD(pooled) ± SE, the preference and its reliability; the SE ``sqrt(n) · sd(d)`` with
+    the variance over n − 1, as R's ``loo_compare`` (Vehtari et al. 2017, Eq. 24); ArviZ's ``compare`` uses n."""
     diff_i = pointwise["condition"] - pointwise["pooled"]
     n = diff_i.shape[0]
     diff, se = float(diff_i.sum()), float(np.sqrt(n * diff_i.var(ddof=1)))
@@ -134,13 +107,8 @@ def elpd_difference(out: dict, pointwise: dict) -> dict:
 
 
 def loo_comparison(idata, idata_pooled) -> dict:
-    """PSIS-LOO of both models and their ELPD difference (condition − pooled) ± SE.
-
-    With one segment per subject × condition, leaving a segment out removes every datum
-    on that unit's θ, so the importance ratios are heavy-tailed and many Pareto k exceed
-    the threshold: the comparison is then unreliable and says so (``reliable``). With
-    trials each trial is a segment (left out alone, its unit's other trials stay).
-    """
+    """PSIS-LOO of both models and their ELPD difference (condition − pooled) ± SE; with one segment per unit many
+    Pareto k exceed the threshold (a left-out segment holds every datum on its unit's θ), and it says so."""
     out, pointwise = {}, {}
     for name, d in (("condition", idata), ("pooled", idata_pooled)):
         out[name], pointwise[name] = psis_summary(d, "u_H", "segment")
@@ -160,7 +128,7 @@ LOSO_POINTS = 2000
 
 
 def thinned_posterior(idata) -> tuple[dict, object]:
-    """The posterior thinned evenly to :data:`LOSO_DRAWS` draws over the chains: flat arrays (S first) and the Dataset."""
+    """The posterior thinned evenly to :data:`LOSO_DRAWS` draws: flat arrays (draws first) and the Dataset."""
     post = idata["posterior"].to_dataset()
     n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
     step = max(1, (n_chain * n_draw) // LOSO_DRAWS)
@@ -172,14 +140,8 @@ def thinned_posterior(idata) -> tuple[dict, object]:
 
 def subject_elpd(idata, batch, index, plant, rng: np.random.Generator, levels, *, condition_effects: bool = True,
                  extra=None, points: int = LOSO_POINTS) -> tuple[dict, np.ndarray]:
-    """Leave-one-subject-out of one model by integrated PSIS: its summary and the ELPD of each subject.
-
-    ``points``: importance-sampling points per subject.
-
-    ``index`` is :func:`scioc.models.units.index_study` of the fitted segments; ``extra`` the terms
-    of another human model (:func:`scioc.models.bayes.subject_loo.subject_loglik`), built from
-    the thinned posterior's flat draws by a callable ``extra(flat)``.
-    """
+    """Leave-one-subject-out of one model by integrated PSIS: its summary and the ELPD of each subject; ``extra(flat)``
+    builds another human model's terms (:func:`scioc.models.bayes.subject_loo.subject_loglik`) from the flat draws."""
     flat, keep = thinned_posterior(idata)
     order = [str(x) for x in keep["log_theta1"].coords["subject"].values]
     if order != [str(x) for x in index.subjects]:
@@ -205,13 +167,9 @@ def subject_loo_comparison(idata, idata_pooled, batch, subjects, conditions, pla
                            levels=CONDITIONS) -> dict:
     """Leave-one-subject-out ELPD of both models by integrated PSIS, and their difference.
 
-    The pointwise term is ``log p(y_i | ψ_s)``, subject i's data with its unit parameters
-    integrated out under population draw ψ_s (:mod:`scioc.models.bayes.subject_loo`); PSIS then
-    reweights only the population draws, which one subject of many barely moves, so the
-    Pareto k stay low where the segment-wise PSIS-LOO fails. The posterior is thinned
-    evenly to :data:`LOSO_DRAWS` draws over the chains. ``levels``: the condition levels,
-    baseline first, as the models were built with; a subject's data are all its segments
-    (every level, every trial).
+    The pointwise term is ``log p(y_i | ψ_s)``, subject i's data with its unit parameters integrated out under
+    population draw ψ_s (:mod:`scioc.models.bayes.subject_loo`); PSIS then reweights only the population draws, which
+    one subject of many barely moves, so the Pareto k stay low where the segment-wise PSIS-LOO fails.
     """
     index = index_study(subjects, conditions, levels)
     out, pointwise = {}, {}

@@ -1,20 +1,8 @@
-"""Which subjects' policy and motor noise the delayed fit samples in polar coordinates, and their k.
+"""Which subjects' noise the delayed fit samples in polar coordinates (``--rho-form polar``), and their k.
 
-:mod:`scioc.models.bayes.noise_blocks` ("polar") straightens a subject's arc ρ² + k σ_m² ≈ c when it is
-given the subject's k. :func:`noise_arcs` reads both off the subject's own likelihood at its ML
-estimates: with θ1, θ2, τ_nm and the delay held there, ρ² is moved to half, once and twice its ML
-value (every unit's R divided by s = ½, 1, 2) and σ_m² is maximized at each (a bounded scalar
-search of the exact likelihood, :func:`scioc.models.delayed.likelihood.loglik_grad`). Along an arc the
-maximizing σ_m² falls as ρ² grows: k = -1 / slope of the maximizing σ_m² on ρ² (least squares over
-the three). The subject goes to polar coordinates where that fall, from s = ½ to s = 2, is at least
-:data:`ARC_MIN` of its ML σ_m² (and ρ, σ_m and k are positive); elsewhere k is NaN and the subject
-keeps the folded centred coordinates (ρ near 0: no arc; σ_m² barely moved: ρ and σ_m fixed apart).
-
-Measured ad hoc on the full-size ``kbl`` study (``scioc bench --parts fit_delayed --humans kbl``'s
-data, 42 subjects, each unit at its own ML delay): the fall was 0.6-1.6 of σ_m² for 9 subjects (k
-1.8-4.7), about 0.4 for 3 more, and below 0.25 for the other 30 (ρ at 0, or σ_m fixed whatever ρ):
-12 reached the 0.3. Measured on a subset: :mod:`scioc.pipelines.fit.delayed_forms`, "Polar, squared, and
-the low-rank mass matrix".
+:mod:`scioc.models.bayes.noise_blocks` straightens a subject's arc ρ² + k σ_m² ≈ c given k; :func:`noise_arcs`
+sets ρ² to :data:`RHO2_SCALES` times its ML value, maximizes the likelihood over σ_m² at each, and takes
+k = -1 / slope where σ_m² falls by at least :data:`ARC_MIN` of its ML value (else NaN: folded centred coordinates).
 """
 
 from __future__ import annotations
@@ -26,18 +14,17 @@ from scipy.optimize import minimize_scalar
 from scioc.models.delayed.likelihood import loglik_grad
 from scioc.models.segment import prepare_batch
 
-#: Smallest fall of the maximizing σ_m², from ρ² halved to ρ² doubled, relative to its ML value, for polar coordinates.
+#: Smallest fall of the maximizing σ_m², from ρ² halved to doubled, relative to its ML value, for polar coordinates.
 ARC_MIN = 0.3
 #: The multiples of the subject's ρ² at which σ_m² is maximized.
 RHO2_SCALES = (0.5, 1.0, 2.0)
 
 
 def subject_arc(loglik, rho2: float, sigma2: float) -> tuple[float, float]:
-    """(fall, k) of one subject: ``loglik(s, v)`` its log-likelihood with ρ² times s and σ_m² = v.
+    """(fall, k) of one subject, ``loglik(s, v)`` its log-likelihood with ρ² times s and σ_m² = v.
 
-    fall: (v*(½) - v*(2)) / ``sigma2``, v*(s) the maximizing σ_m² (bounded to [0, 4 ``sigma2``]);
-    k: -1 / the least-squares slope of v* on s ``rho2`` (NaN where the slope is not negative). Where v* reaches
-    the bound 0 at s = 2 the slope is shallower than the arc's and k larger.
+    fall: (v*(½) - v*(2)) / ``sigma2``, v*(s) the maximizing σ_m² in [0, 4 ``sigma2``]; k: -1 / the least-squares
+    slope of v* on s ``rho2`` (NaN where the slope is not negative).
     """
     vs = []
     for s in RHO2_SCALES:
@@ -52,10 +39,8 @@ def subject_arc(loglik, rho2: float, sigma2: float) -> tuple[float, float]:
 def noise_arcs(prepared, plant, estimates: pd.DataFrame, delay_samples, tau0_at, subjects) -> tuple[tuple, dict]:
     """k per subject of ``subjects`` (the model's order; NaN: not polar) and, per subject, its fall and k.
 
-    ``estimates``: per unit (subject, condition) ``theta1``, ``theta2``, ``R``, ``tau_nm``, ``sigma_m``
-    (``scioc identify --human-model delayed``); a subject's τ_nm and σ_m are its units' means, its ρ² that
-    of its unit in the design's baseline level (the model's ρ). ``delay_samples``: each segment's delay;
-    ``tau0_at(position, τ_nm)``: a window's arm torque at its start (:func:`scioc.pipelines.fit.delayed.tau0_function`).
+    ``estimates``: per unit ``theta1``, ``theta2``, ``R``, ``tau_nm``, ``sigma_m``; a subject's τ_nm and σ_m are its
+    units' means, its ρ² that of its baseline unit. ``tau0_at(position, τ_nm)``: a window's arm torque at its start.
     """
     missing = [c for c in ("theta1", "theta2", "R", "tau_nm", "sigma_m") if c not in estimates.columns]
     if missing:

@@ -1,10 +1,5 @@
-"""Posterior predictive check of the fit: exact max-ent draws of one subject's segments.
-
-The draws go into the fit's DataTree as the ``posterior_predictive`` group (dims matching
-``observed_data``: ``u_H`` over segment × step, plus the predicted ``angle`` over segment ×
-sample), beside a ``constant_data`` group with what the likelihood conditions on; their
-5/50/95 % quantiles per time step are the report's summary table (``ppc.parquet``).
-"""
+"""Posterior predictive check of the fit: exact draws of one subject's segments from the human the likelihood
+assumes, stored as the DataTree's ``posterior_predictive`` group and summarized as 5/50/95 % bands (``ppc.parquet``)."""
 
 from __future__ import annotations
 
@@ -31,15 +26,12 @@ class PosteriorPredictive(NamedTuple):
     Attributes
     ----------
     bands : DataFrame
-        One row per window sample k = 0..K of each of the subject's segments: subject,
-        condition (and trial, when the study has trials), t (s), angle_ref, angle (measured),
-        u_H (reconstructed or recorded), u_A (N·m), ``angle_q05/q50/q95`` (rad),
-        ``u_H_q05/q50/q95`` (N·m), ``angle_opt``, ``u_H_opt``; torques NaN at k = K.
+        One row per window sample k = 0..K of each of the subject's segments: subject, condition (trial), t (s),
+        angle_ref, angle, u_H, u_A, ``angle_q05/q50/q95`` (rad), ``u_H_q05/q50/q95`` (N·m), ``angle_opt``,
+        ``u_H_opt``; torques NaN at k = K.
     draws : xarray.Dataset
-        ``u_H`` (chain, draw, segment, step), N·m, and ``angle`` (chain, draw, segment,
-        sample), rad: the draws themselves, for the DataTree's ``posterior_predictive``
-        group. ``chain`` has length 1; the coordinate ``source_draw`` gives each draw's
-        flat index into the posterior's chain × draw.
+        ``u_H`` (chain, draw, segment, step), N·m, and ``angle`` (chain, draw, segment, sample), rad; one chain,
+        ``source_draw`` each draw's flat index into the posterior.
     """
 
     bands: pd.DataFrame
@@ -48,26 +40,12 @@ class PosteriorPredictive(NamedTuple):
 
 def posterior_predictive(idata, prepared: PreparedStudy, subject: str, rng: np.random.Generator,
                          n_draws: int = PPC_DRAWS, delayed: dict | None = None) -> PosteriorPredictive:
-    """Posterior predictive angle and torque of one subject, every level (and trial).
+    """Posterior predictive angle and torque of one subject, every level and trial (ValueError if not in the study).
 
-    ``n_draws`` posterior draws, evenly spaced over chains × draws; for each, one exact
-    max-ent demonstration per segment given its x0 and reference, from the human the
-    likelihood assumes (planning with the recorded u_A, or in closed loop with the
-    assistant's law; preview included, the first K torques kept); then the 5/50/95 %
-    quantiles per time step. Also the forward optimal control at the posterior median θ.
-    The wheel and its sample time are the study's (``prepared.settings.design``); the
-    trials of a unit share its posterior θ, each with its own x0, reference and u_A.
-
-    ``delayed`` (None: the max-ent human, as always) draws from the ``delayed`` human
-    instead (:func:`scioc.models.delayed.sample_delayed`) at each draw's θ and its subject's
-    τ_nm and σ_m: a dict with ``delay`` (per segment of ``prepared``, samples) and
-    ``tau0`` (a function (segment position, τ_nm) -> τ_0, N·m). Its "optimal" curves are
-    the closed loop without noise at the posterior medians.
-
-    Raises
-    ------
-    ValueError
-        If ``subject`` is not in the study.
+    For each of ``n_draws`` evenly spaced posterior draws, one exact max-ent demonstration per segment from its x0 and
+    reference (planning with the recorded u_A, or in closed loop with the assistant's law); the 5/50/95 % quantiles per
+    step; the forward optimal control at the posterior median θ. ``delayed`` (``delay`` per segment, samples; ``tau0``:
+    (segment position, τ_nm) -> τ_0, N·m) draws from the ``delayed`` human instead, with its noise-free closed loop.
     """
     design = prepared.settings.design
     plant = discretize(design.dt, design.wheel)
@@ -162,11 +140,8 @@ class NoiseFree(NamedTuple):
 
 
 def constant_data(prepared: PreparedStudy) -> xr.Dataset:
-    """What the likelihood conditions on, per segment: x0, the reference, u_A, the time axis and the recorded angle.
-
-    Dims ``segment`` (the observed data's), ``sample`` (window samples k = 0..K),
-    ``step`` (k = 0..K-1, as the observed ``u_H``) and ``state`` (angle, velocity).
-    """
+    """What the likelihood conditions on, per segment: x0, the reference, u_A, the time axis and the recorded angle
+    (dims ``segment``, ``sample`` k = 0..K, ``step`` k = 0..K-1 and ``state``)."""
     segs = prepared.segments
     K = segs[0].segment.K
     trials = {} if segs[0].data.trial is None else {"trial": ("segment", [p.data.trial for p in segs])}

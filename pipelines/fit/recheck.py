@@ -1,13 +1,5 @@
-"""The adequacy check of a finished fit, again, without refitting (``scioc adequacy``).
-
-``scioc fit`` checks the human model at one point of its posterior
-(:func:`scioc.pipelines.fit.checks.posterior_point`). :func:`recheck_adequacy` repeats that
-check on a finished fit folder: at another point (``--at draw`` or ``means``), with another
-seed (another draw, another bootstrap), or after the check itself changed. It reads the
-folder's ``posterior.json`` (study, settings, experiment, the delayed fit's delays) and
-``posterior.nc``, prepares the study as the fit did and writes nothing there: the result
-goes to the console and, with ``--out``, to a file of its own.
-"""
+"""``scioc adequacy``: a finished fit's adequacy check again, at another point or seed, without refitting; it
+writes nothing into the fit folder."""
 
 from __future__ import annotations
 
@@ -36,7 +28,7 @@ def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, stud
     at : {"draw", "means"}
         The posterior point (:data:`scioc.pipelines.fit.checks.ADEQUACY_POINTS`).
     seed : int, optional
-        The adequacy seed (the draw and the bootstrap); default: the one the fit used.
+        The adequacy seed (the draw and the bootstrap); default: the fit's.
     study : str or Path, optional
         The study file (default: the path ``posterior.json`` records).
 
@@ -44,13 +36,6 @@ def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, stud
     -------
     dict
         ``fit``, ``study``, ``human_model`` and ``adequacy`` (as ``contrasts.json``'s).
-
-    Raises
-    ------
-    ValueError
-        If ``fit_dir`` is not a finished fit folder.
-    pipelines.io.InputDataError
-        If its sidecar lacks what the check needs, or the study file is not found.
     """
     folder = Path(fit_dir)
     side = fit_sidecar(folder)

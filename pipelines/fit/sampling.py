@@ -1,5 +1,4 @@
-"""Sampling a PyMC model for ``scioc fit`` (nutpie; PyMC's compound step for a sampled delay): seeds, stdout kept
-clean, Ctrl-C honoured."""
+"""Sampling a PyMC model for ``scioc fit`` with nutpie: seeds, stdout kept clean, Ctrl-C honoured."""
 
 from __future__ import annotations
 
@@ -25,41 +24,31 @@ def sample_model(model, *, seed: int, chains: int, draws: int, tune: int, cores:
                  initvals: dict | None = None, target_accept: float | None = None):
     """Sample ``model`` with nutpie (through ``pm.sample``) and add the pointwise log-likelihood.
 
-    ``log_likelihood=False`` skips the pointwise log-likelihood (for timing the fit alone).
-    ``nuts``: nutpie's own options (e.g. ``{"adaptation": "low_rank"}``), passed on only
-    when given, so that a fit without them is exactly as before.
-    ``cores`` (chains run in parallel) defaults to ``os.cpu_count()``. It is passed
-    explicitly because PyMC's own default halves the CPU count (it assumes hardware
-    threads): on a 2-core machine nutpie then ran the chains one at a time, measured
-    2.0× slower sampling on the default study.
-
-    ``steps``: step methods for some of the model's variables (e.g. a sampled delay, which
-    nutpie cannot update): the model is then sampled by PyMC's compound step, ``steps`` for
-    their variables and PyMC's own NUTS (diagonal mass matrix) for the rest, compiled by numba.
-
-    With nutpie the warm-up's leapfrog steps are counted and its draws dropped
-    (:func:`keep_tuning_steps`).
-
-    ``target_accept``: the NUTS target acceptance rate (nutpie's, or PyMC's NUTS's beside ``steps``),
-    over any in ``nuts``; None leaves the sampler's own (nutpie's 0.8, or ``nuts``'s).
-
-    ``initvals``: where the chains start (RV name -> value; :func:`scioc.pipelines.fit.start.start_point`),
-    jittered per chain as PyMC's own start is; passed on only when given.
+    Parameters
+    ----------
+    cores : int, optional
+        Chains run in parallel; default ``os.cpu_count()``, as PyMC's default halves it (it assumes hardware threads).
+    nuts, target_accept : dict, float, optional
+        nutpie's own options (e.g. ``{"adaptation": "low_rank"}``); the target acceptance rate over them.
+    steps : list, optional
+        Step methods for variables nutpie cannot update (a sampled delay): PyMC's compound step then samples the
+        model, its own NUTS (numba-compiled) for the rest.
+    initvals : dict, optional
+        Where the chains start (:func:`scioc.pipelines.fit.start.start_point`), jittered per chain.
 
     Returns
     -------
     idata : DataTree
+        The warm-up's leapfrog steps counted, its draws dropped (:func:`keep_tuning_steps`).
     seconds : dict
-        ``compile_and_sample`` (wall time of ``pm.sample``), ``sample`` (nutpie's own
-        sampling time, tuning included, compilation excluded) and ``log_likelihood``.
+        ``compile_and_sample`` (wall time), ``sample`` (the sampler's own, warm-up included) and ``log_likelihood``.
     """
     import pymc as pm  # lazy: PyMC takes seconds to import
 
     if target_accept is not None:
         nuts = {**(nuts or {}), "target_accept": float(target_accept)}
     t0 = time.perf_counter()
-    # On a terminal the sampler's own table; in a log file (not a terminal) a line a minute instead, as the
-    # table would appear only when the fit has ended.
+    # In a log file the sampler's table would appear only when the fit has ended: a line a minute instead.
     lines = show_progress and not steps and not sys.stderr.isatty()
     with stdout_to_stderr(), interrupt_guard() as interrupted, progress_lines(lines):
         sampler = ({"step": list(steps), "compute_convergence_checks": False, "compile_kwargs": {"mode": "NUMBA"}}
@@ -92,8 +81,8 @@ def add_log_likelihood(idata, model) -> None:
     """Add the pointwise log-likelihood of ``model`` at ``idata``'s posterior draws (group ``log_likelihood``)."""
     import pymc as pm
 
-    # PyMC cannot rebuild a model with initial values (the folded ρ's of delayed_blocks.py) for the
-    # log-likelihood; they only chose where the chains started, so they are left out for it and put back.
+    # PyMC cannot rebuild a model with initial values (delayed_blocks.py's folded ρ) for the log-likelihood;
+    # they only chose where the chains started, so they are left out for it and put back.
     initvals = dict(model.rvs_to_initial_values)
     model.rvs_to_initial_values.update(dict.fromkeys(initvals))
     try:
@@ -103,15 +92,8 @@ def add_log_likelihood(idata, model) -> None:
 
 
 def keep_tuning_steps(idata) -> None:
-    """Record the warm-up's leapfrog steps in ``sample_stats.attrs`` and drop nutpie's warm-up groups.
-
-    ``tuning_leapfrog_steps`` (all chains) and ``tuning_draws`` (per chain), so that
-    :func:`scioc.pipelines.fit.diagnostics.diagnostics` can say where the sampling time went: the
-    kept draws' steps alone do not (the delayed fit's warm-up took most of it). And
-    ``tuning_steps_by_tenth``: the mean steps per draw (all chains) in each tenth of the
-    warm-up, in order, which says which phase of nutpie's adaptation the steps went to. The
-    warm-up draws themselves are not kept (nutpie hands them back only so that this can be counted).
-    """
+    """Record the warm-up's leapfrog steps in ``sample_stats.attrs`` (all chains, per chain, and the mean per draw in
+    each tenth of the warm-up: which phase of the adaptation took them) and drop nutpie's warm-up groups."""
     names = [g for g in list(idata.children) if g.startswith("warmup_")]
     if "warmup_sample_stats" in names:
         n = idata["warmup_sample_stats"]["n_steps"].values
@@ -137,12 +119,8 @@ def progress_line(chain_progresses, seconds: float) -> str:
 
 @contextlib.contextmanager
 def progress_lines(on: bool, every: float = 60.0):
-    """While sampling with nutpie through PyMC, write :func:`progress_line` to stderr every ``every`` seconds.
-
-    PyMC hands nutpie's progress to its ``NutpieProgressBarManager``; inside this context that
-    class also writes the lines (the draws do not change). Nothing happens when ``on`` is False
-    or PyMC no longer has that class.
-    """
+    """While sampling with nutpie through PyMC, write :func:`progress_line` to stderr every ``every`` seconds (through
+    PyMC's ``NutpieProgressBarManager``; nothing if ``on`` is False or PyMC has no such class)."""
     import pymc.sampling.mcmc as mcmc
 
     base = getattr(mcmc, "NutpieProgressBarManager", None)
@@ -170,10 +148,8 @@ def progress_lines(on: bool, every: float = 60.0):
 
 @contextlib.contextmanager
 def stdout_to_stderr():
-    """Send everything written to standard output, by Python or by compiled code, to standard error.
-
-    The sampler's progress tables are progress, not results: results go to stdout.
-    """
+    """Send everything written to standard output, by Python or compiled code, to standard error: the sampler's
+    progress tables are not results."""
     sys.stdout.flush()
     saved = os.dup(1)
     try:
@@ -190,15 +166,9 @@ def stdout_to_stderr():
 def interrupt_guard(redeliver_every: float = 1.0):
     """Note a Ctrl-C (SIGINT) even if the code inside catches it; yields a function that tells.
 
-    The previous handler still runs (Python's raises KeyboardInterrupt), so the code inside
-    stops as it would; afterwards the caller can refuse a result the interruption cut short.
-
-    A KeyboardInterrupt raised inside a callback from compiled code (llvmlite's object cache
-    while numba compiles, a ctypes callback) is printed and dropped, and the sampler would go
-    on for hours. So after the first Ctrl-C the signal is sent again every ``redeliver_every``
-    seconds until the code inside has stopped; nutpie returns at the first one it sees. Inside
-    llvmlite's callbacks it is not raised at all (measured: once in 12 tries the process then
-    died of a segmentation fault instead of exiting 130); the next one is.
+    The previous handler still runs, and the caller can refuse a result the interruption cut short. Compiled code's
+    callbacks (llvmlite's object cache, ctypes) print and drop a KeyboardInterrupt, so the signal is sent again every
+    ``redeliver_every`` seconds until the code inside stops; inside llvmlite it is not raised at all, as that can crash.
     """
     seen = []
     if threading.current_thread() is not threading.main_thread():

@@ -1,45 +1,13 @@
 """``scioc fit``: the hierarchical Bayesian model of a study, its diagnostics and contrasts.
 
-The segments are cut and reconstructed exactly as ``scioc identify`` does
-(:func:`scioc.pipelines.prepare.prepare_study`; ``scioc run`` passes the same prepared study to
-both), then two models of
-:func:`scioc.models.bayes.hierarchical.build_model` are sampled with nutpie through ``pm.sample``:
-the model with condition effects (β, the mean SC change of log θ1, is the paper's
-question; with more levels one β per level against the baseline) and the pooled model
-without them (log θ1 the same in every level), which only serves the PSIS-LOO comparison.
-With ``human_model="delayed"`` the one model is the delayed human's (:mod:`scioc.pipelines.fit.delayed`).
-
-The experiment (:class:`scioc.models.design.Design`, ``settings.design``) gives the wheel and
-the sample time of the likelihood, the levels (baseline first) and their assistants, and
-the rate of the prior on log R (:meth:`scioc.models.bayes.hierarchical.Priors.for_design`).
-Several trials of one subject × level are segments of one unit: they share its θ.
-
-Artifacts in ``--out DIR``:
-
-* ``posterior.nc`` — the posterior of the model with condition effects as one ArviZ
-  DataTree (NetCDF): ``posterior``, ``sample_stats``, ``log_likelihood`` (one value per
-  segment), ``observed_data`` (``u_H``, segment × step), ``posterior_predictive`` (the
-  predictive draws of one subject's segments, same dims) and ``constant_data`` (x0,
-  reference, u_A, time and recorded angle per segment).
-* ``posterior_pooled.nc`` — the pooled model's posterior (no predictive groups).
-* ``posterior.json`` — sidecar: seeds, sampler settings, the priors, diagnostics of both fits
-  with a verdict (no divergences, R-hat ≤ 1.01, bulk and tail ESS ≥ 400 for every population
-  parameter), wall times, ESS per second, inputs, the experiment (resolved, its hash and
-  file) and package versions.
-* ``contrasts.json`` — β (mean, SD, 94 % HDI, P(β < 0)), the ratio exp(β) with its HDI,
-  per-subject MC→SC contrasts of log θ1 (with more than two levels: ``baseline`` and one
-  such block per non-baseline level under ``contrasts``), the LOO comparisons (PSIS over segments, which
-  one segment per unit defeats, and integrated PSIS leaving out whole subjects,
-  :func:`scioc.pipelines.fit.loo.subject_loo_comparison`), the frequentist mixed-model
-  cross-check on the per-segment ML estimates and, for a simulated study, the truth check.
-* ``ppc.parquet`` — the report's summary of the predictive draws: 5/50/95 % bands of angle
-  and torque of one subject (every level and trial) over exact max-ent draws of the human the
-  likelihood assumes (:func:`scioc.models.maxent.sample_maxent`), beside the data.
-
-Randomness: the root ``seed`` is split with ``SeedSequence(seed).spawn(4)`` into the seeds
-of the two samplers, of the posterior predictive draws and of the leave-one-subject-out
-importance sampling; the same seed gives the same
-draws and numbers (file bytes differ only by the time stamps NetCDF attributes carry).
+The segments are cut as ``scioc identify`` cuts them; then nutpie samples two models of
+:func:`scioc.models.bayes.hierarchical.build_model`: with condition effects (β, the mean SC change of log θ1, is the
+paper's question) and pooled, which only serves the LOO comparison. The delayed human has one model
+(:mod:`scioc.pipelines.fit.delayed`). Artifacts in ``--out DIR``: ``posterior.nc`` (the condition model's DataTree,
+with ``log_likelihood``, ``observed_data``, one subject's ``posterior_predictive`` and ``constant_data``),
+``posterior_pooled.nc``, ``posterior.json`` (the sidecar: seeds, settings, priors, diagnostics and verdict, times,
+inputs, experiment, versions), ``contrasts.json`` (β, contrasts, LOO, cross-checks, adequacy) and ``ppc.parquet``
+(predictive bands). The same root seed gives the same draws (:func:`scioc.pipelines.fit.sampling.child_seeds`).
 """
 
 from __future__ import annotations
@@ -88,11 +56,8 @@ from scioc.pipelines.storage import (
 
 
 def default_inputs(study_path: Path, estimates_path, truth_dir):
-    """Inputs beside the study in the run-folder layout of ``scioc run`` when not given.
-
-    The estimates are taken from ``<run>/identify/`` only if its ``identify.json`` says they
-    were identified from this very study file.
-    """
+    """Inputs beside the study in ``scioc run``'s folder layout when not given; the estimates only if
+    ``<run>/identify/identify.json`` says they come from this very study file."""
     if estimates_path is None:
         guess = study_path.parent.parent / "identify"
         try:
@@ -112,16 +77,8 @@ def default_inputs(study_path: Path, estimates_path, truth_dir):
 MIN_TOTAL_DRAWS = 25
 
 
-#: Units whose ML log θ1 the data pin down to this standard error (median over units) or better are
-#: fitted with centred log θ1 blocks (models/bayes/hierarchical.py, "Parameterization"): the data then
-#: outweigh the population spread of the changes (σ_β ≈ 0.2) and the non-centred default mixes slowly.
-#: Measured (4 chains × 1000 draws; condition model; worst bulk ESS and R-hat of β): the three-assistants
-#: example (median SE 0.021), default 280 / 1.017, centred above 4800 / 1.00 (seed 2018); the default study
-#: (0.062), default 625 / 1.015, 658 / 1.002, 733 / 1.006 (seeds 2018, 1, 2: at the edge of R-hat ≤ 1.01),
-#: centred 5867 / 1.000, 4799 / 1.000, 4558 / 1.000, no divergences (the condition model of `scioc fit
-#: reports/default-study/data/study.parquet --out F --seed S` after `make run`; the default form at commit
-#: 1ccbd4b, before the threshold moved from 0.03). The same study cut to 3-s windows (0.30) diverges centred
-#: (hierarchical.py's table): the threshold sits just above the largest SE measured to work.
+#: The median SE of the units' ML log θ1 at or below which the log θ1 blocks are centred: the data then outweigh the
+#: population spread of the changes (docs/decisions/maxent-parameterization.md).
 CENTRED_SE_LOG_THETA1 = 0.08
 
 
@@ -135,8 +92,8 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
 
 def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | None = None,
                    whitening: dict | None = None) -> dict:
-    """Which sampler a fit used and its mass matrix, for the sidecar (``nutpie_options``: the delayed fit's;
-    ``whitening``: the record of its whitened coordinates, :mod:`scioc.pipelines.fit.whiten`, if any)."""
+    """Which sampler a fit used and its mass matrix, for the sidecar (the delayed fit's ``nutpie_options`` and
+    ``whitening`` record)."""
     if human_model == "delayed" and delay_mode == "sampled":
         return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
                 "adaptation": "diag (PyMC's NUTS)"}
@@ -151,20 +108,15 @@ def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | Non
 
 
 def curved_along(counts: dict) -> str:
-    """The pivots of a curved whitening (:func:`scioc.pipelines.fit.whiten.whitening`'s ``curved_along``) for the sidecar:
-    the name alone, or each with its number of subjects where each subject had its own."""
+    """A curved whitening's pivots for the sidecar: the name alone, or each with its number of subjects."""
     if len(counts) == 1:
         return next(iter(counts))
     return ", ".join(f"{name} ({n} subjects)" for name, n in counts.items())
 
 
 def choose_parameterization(estimates) -> tuple[Parameterization, str]:
-    """The form of the log θ1 blocks for these data, and why (recorded in the sidecar).
-
-    Centred when the estimates' median ``se_log_theta1`` (``scioc identify``'s, or
-    :func:`unit_se_log_theta1`) is at most :data:`CENTRED_SE_LOG_THETA1`; the default
-    :class:`Parameterization` otherwise, and without estimates.
-    """
+    """The form of the log θ1 blocks for these data, and why: centred where the estimates' median ``se_log_theta1``
+    is at most :data:`CENTRED_SE_LOG_THETA1`, else (and without estimates) the default :class:`Parameterization`."""
     if estimates is None or "se_log_theta1" not in estimates.columns:
         return Parameterization(), "default (no estimates to measure the data per unit)"
     se = float(pd.to_numeric(estimates["se_log_theta1"], errors="coerce").median())
@@ -182,62 +134,34 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                delayed_priors: DelayedPriors | None = None, rho_form: str | None = None,
                adaptation: str | None = None, log_R_form: str | None = None, adequacy_at: str = "draw",
                target_accept: float | None = None) -> dict:
-    """Fit both hierarchical models to a study file and write every artifact (see the module docstring).
+    """Fit the hierarchical model(s) to a study file and write every artifact (module docstring).
 
     Parameters
     ----------
-    study_path : str or Path
-        Study file in the data convention.
-    out : str or Path
-        Output folder (created).
-    seed : int
-        Root seed (split into the samplers' and the predictive draws' seeds).
-    chains, draws, tune : int
-        nutpie chains, and draws kept per chain after ``tune`` warm-up draws (default
-        :func:`scioc.pipelines.fit.warmup.default_tune`: 1000, 150 after the delayed fit's pilot run).
+    study_path, out : str or Path
+        Study file in the data convention; output folder (created; ``force`` replaces a non-empty one as a whole).
+    seed, chains, draws, tune : int
+        Root seed; chains, and draws kept per chain after ``tune`` warm-up draws (default
+        :func:`scioc.pipelines.fit.warmup.default_tune`).
     settings : IdentifySettings
-        Window, preview and reconstruction, as for ``scioc identify``, and the experiment
-        (``settings.design``: wheel, sample time, levels, assistants).
+        Window, preview and reconstruction, as for ``scioc identify``, and the experiment (``settings.design``).
     subject : str, optional
-        Subject of the posterior predictive bands (default: the third in sorted order,
-        as in the report's Fig. 6).
-    estimates_path : str or Path, optional
-        ``estimates.parquet`` of ``scioc identify`` for the mixed-model cross-check
-        (default: ``../identify/estimates.parquet`` from the study's folder, if present).
-    truth_dir : str or Path, optional
-        Folder with ``simulation.json`` and ``truth.parquet`` (default: the study's own
-        folder, if it has them).
+        Subject of the predictive bands (default: the third in sorted order, the report's Fig. 6).
+    estimates_path, truth_dir : str or Path, optional
+        ``scioc identify``'s ``estimates.parquet``; a simulated study's folder (defaults: :func:`default_inputs`).
     cores : int, optional
-        Chains sampled in parallel (default: ``os.cpu_count()``); the draws do not
-        depend on it.
-    show_progress : bool
-        Progress bars on standard error.
-    force : bool
-        Replace an existing non-empty ``out`` (as a whole; see :func:`scioc.pipelines.storage.staged_dir`).
+        Chains sampled in parallel (default ``os.cpu_count()``); the draws do not depend on it.
     prepared : PreparedStudy, optional
-        The study file already prepared with ``settings`` (``scioc run`` shares the
-        identification's); by default it is loaded and prepared here.
+        The study already prepared with ``settings`` (``scioc run`` shares the identification's).
     experiment_file : str, optional
-        Where ``settings.design`` came from (None: the built-in study), recorded in the
-        sidecar beside the resolved experiment and its hash.
-    human_model : {"maxent", "delayed"}, optional
-        The human model (default ``settings.human_model``): ``maxent`` fits the condition
-        and pooled max-ent models as always; ``delayed`` fits
-        :func:`scioc.models.bayes.delayed_model.build_delayed_model` alone, with each unit's
-        delay from the estimates' ``delay_s`` or the ML profile (:mod:`scioc.pipelines.fit.delayed`;
-        no ``posterior_pooled.nc``). ``posterior.json`` records it, and for ``delayed`` the
-        delay of every unit and how it was chosen.
-    delay_mode, delayed_priors, rho_form, adaptation, log_R_form
-        ``delayed`` only, as :func:`scioc.pipelines.fit.delayed.sample_delayed_model` takes them: the delays fixed
-        at each subject's profile maximum or sampled, the priors (e.g. the population of R; None: the defaults, the
-        population of R chosen by the data), the form of ρ,
-        the coordinates and nutpie's mass matrix (None: the first of :data:`scioc.models.bayes.delayed_model.ADAPTATIONS`),
-        and the form of the log R blocks (its ``log_R``; None: chosen by the data).
+        Where ``settings.design`` came from (None: the built-in study), for the sidecar.
+    human_model, delay_mode, delayed_priors, rho_form, adaptation, log_R_form
+        ``maxent`` or ``delayed`` (default ``settings.human_model``); the rest as
+        :func:`scioc.pipelines.fit.delayed.sample_delayed_model` takes them.
     adequacy_at : {"draw", "means"}
         The posterior point of the adequacy check (:data:`scioc.pipelines.fit.checks.ADEQUACY_POINTS`).
     target_accept : float, optional
-        The sampler's target acceptance rate, in (0, 1) (None: the fit's own, recorded in the
-        sidecar: nutpie's 0.8, the delayed model's whitened fit 0.9, 0.8 with its pilot run).
+        The sampler's target acceptance rate in (0, 1); None: the fit's own (docs/decisions/delayed-target-accept.md).
 
     Returns
     -------
@@ -247,9 +171,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     Raises
     ------
     ValueError
-        For a bad study design (a subject lacking a level, a level with no segment at all:
-        the message of :func:`scioc.models.units.index_study`), a malformed file, or an unknown
-        ``subject``; nothing is written then.
+        For a bad study design, a malformed file or an unknown ``subject``; nothing is written then.
     """
     configure()
     require_netcdf()
@@ -398,7 +320,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     }
     fits["condition"]["posterior_predictive"] = ppc_draws
     fits["condition"]["constant_data"] = constant_data(prepared)
-    # Everything or nothing: the folder holds this fit's files only, or what it held before.
+    # Everything or nothing: the folder holds this fit's files, or what it held before.
     with staged_dir(out, force=force) as tmp:
         write_netcdf(fits["condition"], tmp / "posterior.nc")
         if "pooled" in fits:

@@ -1,45 +1,13 @@
 """Where a hierarchical fit's chains start: near the ML estimates of ``scioc identify``.
 
-PyMC starts every chain at the prior's support point (jittered): the population centres,
-offsets of 0. For the ``delayed`` model of a default-size study that point lies far from the
-posterior, whose units the 84 windows of 1500 samples fix tightly, and nutpie's first
-tuning draws then take trees of hundreds of leapfrog steps while the step size and mass
-matrix adapt (README "Human models", "Where the delayed fit's time goes").
-
-:func:`start_point` puts the chains where the identification already is. It minimizes over
-the model's free variables (on the sampler's unconstrained scale)::
+PyMC's start (the population centres, offsets of 0) lies far from a posterior whose units the data fix tightly, and
+the first warm-up draws then take very deep trees. :func:`start_point` minimizes over the free variables::
 
     -log p_prior(free variables)  +  1/2 sum_units sum_q ((q(free) - q_ML) / se_q)^2
 
-where q runs over the unit quantities the ML estimates give (log θ1, log R, θ2 per unit;
-τ_nm and σ_m per subject) with their standard errors: a Gaussian stand-in for the likelihood
-around the ML point, so the optimum is an approximate posterior mode built without one
-evaluation of the likelihood (milliseconds per gradient, whatever the forms of the blocks).
-The result is a starting point only: the chains are jittered around it as around PyMC's own
-(U(-1, 1) on the unconstrained scale), tuning still runs, and the posterior is the model's.
-The population scales (every positive free variable without a subject dimension: σ_log θ1,
-σ_β, τ_θ2, s_τ, s_m² under its inverse gamma, ...) are held, not optimized: at the spread of their units'
-targets where :data:`SCALE_TARGETS` names them (:func:`scale_estimate`), else at PyMC's initial point
-(s_m², whose prior keeps it off the units' spread on a human without motor noise; the sidecar's
-``start_scales_from`` says which, :func:`scale_sources`). A hierarchical prior's
-density grows without bound as a population scale goes to 0 with its units on their centre, so
-where the targets agree within their SEs the optimum is a funnel's neck. On the 3-subject ``kbl``
-study of ``tests/pipelines/fit/test_delayed_fit.py`` the optimizer put σ_log θ1 at 0; one of the
-two short chains stayed near that start, and leave-one-subject-out then preferred the max-ent
-model to the delayed one, which that test catches (it passes from PyMC's own start and with the
-scales held). A start that the optimizer cannot improve on its initial point (PyMC's, with the
-held scales as above) is not used (:func:`start_point` returns None), nor one with a coordinate at the optimizer's box
-(:data:`UNCONSTRAINED_BOUND`), nor one from estimates without the cost (θ1, R) targets (a
-delayed fit without ``--estimates`` takes them from its own delay profile's ML points,
-:func:`scioc.pipelines.fit.delayed.unit_delays`). Discrete variables (the
-sampled delays of ``--delay sampled``) stay at PyMC's initial point too.
-
-Why the held scales start at their targets' spread: PyMC's initial point is the prior's scale
-(0.1 s for s_τ), and the posterior of a human without lag has s_τ near 5e-5 s: 8 units of log s_τ,
-seven posterior SDs, away (s_m, τ_θ2, σ_log R and σ_β,log R two to seven). On 12 subjects of the
-max-ent human the chains spent their first 30 warm-up draws travelling there, at trees of 127-1023
-leapfrog steps (the warm-up draws of ``scioc fit ... --chains 2 --tune 300``, read ad hoc); that
-first tenth of the warm-up cost 206-336 steps per draw against 30-45 after it.
+q over the unit quantities the ML estimates give (log θ1, log R, θ2 per unit; τ_nm, σ_m per subject): a Gaussian
+stand-in for the likelihood. The population scales are held, since the optimum over them is a funnel's neck: at
+their units' spread (:func:`scale_estimate`) where :data:`SCALE_TARGETS` names them, else at PyMC's initial point.
 """
 
 from __future__ import annotations
@@ -47,8 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-#: Unit quantities of the ML estimates used as targets: model deterministic -> (estimate column, SE column,
-#: transform of the estimate to the deterministic's scale).
+#: Unit targets: model deterministic -> (estimate column, SE column, transform to the deterministic's scale).
 UNIT_TARGETS = {"log_theta1": ("theta1", "se_log_theta1", np.log), "log_R": ("R", "se_log_R", np.log),
                 "theta2": ("theta2", "se_theta2", None)}
 #: Subject quantities (per-subject parameters of the delayed model): the inverse-variance mean of the subject's units.
@@ -58,9 +25,8 @@ SUBJECT_TARGETS = {"tau_nm": ("tau_nm", "se_tau_nm"), "sigma_m": ("sigma_m", "se
 SE_FLOOR = {"log_theta1": 0.05, "log_R": 0.1, "theta2": 0.02, "tau_nm": 0.002, "sigma_m": 0.005}
 #: The optimizer's box on every unconstrained coordinate (exp(-50) is still a positive scale).
 UNCONSTRAINED_BOUND = 50.0
-#: Population scales held at their units' spread (:func:`scale_estimate`): scale -> (unit target, which values):
-#: "baseline" the first condition's values (a normal population about a centre), "shift" each later condition's
-#: change from the first (per level), "zero" every value (a half-normal population: the spread about 0).
+#: Population scales held at their units' spread: scale -> (unit target, values): "baseline" the first level's,
+#: "shift" each later level's change from it, "zero" all (a half-normal population: the spread about 0).
 SCALE_TARGETS = {"sigma_log_theta1": ("log_theta1", "baseline"), "sigma_beta": ("log_theta1", "shift"),
                  "sigma_log_R": ("log_R", "baseline"), "sigma_beta_log_R": ("log_R", "shift"),
                  "tau_theta2": ("theta2", "zero"), "tau_nm_scale": ("tau_nm", "zero"),
@@ -70,12 +36,9 @@ SCALE_TARGETS = {"sigma_log_theta1": ("log_theta1", "baseline"), "sigma_beta": (
 def scale_estimate(values, se, *, centred: bool, upper: float) -> float | None:
     """The spread s of a population from its units' estimates v_i and SEs se_i (None with too few).
 
-    The maximum over t = log s of  t + Σ_i log N(v_i; c, s² + se_i²), with c fitted too
-    (``centred``) or 0 (a half-normal population), and s <= ``upper``: type-II maximum likelihood
-    with the start's Gaussian stand-in for each unit's likelihood, on the log scale the sampler
-    moves s on (the t is its Jacobian, as under a flat prior on s). Without the SEs the
-    maximum is s² = Σ(v - c)²/(n - 1); where the values agree within their SEs it is about
-    se/√(n - 1), not the funnel's neck s = 0 that a maximum over s itself would give.
+    The maximum over t = log s of  t + Σ_i log N(v_i; c, s² + se_i²), c fitted (``centred``) or 0, s <= ``upper``:
+    type-II maximum likelihood on the log scale the sampler moves s on (t is its Jacobian). Where the values agree
+    within their SEs it is about se/√(n - 1), not the funnel's neck s = 0 of a maximum over s itself.
     """
     from scipy.optimize import minimize
 
@@ -127,9 +90,8 @@ def _held_scale_values(model, targets: dict) -> dict:
 
 
 def scale_sources(model, estimates: pd.DataFrame | None) -> dict:
-    """Where each held population scale of ``model`` starts (every one, in ``model.free_RVs``' order):
-    ``"units' spread"`` where the estimates' targets inform it (:data:`SCALE_TARGETS`, :func:`scale_estimate`), else
-    ``"PyMC's initial point"`` (the prior's: a scale without targets, such as s_m² under its inverse gamma)."""
+    """Where each held population scale of ``model`` starts: ``"units' spread"`` where the estimates inform it
+    (:func:`scale_estimate`), else ``"PyMC's initial point"`` (a scale without targets, such as s_m²)."""
     informed = set() if estimates is None or estimates.empty else set(_held_scale_values(model, _targets(model,
                                                                                                          estimates)))
     return {rv.name: "units' spread" if rv.name in informed else "PyMC's initial point"
@@ -137,14 +99,8 @@ def scale_sources(model, estimates: pd.DataFrame | None) -> dict:
 
 
 def _se_at_bound(value, se) -> np.ndarray:
-    """The SE, 0 (so the floor) where the estimate sits at its bound 0 and ``scioc identify`` reports no SE (NaN).
-
-    Such units are the rule for a human without lag or motor noise: on a 12-subject max-ent
-    study 14 of 24 units had τ_nm = 0 with no SE. Left without a target, their subjects' τ_nm
-    started at the prior's initial point, 0.1 s, where the lag's inversion made each of their
-    segments' log-likelihood about -1e7 (against +500 at the estimate); nutpie's step size
-    collapsed to 0.003-0.006 and the chains never left (``tests/pipelines/fit/test_start.py``).
-    """
+    """The SE, 0 (so the floor) where the estimate sits at its bound 0 without an SE: without a target such a τ_nm
+    would start at the prior's scale, where the log-likelihood is so low that the chains never leave."""
     value, se = np.asarray(value, dtype=float), np.asarray(se, dtype=float)
     return np.where(np.isnan(se) & (value == 0.0), 0.0, se)
 
@@ -199,13 +155,9 @@ def held_mask(model, point_map_info) -> np.ndarray:
 
 
 def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) -> dict | None:
-    """Initial values (RV name -> value, constrained scale) near the ML estimates; None without estimates.
-
-    See the module docstring. Units whose estimate is missing or not finite, or whose SE is
-    missing with the estimate inside its range, do not pull (their quantities follow the
-    prior); an estimate at its bound 0 without an SE pulls with the floor SE
-    (:func:`_se_at_bound`). The values are those PyMC's ``initvals`` takes.
-    """
+    """Initial values (RV name -> value, constrained scale, as PyMC's ``initvals``) near the ML estimates (module
+    docstring); None without estimates with the cost targets, or when the optimizer does not improve on its start or
+    reaches its box. Units without a finite estimate or SE do not pull, but for an estimate at its bound 0."""
     if estimates is None or estimates.empty:
         return None
     import pytensor
@@ -234,8 +186,7 @@ def start_point(model, estimates: pd.DataFrame | None, *, max_iter: int = 2000) 
     raveled = DictToArrayBijection.map({v.name: ip[v.name] for v in model.value_vars})  # join's order
     x0 = raveled.data.astype(float)
     f0 = float(fn(x0)[0])
-    # Bounds on the unconstrained scale keep exp() of a log-transformed scale positive in floating point.
-    # Population scales (module docstring) and discrete variables are held (equal bounds).
+    # The box keeps exp() of a log-transformed scale positive in floating point; held coordinates get equal bounds.
     held = held_mask(model, raveled.point_map_info)
     bounds = [(x, x) if h else (-UNCONSTRAINED_BOUND, UNCONSTRAINED_BOUND) for x, h in zip(x0, held)]
     res = minimize(lambda x: tuple(np.asarray(a, float) for a in fn(x)), x0, jac=True, method="L-BFGS-B",

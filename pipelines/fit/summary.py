@@ -32,10 +32,8 @@ def fit_remedies(side: dict) -> list[tuple[str, str]]:
 
 
 def format_fit(out) -> str:
-    """A few lines summarizing a fit folder's sidecar and contrasts, the adequacy verdict first.
-
-    With more than two levels, β and exp(β) (and the truth check) of every non-baseline level.
-    """
+    """A few lines summarizing a fit folder's sidecar and contrasts, the adequacy verdict first (β and exp(β) of
+    every non-baseline level)."""
     out = Path(out)
     side = json.loads((out / "posterior.json").read_text())
     res = json.loads((out / "contrasts.json").read_text())
@@ -49,7 +47,7 @@ def format_fit(out) -> str:
     if side.get("human_model", "maxent") != "maxent":
         lines.append(f"human model: {side['human_model']} (delays: {side['delay']['source']})")
         population = side.get("delayed_priors", {}).get("R_population")
-        if population is not None and "R_population_reason" in side:  # sidecars before 8b3b9c5 have no reason
+        if population is not None and "R_population_reason" in side:  # a sidecar may lack the reason
             reason = side["R_population_reason"]
             lines.append(f"population of R: {population} (given)" if reason == "given" else
                          f"population of R, chosen by the estimates: {reason}")

@@ -1,28 +1,12 @@
 """Sampling a hierarchical model in per-subject whitened coordinates (:mod:`scioc.models.bayes.whiten`), with nutpie.
 
-The steps, all deterministic (the seed enters only the sampler, as in :func:`scioc.pipelines.fit.sampling.sample_model`):
-
-1. x̂: from the start (:func:`scioc.pipelines.fit.start.start_point`; PyMC's initial point without
-   one), the maximum of the model's log density over every coordinate but the held ones (the
-   population scales, :func:`scioc.pipelines.fit.start.held_mask`, which a maximum would send into a
-   funnel's neck), by L-BFGS with the exact gradient, at most :data:`MODE_MAX_ITER` iterations;
-   kept only if it improves on the start.
-2. H_i: each subject's Hessian block at x̂ (:func:`scioc.models.bayes.whiten.block_hessian`,
-   central differences of step :data:`HESSIAN_STEP` on the unconstrained scale); and each other
-   coordinate's own scale there (:func:`scioc.models.bayes.whiten.coordinate_scales`); given ``pivots``
-   (the delayed fit's σ_m or ρ, each signed in some subjects: :func:`scioc.models.bayes.delayed_blocks.ridge_pivots`), each
-   subject's pivot (the signed one whose fold x̂ is nearest, else the last: :func:`scioc.models.bayes.whiten.nearest_fold`)
-   and its ridge's curvature along it (:func:`scioc.models.bayes.whiten.ridge_curvature`, the module's "Curved"), one
-   group of subjects per pivot.
-3. The model in w (:func:`scioc.models.bayes.whiten.whitened_model`) sampled by nutpie with its
-   diagonal mass matrix, the chains jittered around w = 0 (x̂) as PyMC jitters its own start.
-   With a ``pilot``, first a short run of it, whose draws measure each block's centre, factor and
-   curvature again (:func:`scioc.models.bayes.whiten_draws.draws_factors`: where the posterior is far from
-   Gaussian at x̂, the Hessian there describes it badly), then the run whose draws are kept, on
-   the new coordinates, the chains jittered around the pilot's first chain's last draw.
-4. The draws mapped back: x(w), then every free variable and deterministic of the original
-   model, so that the posterior holds what nutpie would have returned for it; then the
-   pointwise log-likelihood.
+1. x̂: from the start, the maximum of the log density over every coordinate but the held population scales (which
+   a maximum would send into a funnel's neck), by L-BFGS; kept only if it improves on the start.
+2. Each subject's Hessian block at x̂ and each other coordinate's own scale; given ``pivots``, each subject's pivot
+   (:func:`scioc.models.bayes.whiten.nearest_fold`) and its ridge's curvature along it.
+3. The model in w (:func:`scioc.models.bayes.whiten.whitened_model`) sampled by nutpie's diagonal mass matrix; with a
+   ``pilot``, after short runs whose draws measure each block again (docs/decisions/delayed-pilot-run.md).
+4. The draws mapped back to the original model's variables; then the pointwise log-likelihood.
 """
 
 from __future__ import annotations
@@ -49,23 +33,18 @@ from scioc.models.bayes.whiten_draws import draws_factors, to_white
 from scioc.pipelines.fit.sampling import add_log_likelihood, sample_model
 from scioc.pipelines.fit.start import held_mask
 
-#: Most L-BFGS iterations of the search for x̂ (the 12-subject ``kbl`` study took 229).
+#: Most L-BFGS iterations of the search for x̂.
 MODE_MAX_ITER = 1000
 #: Central-difference step of the Hessian blocks, on the unconstrained scale.
 HESSIAN_STEP = 1e-4
 
 
 def whitening(model, start: dict | None, pivots=None):
-    """(logp graph, its flat input, x̂, groups, point_map_info, record, folds) of ``model`` (module docstring,
-    steps 1-2); ``groups``: [(subject blocks, L)] and, where there are any, (the other coordinates (m, 1), their
-    scales (m, 1, 1)), as :func:`scioc.models.bayes.whiten.to_unconstrained` takes them; ``folds``: per group, None, or
-    for a curved one whether each of its subjects' pivot is signed (:func:`scioc.models.bayes.whiten_draws.draws_factors`).
+    """(logp graph, its flat input, x̂, groups, point_map_info, record, folds) of ``model`` (module docstring, 1-2).
 
-    ``pivots``: (name, signed) pairs, ``name`` a free variable with one value per subject along which each
-    subject's ridge may be curved (:func:`scioc.models.bayes.whiten.ridge_curvature`), ``signed`` (n_subjects,) where
-    its coordinate is signed; each subject's pivot is the signed one whose fold x̂ is nearest, else the last
-    (:func:`scioc.models.bayes.whiten.nearest_fold`). The subjects' blocks then are one (blocks, L, (column, a)) group
-    per pivot used.
+    ``groups`` as :func:`scioc.models.bayes.whiten.to_unconstrained` takes them (one curved group per pivot used);
+    ``folds``: per group None, or whether each subject's pivot is signed. ``pivots``: (name, signed) pairs, ``name`` a
+    free variable with one value per subject, ``signed`` (n_subjects,) where its coordinate is signed.
     """
     import pytensor.tensor as pt
     from pymc.blocking import DictToArrayBijection
@@ -144,8 +123,7 @@ def tail_count(groups) -> int:
 
 
 def posterior_of(model, x: np.ndarray, point_map_info):
-    """The posterior Dataset of ``model`` (free variables and deterministics) at unconstrained draws x
-    (chain, draw, D)."""
+    """The posterior Dataset of ``model`` (free variables, deterministics) at unconstrained draws x (chain, draw, D)."""
     import pytensor
     import xarray as xr
     from pymc.blocking import DictToArrayBijection, RaveledVars
@@ -175,8 +153,7 @@ def pilot_seeds(seed: int, n: int) -> list[int]:
 
 
 def nutpie_setting(attrs, *path) -> float | None:
-    """One of the settings nutpie sampled with, from ``sample_stats.attrs`` (``path`` into its ``settings``, e.g.
-    ``"maxdepth"``), as a float; None if absent."""
+    """One of the settings nutpie sampled with (``path`` into ``sample_stats.attrs``' settings), as a float, or None."""
     try:
         value = json.loads(attrs["inference_library_settings"])["settings"]
         for key in path:
@@ -216,17 +193,10 @@ def sample_whitened(model, start: dict | None, *, seed: int, chains: int, draws:
                     pivots=None, pilot=None):
     """Sample ``model`` in whitened coordinates (module docstring); returns (idata, seconds, record).
 
-    ``idata`` is as :func:`scioc.pipelines.fit.sampling.sample_model` returns it for ``model`` (posterior,
-    sample_stats with the warm-up's steps, log_likelihood); ``seconds`` adds ``whitening`` (steps 1-2);
-    ``record`` says what the whitening found (for the sidecar).
-
-    ``pilot``: pilot runs, each (tune, draws) per chain or (tune, draws, chains, target_accept[, max_tree_depth]),
-    None for the fit's own, run one after the other, the first on the Hessian's
-    whitening, each later one on the whitening measured again on the draws of the one before
-    (:func:`scioc.models.bayes.whiten_draws.draws_factors`), and the run whose draws are returned on the last one's
-    (seeds :func:`pilot_seeds`); each run after a pilot starts (jittered) at the pilot's first chain's last draw,
-    inside the posterior's bulk, not at its centre. ``seconds["sample"]`` then holds every run's sampling,
-    ``record["pilot"]`` each pilot's draws and leapfrog steps.
+    ``idata`` as :func:`scioc.pipelines.fit.sampling.sample_model` returns it; ``seconds`` adds ``whitening``;
+    ``record``: what the whitening found, and each pilot run's draws and steps. ``pilot``: runs of (tune, draws[,
+    chains[, target_accept[, max_tree_depth]]]), None for the fit's own, each on the coordinates measured on the draws
+    of the one before (seeds :func:`pilot_seeds`).
     """
     t0 = time.perf_counter()
     logp, flat, x_hat, groups, info, record, folds = whitening(model, start, pivots)

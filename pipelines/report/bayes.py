@@ -1,11 +1,7 @@
 """The report's Bayesian section, from the artifacts of ``scioc fit`` (never refits).
 
-Reads ``root/fit/posterior.json``, ``root/fit/contrasts.json``, ``root/fit/ppc.parquet``,
-``root/compare.json`` (the paper's Wilcoxon test) and, for simulated studies,
-``root/data/truth.parquet``. :func:`section_bayes` returns the HTML that
-:func:`scioc.pipelines.report.build.build_report` places under its own heading; the parts
-that come once per contrast (methods, forest plots, truth check) are in
-:mod:`scioc.pipelines.report.contrasts`.
+Reads ``fit/posterior.json``, ``fit/contrasts.json``, ``fit/ppc.parquet``, ``compare.json`` and, for
+simulated studies, ``data/truth.parquet``; the per-contrast parts are in :mod:`scioc.pipelines.report.contrasts`.
 """
 
 from __future__ import annotations
@@ -80,12 +76,10 @@ def _k_over(k: dict) -> str:
 
 
 def section_loo(loo: dict, loso: dict | None = None, trials: bool = False) -> Markup:
-    """PSIS-LOO of both models, the ELPD difference and the Pareto k summary; then leave-one-subject-out.
+    """PSIS-LOO of both models, the ELPD difference and the Pareto k counts; then leave-one-subject-out.
 
-    The Pareto k are summarized in a table (counts above the threshold); the per-segment
-    k plot (``arviz_plots.plot_khat``) is in the diagnostics notebook, which has the
-    pointwise log-likelihood at hand. ``trials``: a segment is one of several trials of its
-    unit (not all of the unit's data).
+    The per-segment k plot is in the diagnostics notebook, which has the pointwise log-likelihood.
+    ``trials``: a segment is one of several trials of its unit.
     """
     seg = _loo_rows(loo, "ELPD (LOO)", lambda m, k: {"p_loo": m["p_loo"], "max Pareto k": k["max"],
                                                       "median k": k["median"], "k > threshold": _k_over(k),
@@ -95,7 +89,7 @@ def section_loo(loo: dict, loso: dict | None = None, trials: bool = False) -> Ma
         loso_table = table(_loo_rows(loso, "ELPD (LOSO)", lambda m, k: {
             "max Pareto k": k["max"], "k > threshold": _k_over(k),
             **({"IS ESS (LOO) min / median": f"{m['is_ess_loo_min']:.0f} / {m['is_ess_loo_median']:.0f}"}
-               if "is_ess_loo_min" in m else {}),  # fits before it was computed
+               if "is_ess_loo_min" in m else {}),  # not in every fit's contrasts.json
             "IS ESS worst draw min / median": f"{m['is_ess_min']:.0f} / {m['is_ess_median']:.0f}"}),
             fmt={"ELPD (LOSO)": lambda v: f"{v:.1f}", "SE": _n_a},
             left=("model", "k > threshold", "IS ESS (LOO) min / median", "IS ESS worst draw min / median"))
@@ -116,24 +110,10 @@ def section_ppc(ppc: pd.DataFrame, meta: dict, design: Design = STUDY, reconstru
 
 
 def section_bayes(root, design: Design = STUDY, reconstructed: bool = True, trials: bool = False) -> Markup:
-    """HTML of the Bayesian section from ``root/fit/`` (and ``root/compare.json``).
+    """HTML of the Bayesian section of run folder ``root`` (no level-2 heading; a note if there is no fit).
 
-    Parameters
-    ----------
-    root : str or Path
-        Run folder (as ``scioc run`` writes it), with ``fit/`` from ``scioc fit``.
-    design : Design
-        The run's experiment (:func:`scioc.pipelines.report.levels.run_experiment`): its levels
-        name the contrasts, its window the predictive check.
-    reconstructed : bool
-        Whether u_H was reconstructed from the angle (False: recorded by a torque sensor).
-    trials : bool
-        Whether units have several trials (each a segment of its own).
-
-    Returns
-    -------
-    Markup
-        HTML (no heading of its own level 2); a note if no fit is there.
+    ``design``: the run's experiment; ``reconstructed``: u_H was reconstructed from the angle (not
+    recorded); ``trials``: units have several trials, each a segment of its own.
     """
     root = Path(root)
     fit = root / "fit"

@@ -1,24 +1,11 @@
-"""``scioc report``: a self-contained HTML report (figures embedded) from stored artifacts.
+"""``scioc report``: a self-contained HTML report (figures embedded) from stored artifacts; it never refits.
 
-Reads what the stages wrote under a run folder and never refits:
-
-* ``data/`` — ``study.parquet``, ``simulation.json`` and, for simulated studies, ``truth*.parquet``
-* ``identify/`` — ``estimates.parquet``, ``trajectories.parquet``, ``validation.parquet``, ``identify.json``
-* ``identify_true_torque/`` — the same from the true torques (simulated studies only)
-* ``identify_true_torque_exogenous/`` — the same with the paper's exogenous-u_A likelihood
-* ``compare.json`` — the Wilcoxon tests
-* ``fit/`` — the Bayesian fit (:mod:`scioc.pipelines.report.bayes`)
-* ``identify_delayed/``, ``compare_delayed.json``, ``fit_delayed/``, ``human_models.json`` — the delayed
-  human model beside the max-ent one, when the run has it (:mod:`scioc.pipelines.report.human_models`)
-* ``../calibration/`` and ``../power/`` — ``scioc calibrate`` and ``scioc power`` results beside the run
-
-Sections whose artifacts are missing are left out with a note. The page is the template
-``templates/page.html.j2``; every section renders its own (:mod:`scioc.pipelines.report.render`).
-
-The text and the tables follow the experiment recorded in the run
-(:func:`scioc.pipelines.report.levels.run_experiment`: ``identify.json``, else
-``simulation.json``, else the paper's study): its rate, rig, levels and assistants, window
-and trials. With the paper's study the report reads as the paper's analysis.
+It reads under a run folder ``data/``, ``identify/``, ``identify_true_torque/`` and
+``identify_true_torque_exogenous/`` (simulated studies), ``compare.json``, ``fit/``, the delayed model's
+``identify_delayed/``, ``compare_delayed.json``, ``fit_delayed/`` and ``human_models.json``, and beside
+it ``../calibration/`` and ``../power/``. A section whose artifacts are missing is left out with a note.
+The words follow the run's experiment (:func:`scioc.pipelines.report.levels.run_experiment`); with the
+paper's study the report reads as the paper's analysis.
 """
 
 from __future__ import annotations
@@ -55,25 +42,10 @@ def _torque_measured(est) -> bool:
 
 
 def build_report(root, *, subject: str | None = None, out=None, calibration=None, title: str | None = None) -> Path:
-    """Assemble ``index.html`` from the artifacts under ``root``.
+    """Assemble ``index.html`` (or ``out``) from the artifacts under the run folder ``root``; returns its path.
 
-    Parameters
-    ----------
-    root : str or Path
-        Run folder (as written by ``scioc run``).
-    subject : str, optional
-        Subject for the Fig. 6 trajectories (default: the third subject, as in the paper).
-    out : str or Path, optional
-        Report path (default ``root / "index.html"``).
-    calibration : str or Path, optional
-        Folder of ``scioc calibrate`` (default ``root / "../calibration"``).
-    title : str, optional
-        The run's name in the heading (default: the folder's name).
-
-    Returns
-    -------
-    Path
-        The report's path.
+    ``subject``: for the Fig. 6 trajectories (default the third, as in the paper); ``calibration``:
+    ``scioc calibrate``'s folder (default ``root/../calibration``); ``title``: default the folder's name.
     """
     root = Path(root)
     sim = read_artifact(root / "data" / "simulation.json")

@@ -18,7 +18,7 @@ LEVELS = ("unit", "study")
 
 
 def _tree(folder: Path):
-    """A calibration's DataTree (``sbc.nc``), or None for a folder written by an older scioc."""
+    """A calibration's DataTree (``sbc.nc``), or None if the folder has none."""
     path = folder / "sbc.nc"
     return xr.open_datatree(path, engine="h5netcdf").load() if path.exists() else None
 

@@ -166,12 +166,12 @@ def section_truth_check(tr: dict, design: Design = STUDY, reconstructed: bool = 
                  for v, c in tr["contrasts"].items()]
     elif "beta" in tr:
         found = [{"suffix": "", "of": "", "beta": tr["beta"], "subjects": tr["subjects"]}]
-    else:  # a truth check of several levels written before per-level blocks: the table only
+    else:  # several levels without per-level blocks: the table only
         found = []
     ml = tr.get("ml_log_error")
     motor = [{"label": lab, "unit": unit, **tr["motor"][k]}
              for k, lab, unit in (("tau_nm", "τ_nm", "s"), ("sigma_m", "σ_m", "N·m"))
-             if "truth_in_interval" in (tr.get("motor") or {}).get(k, {})]  # files before it had other keys
+             if "truth_in_interval" in (tr.get("motor") or {}).get(k, {})]  # shown only with these keys
     return render("truth_check.html.j2", blocks=found, ml=_ml_text(ml, design) if ml else None, motor=motor,
                   helped=joined(assisted(design)), one=len(assisted(design)) == 1, reconstructed=reconstructed,
                   table=table(pd.DataFrame(rows), left=("parameter", "interval", "kind")))

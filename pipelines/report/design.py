@@ -77,12 +77,8 @@ def _human(design: Design) -> str:
 
 def section_design(sim: dict | None, ident_meta: dict | None, exp: RunExperiment, *, trials: int = 1,
                    torque_measured: bool = False) -> Markup:
-    """The experiment (rig, levels and assistants, analysis), the simulated study and the identification settings.
-
-    ``exp`` is the run's experiment (:func:`scioc.pipelines.report.levels.run_experiment`);
-    ``trials`` the most trials of one subject × condition; ``torque_measured`` whether the
-    human torque was recorded (a torque sensor) rather than reconstructed from the angle.
-    """
+    """The experiment ``exp`` (rig, levels, assistants, analysis), the simulated study and the identification
+    settings; ``trials``: the most of one unit; ``torque_measured``: u_H recorded, not reconstructed."""
     design = exp.design
     helped = assisted(design)
     rig = (f"Sampled at {design.rate_hz:g} Hz; wheel {wheel_text(design)}; {encoder_text(design)}; "

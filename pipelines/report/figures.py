@@ -43,21 +43,16 @@ def first_segment(d: pd.DataFrame) -> pd.DataFrame:
 
 
 def plain_log_axis(axis) -> None:
-    """Label a log axis at 1, 2 and 5 times the powers of ten, as plain numbers, and leave minor ticks unlabelled.
-
-    Matplotlib's default labels every minor tick when the data span less than a decade,
-    and those labels run into each other.
-    """
+    """Label a log axis at 1, 2 and 5 times the powers of ten as plain numbers, minor ticks unlabelled
+    (matplotlib labels every minor tick of a span under a decade, and the labels collide)."""
     axis.set_major_locator(matplotlib.ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
     axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
     axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
 
 
 def reference(study: pd.DataFrame, start: float | None, length: float | None):
-    """The reference angle of the first segment: in and after the analysis window, and the whole run (Fig. 4).
-
-    ``start`` None: every trial is analysed whole, and the whole trial is the one panel.
-    """
+    """The first segment's reference in and after the analysis window, and the whole run (Fig. 4); ``start`` None:
+    the whole trial in one panel."""
     seg = first_segment(study)
     t, ref = seg["t"].to_numpy(), seg["angle_ref"].to_numpy()
     if start is None:
@@ -102,10 +97,8 @@ def theta1_histogram(est: pd.DataFrame, levels=CONDITIONS):
 def trajectories(d: pd.DataFrame, subject: str, levels=CONDITIONS, reconstructed: bool = True):
     """One subject's measured angle, velocity and torque beside forward optimal control with each level's θ (Fig. 6).
 
-    One column per level (baseline first; default MC, SC), the first trial of each; the
-    dashed curves are forward optimal control with θ of every level (``pred_{level}_*``
-    columns of ``trajectories.parquet``, level in lower case). ``reconstructed``: whether
-    the velocity and torque were reconstructed from the angle (else u_H was recorded).
+    One column per level, the first trial of each; dashed: the ``pred_{level}_*`` columns of
+    ``trajectories.parquet``. ``reconstructed``: velocity and torque come from the angle.
     """
     levels = list(levels)
     colors = dict(zip(levels, DARK))
@@ -177,13 +170,10 @@ def truth_scatter(sources, levels=CONDITIONS):
 
 def forest(subjects: list, beta: dict, true_change: np.ndarray | None, pair: tuple = CONDITIONS,
            color: str = SC_COLOR):
-    """Per-subject change of log θ1 from ``pair[0]`` to ``pair[1]`` (default MC→SC; posterior mean and 94 % HDI
-    from ``contrasts.json``) with β's band.
+    """Per-subject change of log θ1 from ``pair[0]`` to ``pair[1]`` (posterior mean, 94 % HDI) with β's band.
 
-    Drawn here rather than by ``arviz_plots.plot_forest``: the report reads the stored
-    contrasts (the same HDIs the text quotes, from :func:`scioc.pipelines.fit.contrasts.hdi`) and
-    overlays β's HDI band and the simulated truth, which ``plot_forest`` does not draw. The
-    diagnostics notebook shows ``plot_forest`` of the posterior itself.
+    Drawn here, not by ``arviz_plots.plot_forest``, to show the stored HDIs the text quotes with β's
+    band and the simulated truth over them.
     """
     n = len(subjects)
     fig, ax = plt.subplots(figsize=(7.5, 0.18 * n + 1.6))
@@ -243,11 +233,8 @@ def predictive_bands(ppc: pd.DataFrame, subject: str, levels=CONDITIONS, reconst
 
 
 def sbc_rank_histograms(pits: dict, names: list, n: int):
-    """Rank histograms of the PIT, one panel per ranked quantity; grey: the 99 % band of a bin count.
-
-    ``pits`` maps a fit ("correct", "negative control") to a Dataset of PIT values (dims
-    chain, draw) per quantity; ``n`` is the number of replications.
-    """
+    """Rank histograms of the PIT per quantity for each fit of ``pits`` (name: Dataset), with the 99 % band of a
+    bin count over ``n`` replications in grey."""
     fig, axes = plt.subplots(1, len(names), figsize=(3.6 * len(names), 3), squeeze=False)
     nb = 20
     for j, name in enumerate(names):
@@ -264,12 +251,7 @@ def sbc_rank_histograms(pits: dict, names: list, n: int):
 
 
 def sbc_ecdf(tree):
-    """ECDF of the PIT minus the uniform CDF per ranked quantity, by ``arviz_plots.plot_ecdf_pit``.
-
-    ``tree`` is a calibration's DataTree (:func:`scioc.pipelines.calibrate.summary.sbc_tree`); its
-    ``pit`` group is plotted with ArviZ's default ``pot_c`` test: each panel shows the test's
-    p-value and marks the PIT values that contribute most to a departure from uniformity.
-    (ArviZ deprecates the simultaneous-envelope method, which assumes independent PIT values.)
-    """
+    """ECDF of the PIT minus the uniform CDF per quantity of a calibration's DataTree, by
+    ``arviz_plots.plot_ecdf_pit`` with its ``pot_c`` test (p-value, and the points that depart most)."""
     pc = azp.plot_ecdf_pit(tree, group="pit", backend="matplotlib")
     return pc.viz["figure"].item()

@@ -1,24 +1,11 @@
-"""The report's "Human models" section: which human model the data support, and what that model says about the costs.
+"""The report's "Human models" section: which human model the data support, and what it says about the costs.
 
-``scioc run`` analyses its study with the paper's max-ent human and, when the max-ent model
-fails its adequacy checks, with the ``delayed`` human too (``--human-models`` chooses
-explicitly; the choice and its reason are in :data:`RUN_FILE`; without a torque sensor the
-delayed model has no fit, :data:`ANGLE_ONLY`). Per model the section shows the adequacy
-verdict (at identify, and at the fit's posterior θ), the paper's Wilcoxon test on θ1 and β
-with its 94 % HDI per contrast, and the leave-one-subject-out (LOSO) ELPD of its fit; then the difference of the two, how many subjects each model
-predicts better, and one conclusion (:func:`conclusion`).
-
-Which model the data support (:func:`supported`) takes both criteria: the model passes its
-adequacy checks, and a reliable LOSO comparison (every Pareto k below the threshold, every
-subject's importance-sampling ESS at least ``pipelines.fit.loo.LOSO_ESS_MIN``) does
-not prefer the other model by :data:`LOSO_Z` standard errors or more. A cost conclusion is
-only ever that of a supported model, with its adequacy verdict beside it; with none, the
-section says that no conclusion about the costs is supported.
-
-Artifacts read under the run folder (:data:`MODEL_ARTIFACTS`; never refits):
-``identify/identify.json``, ``compare.json``, ``fit/contrasts.json`` for ``maxent``;
-``identify_delayed/identify.json``, ``compare_delayed.json``, ``fit_delayed/contrasts.json``
-for ``delayed``; ``human_models.json`` (:func:`scioc.pipelines.fit.human_models.compare_human_models`).
+Per model (:data:`MODEL_ARTIFACTS`, never refit): the adequacy verdicts at identify and at the fit's
+posterior θ, the Wilcoxon test and β per contrast, and the leave-one-subject-out (LOSO) ELPD of its fit
+(``human_models.json``). A model is supported (:func:`supported`) if it passes its adequacy checks and a
+reliable LOSO comparison (docs/decisions/loso-reliability.md) does not prefer the other by :data:`LOSO_Z`
+SE or more. A cost conclusion (:func:`conclusion`) is only ever
+that of a supported model, with its adequacy verdict beside it.
 """
 
 from __future__ import annotations
@@ -47,7 +34,7 @@ LOSO_Z = 2.0
 #: The file in a run folder where ``scioc run`` records which human models it analysed and why
 #: (:func:`scioc.pipelines.run.default_human_models`).
 RUN_FILE = "run.json"
-#: Why ``scioc run`` leaves the delayed model out of a design without a torque sensor (README "Human models").
+#: Why ``scioc run`` fits no delayed model without a torque sensor (docs/decisions/run-human-models.md).
 ANGLE_ONLY = ("without a torque sensor the delayed model is identified from the encoder's angles; its hierarchical "
               "fit, and so the leave-one-subject-out comparison of the two models, needs the recorded torque and is "
               "not built for angles (README, \"Human models\")")
@@ -102,9 +89,7 @@ def passes(m: ModelRun) -> bool:
 
 
 def verdict_words(a: dict | None, counts: bool = True) -> str:
-    """One verdict: "pass (1 of 84 segments flagged)", "fail (whiteness, xcorr; 84 of 84 segments flagged)".
-
-    ``counts=False`` leaves out the flagged segments: "pass", "fail (whiteness, xcorr)".
+    """One verdict: "fail (whiteness, xcorr; 84 of 84 segments flagged)"; without ``counts``: "fail (whiteness, xcorr)".
     """
     v = (a or {}).get("verdict", "not checked")
     if v not in ("pass", "fail"):

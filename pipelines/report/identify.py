@@ -1,8 +1,7 @@
 """The report's sections on the identification: θ1 histogram, the paper's test, Fig. 6, cross-prediction, details.
 
-Every section takes the run's experiment (:class:`scioc.models.design.Design`): one histogram
-colour, one Wilcoxon test, one Fig. 6 column and one cross-prediction per level; with the
-paper's two levels the sections read as they always have.
+Every section takes the run's experiment (:class:`scioc.models.design.Design`): one histogram colour,
+Wilcoxon test, Fig. 6 column and cross-prediction per level.
 """
 
 from __future__ import annotations
@@ -81,11 +80,9 @@ def section_fig6(traj: pd.DataFrame, subject: str, design: Design = STUDY, recon
 
 
 def section_cross_prediction(val: pd.DataFrame, design: Design = STUDY) -> Markup:
-    """RMSE of angle and torque when each level's data are predicted with each level's θ.
+    """RMSE of angle and torque when each level's data are predicted with each level's θ (``validation.parquet``).
 
-    ``validation.parquet`` has ``rmse_angle_theta_{level}`` and ``rmse_uH_theta_{level}``
-    (level in lower case) per segment; with trials they are averaged over a unit's trials
-    first, so every subject counts once.
+    With trials, a unit's trials are averaged first, so every subject counts once.
     """
     levels, base, others = design.ordered_levels, design.baseline, design.contrasts
     columns = [f"rmse_{q}_theta_{key(v)}" for v in levels for q in ("angle", "uH")]
@@ -120,12 +117,8 @@ def section_cross_prediction(val: pd.DataFrame, design: Design = STUDY) -> Marku
 
 
 def section_identification(est: pd.DataFrame, meta: dict | None) -> Markup:
-    """Convergence, the segments that did not converge or ended at the edge of the search, and every estimate.
-
-    The same lists as the console summary of ``scioc identify``
-    (:func:`scioc.pipelines.identify.format_identify`), from the estimates' ``converged``,
-    ``message`` and ``implausible`` columns.
-    """
+    """Convergence, the segments that did not converge or ended at the edge of the search (as
+    :func:`scioc.pipelines.identify.format_identify` lists them), and every estimate."""
     cols = ["subject", "condition", *(["trials"] if "trials" in est else []), "theta1", "se_log_theta1", "theta2",
             "R", "se_log_R", "loglik", "converged", "iterations"]
     implausible = est["implausible"] if "implausible" in est else pd.Series(False, index=est.index)

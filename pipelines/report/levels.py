@@ -1,12 +1,8 @@
 """The experiment a run recorded, and the words the report uses for it: levels, assistants, rig, protocol.
 
-The report is written from the experiment of the run (issue 12), not from the paper's
-literals: :func:`run_experiment` takes the resolved experiment that ``scioc identify``
-recorded in ``identify/identify.json``, else the one ``scioc simulate`` recorded in
-``data/simulation.json``, else the paper's study (:data:`scioc.models.design.STUDY`, for run
-folders written before experiment files existed). The other functions turn a
-:class:`scioc.models.design.Design` into the report's phrases; for the paper's labels they give
-the paper's words ("manual control (MC)", "shared control (SC)").
+The report follows the run's experiment (:func:`run_experiment`), not the paper's literals; the other
+functions turn a :class:`scioc.models.design.Design` into phrases, with the paper's words for its labels
+("manual control (MC)", "shared control (SC)").
 """
 
 from __future__ import annotations
@@ -21,23 +17,12 @@ PAPER_NAMES = {"MC": "manual control", "SC": "shared control"}
 
 
 class RunExperiment(NamedTuple):
-    """The experiment of a run folder.
-
-    Attributes
-    ----------
-    design : Design
-    source : str
-        Where the report read it, as a phrase: "as recorded in identify/identify.json", or the built-in study.
-    sha256 : str
-        The experiment's hash as recorded (or computed, for the built-in study).
-    file : str or None
-        The experiment file the stage read (None: the built-in study).
-    """
+    """The experiment of a run folder."""
 
     design: Design
-    source: str
-    sha256: str
-    file: str | None
+    source: str  # where the report read it, as a phrase: "as recorded in identify/identify.json"
+    sha256: str  # the experiment's hash as recorded (computed for the built-in study)
+    file: str | None  # the experiment file the stage read (None: the built-in study)
 
 
 def run_experiment(meta: dict | None, sim: dict | None) -> RunExperiment:
@@ -125,12 +110,8 @@ def wheel_text(design: Design) -> str:
 
 
 def acquisition(design: Design, reconstructed: bool) -> tuple[str, str]:
-    """The acquisition chain the adequacy bootstrap repeats: (short noun phrase, clause).
-
-    ("the same encoder and reconstruction", "quantized by the same encoder and reconstructed
-    by the same smoother") for the paper's rig; without an encoder or a reconstruction the
-    missing step is left out.
-    """
+    """The acquisition chain the adequacy bootstrap repeats: (noun phrase, clause), e.g. ("the same encoder and
+    reconstruction", "quantized by the same encoder and reconstructed by the same smoother")."""
     nouns = (["encoder"] if design.encoder_counts else []) + (["reconstruction"] if reconstructed else [])
     clauses = ((["quantized by the same encoder"] if design.encoder_counts else [])
                + (["reconstructed by the same smoother"] if reconstructed else []))

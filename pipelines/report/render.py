@@ -1,11 +1,8 @@
 """The report's one HTML layer: jinja2 templates (autoescaped), tables, embedded figures, reading artifacts.
 
-Every piece of the report is rendered from a template in ``templates/`` with autoescape
-on: values inserted into a template are escaped, only the templates' own markup and the
-fragments that :func:`render` returns (``Markup``) pass through as HTML. The sections
-(:mod:`scioc.pipelines.report.design`, :mod:`scioc.pipelines.report.identify`, ...) compute their
-numbers and call :func:`render`; :func:`table` and :func:`figure` are the two shared
-fragments.
+Values inserted into a template of ``templates/`` are escaped; only the templates' own markup and the
+``Markup`` that :func:`render` returns pass through as HTML. The sections compute their numbers and call
+:func:`render`; :func:`table` and :func:`figure` are the shared fragments.
 """
 
 from __future__ import annotations

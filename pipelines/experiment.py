@@ -4,8 +4,10 @@ Found beside the study file or named with ``--experiment PATH``; read with :mod:
 validated here, once, into a :class:`scioc.models.design.Design`. Every error is an
 :class:`ExperimentFileError` (exit 3) naming the file, the dotted key, what was given and what is
 allowed. Every key is optional (no file gives :data:`scioc.models.design.STUDY`); unknown keys are
-refused; an integer key refuses 40000.0; a boolean is never a number. ``[simulation]`` is read by
-``scioc simulate`` and ``scioc run`` only.
+refused; an integer key refuses 40000.0; a boolean is never a number. ``[columns]`` and ``[units]``
+describe a lab's export (:mod:`scioc.pipelines.export`); with either, the design is an
+:class:`scioc.pipelines.export.ExportDesign`. ``[simulation]`` is read by ``scioc simulate`` and
+``scioc run`` only.
 
 Keys: ``section.key`` unit, default: meaning
 --------------------------------------------
@@ -31,6 +33,15 @@ Keys: ``section.key`` unit, default: meaning
 ``analysis.whole``            true/false, false: analyse every trial whole instead of one window
                               (refused together with a window key: a conflict).
 ``analysis.preview_s``        s, 2.0: how far ahead the human sees the reference, >= 0; 0: the paper's horizon.
+``columns.KEY``               text, KEY: the file's name of scioc's column KEY, one of ``columns.subject``,
+                              ``columns.condition``, ``columns.trial``, ``columns.t``, ``columns.angle``,
+                              ``columns.angle_ref``, ``columns.u_A``, ``columns.velocity``, ``columns.u_H``.
+``columns.from_file_name``    regular expression, none: the whole of each file's name without extension
+                              matches it; its named groups subject, condition, trial give those columns.
+``units.angle``               "rad": the unit of angle and angle_ref, "rad" or "deg".
+``units.velocity``            "rad/s": the unit of velocity, "rad/s" or "deg/s".
+``units.torque``              "N*m": the unit of u_A and u_H, "N*m", "N*cm" or "N*mm" (also N·cm, Ncm).
+``units.time``                "s": the unit of t, "s" or "ms".
 ``simulation.run_s``          s, 240.0: one simulated run, > 0 (a window outside it is refused when analysed).
 ``simulation.subjects``       integer, 42: subjects of a simulated study, >= 1.
 ``simulation.trials``         integer, 1: runs per subject × condition of a simulated study, >= 1.
@@ -45,9 +56,11 @@ Rules
   ``reference_gain``. Only the keys of the entry's kind are allowed.
 * The baseline defaults to "MC" if that is a level, else must be named. It is the unassisted
   reference of every contrast, so an assistant for it is refused.
-* :func:`resolved` writes every applicable key out; :func:`experiment_hash` hashes its canonical
-  JSON, so equal designs share a hash however written. Both :func:`parse_experiment` of it and
-  :func:`load_experiment` of :func:`to_toml` give back the design.
+* A file column holds one of scioc's columns; ``from_file_name`` takes no column ``[columns]`` names.
+* :func:`resolved` writes every applicable key out (``[columns]`` and ``[units]`` where they differ
+  from the convention); :func:`experiment_hash` hashes its canonical JSON, so equal designs share a
+  hash however written, and a file without ``[columns]`` and ``[units]`` keeps its hash. Both
+  :func:`parse_experiment` of it and :func:`load_experiment` of :func:`to_toml` give back the design.
 """
 
 from __future__ import annotations
@@ -60,6 +73,8 @@ import tomllib
 from pathlib import Path
 
 from scioc.models.design import ASSISTANT_KINDS, PAPER_ASSISTANT, STUDY, AssistantSpec, Design, WheelParameters
+from scioc.pipelines.export import (COLUMNS, FILE_NAME_GROUPS, QUANTITY, UNITS, ExportFormat, canonical_unit,
+                                    export_of, with_export)
 from scioc.pipelines.io import InputDataError
 from scioc.pipelines.storage import write_text_atomic
 
@@ -69,6 +84,7 @@ EXPERIMENT_FILE = "experiment.toml"
 SECTIONS = {"sampling": ("rate_hz",), "wheel": ("inertia", "spring", "damper"), "encoder": ("counts_per_rev",),
             "conditions": ("baseline", "levels", "assistant"),
             "analysis": ("window_start_s", "window_s", "whole", "preview_s"),
+            "columns": (*COLUMNS, "from_file_name"), "units": tuple(UNITS),
             "simulation": ("run_s", "subjects", "trials", "torque_sensor", "beta")}
 #: The keys of an assistant entry of each kind.
 ASSISTANT_KEYS = {"mpc": ("kind", "theta", "horizon", "step_s", "period_s"),
@@ -80,7 +96,8 @@ _NOTES = {"rate_hz": "Hz; the t column steps by 1/rate_hz within a trial", "iner
     "window_start_s": "s, on the trial's own t axis", "window_s": "s", "whole": "true: every trial whole",
     "preview_s": "s; 0: the paper's horizon", "run_s": "s", "subjects": "simulated subjects",
     "trials": "runs per subject x condition", "torque_sensor": "true: the rig also records u_H",
-    "beta": "true mean shift of log theta1 per non-baseline level"}
+    "beta": "true mean shift of log theta1 per non-baseline level",
+    "from_file_name": "named groups subject, condition, trial from each file's name"}
 # The section of each Design field, for the backstop's errors.
 _FIELD_SECTION = dict.fromkeys(("dt",), "sampling") | {"wheel": "wheel", "encoder_counts": "encoder"} | dict.fromkeys(
     ("levels", "baseline", "assistants"), "conditions") | dict.fromkeys(
@@ -242,6 +259,41 @@ def _conditions(r: _Reader, c: dict, dt: float):
     return levels, baseline, tuple((lv, entries[lv]) for lv in levels if lv in entries)
 
 
+def _export(r: _Reader, columns: dict, units: dict) -> ExportFormat:
+    """The lab's export of the ``[columns]`` and ``[units]`` tables."""
+    names = {}
+    for key, value in columns.items():
+        if not isinstance(value, str) or not value.strip():
+            r.fail(_key("columns", key), f"must be a name in the file, a non-empty string; got {_show(value)}")
+        if key != "from_file_name":
+            other = [c for c, v in names.items() if v == value]
+            if other:
+                r.fail(_key("columns", key), f"names the column {_quote(value)}, which columns.{other[0]} names "
+                                             "too; a file column holds one of scioc's columns")
+            names[key] = value
+    pattern = columns.get("from_file_name")
+    if pattern is not None:
+        key = "columns.from_file_name"
+        try:
+            groups = tuple(re.compile(pattern).groupindex)
+        except re.error as exc:
+            r.fail(key, f"is not a regular expression: {exc}; got {_show(pattern)}")
+        if not groups or set(groups) - set(FILE_NAME_GROUPS):
+            r.fail(key, f"needs named groups among {', '.join(FILE_NAME_GROUPS)}, such as '(?P<subject>.+)' (the "
+                        f"file name is the subject); got {_show(pattern)}")
+        for group in groups:
+            if group in names:
+                r.fail(key, f"takes {group} from the file name, but columns.{group} names a column for it: drop one")
+    found = {}
+    for key, value in units.items():
+        found[key] = canonical_unit(key, value) if isinstance(value, str) else None
+        if found[key] is None:
+            cols = ", ".join(c for c, q in QUANTITY.items() if q == key)
+            r.fail(_key("units", key), f"the unit of {cols} must be one of {', '.join(map(_quote, UNITS[key]))}; "
+                                       f"got {_show(value)}")
+    return ExportFormat(columns=tuple(names.items()), units=tuple(found.items()), from_file_name=pattern)
+
+
 def parse_experiment(mapping: dict, path="<experiment>") -> Design:
     """Validate an experiment file's tables (from :func:`tomllib.loads` or :func:`resolved`) into a Design.
 
@@ -249,7 +301,10 @@ def parse_experiment(mapping: dict, path="<experiment>") -> Design:
     """
     r = _Reader(path)
     doc = r.table(mapping, None, SECTIONS)
-    sec = {name: r.table(doc.get(name, {}), name, keys) for name, keys in SECTIONS.items()}
+    scioc_names = ' (a key is scioc\'s column name, its value the file\'s: subject = "Proband")'
+    sec = {name: r.table(doc.get(name, {}), name, keys, what=scioc_names if name == "columns" else "")
+           for name, keys in SECTIONS.items()}
+    export = _export(r, sec["columns"], sec["units"])
     s, w, e, a, m = (sec[k] for k in ("sampling", "wheel", "encoder", "analysis", "simulation"))
     dt = 1.0 / r.number(s["rate_hz"], "sampling.rate_hz", lo=0.0) if "rate_hz" in s else STUDY.dt
     wheel = WheelParameters(*(r.number(w.get(k, default), _key("wheel", k), lo=0.0)
@@ -272,12 +327,13 @@ def parse_experiment(mapping: dict, path="<experiment>") -> Design:
     effects = (r.numbers(beta, "simulation.beta", n, f"{n} numbers, one per non-baseline level") if beta else ()) \
         if isinstance(beta, list) else (r.number(beta, "simulation.beta"),) * n
     try:
-        return Design(wheel=wheel, dt=dt, encoder_counts=counts, levels=levels, baseline=baseline,
-                      assistants=assistants, run_seconds=run, subjects=subjects, trials=trials, torque_sensor=sensor, effects=effects,
-                      window_start=start, window_seconds=length, whole=whole, preview=preview)
+        design = Design(wheel=wheel, dt=dt, encoder_counts=counts, levels=levels, baseline=baseline,
+                        assistants=assistants, run_seconds=run, subjects=subjects, trials=trials, torque_sensor=sensor,
+                        effects=effects, window_start=start, window_seconds=length, whole=whole, preview=preview)
     except ValueError as exc:  # backstop: the checks above should have said it first
         found = re.search(r"Design\.(\w+)", str(exc))
         r.fail(_FIELD_SECTION.get(found.group(1)) if found else None, str(exc))
+    return with_export(design, export)
 
 
 def load_experiment(path) -> Design:
@@ -318,6 +374,10 @@ def resolved(design: Design) -> dict:
     """Every applicable key of the experiment file for ``design``, as its nested tables (module docstring)."""
     d = design
     window = {} if d.whole else {"window_start_s": float(d.window_start), "window_s": float(d.window_seconds)}
+    export = export_of(d)
+    pattern = {} if export.from_file_name is None else {"from_file_name": export.from_file_name}
+    data = ({"columns": {**dict(export.columns), **pattern}} if export.columns or pattern else {}) | (
+        {"units": dict(export.units)} if export.units else {})
     return {
         "sampling": {"rate_hz": _rate(d.dt)},
         "wheel": {k: float(v) for k, v in zip(SECTIONS["wheel"], d.wheel)},
@@ -325,6 +385,7 @@ def resolved(design: Design) -> dict:
         "conditions": {"baseline": d.baseline, "levels": list(d.levels),
                        "assistant": {lv: _entry(d.assistant(lv)) for lv in d.levels if d.assistant(lv)}},
         "analysis": {**window, "whole": bool(d.whole), "preview_s": float(d.preview)},
+        **data,
         "simulation": {"run_s": float(d.run_seconds), "subjects": int(d.subjects), "trials": int(d.trials),
                        "torque_sensor": bool(d.torque_sensor), "beta": [float(v) for v in d.effects]},
     }
@@ -343,7 +404,7 @@ def to_toml(design: Design) -> str:
         lines += ["", f"[{section}]"]
         for key, value in table.items():
             if key != "assistant":
-                lines.append(f"{key} = {_show(value)}  # {_NOTES[key]}")
+                lines.append(f"{_key(None, key)} = {_show(value)}  # {_note(section, key)}")
         if section == "conditions":
             lines += ["", "[conditions.assistant]  # one entry per assisted level; other levels have u_A = 0"]
             lines += [f"{_key(None, lv)} = {_show(entry)}" for lv, entry in table["assistant"].items()] or [
@@ -353,14 +414,23 @@ def to_toml(design: Design) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _note(section: str, key: str) -> str:
+    """The comment :func:`to_toml` writes beside ``section.key``."""
+    if section == "columns" and key != "from_file_name":
+        return f"the file's column holding {key}"
+    if section == "units":
+        return "unit of " + ", ".join(c for c, q in QUANTITY.items() if q == key)
+    return _NOTES[key]
+
+
 def write_experiment(design: Design, path) -> None:
     """Write :func:`to_toml` of ``design`` to ``path`` atomically."""
     write_text_atomic(path, to_toml(design))
 
 
 def find_experiment(study_path, explicit=None) -> tuple[Design, str | None]:
-    """``(Design, path)`` of ``explicit`` (``--experiment``), else of ``experiment.toml`` beside (or inside)
-    ``study_path``; ``(STUDY, None)`` when there is neither."""
+    """``(Design, path)`` of ``explicit`` (``--experiment``), else of ``experiment.toml`` beside ``study_path``
+    (a file or a glob pattern's files) or inside it (a folder); ``(STUDY, None)`` when there is neither."""
     if explicit is not None:
         return load_experiment(explicit), str(explicit)
     if study_path is not None:

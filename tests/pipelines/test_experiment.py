@@ -20,6 +20,7 @@ from scioc.pipelines.experiment import (
     to_toml,
     write_experiment,
 )
+from scioc.pipelines.export import COLUMNS, UNITS, ExportDesign, ExportFormat, convention, export_of, with_export
 from scioc.pipelines.io import InputDataError
 
 #: The example of issue 12, verbatim: the paper's study written out.
@@ -212,10 +213,12 @@ def test_sidecar():
 def test_the_docstring_describes_every_key():
     doc = experiment.__doc__
     res = resolved(STUDY)
-    assert res.keys() == experiment.SECTIONS.keys()
+    assert list(res) == [s for s in experiment.SECTIONS if s not in ("columns", "units")]  # the convention's
     for section, table in res.items():
         assert tuple(table) == experiment.SECTIONS[section]
-        for key in table:
+    assert list(resolved(LAB)) == list(experiment.SECTIONS)
+    for section, keys in experiment.SECTIONS.items():
+        for key in keys:
             assert f"``{section}.{key}``" in doc, f"{section}.{key}"
     for kind, keys in experiment.ASSISTANT_KEYS.items():
         assert kind in doc
@@ -223,6 +226,75 @@ def test_the_docstring_describes_every_key():
             assert f"``{key}``" in doc, key
     for unit in ("Hz", "kg·m²", "N·m/rad", "N·m·s/rad", "per revolution"):
         assert unit in doc
+
+
+#: A lab's export: every [units] quantity in another unit, some columns renamed, the trial from the file name.
+LAB_TEXT = '''\
+[columns]
+subject = "Proband"
+condition = "Bedingung"
+t = "time_ms"
+angle = "wheel_deg"
+angle_ref = "target_deg"
+u_A = "assist_Ncm"
+velocity = "Geschwindigkeit"
+u_H = "hand torque"
+from_file_name = '[^_]+_(?P<trial>\\d+)'
+
+[units]
+angle = "deg"
+velocity = "deg/s"
+torque = "N·cm"
+time = "ms"
+'''
+LAB = with_export(STUDY, ExportFormat(
+    columns=(("subject", "Proband"), ("condition", "Bedingung"), ("t", "time_ms"), ("angle", "wheel_deg"),
+             ("angle_ref", "target_deg"), ("u_A", "assist_Ncm"), ("velocity", "Geschwindigkeit"),
+             ("u_H", "hand torque")),
+    units=(("angle", "deg"), ("velocity", "deg/s"), ("torque", "N*cm"), ("time", "ms")),
+    from_file_name=r"[^_]+_(?P<trial>\d+)"))
+
+
+def test_columns_and_units_read_into_an_export_design(tmp_path):
+    design = load_experiment(write(tmp_path, LAB_TEXT))
+    assert isinstance(design, ExportDesign) and design == LAB
+    assert experiment_hash(design) != experiment_hash(STUDY)  # the format enters the hash
+    assert convention(design) == STUDY and type(convention(design)) is Design
+    fmt = export_of(design)
+    assert fmt.name("angle") == "wheel_deg" and fmt.name("trial") == "trial" and fmt.file_columns == ("trial",)
+    assert fmt.unit("u_H") == "N*cm" and fmt.file_labels("P03_2") == {"trial": "2"} and fmt.file_labels("P03") is None
+    assert resolved(design)["units"] == {"angle": "deg", "velocity": "deg/s", "torque": "N*cm", "time": "ms"}
+
+
+def test_an_export_design_round_trips_through_toml_and_its_sidecar(tmp_path):
+    text = to_toml(LAB)
+    assert text.isascii() and "[columns]" in text and "[units]" in text
+    assert load_back(LAB) == LAB and parse_experiment(resolved(LAB)) == LAB
+    write_experiment(LAB, tmp_path / EXPERIMENT_FILE)
+    assert load_experiment(tmp_path / EXPERIMENT_FILE) == LAB
+    assert json.loads(json.dumps(sidecar(LAB, None)))["experiment"] == resolved(LAB)
+
+
+@pytest.mark.parametrize("text", [
+    '[columns]\nsubject = "subject"\nt = "t"\n[units]\nangle = "rad"\ntorque = "Nm"\ntime = "s"\n',
+    "[columns]\n[units]\n"], ids=["the convention written out", "empty tables"])
+def test_the_convention_written_out_is_the_plain_design_with_its_hash(tmp_path, text):
+    design = load_experiment(write(tmp_path, text))
+    assert type(design) is Design and design == STUDY and experiment_hash(design) == experiment_hash(STUDY)
+
+
+def test_each_export_key_changes_the_hash_and_spellings_do_not():
+    one = {f"columns.{c}": ExportFormat(columns=((c, "x"),)) for c in COLUMNS}
+    one |= {f"units.{q}": ExportFormat(units=((q, list(u)[1]),)) for q, u in UNITS.items()}
+    one |= {"units.torque N*mm": ExportFormat(units=(("torque", "N*mm"),)),
+            "from_file_name": ExportFormat(from_file_name="(?P<subject>.+)"),
+            "another from_file_name": ExportFormat(from_file_name="(?P<subject>.+)_x")}
+    hashes = {name: experiment_hash(with_export(STUDY, fmt)) for name, fmt in one.items()}
+    assert len(set(hashes.values()) | {experiment_hash(STUDY)}) == len(hashes) + 1
+    for name, fmt in one.items():
+        assert load_back(with_export(STUDY, fmt)) == with_export(STUDY, fmt), name
+    spelled = [ExportFormat(units=(("torque", u),)) for u in ("N*cm", "N·cm", "Ncm")]
+    assert len({experiment_hash(with_export(STUDY, f)) for f in spelled}) == 1
 
 
 MPC = '[conditions.assistant]\nSC = { kind = "mpc", %s }\n'
@@ -292,6 +364,19 @@ MALFORMED = [
     ("[simulation]\nsubjects = true\n", "simulation.subjects", "got true"),
     ("[simulation]\ntorque_sensor = 1\n", "simulation.torque_sensor", "true or false"),
     ("[simulation]\nrun_s = 0.0\n", "simulation.run_s", "> 0"),
+    ('columns = "Proband"\n', "columns", "must be a table"),
+    ('[columns]\nProband = "subject"\n', "columns.Proband", 'a key is scioc\'s column name, its value the file\'s'),
+    ('[columns]\nangle = 3\n', "columns.angle", "non-empty string; got 3"),
+    ('[columns]\nangle = ""\n', "columns.angle", "non-empty string"),
+    ('[columns]\nangle = "deg"\nangle_ref = "deg"\n', "columns.angle_ref", "columns.angle names too"),
+    ('[columns]\nfrom_file_name = "(?P<subj>.+)"\n', "columns.from_file_name", "named groups among subject"),
+    ('[columns]\nfrom_file_name = ".+"\n', "columns.from_file_name", "(?P<subject>.+)"),
+    ('[columns]\nfrom_file_name = "(?P<subject>.+"\n', "columns.from_file_name", "not a regular expression"),
+    ('[columns]\nsubject = "P"\nfrom_file_name = "(?P<subject>.+)"\n', "columns.from_file_name", "drop one"),
+    ('[units]\nangle = "grad"\n', "units.angle", 'angle, angle_ref must be one of "rad", "deg"; got "grad"'),
+    ('[units]\ntorque = "kg"\n', "units.torque", '"N*m", "N*cm", "N*mm"'),
+    ('[units]\ntime = 1000\n', "units.time", '"s", "ms"; got 1000'),
+    ('[units]\nlength = "m"\n', "units.length", "allowed: angle, velocity, torque, time"),
 ]
 
 

@@ -12,7 +12,8 @@ their concatenation in name order. A lab's own column names and units are the de
 
 Validation happens here, once: every error names the file, the column as the file names it, and the
 first bad row (0-based within that file; for CSV also the line). Plausibility limits catch degrees for
-radians and N·mm for N·m.
+radians and N·mm for N·m. Angles that are the experiment's encoder counts to within :data:`ON_GRID`
+are put on its grid exactly, where scioc's encoder model has them; others are kept as they are.
 """
 
 from __future__ import annotations
@@ -41,6 +42,9 @@ MAX_ANGLE = 2 * np.pi
 MAX_VELOCITY = 30.0
 #: Largest plausible |u_H| and |u_A|, N·m: more than a person exerts on a steering wheel with both hands.
 MAX_TORQUE = 50.0
+#: Largest distance of an angle from the experiment's encoder grid, in counts, at which the angles are put on it
+#: exactly: a unit conversion leaves encoder counts a few ulps (about 1e-12 counts) off scioc's grid k·2π/counts.
+ON_GRID = 1e-9
 
 
 class InputDataError(ValueError):
@@ -330,6 +334,7 @@ def _validate(df: pd.DataFrame, origin: _Origin, design: Design) -> Study:
         given[col] = values
         cols[col] = export.to_scioc(col, values)
     _check_plausible(cols, given, export, fail)
+    cols["angle"] = _on_grid(cols["angle"], design.encoder_step)
     has_opt = {c: c in df.columns for c in OPTIONAL}
     dt = design.dt
     # float32 cannot hold t = 240.01 s to 1e-6 s: allow its own rounding (two ulps at the largest |t|).
@@ -379,6 +384,16 @@ def _validate(df: pd.DataFrame, origin: _Origin, design: Design) -> Study:
             )
         )
     return Study(path=origin.path, segments=tuple(segments), design=design, files=tuple(origin.files))
+
+
+def _on_grid(angle: np.ndarray, step: float) -> np.ndarray:
+    """``angle`` on the encoder grid (as :func:`scioc.models.simulate.quantize` reads an encoder) when every value
+    lies within :data:`ON_GRID` counts of it, else unchanged; ``step`` in rad (0: no encoder)."""
+    if step > 0:
+        counts = np.round(angle / step)
+        if np.all(np.abs(angle / step - counts) <= ON_GRID):
+            return counts * step
+    return angle
 
 
 def _seconds_from_segment_start(t: pd.Series, codes: np.ndarray) -> pd.Series:

@@ -1,5 +1,6 @@
 """A lab's export read as it is: ``[columns]`` and ``[units]``, studies of many files, MATLAB files (issue 52, item 3)."""
 
+import dataclasses
 import math
 import re
 
@@ -215,3 +216,25 @@ def test_the_experiment_beside_a_glob_or_inside_a_folder_is_found(tmp_path):
         design, source = find_experiment(given)
         assert design == LAB_DESIGN and source == str(folder / EXPERIMENT_FILE)
         assert len(load_study(given, design).segments) == 4
+
+
+def test_encoder_counts_in_degrees_load_exactly_on_scioc_encoder_grid(tmp_path):
+    from scioc.models.simulate import quantize
+
+    df = lab_table()
+    counts = np.round(df["wheel_deg"] / 0.009) + np.arange(len(df)) % 7 - 3  # whole counts of 0.009°
+    df["wheel_deg"] = np.round(counts * 0.009, 3)  # as the rig prints them
+    df.to_csv(tmp_path / "lab.csv", index=False)
+    angle = np.concatenate([s.angle for s in load_study(tmp_path / "lab.csv", LAB_DESIGN).segments])
+    step = STUDY.encoder_step
+    assert np.array_equal(angle, counts.to_numpy() * step) and np.array_equal(angle, quantize(angle, step))
+    assert not np.array_equal(angle, df["wheel_deg"].to_numpy() * math.pi / 180)  # the conversion alone is off it
+    df.loc[3, "wheel_deg"] += 0.001  # one value between counts: the column is not the encoder's, and kept as given
+    df.to_csv(tmp_path / "lab.csv", index=False)
+    angle = np.concatenate([s.angle for s in load_study(tmp_path / "lab.csv", LAB_DESIGN).segments])
+    assert np.array_equal(angle, df["wheel_deg"].to_numpy() * math.pi / 180)
+    unquantized = with_export(dataclasses.replace(STUDY, encoder_counts=0), LAB)
+    df.loc[3, "wheel_deg"] -= 0.001
+    df.to_csv(tmp_path / "lab.csv", index=False)
+    angle = np.concatenate([s.angle for s in load_study(tmp_path / "lab.csv", unquantized).segments])
+    assert np.array_equal(angle, df["wheel_deg"].to_numpy() * math.pi / 180)  # no encoder: no grid

@@ -11,20 +11,26 @@ the sum of its Kalman filter's innovation terms, given z_0's prior N(``z0_mean``
 (updated by y_0, not scored) and the pre-window noises'. A step costs O((3 + d)²): the z-block
 sees the history only through ``sum_j h_{k,j} m_{k-j}``, which shifts. Where the plan is
 stationary the covariance converges and is held (:data:`FREEZE_RTOL`): O(d) per step.
+
+The plan is :mod:`.riccati`'s, the filter :mod:`.kalman`'s, one window's kernel :mod:`.angle_kernel`'s;
+:func:`angle_loglik_grad` and :func:`window_loglik_grad` add the exact gradient by their reverse sweeps.
 """
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
+from scipy.linalg import expm_frechet
 
-from scioc.models.delayed.lag import Warmup, lag_coefficients, window_tau0
+from scioc.models.cost import validate_theta
+from scioc.models.delayed.angle_kernel import OUT, window_kernel
+from scioc.models.delayed.kalman import FREEZE_RTOL, angle_filter
+from scioc.models.delayed.lag import Warmup, check_wheel, lag_coefficients, window_tau0
 from scioc.models.delayed.sample import delayed_setup
 from scioc.models.design import WheelParameters
-from scioc.models.maxent import HALF_LOG_2PI
-from scioc.models.plant import DiscretePlant
-from scioc.models.runtime import njit
+from scioc.models.plant import DiscretePlant, continuous_matrices, discretize, discretize_lagged
 from scioc.models.segment import Feedback
 
 
@@ -35,161 +41,65 @@ class AngleLoglik(NamedTuple):
     innovations: np.ndarray
 
 
-#: The filter is held once its covariance, the plan's gain and S_k move by at most this, relative, in a step.
-FREEZE_RTOL = 1e-13
+class AngleLoglikGrad(NamedTuple):
+    """log p(y_1..y_K | y_0) (nats); its gradient (5,) in :data:`.likelihood.PARAMETERS` order (q11, q22, R,
+    τ_nm in s, σ_m in N·m); in the prior mean of z_0 (3,) (rad, rad/s, N·m); the innovations (K,)."""
+
+    loglik: float
+    grad: np.ndarray
+    grad_z0_mean: np.ndarray
+    innovations: np.ndarray
 
 
-@njit(cache=True, error_model="numpy", fastmath=False)
-def angle_filter(Ab, bc, ba, L, f, S, known, d, s2m, s2y, y, mu0, P0, inn, freeze):
-    """The Kalman filter of the module docstring; returns log p(y_1..y_K | y_0), fills ``inn`` (K,).
+class LaggedWheel(NamedTuple):
+    """The physically lagged wheel (:func:`scioc.models.plant.discretize_lagged`) and its τ_nm-derivatives (1/s)."""
 
-    State (z_k, m_{k-1}, ..., m_{k-d}), history in lag order. With ``freeze``, once the
-    covariance is stationary and while the plan is, only the mean moves, with the held gain.
+    A: np.ndarray
+    b_c: np.ndarray
+    dA: np.ndarray
+    db_c: np.ndarray
+
+
+@lru_cache(maxsize=64)
+def lagged_wheel(tau_nm: float, dt: float, params: WheelParameters) -> LaggedWheel:
+    """The wheel behind the lag τ_nm (s) at sample time ``dt`` (s) and its derivative in τ_nm (Fréchet).
+
+    At τ_nm = 0 the lag is gone (A's torque column 0, b_c = (b, 1)) and the derivative one-sided:
+    the torque decays within the sample, ``A[:2, 2] ≈ τ_nm Φ b_w`` and ``b_c[:2] ≈ b - τ_nm Φ b_w``.
+    Cached: a search asks once per τ_nm for all its windows.
     """
-    K = y.shape[0] - 1
-    n = 3 + d
-    mu = np.zeros(n)
-    P = np.zeros((n, n))
-    Q = np.zeros((n, n))  # the covariance being built, then the previous step's (swapped)
-    for i in range(3):
-        mu[i] = mu0[i]
-        for j in range(3):
-            P[i, j] = P0[i, j]
-    for j in range(d):
-        P[3 + j, 3 + j] = s2m
-    G = np.zeros((max(d, 1), 3))  # G[j - 1] = Ā^{j-1} b_c
-    for j in range(d):
-        for i in range(3):
-            if j == 0:
-                G[0, i] = bc[i]
-            else:
-                G[j, i] = Ab[i, 0] * G[j - 1, 0] + Ab[i, 1] * G[j - 1, 1] + Ab[i, 2] * G[j - 1, 2]
-    h = np.zeros(max(d, 1))  # h[j - 1] = L_k G_j, the coefficient of m_{k-j}
-    wm = np.zeros(max(d, 1))
-    wz = np.zeros(3)
-    M = np.zeros((3, 3))
-    MP = np.zeros((3, n))
-    Mw = np.zeros(3)
-    gain = np.zeros(n)
-    ll = 0.0
-    s = P[0, 0] + s2y
-    if s > 0.0:
-        nu = y[0] - mu[0]
-        for i in range(n):
-            gain[i] = P[i, 0] / s
-        for i in range(n):
-            mu[i] += gain[i] * nu
-            for j in range(n):
-                P[i, j] -= gain[i] * gain[j] * s
-    held = False
-    s_held = 0.0
-    L_held = np.zeros(3)
-    S_held = 0.0
-    for k in range(K):
-        if held:  # the plan as when the filter was held
-            same = abs(S[k] - S_held) <= FREEZE_RTOL * S_held
-            for j in range(3):
-                same = same and abs(L[k, j] - L_held[j]) <= FREEZE_RTOL * abs(L_held[j])
-            if not same:
-                held = False  # P is the stationary covariance after the last update: go on from it
-        if not held:
-            for j in range(d):
-                h[j] = L[k, 0] * G[j, 0] + L[k, 1] * G[j, 1] + L[k, 2] * G[j, 2]
-            for i in range(3):
-                for j in range(3):
-                    M[i, j] = Ab[i, j] - bc[i] * L[k, j]
-        # ---- the mean
-        g = 0.0
-        for j in range(d):
-            g += h[j] * mu[3 + j]
-        z0_ = mu[0]
-        z1_ = mu[1]
-        z2_ = mu[2]
-        for i in range(3):
-            mu[i] = M[i, 0] * z0_ + M[i, 1] * z1_ + M[i, 2] * z2_ + bc[i] * (g + f[k]) + ba[i] * known[k]
-        for j in range(d - 1, 0, -1):
-            mu[3 + j] = mu[2 + j]
-        if d > 0:
-            mu[3] = 0.0
-        if held:
-            nu = y[k + 1] - mu[0]
-            ll -= 0.5 * nu * nu / s_held + 0.5 * np.log(s_held) + HALF_LOG_2PI
-            inn[k] = nu / np.sqrt(s_held)
-            for i in range(n):
-                mu[i] += gain[i] * nu
-            continue
-        # ---- the covariance: predict into Q
-        hph = 0.0
-        for a in range(d):
-            acc = 0.0
-            for t in range(d):
-                acc += P[3 + a, 3 + t] * h[t]
-            wm[a] = acc
-            hph += h[a] * acc
-        for i in range(3):
-            acc = 0.0
-            for t in range(d):
-                acc += P[i, 3 + t] * h[t]
-            wz[i] = acc
-        for i in range(3):
-            for j in range(n):
-                MP[i, j] = M[i, 0] * P[0, j] + M[i, 1] * P[1, j] + M[i, 2] * P[2, j]
-            Mw[i] = M[i, 0] * wz[0] + M[i, 1] * wz[1] + M[i, 2] * wz[2]
-        var_u = hph + 0.5 / S[k] + s2m
-        for i in range(3):
-            for j in range(3):
-                Q[i, j] = (MP[i, 0] * M[j, 0] + MP[i, 1] * M[j, 1] + MP[i, 2] * M[j, 2] + Mw[i] * bc[j]
-                           + bc[i] * Mw[j] + bc[i] * bc[j] * var_u)
-        if d > 0:
-            for i in range(3):
-                Q[i, 3] = bc[i] * s2m  # Cov(z_{k+1}, m_k)
-                Q[3, i] = Q[i, 3]
-            Q[3, 3] = s2m
-            for j in range(1, d):
-                Q[3, 3 + j] = 0.0
-                Q[3 + j, 3] = 0.0
-                for i in range(3):  # Cov(z_{k+1}, m_{k-j}), m_{k-j} in the old lag j - 1
-                    v = MP[i, 2 + j] + bc[i] * wm[j - 1]
-                    Q[i, 3 + j] = v
-                    Q[3 + j, i] = v
-                for t in range(1, d):
-                    Q[3 + j, 3 + t] = P[2 + j, 2 + t]
-        # ---- observe y_{k+1}
-        s = Q[0, 0] + s2y
-        nu = y[k + 1] - mu[0]
-        if not s > 0.0:
-            if nu != 0.0:
-                return -np.inf
-            inn[k] = 0.0
-            P, Q = Q, P
-            continue
-        ll -= 0.5 * nu * nu / s + 0.5 * np.log(s) + HALF_LOG_2PI
-        inn[k] = nu / np.sqrt(s)
-        for i in range(n):
-            gain[i] = Q[i, 0] / s
-        for i in range(n):
-            mu[i] += gain[i] * nu
-        big = 0.0
-        moved = 0.0
-        for i in range(n):
-            for j in range(i, n):
-                v = Q[i, j] - gain[i] * gain[j] * s
-                Q[i, j] = v
-                Q[j, i] = v
-                big = max(big, abs(v))
-                moved = max(moved, abs(v - P[i, j]))
-        P, Q = Q, P
-        if freeze and k > 0 and moved <= FREEZE_RTOL * big:
-            stationary = abs(S[k] - S[k - 1]) <= FREEZE_RTOL * S[k]
-            for j in range(3):
-                stationary = stationary and abs(L[k, j] - L[k - 1, j]) <= FREEZE_RTOL * abs(L[k, j])
-            if stationary:
-                held = True
-                s_held = s
-                S_held = S[k]
-                for j in range(3):
-                    L_held[j] = L[k, j]
-    return ll
+    A_c, b_w = continuous_matrices(params)
+    if tau_nm == 0.0:
+        wheel = discretize(dt, params)
+        A = np.zeros((3, 3))
+        A[:2, :2] = wheel.A
+        dA = np.zeros((3, 3))
+        dA[:2, 2] = wheel.A @ b_w
+        return LaggedWheel(A, np.array([wheel.b[0], wheel.b[1], 1.0]), dA, np.array([-dA[0, 2], -dA[1, 2], 0.0]))
+    M = np.zeros((4, 4))
+    M[:2, :2] = A_c
+    M[:2, 2] = b_w
+    M[2, 2], M[2, 3] = -1.0 / tau_nm, 1.0 / tau_nm
+    dM = np.zeros((4, 4))
+    dM[2, 2], dM[2, 3] = 1.0 / tau_nm ** 2, -1.0 / tau_nm ** 2
+    _, dE = expm_frechet(M * dt, dM * dt)
+    lp = discretize_lagged(tau_nm, dt, params)
+    return LaggedWheel(lp.A, lp.b_c, np.ascontiguousarray(dE[:3, :3]), np.ascontiguousarray(dE[:3, 3]))
+
+
+def planning_plant(tau_nm: float, plant: DiscretePlant, params: WheelParameters, gain):
+    """(Ā, b_c, b_a, dĀ (3, 3, 4), db_c (3, 4)) of :func:`.angle_kernel.window_kernel`: the lagged wheel closed
+    by the assistant's ``gain`` (2,), derivatives in direction 2 (τ_nm)."""
+    lw = lagged_wheel(float(tau_nm), float(plant.dt), params)
+    ba = np.array([plant.b[0], plant.b[1], 0.0])
+    Ab = lw.A.copy()
+    Ab[:, 0] -= ba * gain[0]
+    Ab[:, 1] -= ba * gain[1]
+    dAb = np.zeros((3, 3, 4))
+    dAb[:, :, 2] = lw.dA
+    dbc = np.zeros((3, 4))
+    dbc[:, 2] = lw.db_c
+    return Ab, lw.b_c, ba, dAb, dbc
 
 
 def angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params):
@@ -198,14 +108,12 @@ def angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params):
                          physical=True)
 
 
-def check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov):
-    """:func:`angle_loglik`'s arguments checked: (y, d, z0 mean, z0 covariance); ValueError otherwise."""
+def _check_window(angles, n_plan: int, delay, sigma_m, sigma_y) -> tuple[np.ndarray, int]:
     y = np.ascontiguousarray(angles, dtype=float)
-    n_plan = setup.known.shape[0]
     if y.ndim != 1 or not 2 <= y.shape[0] <= n_plan + 1:
         raise ValueError(f"angles must be a vector of K + 1 samples, 2 <= K + 1 <= {n_plan + 1} (the plan's length "
                          f"+ 1); got shape {y.shape}")
-    if not np.all(np.isfinite(y)):
+    if not np.isfinite(y).all():
         raise ValueError("angles must be finite")
     d = int(delay)
     if d != delay or d < 0:
@@ -213,12 +121,65 @@ def check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov):
     for name, v in (("sigma_m", sigma_m), ("sigma_y", sigma_y)):
         if not (np.isfinite(v) and v >= 0):
             raise ValueError(f"{name} must be a finite number >= 0; got {v!r}")
+    return y, d
+
+
+def check_angles(angles, n_plan: int, delay, sigma_m, sigma_y, z0_mean, z0_cov):
+    """:func:`angle_loglik`'s arguments checked against a plan of ``n_plan`` steps: (y, d, z0 mean, z0
+    covariance); ValueError otherwise."""
+    y, d = _check_window(angles, n_plan, delay, sigma_m, sigma_y)
     mu0 = np.ascontiguousarray(z0_mean, dtype=float).reshape(3)
     P0 = np.ascontiguousarray(z0_cov, dtype=float).reshape(3, 3)
     if not (np.all(np.isfinite(mu0)) and np.all(np.isfinite(P0)) and np.allclose(P0, P0.T)
             and np.all(np.linalg.eigvalsh(P0) >= -1e-12 * max(1.0, np.abs(P0).max()))):
         raise ValueError("z0_mean must be 3 finite numbers and z0_cov a symmetric positive semi-definite 3 × 3 matrix")
     return y, d, mu0, P0
+
+
+def _known(angle_ref, u_A, feedback):
+    """(reference (K + M + 1,), the human's known input (K + M,), the assistant's gain (2,)), checked."""
+    ref = np.ascontiguousarray(angle_ref, dtype=float)
+    if ref.ndim != 1 or ref.shape[0] < 2:
+        raise ValueError(f"angle_ref must be a vector of K + M + 1 >= 2 samples; got shape {ref.shape}")
+    n_plan = ref.shape[0] - 1
+    if u_A is not None and feedback is not None:
+        raise ValueError("give the assistant either as a torque sequence u_A or as a feedback law, not both")
+    if feedback is not None:
+        gain = np.asarray(feedback.gain, dtype=float).reshape(2)
+        known = np.ascontiguousarray(feedback.feedforward, dtype=float)
+    else:
+        gain = np.zeros(2)
+        known = np.zeros(n_plan) if u_A is None else np.ascontiguousarray(u_A, dtype=float)
+    if known.shape != (n_plan,):
+        raise ValueError(f"the assistant's torque or feedforward needs {n_plan} samples (angle_ref has {n_plan + 1}); "
+                         f"got shape {known.shape}")
+    return ref, known, gain
+
+
+def _run(theta, y, ref, known, gain, plant, params, tau_nm, sigma_m, d, sigma_y, mu0, P0, freeze, grad):
+    """:func:`.angle_kernel.window_kernel` on checked arguments: (out (:data:`.angle_kernel.OUT`,), innovations)."""
+    q11, q22, R = (float(v) for v in validate_theta(theta))
+    if not (np.isfinite(tau_nm) and tau_nm >= 0):
+        raise ValueError(f"tau_nm must be a finite number of seconds >= 0; got {tau_nm!r}")
+    check_wheel(plant, params)
+    Ab, bc, ba, dAb, dbc = planning_plant(tau_nm, plant, params, gain)
+    out = np.empty(OUT)
+    inn = np.zeros(y.shape[0] - 1)
+    window_kernel(Ab, bc, ba, dAb, dbc, q11, q22, R, ref, known, d, float(sigma_m) ** 2, float(sigma_y) ** 2, y, mu0,
+                  P0, bool(freeze), bool(grad), inn, out)
+    return out, inn
+
+
+def _gradient(out, sigma_m: float, dmu0_dtau) -> tuple[np.ndarray, np.ndarray]:
+    """(∂/∂[q11, q22, R, τ_nm, σ_m], ∂/∂z0_mean) of the kernel's ``out``; z0's mean moves with τ_nm as ``dmu0_dtau``."""
+    gz0 = out[6:9].copy()
+    return np.array([out[1], out[2], out[3], out[4] + gz0 @ dmu0_dtau, 2.0 * float(sigma_m) * out[5]]), gz0
+
+
+def _angle_args(theta, angles, angle_ref, u_A, feedback, delay, sigma_m, sigma_y, z0_mean, z0_cov):
+    ref, known, gain = _known(angle_ref, u_A, feedback)
+    y, d, mu0, P0 = check_angles(angles, known.shape[0], delay, sigma_m, sigma_y, z0_mean, z0_cov)
+    return y, ref, known, gain, d, mu0, P0
 
 
 def angle_loglik(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None, feedback: Feedback | None = None,
@@ -229,16 +190,44 @@ def angle_loglik(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None, fe
     ``theta``, ``angle_ref``, ``plant``, ``u_A``, ``feedback``, ``tau_nm``, ``sigma_m``, ``delay``
     and ``params`` as :func:`.sample.sample_delayed`'s. ``sigma_y``: the angle's noise SD, rad
     (encoder step q: q / sqrt(12)). ``z0_mean`` (3,), ``z0_cov`` (3, 3): the prior of (angle,
-    velocity, arm torque) at the window's start. ``freeze``: hold the filter once stationary.
+    velocity, arm torque) at the window's start. ``freeze``: hold the plan and the filter once stationary.
     """
-    setup = angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params)
-    y, d, mu0, P0 = check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov)
-    K = y.shape[0] - 1
-    inn = np.zeros(K)
-    pol = setup.policy
-    ll = angle_filter(setup.A, setup.b_c, setup.b_a, pol.L, pol.f, pol.S, setup.known, d, float(sigma_m) ** 2,
-                      float(sigma_y) ** 2, y, mu0, P0, inn, bool(freeze))
-    return AngleLoglik(float(ll), inn)
+    y, ref, known, gain, d, mu0, P0 = _angle_args(theta, angles, angle_ref, u_A, feedback, delay, sigma_m, sigma_y,
+                                                  z0_mean, z0_cov)
+    out, inn = _run(theta, y, ref, known, gain, plant, params, float(tau_nm), sigma_m, d, sigma_y, mu0, P0, freeze,
+                    False)
+    return AngleLoglik(float(out[0]), inn)
+
+
+def angle_loglik_grad(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None, feedback: Feedback | None = None,
+                      tau_nm: float = 0.0, sigma_m: float = 0.0, delay: int = 0, sigma_y: float, z0_mean, z0_cov,
+                      params: WheelParameters = WheelParameters(), freeze: bool = True) -> AngleLoglikGrad:
+    """:func:`angle_loglik` and its exact gradient, by a reverse sweep through the filter and the plan.
+
+    Parameters
+    ----------
+    theta : array_like, shape (3,)
+        ``[q11, q22, R]``.
+    angles, angle_ref : array_like, shapes (K + 1,) and (K + M + 1,)
+        The recorded angles and the reference, rad.
+    plant : DiscretePlant
+        The wheel at the human's sample time.
+    u_A, feedback, tau_nm, sigma_m, delay, sigma_y, z0_mean, z0_cov, params, freeze
+        As :func:`angle_loglik`'s; ``z0_mean`` is held fixed (its gradient is returned apart).
+
+    Returns
+    -------
+    AngleLoglikGrad
+        The value as :func:`angle_loglik`'s, bit for bit; the gradient in q11, q22, R, τ_nm (one-sided
+        at 0) and σ_m (0 at σ_m = 0), and in ``z0_mean``. O(K (3 + d)²) where the filter is not held,
+        O(K (3 + d)) where it is.
+    """
+    y, ref, known, gain, d, mu0, P0 = _angle_args(theta, angles, angle_ref, u_A, feedback, delay, sigma_m, sigma_y,
+                                                  z0_mean, z0_cov)
+    out, inn = _run(theta, y, ref, known, gain, plant, params, float(tau_nm), sigma_m, d, sigma_y, mu0, P0, freeze,
+                    True)
+    g, gz0 = _gradient(out, sigma_m, np.zeros(3))
+    return AngleLoglikGrad(float(out[0]), g, gz0, inn)
 
 
 #: Prior SDs of velocity (rad/s) and arm torque (N·m) at a window's start: wide against what its first angles tell.
@@ -262,16 +251,38 @@ class AngleWindow(NamedTuple):
     warmup: Warmup | None
 
 
+def _window(theta, tau_nm, sigma_m, delay, w: AngleWindow, plant, sigma_y, params, grad):
+    """(out, innovations, dτ_0/dτ_nm) of a recorded window, its start's prior from the data (:data:`START_SD`)."""
+    tau_nm = float(tau_nm)
+    lag = lag_coefficients(tau_nm, plant.dt, params)
+    tau0, dtau0 = window_tau0([w.warmup], lag.a, lag.alpha)
+    ref, known, gain = _known(w.angle_ref, w.u_A, w.feedback)
+    y, d = _check_window(w.angles, known.shape[0], delay, sigma_m, sigma_y)
+    mu0 = np.array([y[0], w.velocity0, tau0[0]])
+    P0 = np.diag([float(sigma_y) ** 2, START_SD[0] ** 2, START_SD[1] ** 2])
+    out, inn = _run(theta, y, ref, known, gain, plant, params, tau_nm, sigma_m, d, sigma_y, mu0, P0, True, grad)
+    return out, inn, float(dtau0[0, 0] * lag.da + dtau0[0, 1] * lag.dalpha)
+
+
 def window_loglik(theta, tau_nm: float, sigma_m: float, delay: int, w: AngleWindow, plant: DiscretePlant, *,
                   sigma_y: float, params: WheelParameters = WheelParameters()) -> AngleLoglik:
     """:func:`angle_loglik` of a recorded window, its start's prior from the data (:data:`START_SD`)."""
-    lag = lag_coefficients(float(tau_nm), plant.dt, params)
-    tau0 = float(window_tau0([w.warmup], lag.a, lag.alpha)[0][0])
-    mean = np.array([w.angles[0], w.velocity0, tau0])
-    cov = np.diag([float(sigma_y) ** 2, START_SD[0] ** 2, START_SD[1] ** 2])
-    return angle_loglik(theta, w.angles, w.angle_ref, plant, u_A=w.u_A, feedback=w.feedback, tau_nm=tau_nm,
-                        sigma_m=sigma_m, delay=delay, sigma_y=sigma_y, z0_mean=mean, z0_cov=cov, params=params)
+    out, inn, _ = _window(theta, tau_nm, sigma_m, delay, w, plant, sigma_y, params, False)
+    return AngleLoglik(float(out[0]), inn)
 
 
-__all__ = ["FREEZE_RTOL", "START_SD", "AngleLoglik", "AngleWindow", "angle_filter", "angle_loglik", "angle_setup",
-           "check_angles", "window_loglik"]
+def window_loglik_grad(theta, tau_nm: float, sigma_m: float, delay: int, w: AngleWindow, plant: DiscretePlant, *,
+                       sigma_y: float, params: WheelParameters = WheelParameters()) -> AngleLoglikGrad:
+    """:func:`window_loglik` and its exact gradient (:func:`angle_loglik_grad`).
+
+    The gradient in τ_nm includes the start's arm torque, which follows from the torques before
+    the window through the lag (:func:`.lag.window_tau0`).
+    """
+    out, inn, dtau0 = _window(theta, tau_nm, sigma_m, delay, w, plant, sigma_y, params, True)
+    g, gz0 = _gradient(out, sigma_m, np.array([0.0, 0.0, dtau0]))
+    return AngleLoglikGrad(float(out[0]), g, gz0, inn)
+
+
+__all__ = ["FREEZE_RTOL", "START_SD", "AngleLoglik", "AngleLoglikGrad", "AngleWindow", "LaggedWheel", "angle_filter",
+           "angle_loglik", "angle_loglik_grad", "angle_setup", "check_angles", "lagged_wheel", "planning_plant",
+           "window_loglik", "window_loglik_grad"]

@@ -1,4 +1,5 @@
-"""The dense references of the ``delayed`` likelihoods: the joint Gaussians of the torques and of the angles.
+"""The dense references of the ``delayed`` likelihoods: the joint Gaussians of the torques and of the angles,
+and of the max-ent human's angles (the ``delayed`` one without delay, lag or motor noise).
 
 The closed loop (:func:`.sample.closed_loop`) is affine in the noises ξ: ``u_H = μ + G ξ``, μ
 the loop without noise, G's columns the loop without offsets driven by unit impulses, and
@@ -16,9 +17,10 @@ from scipy.linalg import cho_factor, cho_solve
 from scioc.models.delayed.angles import angle_setup, check_angles
 from scioc.models.delayed.sample import closed_loop, delayed_setup
 from scioc.models.design import WheelParameters
+from scioc.models.lq import lq_policy
 from scioc.models.maxent import HALF_LOG_2PI
 from scioc.models.plant import DiscretePlant
-from scioc.models.segment import Feedback, Segment, check_segment
+from scioc.models.segment import Feedback, Segment, check_segment, planning_plant
 
 
 class DelayedDense(NamedTuple):
@@ -84,7 +86,7 @@ def angle_loglik_dense(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=No
     unit impulses in each ε_k and m_k, plus σ_y² on the diagonal; then log N(y) - log N(y_0).
     """
     setup = angle_setup(theta, angle_ref, plant, u_A, feedback, tau_nm, params)
-    y, d, mu0, P0 = check_angles(angles, setup, delay, sigma_m, sigma_y, z0_mean, z0_cov)
+    y, d, mu0, P0 = check_angles(angles, setup.known.shape[0], delay, sigma_m, sigma_y, z0_mean, z0_cov)
     K = y.shape[0] - 1
     pol = setup.policy
 
@@ -104,11 +106,50 @@ def angle_loglik_dense(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=No
     cols.append(run(np.zeros(3), zero, zero, np.zeros((K, K + d)), m))
     Gm = np.hstack(cols)
     cov = Gm @ Gm.T + float(sigma_y) ** 2 * np.eye(K + 1)
+    return AngleDense(_conditional_loglik(y, mean, cov), mean, cov)
+
+
+def _conditional_loglik(y, mean, cov) -> float:
+    """log N(y; mean, cov) - log N(y_0; mean_0, cov_00): the density of y_1..y_K given y_0."""
+    K = y.shape[0] - 1
     c = cho_factor(cov, lower=True)
     e = y - mean
     ll_all = -0.5 * e @ cho_solve(c, e) - np.sum(np.log(np.diag(c[0]))) - (K + 1) * HALF_LOG_2PI
-    ll0 = -0.5 * e[0] ** 2 / cov[0, 0] - 0.5 * np.log(cov[0, 0]) - HALF_LOG_2PI
-    return AngleDense(float(ll_all - ll0), mean, cov)
+    return float(ll_all + 0.5 * e[0] ** 2 / cov[0, 0] + 0.5 * np.log(cov[0, 0]) + HALF_LOG_2PI)
 
 
-__all__ = ["AngleDense", "DelayedDense", "angle_loglik_dense", "loglik_dense"]
+def maxent_angle_loglik_dense(theta, angles, angle_ref, plant: DiscretePlant, *, u_A=None,
+                              feedback: Feedback | None = None, sigma_y: float, x0_mean, x0_cov) -> AngleDense:
+    """log p(y_1..y_K | y_0) of the paper's max-ent human seen through the encoder, from its dense joint Gaussian.
+
+    The closed loop ``x_{k+1} = A x_k + b (-L_k x_k + f_k + ε_k + u_A,k)`` (A closed by the
+    assistant's law with ``feedback``), ``ε_k ~ N(0, 1 / (2 S_k))`` (:func:`scioc.models.lq.lq_policy`),
+    stacked over the window; ``y_k = x_k[0] + v_k``, ``v_k ~ N(0, sigma_y²)``, x_0 ~ N(``x0_mean``
+    (2,), ``x0_cov`` (2, 2)). The ``delayed`` human with no delay, lag or motor noise. O(K³).
+    """
+    y = np.asarray(angles, dtype=float)
+    K = y.shape[0] - 1
+    if feedback is not None:
+        pp, known = planning_plant(plant, feedback.gain), np.asarray(feedback.feedforward, dtype=float)
+    else:
+        pp = plant
+        known = np.zeros(len(angle_ref) - 1) if u_A is None else np.asarray(u_A, dtype=float)
+    pol = lq_policy(pp, theta, angle_ref, known)
+    w, V = np.linalg.eigh(np.asarray(x0_cov, dtype=float))
+    x = np.asarray(x0_mean, dtype=float).copy()
+    X = np.zeros((2, 2 + K))  # x_k's loading on (x_0's root, ε_0..ε_{K-1})
+    X[:, :2] = V * np.sqrt(np.clip(w, 0.0, None))
+    mean = np.empty(K + 1)
+    rows = np.empty((K + 1, 2 + K))
+    mean[0], rows[0] = x[0], X[0]
+    for k in range(K):
+        F = pp.A - np.outer(pp.b, pol.L[k])
+        x = F @ x + pp.b * (pol.f[k] + known[k])
+        X = F @ X
+        X[:, 2 + k] += pp.b * np.sqrt(0.5 / pol.S[k])
+        mean[k + 1], rows[k + 1] = x[0], X[0]
+    cov = rows @ rows.T + float(sigma_y) ** 2 * np.eye(K + 1)
+    return AngleDense(_conditional_loglik(y, mean, cov), mean, cov)
+
+
+__all__ = ["AngleDense", "DelayedDense", "angle_loglik_dense", "loglik_dense", "maxent_angle_loglik_dense"]

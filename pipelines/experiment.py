@@ -73,8 +73,16 @@ import tomllib
 from pathlib import Path
 
 from scioc.models.design import ASSISTANT_KINDS, PAPER_ASSISTANT, STUDY, AssistantSpec, Design, WheelParameters
-from scioc.pipelines.export import (COLUMNS, FILE_NAME_GROUPS, QUANTITY, UNITS, ExportFormat, canonical_unit,
-                                    export_of, with_export)
+from scioc.pipelines.export import (
+    COLUMNS,
+    FILE_NAME_GROUPS,
+    QUANTITY,
+    UNITS,
+    ExportFormat,
+    canonical_unit,
+    export_of,
+    with_export,
+)
 from scioc.pipelines.io import InputDataError
 from scioc.pipelines.storage import write_text_atomic
 
@@ -266,11 +274,13 @@ def _export(r: _Reader, columns: dict, units: dict) -> ExportFormat:
         if not isinstance(value, str) or not value.strip():
             r.fail(_key("columns", key), f"must be a name in the file, a non-empty string; got {_show(value)}")
         if key != "from_file_name":
-            other = [c for c, v in names.items() if v == value]
-            if other:
-                r.fail(_key("columns", key), f"names the column {_quote(value)}, which columns.{other[0]} names "
-                                             "too; a file column holds one of scioc's columns")
             names[key] = value
+    for key, value in names.items():  # where scioc reads each of its columns: one file column each
+        other = [c for c in COLUMNS if c != key and names.get(c, c) == value]
+        if other:
+            why = (f"columns.{other[0]} names it too; a file column holds one of scioc's columns" if other[0] in names
+                   else f"scioc reads {other[0]} from a column of that name: give columns.{other[0]} too")
+            r.fail(_key("columns", key), f"names the column {_quote(value)}, but {why}")
     pattern = columns.get("from_file_name")
     if pattern is not None:
         key = "columns.from_file_name"

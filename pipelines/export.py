@@ -64,7 +64,7 @@ class ExportFormat:
 
     def __post_init__(self):
         columns = dict(self.columns)
-        if set(columns) - set(COLUMNS) or len(set(columns.values())) != len(columns):
+        if set(columns) - set(COLUMNS) or len({columns.get(c, c) for c in COLUMNS}) != len(COLUMNS):
             raise ValueError(f"ExportFormat.columns must map distinct file columns to {COLUMNS}; got {self.columns!r}")
         units = {}
         for quantity, unit in self.units:
@@ -82,6 +82,7 @@ class ExportFormat:
 
     @property
     def is_convention(self) -> bool:
+        """Whether the files are in scioc's own names and units."""
         return not self.columns and not self.units and self.from_file_name is None
 
     @property
@@ -148,7 +149,8 @@ def with_export(design: Design, export: ExportFormat) -> Design:
 
 
 def to_export(table: pd.DataFrame, export: ExportFormat) -> pd.DataFrame:
-    """A table in the data convention in ``export``'s names and units, as :func:`scioc.pipelines.io.load_study` reads it.
+    """``table``, in the data convention, in ``export``'s names and units: what :func:`scioc.pipelines.io.load_study`
+    reads back.
 
     The columns :attr:`ExportFormat.from_file_name` takes from file names are dropped; they belong in the names
     of the files the caller writes.

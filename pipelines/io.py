@@ -218,7 +218,7 @@ def _file_labels(df: pd.DataFrame, path: Path, export: ExportFormat) -> pd.DataF
     return df.assign(**labels)
 
 
-def _same_columns(frames: list, origin: "_Origin") -> None:
+def _same_columns(frames: list, origin: _Origin) -> None:
     """Refuse a study whose files differ in the columns scioc reads, or a file without rows."""
     for i, frame in enumerate(frames):
         if len(frame) == 0:

@@ -1,4 +1,5 @@
-"""A lab's export read as it is: ``[columns]`` and ``[units]``, studies of many files, MATLAB files (issue 52, item 3)."""
+"""A lab's export read as it is: ``[columns]`` and ``[units]``, studies of many files, MATLAB files (issue 52,
+item 3)."""
 
 import dataclasses
 import math
@@ -179,8 +180,8 @@ def test_matlab_files_of_variables_or_of_one_struct(tmp_path):
     df = lab_table()
     df.to_csv(tmp_path / "all.csv", index=False)
     whole = load_study(tmp_path / "all.csv", LAB_DESIGN)
-    columns = {c: (df[c].to_numpy(dtype=object) if df[c].dtype != float else df[c].to_numpy()) for c in df.columns}
-    columns = {c: v if c not in ("Proband", "Bedingung") else np.array(list(v), dtype=object) for c, v in columns.items()}
+    # the labels as cell arrays of text, the numbers as vectors
+    columns = {c: df[c].to_numpy(dtype=object if c in ("Proband", "Bedingung") else None) for c in df.columns}
     savemat(tmp_path / "vars.mat", columns)
     savemat(tmp_path / "struct.mat", {"export": columns})
     for name in ("vars.mat", "struct.mat"):

@@ -2,8 +2,8 @@
 
 z = (log θ1, θ2, w = R_0 / R, τ_nm, σ_m) within :func:`limits`, R_0 the max-ent estimate's R.
 L-BFGS-B minimizes minus the log-likelihood per scored sample, in the units of :data:`Z_SCALE`,
-with the exact gradient of :func:`.likelihood.loglik_grad`, or with central differences of
-:func:`.angles.window_loglik` for angle-only units. See docs/decisions/delayed-profile-search.md.
+with the exact gradient of :func:`.likelihood.loglik_grad`, or of :func:`.angles.window_loglik_grad`
+for angle-only units. See docs/decisions/delayed-profile-search.md.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from scioc.models.cost import from_normalized
-from scioc.models.delayed.angles import window_loglik
+from scioc.models.delayed.angles import window_loglik_grad
 from scioc.models.delayed.lag import lag_coefficients, window_tau0
 from scioc.models.delayed.likelihood import loglik_grad
 from scioc.models.design import WheelParameters
@@ -57,59 +57,36 @@ def theta_from_z(z, R0: float) -> np.ndarray:
     return from_normalized(np.exp(z[0]), max(z[1], 0.0), R0 / z[2])
 
 
-def _angle_loglik_z(z, d: int, unit: SearchUnit) -> float:
-    th = theta_from_z(z, unit.R0)
-    tau, sig = max(z[3], 0.0), max(z[4], 0.0)
-    return sum(window_loglik(th, tau, sig, d, w, unit.plant, sigma_y=unit.sigma_y, params=unit.params).loglik
-               for w in unit.angles)
-
-
-#: Smallest |z| the finite-difference steps in z scale with.
+#: Smallest |z| the finite-difference steps of :func:`observed_information` scale with.
 STEP_FLOOR = np.array([1.0, 1e-3, 1.0, 1e-2 * Z_SCALE[3], 1e-2 * Z_SCALE[4]])
-#: Relative step of the angle likelihood's central differences (truncation and rounding both near 1e-10).
-ANGLE_FD_STEP = 1e-5
 
 
-def _angle_loglik_grad_z(z, d: int, unit: SearchUnit):
-    """The angle likelihood in z and its central-difference gradient (one-sided at a lower bound, 0 if held)."""
-    lo, hi = limits(d)
-    ll = _angle_loglik_z(z, d, unit)
-    g = np.zeros(5)
-    for j in range(5):
-        if hi[j] == lo[j]:
-            continue
-        h = ANGLE_FD_STEP * max(abs(z[j]), STEP_FLOOR[j])
-        zp, zm = z.copy(), z.copy()
-        if z[j] - h < lo[j]:
-            zp[j] += h
-            zm[j] += 2 * h  # (-3 f0 + 4 f1 - f2) / 2h
-            g[j] = (-3 * ll + 4 * _angle_loglik_z(zp, d, unit) - _angle_loglik_z(zm, d, unit)) / (2 * h)
-        else:
-            zp[j] += h
-            zm[j] -= h
-            g[j] = (_angle_loglik_z(zp, d, unit) - _angle_loglik_z(zm, d, unit)) / (2 * h)
-    return ll, g
+def _to_z(g, th, w: float) -> np.ndarray:
+    """The gradient in (q11, q22, R, τ_nm, σ_m) carried to z; θ = (θ1 R, θ2 R, R), R = R0 / w."""
+    q11, q22, R = th
+    return np.array([q11 * g[0], R * g[1], -(q11 * g[0] + q22 * g[1] + R * g[2]) / w, g[3], g[4]])
 
 
 def loglik_grad_z(z, d: int, unit: SearchUnit):
     """Log-likelihood of the unit at delay d and z (unscaled) and its gradient in z."""
-    if unit.angles:
-        return _angle_loglik_grad_z(np.asarray(z, dtype=float), d, unit)
     th = theta_from_z(z, unit.R0)
     tau, sig = max(z[3], 0.0), max(z[4], 0.0)
-    lag = lag_coefficients(tau, unit.plant.dt, unit.params)
     ll = 0.0
     g = np.zeros(5)
+    if unit.angles:
+        for w in unit.angles:
+            res = window_loglik_grad(th, tau, sig, d, w, unit.plant, sigma_y=unit.sigma_y, params=unit.params)
+            ll += res.loglik
+            g += res.grad
+        return ll, _to_z(g, th, z[2])
+    lag = lag_coefficients(tau, unit.plant.dt, unit.params)
     for batch, warm in zip(unit.batches, unit.warmups):
         t0, dt0 = window_tau0(warm, lag.a, lag.alpha)
         res = loglik_grad(th, batch, unit.plant, tau_nm=tau, sigma_m=sig, delay=d, tau0=t0, dtau0=dt0,
                           params=unit.params)
         ll += float(res.loglik.sum())
         g += res.grad.sum(axis=1)
-    q11, q22, R = th
-    # θ = (θ1 R, θ2 R, R) with R = R0/w: d/dw = -(1/w) (q11 ∂_q11 + q22 ∂_q22 + R ∂_R)
-    gz = np.array([q11 * g[0], R * g[1], -(q11 * g[0] + q22 * g[1] + R * g[2]) / z[2], g[3], g[4]])
-    return ll, gz
+    return ll, _to_z(g, th, z[2])
 
 
 def limits(d: int) -> tuple[np.ndarray, np.ndarray]:
@@ -198,6 +175,22 @@ def observed_information(z, d: int, unit: SearchUnit, free) -> np.ndarray:
     return 0.5 * (H + H.T)
 
 
-__all__ = ["ANGLE_FD_STEP", "STEP_FLOOR", "CONVERGED_GTOL", "LAG_NOISE_TOL", "LOG_THETA1_RANGE", "R_SPAN", "SADDLE_PROBE", "SearchResult", "SearchUnit", "TAU_NM_MAX",
-           "Z_SCALE", "at_bound", "limits", "loglik_grad_z", "maximize", "observed_information", "projected",
-           "theta_from_z"]
+__all__ = [
+    "CONVERGED_GTOL",
+    "LAG_NOISE_TOL",
+    "LOG_THETA1_RANGE",
+    "R_SPAN",
+    "SADDLE_PROBE",
+    "STEP_FLOOR",
+    "TAU_NM_MAX",
+    "Z_SCALE",
+    "SearchResult",
+    "SearchUnit",
+    "at_bound",
+    "limits",
+    "loglik_grad_z",
+    "maximize",
+    "observed_information",
+    "projected",
+    "theta_from_z",
+]

@@ -50,7 +50,7 @@ power: $(STAMP)
 # design, so only other failures stop the loop.
 humans: $(STAMP)
 	for h in maxent delay lag coloured combined crossover; do \
-		$(VENV)/bin/scioc run --human $$h --beta 0 --human-models maxent --name human-$$h || test $$? -eq 1 || exit 1; \
+		$(VENV)/bin/scioc run --human $$h --beta 0 --human-model maxent --name human-$$h || test $$? -eq 1 || exit 1; \
 	done
 
 clean:

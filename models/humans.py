@@ -94,11 +94,13 @@ class HumanSpec:
                        tau_nm=self.tau_nm + u[1] * self.tau_spread, delay_spread_s=0.0, tau_spread=0.0)
 
 
+#: The paper's max-ent agent, the simulated human the max-ent likelihood describes exactly.
+PAPER_AGENT = "maxent"
 #: The simulated humans by name (``scioc simulate --human NAME``).
 HUMANS: dict[str, HumanSpec] = {
     h.name: h
     for h in (
-        HumanSpec("maxent", "lq"),
+        HumanSpec(PAPER_AGENT, "lq"),
         HumanSpec("delay", "lq", delay_s=DELAY_S, motor_sd=MOTOR_SD),
         HumanSpec("lag", "lq", tau_nm=TAU_NM),
         HumanSpec("coloured", "lq", motor_sd=MOTOR_SD, motor_tau=MOTOR_TAU),

@@ -23,7 +23,7 @@ from scioc.models.design import (
     WINDOW_SECONDS,
     Design,
 )
-from scioc.models.humans import HUMANS, HumanSpec, simulate_human
+from scioc.models.humans import HUMANS, PAPER_AGENT, HumanSpec, simulate_human
 from scioc.models.lq import lq_policy
 from scioc.models.maxent import maxent_noise
 from scioc.models.plant import DT_HUMAN, DiscretePlant, discretize
@@ -116,7 +116,7 @@ def simulate_human_run(human: str, theta, condition: str, angle_ref, plant: Disc
         raise ValueError(f"unknown human {human!r}; choose one of {', '.join(HUMANS)}")
     if subject is not None:
         spec = subject
-    if human == "maxent":
+    if human == PAPER_AGENT:
         return simulate_run(theta, condition, angle_ref, plant, assistant, rng, encoder_step=encoder_step)
     run = simulate_human(spec, theta, condition, angle_ref, plant, _assisted(condition, assistant), rng,
                          params=design.wheel)

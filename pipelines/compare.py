@@ -21,9 +21,11 @@ import pandas as pd
 from scioc.models.adequacy import STATISTICS, study_verdict
 from scioc.models.design import CONDITIONS, STUDY
 from scioc.models.identify import PLAUSIBLE_THETA1
-from scioc.pipelines.adequacy import CHECK_TEXT, CHECK_TEXT_DELAYED, format_adequacy, not_checked
+from scioc.pipelines.adequacy import format_adequacy, not_checked
 from scioc.pipelines.experiment import parse_experiment, sidecar
+from scioc.pipelines.human_model.registry import get
 from scioc.pipelines.io import StudyFileError, read_table
+from scioc.pipelines.prepare import IdentifySettings
 from scioc.pipelines.signed_rank import ALPHA, holm, wilcoxon_signed_rank
 from scioc.pipelines.storage import write_text_atomic
 
@@ -196,14 +198,14 @@ def adequacy_of_estimates(estimates: pd.DataFrame, path="<table>") -> dict:
     out = study_verdict({k: values[c] for k, c in cols.items()}, values["adequacy_p"])
     model = human_model_of(estimates)
     out["human_model"] = model
-    out["checks"] = CHECK_TEXT_DELAYED if model == "delayed" else CHECK_TEXT
+    out["checks"] = get(model).adequacy_check_text
     return out
 
 
 def human_model_of(estimates: pd.DataFrame) -> str:
     """The human model the estimates were identified with (its ``human_model`` column; ``maxent`` without one)."""
     if "human_model" not in estimates.columns:
-        return "maxent"
+        return IdentifySettings.human_model  # estimates written before the column: the default model
     models = sorted(set(estimates["human_model"].astype(str)))
     if len(models) != 1:
         raise ValueError(f"the estimates mix human models ({', '.join(models)}); compare one model's estimates")

@@ -6,10 +6,8 @@ The trials of one unit share θ, so their log-likelihoods add (Eq. 17 with d > 1
 validation of Fig. 6 predicts every segment with each level's θ of its subject (forward optimal
 control) and records the RMSE of angle and torque.
 
-``human_model="delayed"`` (:func:`scioc.models.delayed.identify_unit_delayed`) also fits the lag τ_nm
-and the motor noise σ_m and profiles the perceptual delay over :data:`scioc.models.delayed.DELAY_GRID_S`
-(column ``profile_loglik``). A unit without a recorded torque is identified from its encoder angles
-(:mod:`scioc.models.delayed.angles`), since the reconstruction's smoothing would read as lag.
+The human model (:mod:`scioc.pipelines.human_model`) identifies each unit, adds its own columns, draws the
+adequacy bootstrap and gives the mean behaviour of the cross-prediction.
 
 Artifacts in ``--out DIR``: ``estimates.parquet`` (one row per unit), ``trajectories.parquet``
 (window samples: measured, used, predicted), ``validation.parquet`` (cross-prediction RMSE) and
@@ -27,23 +25,13 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from scioc.models.delayed import (
-    DELAY_GRID_S,
-    AngleWindow,
-    delay_grid,
-    forward_delayed,
-    identify_unit_delayed,
-    lag_coefficients,
-    window_tau0,
-)
-from scioc.models.identify import PLAUSIBLE_THETA1, identify_unit
-from scioc.models.maxent import forward_optimal_control
+from scioc.models.identify import PLAUSIBLE_THETA1
 from scioc.models.plant import discretize
 from scioc.models.runtime import configure
-from scioc.models.segment import plan_inputs, prepare_batch
 from scioc.pipelines.adequacy import assess_study, format_adequacy, not_checked
-from scioc.pipelines.experiment import sidecar
-from scioc.pipelines.io import Study, load_study
+from scioc.pipelines.experiment import parse_experiment, sidecar
+from scioc.pipelines.human_model.registry import get
+from scioc.pipelines.io import InputDataError, Study, load_study
 from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
 from scioc.pipelines.progress import progress
 from scioc.pipelines.provenance import versions
@@ -74,15 +62,15 @@ def identify_study(study: Study, settings: IdentifySettings = IdentifySettings()
 
 def identify_prepared(study: PreparedStudy, *, show_progress: bool = False) -> Identification:
     """:func:`identify_study` on a study already prepared (with ``study.settings``); a progress bar over the units
-    of the ``delayed`` human model (about a second each) with ``show_progress``."""
+    of a human model whose units take long to identify with ``show_progress``."""
     settings, prepared = study.settings, study.segments
+    model = get(settings.human_model)
     plant = discretize(settings.design.dt, settings.design.wheel)
     units = study.units
     trials = any(p.data.trial is not None for p in prepared)
-    delayed = settings.human_model == "delayed"
     t0 = time.perf_counter()
-    estimates = {u: _identify_unit(prepared, units[u], plant, settings)
-                 for u in progress(units, desc="identify", enabled=show_progress and delayed)}
+    estimates = {u: model.identify_unit(prepared, units[u], plant, settings)
+                 for u in progress(units, desc="identify", enabled=show_progress and model.slow_identification)}
     t_opt = time.perf_counter() - t0
 
     rows = []
@@ -104,10 +92,7 @@ def identify_prepared(study: PreparedStudy, *, show_progress: bool = False) -> I
             "se_log_theta1": e.se_log_theta1,
             "se_theta2": e.se_theta2,
             "se_log_R": e.se_log_R,
-            **({"delay_s": e.delay_s, "tau_nm": e.tau_nm, "sigma_m": e.sigma_m, "se_tau_nm": e.se_tau_nm,
-                "se_sigma_m": e.se_sigma_m, "lag_at_bound": e.lag_at_bound,
-                "profile_loglik": [float(v) for v in e.profile],
-                "likelihood": "angles" if _from_angles(prepared, idx) else "torques"} if delayed else {}),
+            **model.estimate_columns(e, prepared, idx),
             "human_model": settings.human_model,
             "loglik": e.loglik,
             "converged": e.converged,
@@ -123,88 +108,21 @@ def identify_prepared(study: PreparedStudy, *, show_progress: bool = False) -> I
     t0 = time.perf_counter()
     if settings.adequacy_boot > 0:
         fitted = [estimates[(p.data.subject, p.data.condition)] for p in prepared]
-        extra = _delayed_parameters(prepared, fitted, plant, settings) if delayed else None
+        extra = model.adequacy_parameters(prepared, fitted, plant, settings)
         cols, adequacy = assess_study(prepared, [e.theta for e in fitted], plant, settings, delayed=extra)
         est = pd.concat([est, cols], axis=1)
     else:
         adequacy = not_checked("switched off (adequacy bootstrap size 0)")
     t_adq = time.perf_counter() - t0
-    traj, val = _cross_predict(prepared, est, plant, settings.design.levels,
-                               settings.design.wheel if delayed else None)
+    traj, val = _cross_predict(prepared, est, plant, model, settings)
     timing = {"reconstruct_s": study.seconds, "optimize_s": t_opt, "adequacy_s": t_adq, "segments": len(prepared)}
     return Identification(est, traj, val, timing, adequacy)
 
 
-def _from_angles(prepared, idx) -> bool:
-    """The ``delayed`` human model identifies this unit from its recorded angles: its torques are reconstructed."""
-    return any(prepared[i].reconstructed for i in idx)
-
-
-def angle_windows(prepared, idx) -> list[AngleWindow]:
-    """The unit's windows as the encoder recorded them, for the angle likelihood (:mod:`scioc.models.delayed.angles`)."""
-    out = []
-    for i in idx:
-        p = prepared[i]
-        s = p.segment
-        out.append(AngleWindow(np.ascontiguousarray(p.data.angle[p.rows], dtype=float), s.angle_ref,
-                               None if s.feedback is not None else s.u_A, s.feedback, float(p.velocity[0]), p.warmup))
-    return out
-
-
-def _identify_unit(prepared, idx, plant, settings):
-    """The estimate of one unit (its segments ``idx``) under the settings' human model; the ``delayed`` one from
-    the recorded angles where the torques are reconstructed (:func:`_from_angles`)."""
-    batches = [prepare_batch(plant, [prepared[i].segment]) for i in idx]
-    if settings.human_model == "delayed":
-        angles = angle_windows(prepared, idx) if _from_angles(prepared, idx) else None
-        return identify_unit_delayed(batches, plant, params=settings.design.wheel,
-                                     tau0=[[prepared[i].warmup] for i in idx], angles=angles,
-                                     sigma_y=settings.design.encoder_sd)
-    return identify_unit(batches, plant)
-
-
-def _delayed_parameters(prepared, fitted, plant, settings) -> dict:
-    """Per segment, the fitted delayed human's τ_nm, σ_m, delay and arm torque at the window's start
-    (:func:`scioc.pipelines.adequacy.assess_study`'s ``delayed``)."""
-    tau0 = np.array([_arm_torque_at_start(p, e.tau_nm, plant.dt, settings.design.wheel)
-                     for p, e in zip(prepared, fitted)])
-    return {"tau_nm": np.array([e.tau_nm for e in fitted]), "sigma_m": np.array([e.sigma_m for e in fitted]),
-            "delay": np.array([e.delay for e in fitted], dtype=np.int64), "tau0": tau0}
-
-
-def _delay_grid(dt: float) -> dict:
-    samples = [int(d) for d in delay_grid(dt)]
-    return {"nominal_s": list(DELAY_GRID_S), "samples": samples, "seconds": [d * dt for d in samples]}
-
-
-def _arm_torque_at_start(p, tau_nm: float, dt: float, wheel) -> float:
-    """The delayed human's arm torque at the start of prepared segment ``p``'s window, for lag ``tau_nm``: where the
-    recorded torques before the window leave it (:func:`scioc.models.delayed.window_tau0`)."""
-    lag = lag_coefficients(tau_nm, dt, wheel)
-    return float(window_tau0([p.warmup], lag.a, lag.alpha)[0][0])
-
-
-def _forward(p, th, plant, wheel):
-    """The mean behaviour of the human model with cost ``th`` on prepared segment ``p``: the max-ent human's
-    (``wheel`` None) or, with ``th`` = (θ, τ_nm), the delayed human's, its arm torque starting where the recorded
-    torques before the window leave it."""
-    s = p.segment
-    if wheel is None:  # θ's plan against this segment's assistant (in closed loop under Feedback)
-        plan_plant, known = plan_inputs(s, plant)
-        return forward_optimal_control(th, s.x0, s.angle_ref, known, plan_plant)
-    theta, tau_nm = th
-    assistant = {"feedback": s.feedback} if s.feedback is not None else {"u_A": s.u_A}
-    return forward_delayed(theta, s.x0, s.angle_ref, plant, tau_nm=tau_nm, params=wheel,
-                           tau0=_arm_torque_at_start(p, tau_nm, plant.dt, wheel), **assistant)
-
-
-def _cross_predict(prepared, est: pd.DataFrame, plant, levels, wheel=None):
-    """Each segment's measured trajectories beside each level's θ's mean behaviour, and their RMSEs.
-
-    ``wheel`` given: the estimates are the ``delayed`` human's (:func:`scioc.models.delayed.forward_delayed`).
-    """
-    theta = {(r.subject, r.condition): np.array([r.q11, r.q22, r.R]) if wheel is None
-             else (np.array([r.q11, r.q22, r.R]), float(r.tau_nm)) for r in est.itertuples()}
+def _cross_predict(prepared, est: pd.DataFrame, plant, model, settings):
+    """Each segment's measured trajectories beside the mean behaviour of each level's estimates, and their RMSEs."""
+    levels = settings.design.levels
+    theta = {(r.subject, r.condition): model.cross_prediction_parameters(r) for r in est.itertuples()}
     frames, val = [], []
     for p in prepared:
         K = p.segment.K
@@ -229,7 +147,7 @@ def _cross_predict(prepared, est: pd.DataFrame, plant, levels, wheel=None):
                     frame[f"pred_{key}_{q}"] = np.full(K + 1, np.nan)
                 rmse[f"rmse_angle_theta_{key}"] = rmse[f"rmse_uH_theta_{key}"] = np.nan
                 continue
-            demo = _forward(p, th, plant, wheel)
+            demo = model.mean_behaviour(p, th, plant, settings)
             frame[f"pred_{key}_angle"] = demo.x[: K + 1, 0]
             frame[f"pred_{key}_velocity"] = demo.x[: K + 1, 1]
             frame[f"pred_{key}_u_H"] = np.append(demo.u_H[:K], np.nan)
@@ -257,7 +175,7 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
     elif prepared.settings != settings:
         raise ValueError("the prepared study was cut with other settings than these")
     est, traj, val, timing, adequacy = identify_prepared(prepared, show_progress=show_progress)
-    delayed = settings.human_model == "delayed"
+    model = get(settings.human_model)
     out = Path(out)
     meta = {
         "study": str(study_path),
@@ -270,13 +188,12 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         "not_converged": [{"subject": r.subject, "condition": r.condition, "message": r.message}
                           for r in est.itertuples() if not r.converged],
         "implausible": [{"subject": r.subject, "condition": r.condition, "theta1": r.theta1,
-                         **({"tau_nm": r.tau_nm, "lag_at_bound": r.lag_at_bound} if delayed else {})}
-                        for r in est.itertuples() if r.implausible],
+                         **model.implausible_fields(r)} for r in est.itertuples() if r.implausible],
         "adequacy": adequacy,
         "human_model": settings.human_model,
         "reconstructed_units": int(est["reconstructed"].sum()),
-        # nominal: models.delayed.DELAY_GRID_S; samples and seconds: the delays of estimates.parquet's profile_loglik
-        "delay_grid": _delay_grid(settings.design.dt) if delayed else None,
+        "delay_grid": None,
+        **model.identify_sidecar(est, settings),
         **sidecar(settings.design, experiment_file),
         "versions": versions(),
     }
@@ -290,16 +207,26 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
     return {k: str(out / v) for k, v in names.items()}
 
 
+def identification_settings(estimates_path) -> tuple[IdentifySettings, str | None] | None:
+    """The settings and experiment file an identification used, from ``identify.json`` beside ``estimates_path``;
+    None where there is none. InputDataError where it is malformed."""
+    meta_path = Path(estimates_path).parent / "identify.json"
+    if not meta_path.is_file():
+        return None
+    try:
+        meta = json.loads(meta_path.read_text())
+        design = parse_experiment(meta["experiment"], f"{meta_path} (experiment)")
+        return IdentifySettings(**meta["settings"], design=design), meta.get("experiment_file")
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputDataError(f"{meta_path}: not the sidecar of scioc identify ({exc})") from None
+
+
 def format_identify(out) -> str:
     """The console summary of an identify folder: convergence, the segments that did not converge, adequacy."""
     meta = json.loads((Path(out) / "identify.json").read_text())
-    lines = [f"identified {meta['segments']} segments; {meta['converged']} converged"
-             + (f" (human model: {meta['human_model']})" if meta.get("human_model", "maxent") != "maxent" else "")]
-    if meta.get("human_model") == "delayed" and meta.get("reconstructed_units", 0):
-        lines.append(f"  NOTE: {meta['reconstructed_units']} of {meta['segments']} units have no recorded torque: "
-                     "the delayed model identified them from their encoder angles (README, \"Human models\"; the delay "
-                     "and the lag less precisely than from a torque sensor); the hierarchical fit (scioc fit) of such "
-                     "data is not built.")
+    model = get(meta.get("human_model", "maxent"))
+    lines = [f"identified {meta['segments']} segments; {meta['converged']} converged (human model: {model.name})"]
+    lines += model.identify_notes(meta)
     for r in meta.get("not_converged", []):
         lines.append(f"  NOT CONVERGED: {r['subject']} {r['condition']}: {r['message']}")
     for r in meta.get("implausible", []):

@@ -37,8 +37,6 @@ from scioc.pipelines.progress import progress
 
 #: How the human on an assisted level may model the assistant (see the module docstring).
 ASSISTANT_MODELS = ("feedback", "exogenous")
-#: The paper's max-ent agent and the ``delayed`` human (delay, lag, motor noise; :mod:`scioc.models.delayed`).
-HUMAN_MODELS = ("maxent", "delayed")
 #: Measurement resolution the reconstruction assumes for an angle that is not quantized
 #: (``encoder.counts_per_rev = 0``), rad: a sensor's noise floor, far below any encoder's step.
 UNQUANTIZED_RESOLUTION = 1e-6
@@ -54,12 +52,6 @@ def check_assistant_model(name: str) -> None:
         raise ValueError(f"assistant model must be one of {ASSISTANT_MODELS}; got {name!r}")
 
 
-def check_human_model(name: str) -> None:
-    """Raise ValueError unless ``name`` is one of :data:`HUMAN_MODELS`."""
-    if name not in HUMAN_MODELS:
-        raise ValueError(f"human model must be one of {HUMAN_MODELS}; got {name!r}")
-
-
 @dataclass(frozen=True)
 class IdentifySettings:
     """How to cut and treat each segment (times in s, on the file's time axis)."""
@@ -73,7 +65,7 @@ class IdentifySettings:
     assistant_model: str = "feedback"  # or "exogenous" (:data:`ASSISTANT_MODELS`)
     adequacy_boot: int = N_BOOT  # bootstrap data sets per segment (pipelines.adequacy); 0: "not checked"
     adequacy_seed: int = 2018  # root seed of the adequacy bootstrap
-    human_model: str = "maxent"  # or "delayed" (:data:`HUMAN_MODELS`)
+    human_model: str = "maxent"  # a registered human model (scioc.pipelines.human_model)
     design: Design = STUDY  # the experiment; :meth:`for_design` also takes window, preview, resolution from it
 
     @classmethod
@@ -103,7 +95,8 @@ class IdentifySettings:
         if self.reconstruct not in ("auto", "always"):
             raise ValueError(f"reconstruct must be 'auto' or 'always'; got {self.reconstruct!r}")
         check_assistant_model(self.assistant_model)
-        check_human_model(self.human_model)
+        if not isinstance(self.human_model, str) or not self.human_model:
+            raise ValueError(f"human model must be a registered model's name; got {self.human_model!r}")
         if int(self.adequacy_boot) != self.adequacy_boot or self.adequacy_boot < 0:
             raise ValueError(f"adequacy bootstrap size must be an integer >= 0; got {self.adequacy_boot!r}")
         if int(self.adequacy_seed) != self.adequacy_seed or self.adequacy_seed < 0:

@@ -12,11 +12,9 @@ import pandas as pd
 from scipy.stats import spearmanr
 
 from scioc.pipelines.compare import estimates_design, human_model_of
+from scioc.pipelines.human_model.registry import get
 from scioc.pipelines.io import read_table
-from scioc.pipelines.simulate import BODY_COLUMNS, read_truth
-
-#: Tolerance for "the delay is exact", s (delays are whole samples).
-DELAY_EXACT_S = 1e-9
+from scioc.pipelines.simulate import read_truth
 
 
 def _wide(df: pd.DataFrame, column: str) -> pd.DataFrame:
@@ -45,42 +43,8 @@ def recovery(estimates: pd.DataFrame, truth: pd.DataFrame, levels, baseline: str
         est, true = (e[v] - e[baseline]).mean(), (t[v] - t[baseline]).mean()
         out["contrasts"][v] = {"mean_estimated_change_log_theta1": float(est), "mean_true_change_log_theta1": float(true),
                                "bias": float(est - true)}
-    if out["human_model"] == "delayed" and set(BODY_COLUMNS) <= set(truth.columns):
-        m = estimates.merge(truth.drop_duplicates(["subject", "condition"])[["subject", "condition", "delay_s", "tau_nm",
-                                                                           "motor_sd"]],
-                            on=["subject", "condition"], suffixes=("", "_true"))
-        d_err, t_err = m["delay_s"] - m["delay_s_true"], m["tau_nm"] - m["tau_nm_true"]
-        out["delayed"] = {"units": int(len(m)),
-                          "delay_exact": int((d_err.abs() < DELAY_EXACT_S).sum()),
-                          "delay_mean_error_s": float(d_err.mean()), "delay_mean_abs_error_s": float(d_err.abs().mean()),
-                          "tau_nm_mean_error_s": float(t_err.mean()), "tau_nm_mean_abs_error_s": float(t_err.abs().mean()),
-                          "sigma_m_mean": float(m["sigma_m"].mean()), "motor_sd_true_mean": float(m["motor_sd"].mean())}
-    if "profile_loglik" in estimates.columns:
-        out["delay_profile"] = delay_profile_spread(estimates)
+    out.update(get(out["human_model"]).recovery(estimates, truth))
     return out
-
-
-#: Drops of a subject's summed profile log-likelihood, nats, within which the grid delays are counted.
-PROFILE_DROPS = (3.0, 6.0, 10.0)
-
-
-def delay_profile_spread(estimates: pd.DataFrame) -> dict:
-    """How sharply the data fix each subject's delay: grid delays within :data:`PROFILE_DROPS` nats of its best.
-
-    A subject's profile sums its units' ``profile_loglik``, as the hierarchical model shares the delay
-    across levels. Returns the grid size, the subjects and, per drop, the median and range over subjects.
-    """
-    totals = {}
-    for r in estimates.itertuples():
-        prof = np.nan_to_num(np.asarray(r.profile_loglik, dtype=float), nan=-np.inf)
-        totals[r.subject] = totals.get(r.subject, 0.0) + prof
-    totals = {k: v for k, v in totals.items() if np.isfinite(v.max())}  # a unit without any profile value: skip
-    if not totals:
-        return {"grid_delays": 0, "subjects": 0, "within": {}}
-    counts = {d: [int(np.sum(v >= v.max() - d)) for v in totals.values()] for d in PROFILE_DROPS}
-    return {"grid_delays": int(len(next(iter(totals.values())))), "subjects": len(totals),
-            "within": {f"{d:g}": {"median": float(np.median(c)), "min": int(min(c)), "max": int(max(c))}
-                       for d, c in counts.items()}}
 
 
 def format_recovery(res: dict) -> str:

@@ -21,6 +21,8 @@ from scioc.models.design import STUDY, Design
 from scioc.models.runtime import configure
 from scioc.models.simulate import Population
 from scioc.pipelines.compare import compare_to_file
+from scioc.pipelines.export import convention
+from scioc.pipelines.human_model.registry import ALTERNATIVE, PRIMARY
 from scioc.pipelines.identify import format_identify, identify_study, identify_to_dir
 from scioc.pipelines.io import load_study, validate_table
 from scioc.pipelines.prepare import IdentifySettings, prepare_study
@@ -59,17 +61,17 @@ def default_human_models(design: Design, maxent_verdict: str | None) -> tuple[tu
     """
     verdict = maxent_verdict or "not checked"
     if verdict == "pass":
-        return ("maxent",), ("the max-ent human model passes its adequacy checks, so the delayed human model was not "
-                             "run (scioc run --human-models maxent,delayed runs it beside the max-ent model)")
+        return (PRIMARY,), ("the max-ent human model passes its adequacy checks, so the delayed human model was not "
+                             "run (scioc run --human-model maxent,delayed runs it beside the max-ent model)")
     angles = "" if design.torque_sensor else f" ({ANGLE_ONLY})"
-    return ("maxent", "delayed"), (f"the max-ent human model's adequacy verdict is '{verdict}', so the delayed human "
+    return (PRIMARY, ALTERNATIVE), (f"the max-ent human model's adequacy verdict is '{verdict}', so the delayed human "
                                    f"model was run beside it{angles}")
 
 
 def run_verdicts(root) -> dict:
     """``{human model: adequacy verdict at identify}`` of every human model a run folder holds."""
     root = Path(root)
-    found = {"maxent": root / "identify" / "identify.json", "delayed": root / "identify_delayed" / "identify.json"}
+    found = {PRIMARY: root / "identify" / "identify.json", ALTERNATIVE: root / "identify_delayed" / "identify.json"}
     return {k: json.loads(v.read_text())["adequacy"]["verdict"] for k, v in found.items() if v.exists()}
 
 
@@ -96,24 +98,24 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     :func:`default_human_models`' choice, recorded in :data:`scioc.pipelines.report.human_models.RUN_FILE`.
     """
     configure()
-    design = STUDY if design is None else design
+    design = STUDY if design is None else convention(design)  # the simulated study is in the data convention
     settings = IdentifySettings.for_design(design) if settings is None else settings
     if settings.design != design:
         raise ValueError("the settings were made for another experiment than the one simulated")
     requested = None if human_models is None else tuple(human_models)
-    if requested is not None and ("maxent" not in requested or not set(requested) <= {"maxent", "delayed"}):
-        raise ValueError(f"human models must be maxent, or maxent and delayed; got {requested!r}")
+    if requested is not None and (PRIMARY not in requested or not set(requested) <= {PRIMARY, ALTERNATIVE}):
+        raise ValueError(f"human models must be {PRIMARY}, or {PRIMARY} and {ALTERNATIVE}; got {requested!r}")
     # By default the data choose (after the max-ent identification); the stages are counted as if both ran.
-    delayed = "delayed" in requested if requested is not None else True
+    delayed = ALTERNATIVE in requested if requested is not None else True
     sensor = design.torque_sensor
-    settings = replace(settings, human_model="maxent")
+    settings = replace(settings, human_model=PRIMARY)
     n_subjects = design.subjects if n_subjects is None else n_subjects
     root = Path(out) / name
     stages = _stages(fit, delayed, sensor)
     at = lambda stage: f"[{stages.index(stage) + 1}/{len(stages)}]"  # noqa: E731
     levels = "/".join(design.levels)
     trials = f" × {design.trials} trials" if design.trials > 1 else ""
-    if requested == ("maxent",):
+    if requested == (PRIMARY,):
         log("human models: maxent (delayed not requested)")
     elif requested is not None and not sensor:
         log(f"human models: maxent and delayed; {ANGLE_ONLY}")
@@ -139,18 +141,18 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
         log(f"{at('compare')} Wilcoxon matched-pairs tests against {design.baseline}")
         compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
         if requested is None:
-            human_models, why = default_human_models(design, run_verdicts(tmp).get("maxent"))
-            if "delayed" not in human_models and delayed:  # fewer stages than counted
+            human_models, why = default_human_models(design, run_verdicts(tmp).get(PRIMARY))
+            if ALTERNATIVE not in human_models and delayed:  # fewer stages than counted
                 delayed, stages[:] = False, _stages(fit, False)
             log(f"human models: {', '.join(human_models)}: {why}")
         else:
-            human_models, why = requested, "requested (--human-models)"
+            human_models, why = requested, "requested (--human-model)"
         write_text_atomic(tmp / RUN_FILE, json.dumps({"human_models": list(human_models), "why": why,
                                                       "requested": None if requested is None else list(requested)},
                                                      indent=1) + "\n")
         if delayed:
             # The same prepared segments: preparing does not depend on the human model.
-            delayed_prepared = replace(prepared, settings=replace(settings, human_model="delayed"))
+            delayed_prepared = replace(prepared, settings=replace(settings, human_model=ALTERNATIVE))
             log(f"{at('identify delayed')} identifying again with the delayed human model (delay, lag, motor noise)")
             identify_to_dir(sim["study"], tmp / "identify_delayed", delayed_prepared.settings,
                             prepared=delayed_prepared, experiment_file=source)

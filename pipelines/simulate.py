@@ -17,12 +17,13 @@ import numpy as np
 import pandas as pd
 
 from scioc.models.design import STUDY, Design
-from scioc.models.humans import HUMANS
+from scioc.models.humans import HUMANS, PAPER_AGENT
 from scioc.models.reference import reference_trajectory
 from scioc.models.runtime import configure
 from scioc.models.simulate import Population, simulate_study
 from scioc.pipelines.assistant_check import assistant_alone
 from scioc.pipelines.experiment import EXPERIMENT_FILE, resolved, sidecar, write_experiment
+from scioc.pipelines.export import convention
 from scioc.pipelines.io import read_table
 from scioc.pipelines.provenance import versions
 from scioc.pipelines.storage import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
@@ -39,7 +40,7 @@ def read_truth(path) -> pd.DataFrame:
     truth = read_table(path)
     meta = path.parent / "simulation.json"
     if not set(BODY_COLUMNS) <= set(truth.columns) and meta.exists():
-        if json.loads(meta.read_text()).get("human", {}).get("name") == "maxent":
+        if json.loads(meta.read_text()).get("human", {}).get("name") == PAPER_AGENT:
             truth = truth.assign(**dict.fromkeys(BODY_COLUMNS, 0.0))
     return truth
 
@@ -91,7 +92,7 @@ def simulate_to_dir(
         The experiment (default the paper's), written as ``experiment.toml`` as simulated.
     """
     configure()
-    design = STUDY if design is None else design
+    design = STUDY if design is None else convention(design)  # simulated studies are in the data convention
     n_subjects = design.subjects if n_subjects is None else n_subjects
     seconds = design.run_seconds if seconds is None else seconds
     if int(n_subjects) != n_subjects or n_subjects < 1:

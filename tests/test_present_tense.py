@@ -6,8 +6,6 @@ import ast
 import re
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("models", "pipelines")
 #: The largest share of prose lines over all lines of models/ and pipelines/.

@@ -3,7 +3,8 @@
 The batch is the default study's windows as ``scioc run`` prepares them, each at its true θ; lag and
 motor noise are the simulated humans' (:mod:`scioc.models.humans`), and the delay is varied, since the
 kernel's cost depends on them, not on the data. :func:`bench_angles` times the likelihood of the same
-windows' encoder angles (:mod:`scioc.models.delayed.angles`) on one core, beside its dense reference.
+windows' encoder angles (:mod:`scioc.models.delayed.angles`) on one core, beside its dense reference, with
+its exact gradient, and the identification of units from their angles.
 """
 
 from __future__ import annotations
@@ -13,9 +14,9 @@ import time
 import numba
 import numpy as np
 
+from scioc.models.delayed import identify_unit_delayed, window_loglik, window_loglik_grad
 from scioc.models.delayed import loglik as delayed_loglik
 from scioc.models.delayed import loglik_grad as delayed_loglik_grad
-from scioc.models.delayed import window_loglik
 from scioc.models.delayed.angles import START_SD
 from scioc.models.delayed.dense import angle_loglik_dense
 from scioc.models.design import STUDY
@@ -24,10 +25,14 @@ from scioc.models.maxent import loglik_grad as maxent_loglik_grad
 from scioc.models.plant import DT_HUMAN, discretize
 from scioc.models.segment import prepare_batch
 from scioc.pipelines.bench.common import timeit
-from scioc.pipelines.identify import angle_windows
+from scioc.pipelines.human_model.delayed import angle_windows
 
 #: Delays timed, in samples of 0.01 s (0 to 300 ms).
 DELAYS = (0, 10, 30)
+#: The delay (samples of 0.01 s, 100 ms) at which the angle likelihood is timed with its gradient.
+GRADIENT_DELAY = 10
+#: Units of the default study identified from their angles (one window each), by each search.
+N_IDENTIFY = 6
 
 
 def bench_delayed(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m: float = MOTOR_SD,
@@ -77,10 +82,36 @@ def format_delayed(res: dict) -> str:
     return "\n".join(lines)
 
 
+def _identify_units(segs, wins, plant, n: int) -> dict:
+    """Seconds per unit to identify ``n`` units: from angles (the bracket and the grid search of the delay) and
+    from the torques; delays searched, and whether the two searches chose the same delay."""
+    sy = STUDY.encoder_sd
+    out = {"angles": [], "angles_grid": [], "torques": [], "searched": [], "same_delay": []}
+
+    def run(i, **kw):
+        t0 = time.perf_counter()
+        est = identify_unit_delayed([prepare_batch(plant, [segs[i].segment])], plant, tau0=[[segs[i].warmup]], **kw)
+        return est, time.perf_counter() - t0
+
+    run(0, angles=[wins[0]], sigma_y=sy, delays=[0, 1])  # compile
+    for i in range(min(n, len(segs))):
+        est, t = run(i, angles=[wins[i]], sigma_y=sy)
+        grid, t_grid = run(i, angles=[wins[i]], sigma_y=sy, delay_search="grid")
+        _, t_torque = run(i)
+        out["angles"].append(t)
+        out["angles_grid"].append(t_grid)
+        out["torques"].append(t_torque)
+        out["searched"].append(int(np.isfinite(est.profile).sum()))
+        out["same_delay"].append(bool(est.delay == grid.delay))
+    out["grid_size"] = int(est.profile.size)
+    return out
+
+
 def bench_angles(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m: float = MOTOR_SD,
-                 preview: float = 2.0, dense_K: int = 500) -> dict:
-    """Time the angle likelihood of every window (one core) per delay, and the dense joint Gaussian against the
-    filter on the first window cut to ``dense_K`` samples; times in s."""
+                 preview: float = 2.0, dense_K: int = 500, n_identify: int = N_IDENTIFY) -> dict:
+    """Time the angle likelihood of every window (one core) per delay, with its gradient at
+    :data:`GRADIENT_DELAY`, the dense joint Gaussian against the filter on the first window cut to ``dense_K``
+    samples, and the identification of ``n_identify`` units from their angles; times in s."""
     plant = discretize(DT_HUMAN)
     segs = study[preview]
     theta = study["theta"]
@@ -88,11 +119,14 @@ def bench_angles(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m:
     wins = angle_windows(segs, range(len(segs)))
     before = numba.get_num_threads()
     rows, dense = [], []
+
+    def study_loglik(d, fn):
+        return [fn(theta[:, i], tau_nm, sigma_m, d, w, plant, sigma_y=sy) for i, w in enumerate(wins)]
+
     try:
         numba.set_num_threads(1)
         for d in delays:
-            res = timeit(lambda: [window_loglik(theta[:, i], tau_nm, sigma_m, d, w, plant, sigma_y=sy)
-                                  for i, w in enumerate(wins)])
+            res = timeit(lambda: study_loglik(d, window_loglik))
             rows.append({"delay": int(d), "min_s": res["min_s"], "median_s": res["median_s"]})
             w = wins[0]
             cut = w._replace(angles=w.angles[: dense_K + 1])
@@ -103,10 +137,15 @@ def bench_angles(study: dict, *, delays=DELAYS, tau_nm: float = TAU_NM, sigma_m:
             t_dense = time.perf_counter() - t0
             fast = timeit(lambda: window_loglik(theta[:, 0], tau_nm, sigma_m, d, cut, plant, sigma_y=sy))
             dense.append({"delay": int(d), "K": dense_K, "dense_s": t_dense, "filter_s": fast["min_s"]})
+        value = timeit(lambda: study_loglik(GRADIENT_DELAY, window_loglik))
+        grad = timeit(lambda: study_loglik(GRADIENT_DELAY, window_loglik_grad))
+        gradient = {"delay": GRADIENT_DELAY, "value_s": value["min_s"], "value_grad_s": grad["min_s"],
+                    "ratio": grad["min_s"] / value["min_s"]}
+        identify = _identify_units(segs, wins, plant, n_identify)
     finally:
         numba.set_num_threads(before)
     return {"n": len(wins), "K": int(segs[0].segment.K), "tau_nm": float(tau_nm), "sigma_m": float(sigma_m),
-            "rows": rows, "dense": dense}
+            "rows": rows, "dense": dense, "gradient": gradient, "identify": identify}
 
 
 def format_angles(res: dict) -> str:
@@ -120,7 +159,19 @@ def format_angles(res: dict) -> str:
     for r in res["dense"]:
         lines.append(f"  dense joint Gaussian, one window cut to K = {r['K']}, delay {r['delay']}: {r['dense_s']:.3f} s "
                      f"against {r['filter_s'] * 1e3:.2f} ms for the filter ({r['dense_s'] / r['filter_s']:.0f}×)")
+    g = res["gradient"]
+    lines.append(f"  the whole study at delay {g['delay']} (100 ms): value {g['value_s'] * 1e3:.1f} ms, value and exact "
+                 f"gradient {g['value_grad_s'] * 1e3:.1f} ms ({g['ratio']:.2f}× the value)")
+    ident = res["identify"]
+    n = len(ident["angles"])
+    if n:
+        mean = {k: float(np.mean(ident[k])) for k in ("angles", "angles_grid", "torques")}
+        lines.append(f"  identifying a unit (one core, {n} units of the study): from angles {mean['angles']:.2f} s "
+                     f"(max {max(ident['angles']):.2f} s; {np.mean(ident['searched']):.1f} of {ident['grid_size']} "
+                     f"delays searched), every delay searched {mean['angles_grid']:.2f} s, from torques "
+                     f"{mean['torques']:.2f} s; the same delay from both searches in {sum(ident['same_delay'])} of {n}")
     return "\n".join(lines)
 
 
-__all__ = ["DELAYS", "bench_angles", "bench_delayed", "format_angles", "format_delayed"]
+__all__ = ["DELAYS", "GRADIENT_DELAY", "N_IDENTIFY", "bench_angles", "bench_delayed", "format_angles",
+           "format_delayed"]

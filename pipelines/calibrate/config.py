@@ -9,15 +9,13 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from scioc.models.design import STUDY, Design
+from scioc.pipelines.human_model.registry import get
 
 #: Version of how replications simulate and fit; part of every fingerprint. Bump it when
 #: the data-generating process or the fitted likelihood changes.
 GENERATOR = ("3: SC human plans with the assistant's feedback law; assistant re-solves every sample; "
              "ArviZ's bulk/tail-ESS thinning; log-likelihood test quantity; thinned draws stored")
 
-#: Likewise for the ``delayed`` human's replications (:mod:`scioc.pipelines.calibrate.unit_delayed`).
-DELAYED_GENERATOR = ("3: the likelihood's held-torque convention; the delay sampled (NUTS then DelayMetropolis); "
-                     "numba-compiled once per worker")
 
 
 @dataclass(frozen=True)
@@ -33,26 +31,26 @@ class CalibrationConfig:
     draws: int = 500
     K: int = 1500  # samples per segment (window length × the experiment's rate)
     n_subjects: int = 8  # subjects per simulated study (study level only)
-    negative_control: str | None = None  # None: the correct model; else one of NEGATIVE_CONTROLS[human_model]
+    negative_control: str | None = None  # None: the correct model; else one of the model's negative_controls
     batch_size: int = 10  # replications per Dask task
     extra: dict = field(default_factory=dict)
     experiment: dict | None = None  # pipelines.experiment.resolved form; None: the paper's study
-    human_model: str = "maxent"  # or "delayed" (unit level only: pipelines.calibrate.unit_delayed)
+    human_model: str = "maxent"  # a registered human model, at the levels its calibration has
 
     def __post_init__(self):
         if self.level not in ("unit", "study"):
             raise ValueError(f"level must be 'unit' or 'study'; got {self.level!r}")
-        if self.human_model not in HUMAN_MODELS:
-            raise ValueError(f"human_model must be one of {', '.join(HUMAN_MODELS)}; got {self.human_model!r}")
-        if self.human_model != "maxent" and self.level != "unit":
-            raise ValueError(f"the {self.human_model} human model is calibrated at the unit level only")
+        model = get(self.human_model)
+        if self.level not in model.calibration_levels:
+            raise ValueError(f"the {self.human_model} human model is calibrated at the "
+                             f"{' and '.join(model.calibration_levels)} level only")
         for name in ("replications", "L", "chains", "tune", "draws", "K", "n_subjects", "batch_size"):
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"{name} must be a positive integer; got {value!r}")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0; got {self.seed!r}")
-        allowed = NEGATIVE_CONTROLS[self.human_model]
+        allowed = model.negative_controls
         if self.negative_control not in (None, *allowed):
             raise ValueError(f"negative_control of the {self.human_model} model must be None or one of "
                              f"{', '.join(map(repr, allowed))}; got {self.negative_control!r}")
@@ -67,18 +65,9 @@ class CalibrationConfig:
         d.pop("replications")
         if d["experiment"] is None:
             d.pop("experiment")  # a default is left out, so stored runs of the paper's study keep resuming
-        if d["human_model"] == "maxent":
-            d.pop("human_model")  # likewise for the paper's human model
         d["generator"] = GENERATOR  # a changed simulator invalidates stored replications
-        if d.get("human_model") == "delayed":
-            d["delayed_generator"] = DELAYED_GENERATOR
+        d = get(self.human_model).calibration_fingerprint(d)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
-
-#: The human models a calibration can simulate and fit (:data:`scioc.pipelines.prepare.HUMAN_MODELS`).
-HUMAN_MODELS = ("maxent", "delayed")
-#: Negative controls (same data, a wrong fit): ``inertia`` fits a wheel 10 % too heavy, ``ignore-uA`` gives the
-#: assistant's torque to the human, ``no-delay`` fixes the delayed human's delay at 0.
-NEGATIVE_CONTROLS = {"maxent": ("inertia", "ignore-uA"), "delayed": ("no-delay", "inertia")}
 
 #: Default sizes per level; the study level is reduced (docs/decisions/sbc-study-level-size.md).
 DEFAULTS = {
@@ -87,11 +76,6 @@ DEFAULTS = {
               "L": 39},
 }
 
-#: Default negative control per level: the unit level must catch a 10 % inertia error, the
-#: study level a likelihood that gives the assistant's torque to the human.
-NEGATIVE_DEFAULT = {"unit": "inertia", "study": "ignore-uA"}
-#: The ``delayed`` model's default negative control: the delay ignored (fixed at 0).
-NEGATIVE_DEFAULT_DELAYED = "no-delay"
 
 
 def level_configs(level: str, *, seed: int = 2018, replications: int | None = None, batch_size: int | None = None,
@@ -103,8 +87,8 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     ``replications``, ``batch_size`` and ``n_subjects`` override the level's :data:`DEFAULTS`.
     ``seconds``: window length, s (default: :data:`DEFAULTS` for the paper's study, else the
     experiment's analysis window or whole run at the unit level). ``negative_control``: one of
-    :data:`NEGATIVE_CONTROLS` or "none" (default :data:`NEGATIVE_DEFAULT`). ``design``: the
-    experiment (None: the paper's study). ``human_model="delayed"``: unit level only.
+    the model's ``negative_controls`` or "none" (default: its ``default_negative_control``). ``design``: the
+    experiment (None: the paper's study). ``human_model``: at the levels its calibration has.
 
     Returns the folder names and validated configurations: ``(stem, correct)`` and
     ``(stem + "-negative", wrong)``, the stem being the level (``unit-delayed`` for the delayed human).
@@ -125,10 +109,10 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     dt = STUDY.dt if design is None else design.dt
     if seconds is not None:
         d["K"] = int(round(seconds / dt))
-    stem = level if human_model == "maxent" else f"{level}-{human_model}"
+    model = get(human_model)
+    stem = level + model.calibration_suffix
     runs = [(stem, None)]
-    default_nc = NEGATIVE_DEFAULT[level] if human_model == "maxent" else NEGATIVE_DEFAULT_DELAYED
-    nc = default_nc if negative_control is None else negative_control
+    nc = model.default_negative_control[level] if negative_control is None else negative_control
     if nc != "none":
         runs.append((f"{stem}-negative", nc))
     return [(name, CalibrationConfig(level=level, seed=seed, negative_control=wrong, experiment=experiment,

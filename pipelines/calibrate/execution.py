@@ -21,22 +21,15 @@ from scioc.models.runtime import configure
 from scioc.pipelines.calibrate.config import CalibrationConfig, replication_seed
 from scioc.pipelines.calibrate.store import earlier_summary, prepare_out, read_json, rep_path, write_replication
 from scioc.pipelines.calibrate.summary import sbc_tree, summarize
+from scioc.pipelines.human_model.registry import get
 from scioc.pipelines.progress import progress
 from scioc.pipelines.storage import atomic_path, write_text_atomic
 
 
 def run_replication(config: CalibrationConfig, i: int) -> dict:
     """Replication ``i`` of ``config`` (its level's), with its index, wall time and worker."""
-    # Lazy: the models import PyMC (seconds), which only the workers need.
-    from scioc.pipelines.calibrate.study import study_replication
-    from scioc.pipelines.calibrate.unit import unit_replication
-    from scioc.pipelines.calibrate.unit_delayed import unit_delayed_replication
-
     t0 = time.perf_counter()
-    if config.human_model == "delayed":
-        replicate = unit_delayed_replication
-    else:
-        replicate = unit_replication if config.level == "unit" else study_replication
+    replicate = get(config.human_model).calibration_replication(config.level)
     res = replicate(config, i, replication_seed(config.seed, i))
     res["index"] = i
     res["seconds"] = time.perf_counter() - t0

@@ -12,6 +12,8 @@ import json
 import sys
 from pathlib import Path
 
+from scioc.pipelines.cli.values import HUMAN_MODEL_NAMES
+
 
 def cmd_loglik(args) -> int:
     from scioc.pipelines.experiment import find_experiment
@@ -62,7 +64,9 @@ def cmd_bench(args) -> int:
 
 
 def cmd_bench_fit(args) -> int:
-    if args.human_model == "delayed":
+    from scioc.pipelines.human_model.registry import ALTERNATIVE
+
+    if args.human_model == ALTERNATIVE:
         # imports PyMC (seconds): only for this command
         from scioc.models.bayes.delayed_model import DelayedForm, DelayedPriors
         from scioc.pipelines.bench.fit_delayed import bench_fit_delayed, format_fit_delayed
@@ -130,7 +134,7 @@ def window_settings(args):
 
 #: The simulated human each human model describes (``scioc simulate --human-model``): the delayed model's
 #: structure (delay with prediction, a lag the human plans with, white motor noise before it) is ``kbl``'s.
-HUMAN_OF_MODEL = {"maxent": "maxent", "delayed": "kbl"}
+HUMAN_OF_MODEL = dict(zip(HUMAN_MODEL_NAMES, ("maxent", "kbl")))
 
 
 def simulated_human(args) -> str:
@@ -148,7 +152,7 @@ def cmd_simulate(args) -> int:
     design = load_experiment(args.experiment) if args.experiment else None
     paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed,
                             population=None if args.beta is None else Population(beta=args.beta),
-                            seconds=args.seconds, human=simulated_human(args),
+                            seconds=args.run_seconds, human=simulated_human(args),
                             force=args.force, design=design)
     for k, v in paths.items():
         print(f"{k}: {v}")
@@ -209,46 +213,67 @@ def cmd_run(args) -> int:
     return 1 if all(v == "fail" for v in run_verdicts(report.parent).values()) else 0
 
 
+def sampler_config(path) -> dict:
+    """The research settings of ``--sampler-config FILE.toml`` (a flat table of keys; the human model checks them)."""
+    import tomllib
+
+    from scioc.pipelines.io import InputDataError
+
+    if path is None:
+        return {}
+    try:
+        with open(path, "rb") as fh:
+            options = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputDataError(f"{path}: not a TOML file ({exc})") from None
+    nested = [k for k, v in options.items() if isinstance(v, dict)]
+    if nested:
+        raise InputDataError(f"{path}: key {nested[0]!r}: the sampler settings are plain keys, not tables")
+    return options
+
+
 def cmd_fit(args) -> int:
-    if args.compare_to is not None and args.human_model != "delayed":
-        raise ValueError("--compare-to compares a delayed fit with a max-ent one: it needs --human-model delayed")
-    if args.delay != "profile" and args.human_model != "delayed":
-        raise ValueError("--delay sampled samples the delayed human's delays: it needs --human-model delayed")
-    if args.R_population is not None and args.human_model != "delayed":
-        raise ValueError("--R-population is the delayed model's population of R: it needs --human-model delayed")
-    if args.rho_form is not None and args.R_population != "policy_scale":
-        raise ValueError("--rho-form is the form of R^(-1/2) under --R-population policy_scale: it needs that option")
-    if args.log_R_form is not None and args.human_model != "delayed":
-        raise ValueError("--log-R-form is the form of the delayed model's log R blocks: it needs --human-model delayed")
-    if args.adaptation is not None and (args.human_model != "delayed" or args.delay != "profile"):
-        raise ValueError("--adaptation is nutpie's mass matrix for the delayed model: it needs --human-model delayed "
-                         "and profile delays (--delay sampled runs PyMC's NUTS)")
-    from scioc.models.bayes.delayed_blocks import DelayedPriors
+    from scioc.pipelines.human_model.registry import ALTERNATIVE, PRIMARY
+
+    if args.compare_to is not None and args.human_model != ALTERNATIVE:
+        raise ValueError(f"--compare-to compares a {ALTERNATIVE} fit with a {PRIMARY} one: it needs --human-model "
+                         f"{ALTERNATIVE}")
+    if args.out is None and not args.plan:
+        raise ValueError("--out DIR is required (or --plan, which writes nothing)")
     from scioc.pipelines.fit import fit_to_dir, format_fit  # imports PyMC (seconds): only when fitting
+    from scioc.pipelines.io import InputDataError
 
-    settings, source = window_settings(args)
-    if args.compare_to is not None:
-        from scioc.pipelines.fit.human_models import check_maxent_fit
-        from scioc.pipelines.storage import refuse_inputs_inside
+    options = sampler_config(args.sampler_config)
+    common = dict(seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune, experiment_file=args.experiment,
+                  estimates_path=args.estimates, truth_dir=args.truth, cores=args.cores, subject=args.subject,
+                  human_model=args.human_model, target_accept=args.target_accept)
+    try:
+        if args.plan:
+            plan = fit_to_dir(args.study, args.out or ".", plan_only=True, sampler_options=options, **common)
+            print(format_plan(plan))
+            return 0
+        if args.compare_to is not None:
+            from scioc.pipelines.fit.human_models import check_maxent_fit
+            from scioc.pipelines.fit.stage import default_inputs, resolve_settings
+            from scioc.pipelines.storage import refuse_inputs_inside
 
-        refuse_inputs_inside(args.out, args.compare_to)
-        check_maxent_fit(args.compare_to, args.study, settings)  # before minutes of sampling, not after
-    paths = fit_to_dir(args.study, args.out, seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune,
-                       settings=settings, experiment_file=source, subject=args.subject, estimates_path=args.estimates,
-                       truth_dir=args.truth, cores=args.cores, show_progress=True, force=args.force,
-                       human_model=args.human_model, delay_mode=args.delay,
-                       delayed_priors=(None if args.R_population is None
-                                       else DelayedPriors(R_population=args.R_population)), rho_form=args.rho_form,
-                       adaptation=args.adaptation, log_R_form=args.log_R_form, adequacy_at=args.adequacy_at,
-                       target_accept=args.target_accept)
+            refuse_inputs_inside(args.out, args.compare_to)
+            est, _ = default_inputs(Path(args.study), args.estimates, args.truth)
+            settings, _, _ = resolve_settings(Path(args.study), est, None, args.experiment, args.human_model)
+            check_maxent_fit(args.compare_to, args.study, settings)  # before minutes of sampling, not after
+        paths = fit_to_dir(args.study, args.out, show_progress=True, force=args.force, sampler_options=options,
+                           **common)
+    except ValueError as exc:
+        if args.sampler_config and not isinstance(exc, InputDataError) and "sampler options" in str(exc):
+            raise InputDataError(str(exc).replace("sampler options", str(args.sampler_config))) from None
+        raise
     print(format_fit(args.out))
     for k, v in paths.items():
         print(f"{k}: {v}")
     if args.compare_to is not None:
         from scioc.pipelines.fit.human_models import HUMAN_MODELS_FILE, compare_human_models, format_human_models
 
-        res = compare_human_models(args.compare_to, args.out, settings=settings, seed=args.seed, out=args.out,
-                                   study=args.study)
+        res = compare_human_models(args.compare_to, args.out, seed=args.seed, out=args.out, study=args.study)
         print(format_human_models(res))
         print(f"human_models: {Path(args.out) / HUMAN_MODELS_FILE}")
     # Exit 1 when the sampler did not converge or the human model fails its adequacy checks.
@@ -256,6 +281,15 @@ def cmd_fit(args) -> int:
     res = json.loads(Path(paths["contrasts"]).read_text())
     converged = all(v == "pass" for v in side["convergence_verdict"].values())
     return 0 if converged and res["adequacy"]["verdict"] != "fail" else 1
+
+
+def format_plan(plan: dict) -> str:
+    """``scioc fit --plan``: each choice, its value and why."""
+    lines = [f"plan of the {plan['human_model']} fit (nothing sampled):"]
+    for key, item in plan.items():
+        if key != "human_model":
+            lines.append(f"  {key.replace('_', ' ')}: {item['value']}  ({item['reason']})")
+    return "\n".join(lines)
 
 
 def cmd_adequacy(args) -> int:
@@ -313,7 +347,7 @@ def cmd_calibrate(args) -> int:
 
     design = load_experiment(args.experiment) if args.experiment else None
     runs = level_configs(args.level, seed=args.seed, replications=args.replications, batch_size=args.batch_size,
-                         n_subjects=args.subjects, seconds=args.seconds, negative_control=args.negative_control,
+                         n_subjects=args.subjects, seconds=args.window_seconds, negative_control=args.negative_control,
                          design=design, human_model=args.human_model)
     summaries = calibrate_runs(runs, args.out, scheduler=args.scheduler, n_workers=args.workers)
     for summary in summaries:

@@ -8,7 +8,6 @@ from importlib.metadata import PackageNotFoundError, version
 
 import scioc.pipelines.cli.commands as commands
 from scioc.pipelines.cli.values import (
-    ADAPTATION_NAMES,
     ADEQUACY_AT_HELP,
     ADEQUACY_AT_NAMES,
     HUMAN_MODEL_NAMES,
@@ -36,6 +35,11 @@ from scioc.pipelines.cli.values import (
 )
 
 
+#: The study argument of the commands that read one.
+STUDY_HELP = ("study: a file (Parquet, CSV, .mat), a folder of them or a quoted glob, in the experiment's "
+              "[columns] and [units] (default: the data convention)")
+
+
 def _add_force_option(p):
     p.add_argument("--force", action="store_true",
                    help="replace an existing non-empty --out folder as a whole (default: refuse)")
@@ -52,7 +56,7 @@ def _add_human_model_option(p):
     """``--human-model``: the model of the human whose data are analysed (shared by the commands that take it)."""
     p.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent",
                    help="the human model: maxent (the paper's max-ent LQ human, default) or delayed (with a "
-                        "perceptual delay, a neuromuscular lag and motor noise; README 'The model')")
+                        "perceptual delay, a neuromuscular lag and motor noise; docs/methods.md)")
 
 
 def _add_experiment_option(p):
@@ -104,10 +108,10 @@ def build_parser() -> argparse.ArgumentParser:
         "130 interrupted (README: Errors and exit codes)",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("loglik", help="log-likelihood of every segment of a study file under one θ")
-    p.add_argument("study", help="study file (Parquet or CSV) in the data convention")
+    p.add_argument("study", help=STUDY_HELP)
     p.add_argument("--theta", required=True, help="q11,q22,R (e.g. 60,0,1)")
     _add_assistant_model_option(p)
     _add_human_model_option(p)
@@ -130,7 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--subjects", type=positive_int, default=None,
                    help="simulated subjects (default: the experiment's [simulation] subjects, 42 for the paper's)")
     p.add_argument("--seed", type=nonnegative_int, default=2018, help="root seed (default 2018)")
-    p.add_argument("--seconds", type=positive_seconds, default=None,
+    p.add_argument("--run-seconds", type=positive_seconds, default=None,
                    help=f"length of each run, s (default: the experiment's [simulation] run_s, {RUN_SECONDS:g} for "
                         "the paper's)")
     _add_human_options(p, by_model=True)
@@ -139,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=commands.cmd_simulate)
 
     p = sub.add_parser("identify", help="maximum-likelihood θ per subject × condition, like the paper")
-    p.add_argument("study", help="study file in the data convention")
+    p.add_argument("study", help=STUDY_HELP)
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (estimates, trajectories, identify.json)")
     _add_window_options(p)
     _add_human_model_option(p)
@@ -147,48 +151,33 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=commands.cmd_identify)
 
     p = sub.add_parser("fit", help="hierarchical Bayesian fit (nutpie): β with HDI, diagnostics, LOO")
-    p.add_argument("study", help="study file in the data convention")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder (required)")
+    p.add_argument("study", help=STUDY_HELP)
+    p.add_argument("--out", metavar="DIR", help="output folder (required unless --plan)")
+    p.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent", help="the human model: maxent "
+                   "(the paper's, default) or delayed (perceptual delay, neuromuscular lag, motor noise)")
+    p.add_argument("--estimates", metavar="PATH", help="estimates.parquet of scioc identify: its settings (window, "
+                   "preview, assistant model, experiment) and the mixed-model check (default: the run folder's "
+                   "identify/, when it identified this study)")
+    p.add_argument("--truth", metavar="DIR",
+                   help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
+    p.add_argument("--compare-to", metavar="MAXENT_FIT", help="with --human-model delayed: a finished max-ent fit of "
+                   "the same study; then leave-one-subject-out between the two (OUT/human_models.json)")
+    _add_experiment_option(p)
     p.add_argument("--seed", type=nonnegative_int, default=2018, help="sampler seed (default 2018)")
     p.add_argument("--chains", type=positive_int, default=4, help="Markov chains (default 4)")
     p.add_argument("--draws", type=positive_int, default=1000, help="draws kept per chain (default 1000)")
-    p.add_argument("--tune", type=nonnegative_int, default=None, help="warm-up draws per chain (default 1000; 150 "
-                   "after the pilot run of the delayed fit's default --adaptation pilot, itself 100 + 100 on 2 chains)")
-    p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
+    p.add_argument("--tune", type=nonnegative_int, default=None,
+                   help="warm-up draws per chain (default: the human model's; --plan shows it)")
     p.add_argument("--cores", type=positive_int, help="chains sampled in parallel (default: all CPUs)")
-    p.add_argument("--estimates", metavar="PATH",
-                   help="estimates.parquet for the mixed-model check (default: ../identify/ beside the study's folder)")
-    p.add_argument("--truth", metavar="DIR",
-                   help="folder with simulation.json and truth.parquet (default: the study's folder, if there)")
-    _add_window_options(p)
-    _add_human_model_option(p)
-    p.add_argument("--delay", choices=("profile", "sampled"), default="profile",
-                   help="with --human-model delayed: each subject's delay fixed at its profile-likelihood maximum "
-                        "(default profile; nutpie), or sampled beside the rest (PyMC's NUTS and a Metropolis step)")
-    p.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default=None,
-                   help="with --human-model delayed: population of the subjects' baseline R (default: chosen by the "
-                        "estimates, lognormal where they fix the R of at least half the subjects, else policy_scale: "
-                        "R^(-1/2) half-normal; unpooled: none; pipelines/fit/delayed_forms.py)")
-    p.add_argument("--log-R-form", choices=RHO_FORM_NAMES[:2], default=None, help="delayed: form of the log R "
-                   "blocks (default: centred if the estimates find no motor noise; pipelines/fit/delayed_forms.py)")
-    p.add_argument("--rho-form", choices=RHO_FORM_NAMES, default=None,
-                   help="with --R-population policy_scale: form of ρ = R^(-1/2) (default: chosen by the estimates, "
-                   "centred where they fix every subject's ρ, else folded_centred; folded without them; mixed: "
-                   "per subject, centred where they fix its ρ; polar: ρ and σ_m in polar coordinates for the subjects "
-                   "whose likelihood trades one for the other along an arc; squared: ρ = u², u signed; both in "
-                   "models/bayes/noise_blocks.py)")
-    p.add_argument("--adaptation", choices=ADAPTATION_NAMES, default=None,
-                   help="delayed, profile delays: coordinates and mass matrix (default pilot: as curved, then "
-                   "measured again on a short pilot run's draws; curved: whitened per subject at the Hessian and "
-                   "curved along σ_m's ridge, or a signed ρ's; whitened: affine only; low_rank, diag: nutpie's own; "
-                   "curved_low_rank: curved, with nutpie's low-rank mass matrix)")
-    p.add_argument("--target-accept", type=acceptance, help="the sampler's target acceptance rate (default 0.9 for "
-                   "the delayed model's whitened fit, 0.8 with its pilot run, else nutpie's 0.8); raise it where "
-                   "transitions diverge")
-    p.add_argument("--compare-to", metavar="MAXENT_FIT", help="with --human-model delayed: a finished max-ent fit of "
-                   "the same study and settings; then leave-one-subject-out between the two human models, beside "
-                   "each one's adequacy verdict (OUT/human_models.json)")
-    p.add_argument("--adequacy-at", choices=ADEQUACY_AT_NAMES, default="draw", help=ADEQUACY_AT_HELP)
+    p.add_argument("--target-accept", type=acceptance,
+                   help="the sampler's target acceptance rate (default: the human model's; raise it where "
+                        "transitions diverge)")
+    p.add_argument("--subject", help="subject of the posterior predictive bands (default: the third)")
+    p.add_argument("--sampler-config", metavar="FILE.toml", help="research settings of the sampler and the model's "
+                   "forms (docs/guide.md, 'Sampler settings'); default: none, the defaults --plan shows")
+    p.add_argument("--plan", action="store_true",
+                   help="print the parameterization, populations, warm-up and rate the fit would use, and why; "
+                        "then exit without sampling")
     _add_force_option(p)
     p.set_defaults(func=commands.cmd_fit)
 
@@ -248,10 +237,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated subjects (default: the experiment's, 42 for the paper's)")
     p.add_argument("--seed", type=nonnegative_int, default=2018, help="seed of the whole workflow (default 2018)")
     p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fits (minutes)")
-    p.add_argument("--human-models", type=human_models_list, default=None, metavar="LIST",
+    p.add_argument("--human-model", dest="human_models", type=human_models_list, default=None, metavar="LIST",
                    help="comma-separated human models to analyse the study with, maxent among them (default: "
-                        "chosen by the data: maxent, and delayed too when the experiment records the human torque, "
-                        "[simulation] torque_sensor, and maxent fails its adequacy checks; README 'Human models')")
+                        "chosen by the data: maxent, and delayed too when maxent fails its adequacy checks; "
+                        "docs/decisions/run-human-models.md)")
     _add_human_options(p)
     p.add_argument("--name", default=None,
                    help="subfolder of --out for this run (default default-study, or the experiment file's folder "
@@ -272,7 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also run this wrong fit at the same size (default: inertia at the unit level, ignore-uA "
                         "at the study level, no-delay for --human-model delayed; 'none' to skip)")
     p.add_argument("--subjects", type=positive_int, help="subjects per simulated study (study level; default 6)")
-    p.add_argument("--seconds", type=positive_seconds,
+    p.add_argument("--window-seconds", type=positive_seconds,
                    help="window length in s (default 15 unit, 2 study; with --experiment, the unit level takes its "
                         "analysis window, or its run when analysed whole)")
     p.add_argument("--experiment", metavar="PATH",
@@ -315,8 +304,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "fit of each human in DIR/<human>/ (default: removed)")
     p.set_defaults(func=commands.cmd_bench)
 
-    p = sub.add_parser("bench-fit", help="one fit of the default simulated study in a chosen parameterization (how "
-                       "the table in models/bayes/hierarchical.py was measured)")
+    # A developer tool: not in `scioc --help`'s list of commands.
+    p = sub.add_parser("bench-fit", description="one fit of the default simulated study in a chosen "
+                       "parameterization (docs/decisions/maxent-parameterization.md)")
     p.add_argument("--study-seed", type=nonnegative_int, default=2018,
                    help="seed of the simulated study (default 2018, scioc run's)")
     p.add_argument("--seed", type=nonnegative_int, default=2018, help="sampler seed (default 2018)")
@@ -325,8 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name, default in PARAMETERIZATION_BLOCKS.items():
         p.add_argument(f"--{name.replace('_', '-')}", choices=["centred", "noncentred", "mean"], default=default,
                        help=f"form of the {name} block (default {default})")
-    g = p.add_argument_group("--human-model delayed (how the population-of-R tables in models/bayes/delayed_blocks.py "
-                             "were measured)")
+    g = p.add_argument_group("--human-model delayed (docs/decisions/delayed-R-population.md)")
     g.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent",
                    help="maxent (default): the forms above on the default study; delayed: one fit of a study drawn "
                    "from the delayed human (pipelines/bench/fit_delayed.py; --seed seeds study and sampler)")

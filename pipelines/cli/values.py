@@ -67,7 +67,7 @@ HUMAN_NAMES = ("maxent", "delay", "lag", "coloured", "combined", "kbl", "crossov
 PARAMETERIZATION_BLOCKS = {"theta1_mc": "mean", "theta1_sc": "noncentred", "R_mc": "centred", "R_sc": "centred",
                            "theta2": "noncentred"}
 
-# The names of pipelines.prepare.HUMAN_MODELS, spelled out so parsing imports no model code (a test holds them
+# The names of the registered human models (scioc.pipelines.human_model), spelled out so parsing imports no model code (a test holds them
 # equal), and the last delay of models.delayed.DELAY_GRID_S, s.
 HUMAN_MODEL_NAMES = ("maxent", "delayed")
 MAX_DELAY_S = 0.3
@@ -88,7 +88,7 @@ ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one jo
 
 
 def human_models_list(text: str) -> tuple:
-    """``--human-models maxent,delayed``: known names, none twice, maxent among them; in the order of the names."""
+    """``--human-model maxent,delayed`` of ``scioc run``: known names, none twice, maxent among them; in the order of the names."""
     names = [v.strip() for v in text.split(",") if v.strip()]
     unknown = [v for v in names if v not in HUMAN_MODEL_NAMES]
     if not names or unknown:
@@ -96,9 +96,10 @@ def human_models_list(text: str) -> tuple:
                                          f"got {text!r}")
     if len(set(names)) != len(names):
         raise argparse.ArgumentTypeError(f"a human model is named twice in {text!r}")
-    if "maxent" not in names:
-        raise argparse.ArgumentTypeError(f"the list must include maxent (the run's identify, compare and fit are the "
-                                         f"paper's model; delayed is run beside it); got {text!r}")
+    primary = HUMAN_MODEL_NAMES[0]
+    if primary not in names:
+        raise argparse.ArgumentTypeError(f"the list must include {primary} (the run's identify, compare and fit are "
+                                         f"the paper's model; the others run beside it); got {text!r}")
     return tuple(v for v in HUMAN_MODEL_NAMES if v in names)
 
 

@@ -45,11 +45,12 @@ from scioc.pipelines.fit.delayed_forms import (
 from scioc.pipelines.fit.diagnostics import diagnostics
 from scioc.pipelines.fit.loo import psis_summary
 from scioc.pipelines.fit.noise_arcs import noise_arcs
-from scioc.pipelines.fit.ppc import posterior_predictive, ppc_coverage
+from scioc.pipelines.fit.ppc import PPC_DRAWS, posterior_predictive, ppc_coverage
 from scioc.pipelines.fit.sampling import sample_model
 from scioc.pipelines.fit.start import scale_sources, start_point
 from scioc.pipelines.fit.warmup import pilot_runs
 from scioc.pipelines.fit.whiten import sample_whitened
+from scioc.pipelines.human_model.registry import FitContext, FitOutcome
 from scioc.pipelines.io import InputDataError
 
 #: Unit-level quantities of the delayed model whose diagnostics are reported.
@@ -183,27 +184,34 @@ def sampled_delays(idata, prepared, dt: float, grid: np.ndarray) -> Delays:
     return Delays(samples, by_unit, source, None)
 
 
-def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
-                         tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors | None = None,
-                         delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
-                         delay_mode: str = "profile", rho_form: str | None = None,
-                         adaptation: str | None = None, log_R: str | None = None,
-                         target_accept: float | None = None) -> DelayedFit:
-    """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
+class DelayedChoices(NamedTuple):
+    """The delayed fit's coordinates, populations and sampler settings, and why (:func:`delayed_choices`)."""
 
-    ``form``: the log θ1 blocks' forms; θ2 takes ``THETA2_FORM``, the log R blocks ``log_R``. None for ``log_R``,
-    ``delayed_priors`` or ``delayed_form``: chosen by the data (:mod:`scioc.pipelines.fit.delayed_forms`).
-    ``delay_mode``: ``sampled`` samples one delay per subject (the returned delays: its posterior modes). ``rho_form``
-    replaces ρ's form; ``adaptation`` (:data:`scioc.models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None:
-    ``pilot``) chooses the coordinates and mass matrix; ``target_accept`` (None: the adaptation's) the rate.
-    """
+    adaptation: str
+    whiten: bool
+    delayed_priors: DelayedPriors
+    R_population_reason: str
+    delayed_form: DelayedForm
+    form_reason: str
+    log_R: str
+    log_R_reason: str
+    arcs: object
+    nuts: dict
+
+
+def delayed_choices(prepared, plant, delays: Delays, *, estimates: pd.DataFrame | None = None,
+                    delay_mode: str = "profile", delayed_priors: DelayedPriors | None = None,
+                    delayed_form: DelayedForm | None = None, rho_form: str | None = None,
+                    adaptation: str | None = None, log_R: str | None = None,
+                    target_accept: float | None = None) -> DelayedChoices:
+    """What :func:`sample_delayed_model` samples with: the options given, the rest chosen by the ML estimates
+    (given, or the fit's own profile's) as :mod:`scioc.pipelines.fit.delayed_forms` says, each with its reason."""
     if delay_mode not in DELAY_MODES:
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
     if adaptation is not None and (adaptation not in ADAPTATIONS or delay_mode != "profile"):
         raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
     adaptation = ADAPTATIONS[0] if adaptation is None else adaptation
     whiten = delay_mode == "profile" and adaptation in WHITENED_ADAPTATIONS
-    levels = prepared.settings.design.ordered_levels
     if log_R is not None and log_R not in LOG_R_FORMS:
         raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")
     ml = estimates if estimates is not None else delays.estimates  # the ML estimates: given, or the fit's own profile's
@@ -218,7 +226,6 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     else:
         form_reason = "given"
     log_R, R_reason = log_R_form(delayed_form) if log_R is None else (log_R, "given")
-    form = replace(form, R_mc=log_R, R_sc=log_R, theta2=THETA2_FORM)
     arcs = None
     if rho_form is not None:
         if rho_form == "mixed" and len(delayed_form.rho_pinned) != len(subjects):
@@ -231,6 +238,34 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     rho_signed = delayed_priors.R_population == "policy_scale" and delayed_form.rho in SIGNED_FORMS
     nuts = (nutpie_options(adaptation, rho_signed)
             | ({} if target_accept is None else {"target_accept": float(target_accept)}))
+    return DelayedChoices(adaptation, whiten, delayed_priors, population_reason, delayed_form, form_reason, log_R,
+                          R_reason, arcs, nuts)
+
+
+def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
+                         tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors | None = None,
+                         delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
+                         delay_mode: str = "profile", rho_form: str | None = None,
+                         adaptation: str | None = None, log_R: str | None = None,
+                         target_accept: float | None = None) -> DelayedFit:
+    """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
+
+    ``form``: the log θ1 blocks' forms; θ2 takes ``THETA2_FORM``, the log R blocks ``log_R``. None for ``log_R``,
+    ``delayed_priors`` or ``delayed_form``: chosen by the data (:mod:`scioc.pipelines.fit.delayed_forms`).
+    ``delay_mode``: ``sampled`` samples one delay per subject (the returned delays: its posterior modes). ``rho_form``
+    replaces ρ's form; ``adaptation`` (:data:`scioc.models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None:
+    ``pilot``) chooses the coordinates and mass matrix; ``target_accept`` (None: the adaptation's) the rate.
+    """
+    c = delayed_choices(prepared, plant, delays, estimates=estimates, delay_mode=delay_mode,
+                        delayed_priors=delayed_priors, delayed_form=delayed_form, rho_form=rho_form,
+                        adaptation=adaptation, log_R=log_R, target_accept=target_accept)
+    adaptation, whiten, delayed_priors, delayed_form = c.adaptation, c.whiten, c.delayed_priors, c.delayed_form
+    population_reason, form_reason, R_reason, arcs, nuts = c.R_population_reason, c.form_reason, c.log_R_reason, \
+        c.arcs, c.nuts
+    form = replace(form, R_mc=c.log_R, R_sc=c.log_R, theta2=THETA2_FORM)
+    levels = prepared.settings.design.ordered_levels
+    ml = estimates if estimates is not None else delays.estimates
+    subjects = list(dict.fromkeys(str(s) for s in prepared.subjects))
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
     n_subjects = len(subjects)
@@ -349,5 +384,30 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
     return res, ppc, ppc_draws
 
 
-__all__ = ["DELAY_MODES", "check_recorded_torques", "sampled_delays", "DELAYED_UNITS", "DelayedFit", "Delays", "delayed_adequacy",
+def fit_delayed(ctx: FitContext) -> FitOutcome:
+    """Sample the delayed model of the prepared study in ``ctx`` with its sampler options (``delay``,
+    ``R_population``, ``rho_form``, ``adaptation``, ``log_R_form``), then contrasts, predictive bands and adequacy."""
+    prepared, plant, opts = ctx.prepared, ctx.plant, ctx.options
+    delays = unit_delays(prepared, ctx.estimates, plant, ctx.estimates_path)
+    population = opts.get("R_population")
+    fit = sample_delayed_model(prepared, ctx.batch, plant, ctx.priors, ctx.form, delays, seed=ctx.seeds["condition"],
+                               chains=ctx.chains, draws=ctx.draws, tune=ctx.tune, cores=ctx.cores,
+                               show_progress=ctx.show_progress, estimates=ctx.estimates,
+                               delay_mode=opts.get("delay", "profile"),
+                               delayed_priors=None if population is None else DelayedPriors(R_population=population),
+                               rho_form=opts.get("rho_form"), adaptation=opts.get("adaptation"),
+                               log_R=opts.get("log_R_form"), target_accept=ctx.target_accept)
+    timing = {"condition": fit.timing}
+    t0 = time.perf_counter()
+    res, ppc, ppc_draws = delayed_results(fit, prepared, plant, ctx.estimates, ctx.truth_dir, ctx.subject,
+                                          np.random.default_rng(ctx.seeds["ppc"]), n_draws=PPC_DRAWS)
+    timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    res["adequacy"] = delayed_adequacy(fit.idata, prepared, plant, fit.delays, at=ctx.adequacy_at)
+    timing["adequacy_s"] = time.perf_counter() - t0
+    return FitOutcome({"condition": fit.idata}, {"condition": fit.diagnostics}, res, timing, fit.sidecar, ppc,
+                      ppc_draws)
+
+
+__all__ = ["DELAY_MODES", "DelayedChoices", "check_recorded_torques", "delayed_choices", "fit_delayed", "sampled_delays", "DELAYED_UNITS", "DelayedFit", "Delays", "delayed_adequacy",
            "delayed_results", "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]

@@ -15,7 +15,6 @@ import arviz as az
 import numpy as np
 
 from scioc.models.bayes.delayed_blocks import DelayedPriors
-from scioc.models.bayes.delayed_loo import DelayedSubjectTerms
 from scioc.models.bayes.hierarchical import Priors
 from scioc.models.plant import discretize
 from scioc.models.segment import prepare_batch
@@ -23,12 +22,13 @@ from scioc.models.units import index_study
 from scioc.pipelines.experiment import experiment_hash, parse_experiment
 from scioc.pipelines.fit.artifacts import strict_json
 from scioc.pipelines.fit.loo import LOSO_POINTS, comparison_reliability, reliability_words, subject_elpd
+from scioc.pipelines.human_model.registry import ALTERNATIVE, PRIMARY, get
 from scioc.pipelines.io import InputDataError, load_study
 from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
 from scioc.pipelines.storage import write_text_atomic
 
 #: Human models compared, in the order of the difference (second minus first).
-HUMAN_MODELS_COMPARED = ("maxent", "delayed")
+HUMAN_MODELS_COMPARED = (PRIMARY, ALTERNATIVE)
 #: Importance-sampling points per subject for both models: twice the condition-vs-pooled comparison's, as the
 #: delayed model's two further parameters per subject lower the importance-sampling ESS.
 HUMAN_MODELS_POINTS = 2 * LOSO_POINTS
@@ -90,7 +90,8 @@ def check_maxent_fit(folder, study_path, settings: IdentifySettings) -> dict:
     sidecar. ``folder`` must be a finished max-ent fit of the same study, settings and experiment (ValueError
     naming what differs)."""
     side = fit_sidecar(folder)
-    if side.get("human_model", "maxent") != "maxent":
+    reference = HUMAN_MODELS_COMPARED[0]
+    if side.get("human_model", reference) != reference:
         raise ValueError(f"{folder} is a {side['human_model']} fit; compare with a max-ent fit "
                          "(scioc fit without --human-model)")
     ours = {"study": str(study_path), "identify_settings": settings.as_dict(),
@@ -213,8 +214,9 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
     folders = {"maxent": Path(maxent_dir), "delayed": Path(delayed_dir)}
     sides = {k: fit_sidecar(v) for k, v in folders.items()}
     for k, side in sides.items():
-        if side.get("human_model", "maxent") != k:
-            raise ValueError(f"{folders[k]} is a {side.get('human_model', 'maxent')} fit, not a {k} fit")
+        if side.get("human_model", HUMAN_MODELS_COMPARED[0]) != k:
+            raise ValueError(f"{folders[k]} is a {side.get('human_model', HUMAN_MODELS_COMPARED[0])} fit, not a {k} "
+                             "fit")
     diff = _differences(*({**sides[k], "study": located_study(sides[k], folders[k])} for k in ("maxent", "delayed")))
     if diff:
         raise ValueError(f"the two fits are not of the same data: {'; '.join(diff)}")
@@ -229,16 +231,11 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
     levels = design.ordered_levels
     batch = prepare_batch(plant, [p.segment for p in prepared.segments])
     index = index_study(prepared.subjects, prepared.conditions, levels)
-    delay = sidecar_delays(sides["delayed"], folders["delayed"], prepared)
-    warm = [p.warmup for p in prepared.segments]
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(2)]
     summaries, pointwise = {}, {}
-    base_R = unpooled_log_R_prior(sides["delayed"], folders["delayed"])
     for (name, folder), rng in zip(folders.items(), rngs):
         idata = az.from_netcdf(folder / "posterior.nc")
-        extra = None if name == "maxent" else (
-            lambda flat: DelayedSubjectTerms(flat, batch, plant, delay, warm, params=design.wheel,
-                                             baseline_log_R_prior=base_R))
+        extra = get(name).subject_loo_terms(sides[name], folder, prepared, batch, plant)
         summaries[name], pointwise[name] = subject_elpd(idata, batch, index, plant, rng, levels, extra=extra,
                                                         points=points)
     diff_i = pointwise["delayed"] - pointwise["maxent"]

@@ -10,11 +10,10 @@ import arviz as az
 
 from scioc.models.plant import discretize
 from scioc.pipelines.fit.artifacts import strict_json
-from scioc.pipelines.fit.checks import posterior_adequacy
-from scioc.pipelines.fit.delayed import Delays, delayed_adequacy
-from scioc.pipelines.fit.human_models import fit_settings, fit_sidecar, fit_study, sidecar_delays
+from scioc.pipelines.fit.human_models import fit_settings, fit_sidecar, fit_study
+from scioc.pipelines.human_model.registry import get
 from scioc.pipelines.io import load_study
-from scioc.pipelines.prepare import prepare_study
+from scioc.pipelines.prepare import IdentifySettings, prepare_study
 from scioc.pipelines.storage import write_text_atomic
 
 
@@ -46,13 +45,8 @@ def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, stud
     prepared = prepare_study(load_study(study, settings.design), settings)
     plant = discretize(settings.design.dt, settings.design.wheel)
     idata = az.from_netcdf(folder / "posterior.nc")
-    human_model = side.get("human_model", "maxent")
-    if human_model == "delayed":
-        delays = Delays(sidecar_delays(side, folder, prepared), side["delay"]["by_unit"],
-                        f"{folder / 'posterior.json'} (delay.by_unit)")
-        summary = delayed_adequacy(idata, prepared, plant, delays, at=at)
-    else:
-        summary = posterior_adequacy(idata, prepared, plant, at=at)
+    human_model = side.get("human_model", IdentifySettings.human_model)
+    summary = get(human_model).posterior_adequacy(idata, prepared, plant, side, folder, at)
     return {"fit": str(folder), "study": str(study), "human_model": human_model, "adequacy": summary}
 
 

@@ -15,36 +15,28 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from scioc.models.bayes.delayed_blocks import DelayedPriors
-from scioc.models.bayes.hierarchical import Parameterization, Priors, build_model
+from scioc.models.bayes.hierarchical import Parameterization, Priors
 from scioc.models.identify import identify_unit
 from scioc.models.plant import discretize
 from scioc.models.runtime import configure
 from scioc.models.segment import prepare_batch
+from scioc.pipelines.experiment import find_experiment, load_experiment
 from scioc.pipelines.experiment import sidecar as experiment_fields
 from scioc.pipelines.fit.artifacts import require_netcdf, strict_json, write_netcdf
-from scioc.pipelines.fit.checks import ADEQUACY_POINTS, mixedlm_check, posterior_adequacy, truth_check
-from scioc.pipelines.fit.contrasts import contrasts
-from scioc.pipelines.fit.delayed import (
-    DELAY_MODES,
-    delayed_adequacy,
-    delayed_results,
-    sample_delayed_model,
-    unit_delays,
-)
-from scioc.pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, NUTPIE_TARGET_ACCEPT, RHAT_MAX, diagnostics
-from scioc.pipelines.fit.loo import loo_comparison, subject_loo_comparison
-from scioc.pipelines.fit.ppc import PPC_DRAWS, constant_data, posterior_predictive, ppc_coverage
-from scioc.pipelines.fit.sampling import child_seeds, sample_model
-from scioc.pipelines.fit.warmup import default_tune
+from scioc.pipelines.fit.checks import ADEQUACY_POINTS
+from scioc.pipelines.fit.diagnostics import EBFMI_MIN, ESS_MIN, NUTPIE_TARGET_ACCEPT, RHAT_MAX
+from scioc.pipelines.fit.ppc import constant_data
+from scioc.pipelines.fit.sampling import child_seeds
+from scioc.pipelines.human_model.registry import FitContext, get
+from scioc.pipelines.identify import identification_settings
 from scioc.pipelines.io import InputDataError, load_study
-from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, check_design, check_human_model, prepare_study
+from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, check_design, prepare_study
 from scioc.pipelines.provenance import versions
 from scioc.pipelines.storage import (
     check_output_dir,
@@ -73,6 +65,25 @@ def default_inputs(study_path: Path, estimates_path, truth_dir):
     return estimates_path, truth_dir
 
 
+def resolve_settings(study_path: Path, estimates_path, settings, experiment_file, human_model):
+    """The fit's settings, their experiment file and where they came from: ``settings`` as given, else the
+    identification's whose estimates the fit reads, else the experiment's ``[analysis]``."""
+    if settings is not None:
+        return settings, experiment_file, "given"
+    found = identification_settings(estimates_path) if estimates_path is not None else None
+    if found is not None:
+        settings, source = found
+        if experiment_file is not None and load_experiment(experiment_file) != settings.design:
+            raise InputDataError(f"{experiment_file} is not the experiment {Path(estimates_path).parent / 'identify.json'}"
+                                 " records; the fit reads the identification's")
+        if human_model is not None:
+            settings = replace(settings, human_model=human_model)
+        return settings, source, f"the identification of {estimates_path}"
+    design, source = find_experiment(study_path, experiment_file)
+    settings = IdentifySettings.for_design(design, **({} if human_model is None else {"human_model": human_model}))
+    return settings, source, "the experiment's [analysis]" if source else "the paper's study"
+
+
 #: Fewest draws in all chains: PSIS-LOO fits its Pareto tail to min(0.2 S, 3 √S) draws and needs 5.
 MIN_TOTAL_DRAWS = 25
 
@@ -90,30 +101,6 @@ def unit_se_log_theta1(prepared, plant) -> pd.DataFrame:
                                            for idx in prepared.units.values()]})
 
 
-def sampler_record(human_model: str, delay_mode: str, nutpie_options: dict | None = None,
-                   whitening: dict | None = None) -> dict:
-    """Which sampler a fit used and its mass matrix, for the sidecar (the delayed fit's ``nutpie_options`` and
-    ``whitening`` record)."""
-    if human_model == "delayed" and delay_mode == "sampled":
-        return {"name": "PyMC NUTS + DelayMetropolis", "via": "pymc.sample(step=[DelayMetropolis])",
-                "adaptation": "diag (PyMC's NUTS)"}
-    return {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')",
-            "adaptation": f"{nutpie_options['adaptation']} (nutpie)"
-            + (", per-subject whitened" if whitening is not None else "")
-            + (", curved along " + curved_along(whitening["curved_along"])
-               if whitening and "curved_along" in whitening else "")
-            + (", measured again on a pilot run's draws" if whitening and whitening.get("pilot") else "")
-            if human_model == "delayed" else
-            "diag (nutpie default)"}
-
-
-def curved_along(counts: dict) -> str:
-    """A curved whitening's pivots for the sidecar: the name alone, or each with its number of subjects."""
-    if len(counts) == 1:
-        return next(iter(counts))
-    return ", ".join(f"{name} ({n} subjects)" for name, n in counts.items())
-
-
 def choose_parameterization(estimates) -> tuple[Parameterization, str]:
     """The form of the log θ1 blocks for these data, and why: centred where the estimates' median ``se_log_theta1``
     is at most :data:`CENTRED_SE_LOG_THETA1`, else (and without estimates) the default :class:`Parameterization`."""
@@ -127,82 +114,86 @@ def choose_parameterization(estimates) -> tuple[Parameterization, str]:
 
 
 def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int = 1000, tune: int | None = None,
-               settings: IdentifySettings = IdentifySettings(), subject: str | None = None,
+               settings: IdentifySettings | None = None, subject: str | None = None,
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
-               human_model: str | None = None, delay_mode: str = "profile",
-               delayed_priors: DelayedPriors | None = None, rho_form: str | None = None,
-               adaptation: str | None = None, log_R_form: str | None = None, adequacy_at: str = "draw",
-               target_accept: float | None = None) -> dict:
-    """Fit the hierarchical model(s) to a study file and write every artifact (module docstring).
+               human_model: str | None = None, sampler_options: dict | None = None,
+               target_accept: float | None = None, plan_only: bool = False) -> dict:
+    """Fit the human model's hierarchical model(s) to a study file and write every artifact (module docstring).
 
     Parameters
     ----------
     study_path, out : str or Path
-        Study file in the data convention; output folder (created; ``force`` replaces a non-empty one as a whole).
-    seed, chains, draws, tune : int
-        Root seed; chains, and draws kept per chain after ``tune`` warm-up draws (default
-        :func:`scioc.pipelines.fit.warmup.default_tune`).
-    settings : IdentifySettings
-        Window, preview and reconstruction, as for ``scioc identify``, and the experiment (``settings.design``).
+        Study file in the data convention; output folder (replaced as a whole with ``force``).
+    seed : int
+        Root seed (split into the samplers' and the predictive draws' seeds).
+    chains, draws, tune : int
+        Chains, and draws kept per chain after ``tune`` warm-up draws (None: the human model's default).
+    settings : IdentifySettings, optional
+        Window, preview, reconstruction and the experiment (``settings.design``), as for ``scioc identify``.
+        Default: the identification's whose estimates the fit reads, else the experiment's ``[analysis]``
+        (``experiment_file``, or ``experiment.toml`` beside the study, or the paper's study).
     subject : str, optional
-        Subject of the predictive bands (default: the third in sorted order, the report's Fig. 6).
-    estimates_path, truth_dir : str or Path, optional
-        ``scioc identify``'s ``estimates.parquet``; a simulated study's folder (defaults: :func:`default_inputs`).
+        Subject of the posterior predictive bands (default: the third in sorted order).
+    estimates_path, truth_dir : optional
+        ``estimates.parquet`` of ``scioc identify`` (mixed-model check, starts, the delayed model's delays) and
+        a simulation's folder (truth check). Default: the run folder's, when they belong to this study.
     cores : int, optional
-        Chains sampled in parallel (default ``os.cpu_count()``); the draws do not depend on it.
+        Chains sampled in parallel (default: every CPU); the draws do not depend on it.
     prepared : PreparedStudy, optional
         The study already prepared with ``settings`` (``scioc run`` shares the identification's).
     experiment_file : str, optional
-        Where ``settings.design`` came from (None: the built-in study), for the sidecar.
-    human_model, delay_mode, delayed_priors, rho_form, adaptation, log_R_form
-        ``maxent`` or ``delayed`` (default ``settings.human_model``); the rest as
-        :func:`scioc.pipelines.fit.delayed.sample_delayed_model` takes them.
-    adequacy_at : {"draw", "means"}
-        The posterior point of the adequacy check (:data:`scioc.pipelines.fit.checks.ADEQUACY_POINTS`).
+        Where ``settings.design`` came from, recorded in the sidecar.
+    human_model : str, optional
+        A registered human model (default ``settings.human_model``; :mod:`scioc.pipelines.human_model`).
+    sampler_options : dict, optional
+        Research settings (``--sampler-config``): ``adequacy_at`` ("draw" or "means") and the human model's
+        :attr:`~scioc.pipelines.human_model.HumanModel.sampler_keys`.
     target_accept : float, optional
-        The sampler's target acceptance rate in (0, 1); None: the fit's own (docs/decisions/delayed-target-accept.md).
+        The sampler's target acceptance rate in (0, 1) (None: the model's own, recorded in the sidecar).
+    plan_only : bool
+        Return the plan (:meth:`~scioc.pipelines.human_model.HumanModel.plan`) without sampling or writing.
 
     Returns
     -------
     dict
-        Paths of the written files.
+        Paths of the written files (with ``plan_only``: the plan).
 
     Raises
     ------
     ValueError
-        For a bad study design, a malformed file or an unknown ``subject``; nothing is written then.
+        For bad settings, a bad study design or a malformed file (InputDataError); nothing is written then.
     """
     configure()
     require_netcdf()
+    study_path, out = Path(study_path), Path(out)
+    estimates_path, truth_dir = default_inputs(study_path, estimates_path, truth_dir)
+    settings, experiment_file, settings_from = resolve_settings(study_path, estimates_path, settings, experiment_file,
+                                                            human_model)
     human_model = settings.human_model if human_model is None else human_model
-    check_human_model(human_model)
-    if delay_mode not in DELAY_MODES or (delay_mode != "profile" and human_model != "delayed"):
-        raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)} ('sampled' for the delayed human only); "
-                         f"got {delay_mode!r} with {human_model!r}")
-    if log_R_form is not None and human_model != "delayed":
-        raise ValueError(f"log_R_form is the delayed fit's option; got {log_R_form!r} with {human_model!r}")
-    if adaptation is not None and human_model != "delayed":
-        raise ValueError(f"adaptation (nutpie's mass matrix) is the delayed fit's option; got {adaptation!r} with "
-                         f"{human_model!r}")
+    model = get(human_model)
+    options = dict(sampler_options or {})
+    adequacy_at = options.pop("adequacy_at", "draw")
+    if adequacy_at not in ADEQUACY_POINTS:
+        raise ValueError(f"sampler options: adequacy_at must be one of {', '.join(ADEQUACY_POINTS)}; got "
+                         f"{adequacy_at!r}")
+    options = model.sampler_options(options, "sampler options")
     if target_accept is not None and not 0.0 < target_accept < 1.0:
         raise ValueError(f"--target-accept must lie between 0 and 1; got {target_accept!r}")
-    if adequacy_at not in ADEQUACY_POINTS:
-        raise ValueError(f"--adequacy-at must be one of {', '.join(ADEQUACY_POINTS)}; got {adequacy_at!r}")
-    if human_model != settings.human_model and settings.human_model != "maxent":
+    if human_model != settings.human_model and settings.human_model != IdentifySettings.human_model:
         raise ValueError(f"human_model {human_model!r} contradicts the settings' {settings.human_model!r}")
+    tune_given = tune is not None
     if tune is None:
-        tune = default_tune(human_model, delay_mode, adaptation)
+        tune = model.default_tune(options)
     for name, v, low in (("seed", seed, 0), ("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 1)):
         if int(v) != v or v < low:
             raise ValueError(f"--{name} must be an integer >= {low}; got {v!r}")
     if chains * draws < MIN_TOTAL_DRAWS:
         raise ValueError(f"--chains × --draws must be at least {MIN_TOTAL_DRAWS} (PSIS-LOO smooths a tail of "
                          f"0.2 × draws, which needs 5 draws); got {chains} × {draws}")
-    study_path, out = Path(study_path), Path(out)
-    estimates_path, truth_dir = default_inputs(study_path, estimates_path, truth_dir)
     refuse_inputs_inside(out, study_path, estimates_path, truth_dir)
-    check_output_dir(out, force=force)  # before minutes of sampling, not after
+    if not plan_only:
+        check_output_dir(out, force=force)  # before minutes of sampling, not after
     t_start = time.perf_counter()
     design = settings.design
     levels = design.ordered_levels
@@ -215,6 +206,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         raise ValueError("the prepared study was cut with other settings than these")
     else:
         check_design(prepared.path, prepared.subjects, prepared.conditions, levels=levels)
+    model.check_fit_data(prepared)
     subjects = sorted(dict.fromkeys(prepared.subjects))
     subject = subject or (subjects[2] if len(subjects) > 2 else subjects[0])
     if subject not in subjects:
@@ -234,59 +226,15 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                 "with --estimates")
     form, form_reason = choose_parameterization(estimates if estimates is not None
                                                 else unit_se_log_theta1(prepared, plant))
-    seeds = child_seeds(seed)
-    fits, timing = {}, {"prepare_s": t_prepared - t_start}
-    extra = {}
-    if human_model == "delayed":
-        delays = unit_delays(prepared, estimates, plant, estimates_path)
-        fit = sample_delayed_model(prepared, batch, plant, priors, form, delays, seed=seeds["condition"], chains=chains,
-                                   draws=draws, tune=tune, cores=cores, show_progress=show_progress,
-                                   estimates=estimates, delay_mode=delay_mode, delayed_priors=delayed_priors,
-                                   rho_form=rho_form, adaptation=adaptation, log_R=log_R_form,
-                                   target_accept=target_accept)
-        delays = fit.delays  # sampled: each subject's posterior mode
-        fits, diag, extra = {"condition": fit.idata}, {"condition": fit.diagnostics}, fit.sidecar
-        timing["condition"] = fit.timing
-        t0 = time.perf_counter()
-        res, ppc, ppc_draws = delayed_results(fit, prepared, plant, estimates, truth_dir, subject,
-                                              np.random.default_rng(seeds["ppc"]), n_draws=PPC_DRAWS)
-        timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        res["adequacy"] = delayed_adequacy(fit.idata, prepared, plant, delays, at=adequacy_at)
-        timing["adequacy_s"] = time.perf_counter() - t0
-    else:
-        for name, effects in (("condition", True), ("pooled", False)):
-            t0 = time.perf_counter()
-            model = build_model(prepared.subjects, prepared.conditions, batch, plant, segment_ids=prepared.labels,
-                                condition_effects=effects, priors=priors, levels=levels, parameterization=form)
-            t1 = time.perf_counter()
-            idata, sec = sample_model(model, seed=seeds[name], chains=chains, draws=draws, tune=tune, cores=cores,
-                                      show_progress=show_progress, target_accept=target_accept)
-            fits[name] = idata
-            timing[name] = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
-        diag = {name: diagnostics(d, timing[name]["sample_s"]) for name, d in fits.items()}
-
-        t0 = time.perf_counter()
-        res = {"model": "hierarchical max-ent, condition effects on log θ1 and log R (models.bayes.hierarchical)",
-               **contrasts(fits["condition"])}
-        res["loo"] = loo_comparison(fits["condition"], fits["pooled"])
-        res["loo_subject"] = subject_loo_comparison(fits["condition"], fits["pooled"], batch, prepared.subjects,
-                                                    prepared.conditions, plant, np.random.default_rng(seeds["loso"]),
-                                                    levels=levels)
-        res["mixedlm"] = mixedlm_check(estimates, levels) if estimates is not None else None
-        res["truth"] = truth_check(fits["condition"], truth_dir, estimates, design) if truth_dir is not None else None
-        assisted = ", ".join(v for v in levels if design.assistant(v) is not None) or "no level"
-        ppc, ppc_draws = posterior_predictive(fits["condition"], prepared, subject, np.random.default_rng(seeds["ppc"]))
-        res["ppc"] = {"subject": subject, "draws": int(min(PPC_DRAWS, chains * draws)),
-                      "coverage_5_95": ppc_coverage(ppc),
-                      "note": f"exact max-ent draws of the human the likelihood assumes (in {assisted}: "
-                              + settings.assistant_model + " assistant model); "
-                              "u_H is the reconstructed torque where the file has none"}
-        timing["contrasts_and_ppc_s"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        res["adequacy"] = posterior_adequacy(fits["condition"], prepared, plant, at=adequacy_at)
-        timing["adequacy_s"] = time.perf_counter() - t0
-
+    ctx = FitContext(prepared, batch, plant, priors, form, form_reason, estimates, estimates_path, truth_dir, subject,
+                     child_seeds(seed), chains, draws, tune, tune_given, cores, show_progress, target_accept,
+                     adequacy_at, options)
+    if plan_only:
+        return {"human_model": model.name, **model.plan(ctx)}
+    outcome = model.fit(ctx)
+    fits, diag, res, extra, ppc, ppc_draws = (outcome.fits, outcome.diagnostics, outcome.results, outcome.sidecar,
+                                               outcome.ppc, outcome.ppc_draws)
+    timing = {"prepare_s": t_prepared - t_start, **outcome.timing}
     timing["total_s"] = time.perf_counter() - t_start
     if res.get("truth") is not None:  # the truth and the study from the fit folder: true after a run moves it
         res["truth"]["source"] = os.path.relpath(truth_dir, out)
@@ -294,13 +242,14 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study": str(study_path),
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
-        "human_model": human_model, "seed": int(seed), "seeds": seeds,
-        "sampler": {**sampler_record(human_model, delay_mode, extra.get("nutpie_options"), extra.get("whitening")),
+        "human_model": human_model, "seed": int(seed), "seeds": ctx.seeds,
+        "sampler": {**model.sampler_record(ctx, outcome),
                     "chains": int(chains), "draws": int(draws), "tune": int(tune),
                     "cores": int(min(chains, cores or os.cpu_count() or 1)),
                     "target_accept": (target_accept if target_accept is not None else
                                       (extra.get("nutpie_options") or {}).get("target_accept", NUTPIE_TARGET_ACCEPT))},
         "identify_settings": settings.as_dict(),
+        "identify_settings_from": settings_from,
         "priors": asdict(priors),
         "parameterization": {**asdict(form), "reason": form_reason},
         "n_segments": len(prepared.segments),

@@ -8,6 +8,8 @@ from pathlib import Path
 from scioc.pipelines.adequacy import format_adequacy, not_checked
 from scioc.pipelines.fit.diagnostics import remedies
 from scioc.pipelines.fit.loo import reliability_words
+from scioc.pipelines.human_model.registry import get
+from scioc.pipelines.prepare import IdentifySettings
 
 
 def _beta_lines(b: dict, r: dict, what: str) -> list:
@@ -44,13 +46,7 @@ def format_fit(out) -> str:
     if adequacy["verdict"] == "fail":
         lines.append("CAVEAT: the numbers below assume a human model that fails its adequacy checks; "
                      "beta may be an artifact of model misfit")
-    if side.get("human_model", "maxent") != "maxent":
-        lines.append(f"human model: {side['human_model']} (delays: {side['delay']['source']})")
-        population = side.get("delayed_priors", {}).get("R_population")
-        if population is not None and "R_population_reason" in side:  # a sidecar may lack the reason
-            reason = side["R_population_reason"]
-            lines.append(f"population of R: {population} (given)" if reason == "given" else
-                         f"population of R, chosen by the estimates: {reason}")
+    lines += get(side.get("human_model", IdentifySettings.human_model)).fit_summary_lines(side)
     lines.append(f"sampler convergence: condition model {conv['condition']}"
                  + (f"; pooled model {conv['pooled']}" if "pooled" in conv else ""))
     lines += [f"  to try ({name} model): {text}" for name, text in fit_remedies(side)]

@@ -35,12 +35,10 @@ def pilot_runs(adaptation: str | None, delay_mode: str, tune: int, draws: int, c
                   PILOT_MAX_TREE_DEPTH) for t, d in PILOT_RUNS)
 
 
-def default_tune(human_model: str | None, delay_mode: str = "profile", adaptation: str | None = None) -> int:
-    """``scioc fit``'s warm-up draws per chain when ``--tune`` is not given: :data:`TUNE_AFTER_PILOT` for a delayed fit
-    with a pilot run (:func:`pilot_runs`), else :data:`TUNE`."""
-    if human_model == "delayed" and pilot_runs(adaptation, delay_mode, TUNE, TUNE) is not None:
-        return TUNE_AFTER_PILOT
-    return TUNE
+def default_tune(delay_mode: str = "profile", adaptation: str | None = None) -> int:
+    """The warm-up draws per chain when ``--tune`` is not given: :data:`TUNE_AFTER_PILOT` after a pilot run
+    (:func:`pilot_runs`), else :data:`TUNE`."""
+    return TUNE_AFTER_PILOT if pilot_runs(adaptation, delay_mode, TUNE, TUNE) is not None else TUNE
 
 
 __all__ = ["PILOT_CHAINS", "PILOT_MAX_TREE_DEPTH", "PILOT_RUNS", "PILOT_TARGET_ACCEPT", "TUNE", "TUNE_AFTER_PILOT",

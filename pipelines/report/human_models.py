@@ -18,16 +18,17 @@ from markupsafe import Markup
 
 from scioc.models.design import STUDY, Design
 from scioc.pipelines.fit.summary import fit_remedies
+from scioc.pipelines.human_model.registry import ALTERNATIVE, PRIMARY
 from scioc.pipelines.report.contrasts import blocks
 from scioc.pipelines.report.identify import tests_by_level
 from scioc.pipelines.report.levels import contrast_label, joined
 from scioc.pipelines.report.render import number, read_artifact, render, table
 
 #: Per human model: its identify folder, its Wilcoxon tests and its fit folder, under the run folder.
-MODEL_ARTIFACTS = {"maxent": ("identify", "compare.json", "fit"),
-                   "delayed": ("identify_delayed", "compare_delayed.json", "fit_delayed")}
+MODEL_ARTIFACTS = {PRIMARY: ("identify", "compare.json", "fit"),
+                   ALTERNATIVE: ("identify_delayed", "compare_delayed.json", "fit_delayed")}
 #: The models as the prose names them.
-NAMES = {"maxent": "max-ent", "delayed": "delayed"}
+NAMES = {PRIMARY: "max-ent", ALTERNATIVE: "delayed"}
 #: A LOSO difference of at least this many standard errors is read as a preference (the loo package's
 #: usual reading: a difference within 2 SE is not distinguished from noise).
 LOSO_Z = 2.0
@@ -139,7 +140,7 @@ def loso_preference(hm: dict | None) -> str | None:
     d = (hm or {}).get("difference")
     if not d or not d.get("reliable") or d.get("z") is None:
         return None
-    return None if abs(d["z"]) < LOSO_Z else ("delayed" if d["z"] > 0 else "maxent")
+    return None if abs(d["z"]) < LOSO_Z else (ALTERNATIVE if d["z"] > 0 else PRIMARY)
 
 
 def _loso_words(hm: dict | None) -> str:
@@ -229,17 +230,17 @@ def section(root, design: Design = STUDY, measured: bool = False) -> Markup:
     """The "Human models" section of a run folder (``measured``: the torque was recorded, not reconstructed)."""
     root = Path(root)
     models = read_models(root)
-    if "delayed" not in models:
+    if ALTERNATIVE not in models:
         run = read_artifact(root / RUN_FILE)  # scioc run's choice of human models and its reason
         if run and run.get("requested") is None:
             why = run["why"][0].upper() + run["why"][1:] + "."
         else:
-            why = ("The delayed human model was not requested in this run (scioc run --human-models maxent,delayed "
+            why = ("The delayed human model was not requested in this run (scioc run --human-model maxent,delayed "
                    "runs it beside the max-ent model).")
         return render("human_models.html.j2", both=False, why=why)
     hm = read_artifact(root / "human_models.json")
     note = (f"The delayed human model has no Bayesian fit here: {ANGLE_ONLY}."
-            if models["delayed"].fit is None and not measured else None)
+            if models[ALTERNATIVE].fit is None and not measured else None)
     return render("human_models.html.j2", both=True, table=_table(models, hm, design), note=note,
                   d=(hm or {}).get("difference"), per=_per_subject(hm) if hm else None, loso=_loso_words(hm),
                   ok=bool(supported(models, hm)), conclusion=conclusion(models, hm, design), loso_z=LOSO_Z,
@@ -249,7 +250,7 @@ def section(root, design: Design = STUDY, measured: bool = False) -> Markup:
 def headline(root, design: Design = STUDY) -> Markup:
     """The conclusion box under the adequacy headline, when the run has both models; else nothing."""
     models = read_models(root)
-    if "delayed" not in models:
+    if ALTERNATIVE not in models:
         return Markup("")
     hm = read_artifact(Path(root) / "human_models.json")
     return render("human_models_headline.html.j2", ok=bool(supported(models, hm)),

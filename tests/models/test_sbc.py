@@ -1,6 +1,4 @@
 import numpy as np
-import pytest
-from scipy import stats
 
 from scioc.models.sbc import central_coverage, ecdf_band, ess_basic, pit_from_rank, rank, thin, uniformity_test
 

@@ -63,7 +63,7 @@ def test_same_seed_same_adequacy(correct):
 
 def test_cli_prints_the_verdict_and_exits_1_when_it_fails(tmp_path, capsys):
     data = tmp_path / "data"
-    assert main(["simulate", "--subjects", "3", "--seconds", "35", "--human", "combined", "--beta", "0",
+    assert main(["simulate", "--subjects", "3", "--run-seconds", "35", "--human", "combined", "--beta", "0",
                  "--out", str(data)]) == 0
     sim = json.loads((data / "simulation.json").read_text())
     assert sim["human"]["name"] == "combined" and sim["population"]["beta"] == 0.0
@@ -81,7 +81,7 @@ def test_cli_prints_the_verdict_and_exits_1_when_it_fails(tmp_path, capsys):
 
 def test_adequacy_can_be_switched_off(tmp_path, capsys):
     data = tmp_path / "data"
-    assert main(["simulate", "--subjects", "2", "--seconds", "35", "--out", str(data)]) == 0
+    assert main(["simulate", "--subjects", "2", "--run-seconds", "35", "--out", str(data)]) == 0
     capsys.readouterr()
     assert main(["identify", str(data / "study.parquet"), "--out", str(tmp_path / "id"), "--window", "20,10",
                  "--adequacy-boot", "0"]) == 0

@@ -38,7 +38,7 @@ from scioc.pipelines.fit.delayed_forms import LOG_R_FORMS
 from scioc.pipelines.identify import identify_to_dir
 from scioc.pipelines.io import load_study
 from scioc.pipelines.loglik import LIKELIHOODS
-from scioc.pipelines.prepare import HUMAN_MODELS, IdentifySettings, prepare_study
+from scioc.pipelines.prepare import IdentifySettings, prepare_study
 from scioc.pipelines.simulate import simulate_to_dir
 
 SENSOR = dataclasses.replace(STUDY, torque_sensor=True)
@@ -59,7 +59,9 @@ def settings(human_model="delayed", **kw):
 
 
 def test_the_names_the_parser_spells_are_the_pipelines():
-    assert HUMAN_MODEL_NAMES == HUMAN_MODELS
+    from scioc.pipelines.human_model import names
+
+    assert HUMAN_MODEL_NAMES == names()[:2]
     assert LIKELIHOOD_NAMES == LIKELIHOODS
     assert R_POPULATION_NAMES == R_POPULATIONS and RHO_FORM_NAMES == RHO_FORMS
     assert RHO_FORM_NAMES[:2] == LOG_R_FORMS  # scioc fit --log-R-form's choices
@@ -249,7 +251,7 @@ def test_without_a_torque_sensor_the_delayed_model_is_identified_from_the_angles
     # The same recordings with the torque reconstructed from the encoder: the delayed model is fitted to the
     # angles themselves (models.delayed.angles), as identify_unit_delayed does with the unit's AngleWindows.
     # Before, the torque likelihood of the reconstructed torque put τ_nm at its 1-s bound (README "Human models").
-    from scioc.pipelines.identify import angle_windows
+    from scioc.pipelines.human_model.delayed import angle_windows
 
     s_rec = settings(reconstruct="always")
     paths = identify_to_dir(combined["study"], tmp_path / "id", s_rec, show_progress=False)
@@ -276,7 +278,7 @@ def test_cli_loglik_of_the_angles_is_the_models(combined, tmp_path, capsys):
     # --likelihood angles: the delayed human's likelihood of the encoder's angles, window by window, as identify
     # evaluates it (models.delayed.window_loglik on the prepared windows); on a file without u_H too (the torques
     # before each window then reconstructed), where the torque likelihood is refused and says what to use instead.
-    from scioc.pipelines.identify import angle_windows
+    from scioc.pipelines.human_model.delayed import angle_windows
 
     exp = tmp_path / "experiment.toml"
     exp.write_text("[analysis]\nwindow_start_s = 12.0\nwindow_s = 10.0\npreview_s = 2.0\n")

@@ -51,7 +51,7 @@ def test_cli(tmp_path, capsys):
 
 
 def test_delay_profile_spread_counts_each_subjects_summed_profile():
-    from scioc.pipelines.recovery import delay_profile_spread
+    from scioc.pipelines.human_model.delayed import delay_profile_spread
 
     flat, peaked = np.zeros(5), np.array([0.0, -2.0, -20.0, -5.0, -11.0])
     est = pd.DataFrame({"subject": ["A", "A", "B", "B"], "condition": ["MC", "SC"] * 2,

@@ -96,10 +96,10 @@ def test_bad_simulate_options_exit_nonzero(tmp_path, capsys):
 
 def test_outputs_are_refused_or_replaced_whole(tmp_path, capsys):
     data = tmp_path / "data"
-    assert main(["simulate", "--subjects", "1", "--seconds", "35", "--out", str(data)]) == 0
+    assert main(["simulate", "--subjects", "1", "--run-seconds", "35", "--out", str(data)]) == 0
     first = (data / "study.parquet").read_bytes()
     # An existing output folder is refused without --force ...
-    assert main(["simulate", "--subjects", "1", "--seconds", "35", "--seed", "5", "--out", str(data)]) == 2
+    assert main(["simulate", "--subjects", "1", "--run-seconds", "35", "--seed", "5", "--out", str(data)]) == 2
     assert "--force" in capsys.readouterr().err and (data / "study.parquet").read_bytes() == first
     # ... an input inside the output folder is never replaced, even with --force ...
     assert main(["identify", str(data / "study.parquet"), "--out", str(data), "--force", "--window", "20,10"]) == 2

@@ -28,7 +28,7 @@ def test_configurations_of_the_delayed_model():
         CalibrationConfig(human_model="delayed", negative_control="ignore-uA")
     with pytest.raises(ValueError, match="negative_control of the maxent model"):
         CalibrationConfig(negative_control="no-delay")
-    with pytest.raises(ValueError, match="human_model must be one of"):
+    with pytest.raises(ValueError, match="human model must be one of"):
         CalibrationConfig(human_model="crossover")
 
 

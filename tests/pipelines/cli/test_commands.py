@@ -165,10 +165,10 @@ def test_an_extreme_but_finite_loglik_is_reported(study_file, theta, capsys):
 
 def test_simulate_human_model_names_the_human_it_describes(tmp_path, capsys):
     out = tmp_path / "d"
-    assert main(["simulate", "--subjects", "2", "--seconds", "3", "--human-model", "delayed", "--beta", "0",
+    assert main(["simulate", "--subjects", "2", "--run-seconds", "3", "--human-model", "delayed", "--beta", "0",
                      "--out", str(out)]) == 0
     assert json.loads((out / "simulation.json").read_text())["human"]["name"] == "kbl"
-    assert main(["simulate", "--subjects", "2", "--seconds", "3", "--human-model", "maxent",
+    assert main(["simulate", "--subjects", "2", "--run-seconds", "3", "--human-model", "maxent",
                      "--out", str(tmp_path / "m")]) == 0
     assert json.loads((tmp_path / "m" / "simulation.json").read_text())["human"]["name"] == "maxent"
     capsys.readouterr()

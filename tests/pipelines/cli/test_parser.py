@@ -27,12 +27,12 @@ def _exit_code(argv, capsys):
     (["identify", "S", "--out", "D", "--window", "5"], "START,SECONDS"),
     (["identify", "S", "--out", "D", "--preview", "inf"], "seconds >= 0"),
     (["identify", "S", "--out", "D", "--preview", "-1"], "seconds >= 0"),
-    (["simulate", "--out", "D", "--seconds", "inf"], "seconds > 0"),
+    (["simulate", "--out", "D", "--run-seconds", "inf"], "seconds > 0"),
     (["fit", "S", "--out", "D", "--cores", "-2"], "positive integer"),
     (["fit", "S", "--out", "D", "--chains", "0"], "positive integer"),
     (["compare", "E", "--alpha", "1.5"], "significance level"),
     (["calibrate", "--replications", "0"], "positive integer"),
-    (["calibrate", "--seconds", "nan"], "seconds > 0"),
+    (["calibrate", "--window-seconds", "nan"], "seconds > 0"),
     (["loglik"], "required"),
     (["nonsense"], "invalid choice"),
 ])
@@ -89,7 +89,7 @@ def test_calibrate_help_states_the_true_defaults():
         in helps["batch_size"]
     assert f"default {DEFAULTS['unit']['replications']} unit, {DEFAULTS['study']['replications']} study" \
         in helps["replications"]
-    assert f"default {DEFAULTS['unit']['K'] // 100} unit, {DEFAULTS['study']['K'] // 100} study" in helps["seconds"]
+    assert f"default {DEFAULTS['unit']['K'] // 100} unit, {DEFAULTS['study']['K'] // 100} study" in helps["window_seconds"]
 
 
 def test_the_parsers_design_defaults_are_the_studys():
@@ -119,7 +119,6 @@ def test_the_adequacy_points_are_the_checks():
     from scioc.pipelines.fit.checks import ADEQUACY_POINTS
 
     assert ADEQUACY_AT_NAMES == ADEQUACY_POINTS
-    assert build_parser().parse_args(["fit", "S", "--out", "D"]).adequacy_at == "draw"
     assert build_parser().parse_args(["adequacy", "F"]).at == "draw"
 
 

@@ -15,7 +15,6 @@ from scioc.models.bayes.delayed_model import (
     PILOT_ADAPTATION_TARGET_ACCEPT,
     WHITENED_TARGET_ACCEPT,
     DelayedForm,
-    DelayedPriors,
 )
 from scioc.models.design import STUDY
 from scioc.models.plant import discretize
@@ -297,14 +296,14 @@ def test_a_given_log_R_form_is_fitted_and_recorded(delayed_study):
     root, sim, prepared = delayed_study
     small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
     paths = fit_to_dir(sim["study"], root / "fit_log_R_centred", settings=SETTINGS, prepared=prepared,
-                       log_R_form="centred", **small)
+                       sampler_options={"log_R_form": "centred"}, **small)
     par = json.loads(open(paths["sidecar"]).read())["delayed_parameterization"]
     assert par["R_mc"] == par["R_sc"] == "centred" and par["log_R_reason"] == "given"
     post = az.from_netcdf(paths["posterior"])["posterior"]
     assert "log_R" in post and "z_log_R_MC" not in post and "z_log_R_SC" not in post
     with pytest.raises(ValueError, match="log_R_form"):
         fit_to_dir(sim["study"], root / "fit_bad_log_R", settings=IdentifySettings.for_design(SENSOR),
-                   prepared=prepared, human_model="maxent", log_R_form="centred", **small)
+                   prepared=prepared, human_model="maxent", sampler_options={"log_R_form": "centred"}, **small)
 
 
 @pytest.mark.validation
@@ -337,8 +336,8 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
     # every artifact of the profile fit is written. Same seed, same draws.
     root, sim, prepared = delayed_study
     small = {**TINY, "chains": 1, "draws": 40, "tune": 60, "cores": 1}
-    paths = fit_to_dir(sim["study"], root / "fit_sampled", settings=SETTINGS, prepared=prepared, delay_mode="sampled",
-                       **small)
+    paths = fit_to_dir(sim["study"], root / "fit_sampled", settings=SETTINGS, prepared=prepared,
+                       sampler_options={"delay": "sampled"}, **small)
     side = json.loads(open(paths["sidecar"]).read())
     assert side["delay"]["mode"] == "sampled" and side["sampler"]["name"].startswith("PyMC NUTS")
     assert side["sampler"]["adaptation"] == "diag (PyMC's NUTS)" and "nutpie_options" not in side
@@ -353,11 +352,11 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
     if post is not None:
         assert "delay_index" in post["posterior"]
     again = fit_to_dir(sim["study"], root / "fit_sampled_again", settings=SETTINGS, prepared=prepared,
-                       delay_mode="sampled", **small)
+                       sampler_options={"delay": "sampled"}, **small)
     assert json.loads(open(again["sidecar"]).read())["delay"]["by_unit"] == side["delay"]["by_unit"]
-    with pytest.raises(ValueError, match="delay_mode"):
+    with pytest.raises(ValueError, match="unknown key.*delay for the maxent"):
         fit_to_dir(sim["study"], root / "fit_bad", settings=IdentifySettings.for_design(SENSOR), prepared=prepared,
-                   human_model="maxent", delay_mode="sampled", **small)
+                   human_model="maxent", sampler_options={"delay": "sampled"}, **small)
 
 
 @pytest.mark.validation
@@ -368,8 +367,8 @@ def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
     root, sim, prepared = delayed_study
     small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
     paths = fit_to_dir(sim["study"], root / "fit_rho", settings=SETTINGS, prepared=prepared,
-                       delayed_priors=DelayedPriors(R_population="policy_scale"), rho_form="folded_centred",
-                       adaptation="diag", **small)
+                       sampler_options={"R_population": "policy_scale", "rho_form": "folded_centred",
+                                        "adaptation": "diag"}, **small)
     side = json.loads(open(paths["sidecar"]).read())
     assert side["sampler"]["adaptation"] == "diag (nutpie)" and side["nutpie_options"] == {"adaptation": "diag"}
     assert side["sampler"]["target_accept"] == 0.8  # nutpie's own, off the whitened coordinates
@@ -388,7 +387,7 @@ def _small_fit(delayed_study, out: str, **kwargs):
     """A one-chain, 30-draw fit of the 3-subject study into ``out``: its paths and its sidecar."""
     root, sim, prepared = delayed_study
     small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
-    paths = fit_to_dir(sim["study"], root / out, settings=SETTINGS, prepared=prepared, **kwargs, **small)
+    paths = fit_to_dir(sim["study"], root / out, settings=SETTINGS, prepared=prepared, sampler_options=kwargs, **small)
     return paths, json.loads(open(paths["sidecar"]).read())
 
 
@@ -399,7 +398,7 @@ def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed
     # them along φ (noise_b), and the posterior's ρ and σ_m are the polar block's, positive.
     from scioc.pipelines.fit.noise_arcs import ARC_MIN
 
-    paths, side = _small_fit(delayed_study, "fit_polar", delayed_priors=DelayedPriors(R_population="policy_scale"),
+    paths, side = _small_fit(delayed_study, "fit_polar", R_population="policy_scale",
                              rho_form="polar")
     arcs, form = side["noise_arcs"], side["delayed_form"]
     assert form["rho"] == "polar" and len(form["polar_k"]) == len(arcs) == 3
@@ -429,7 +428,7 @@ def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
     # scioc fit --R-population policy_scale --rho-form folded_centred, the default whitening (curved, then measured
     # again on a pilot run's draws): each subject's block bends along ρ's signed coordinate
     # (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.
-    _, side = _small_fit(delayed_study, "fit_rho_curved", delayed_priors=DelayedPriors(R_population="policy_scale"),
+    _, side = _small_fit(delayed_study, "fit_rho_curved", R_population="policy_scale",
                          rho_form="folded_centred")
     assert side["delayed_form"]["sigma_m"] not in SIGNED_FORMS  # chosen by these data: ρ's is the only pivot
     assert side["whitening"]["curved_along"] == {"rho_signed": 3}
@@ -492,7 +491,7 @@ def test_nutpies_own_low_rank_fit_has_the_same_variables_and_repeats_with_its_se
 
     _, sim, prepared = delayed_study
     small = {**TINY, "draws": 30, "tune": 30}
-    paths = [fit_to_dir(sim["study"], tmp_path / name, settings=SETTINGS, prepared=prepared, adaptation="low_rank",
+    paths = [fit_to_dir(sim["study"], tmp_path / name, settings=SETTINGS, prepared=prepared, sampler_options={"adaptation": "low_rank"},
                         **small) for name in ("a", "b")]
     side = json.loads(open(paths[0]["sidecar"]).read())
     assert side["sampler"]["adaptation"] == "low_rank (nutpie)" and side["nutpie_options"] == {"adaptation": "low_rank"}

@@ -185,8 +185,11 @@ def test_fit_options_are_validated(tiny_study):
         fit_to_dir(root / "data" / "study.parquet", root / "x", chains=1, draws=20)
     with pytest.raises(ValueError, match="--subject 'S99' is not in the study"):
         fit_to_dir(root / "data" / "study.parquet", root / "x", subject="S99", draws=10)
-    with pytest.raises(ValueError, match="adaptation .* is the delayed fit's option; got 'diag' with 'maxent'"):
-        fit_to_dir(root / "data" / "study.parquet", root / "x", human_model="maxent", adaptation="diag")
+    with pytest.raises(ValueError, match="unknown key.*adaptation for the maxent human model's fit"):
+        fit_to_dir(root / "data" / "study.parquet", root / "x", human_model="maxent",
+                   sampler_options={"adaptation": "diag"})
+    with pytest.raises(ValueError, match="adequacy_at must be one of draw, means"):
+        fit_to_dir(root / "data" / "study.parquet", root / "x", sampler_options={"adequacy_at": "mode"})
     for bad in (0.0, 1.0, 1.5):
         with pytest.raises(ValueError, match="--target-accept must lie between 0 and 1"):
             fit_to_dir(root / "data" / "study.parquet", root / "x", target_accept=bad)
@@ -228,7 +231,14 @@ def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
 
 
 def test_the_sidecar_names_a_curved_whitenings_pivots_with_their_subjects_where_there_are_several():
-    from scioc.pipelines.fit.stage import sampler_record
+    from types import SimpleNamespace
+
+    from scioc.pipelines.human_model import get
+
+    def sampler_record(model, delay, nutpie, whitening):
+        outcome = SimpleNamespace(sidecar={"nutpie_options": nutpie, **({"whitening": whitening} if whitening is not
+                                                                          None else {})})
+        return get(model).sampler_record(SimpleNamespace(options={"delay": delay}), outcome)
 
     record = sampler_record("delayed", "profile", {"adaptation": "diag"},
                             {"curved_along": {"rho_signed": 30, "sigma_m_signed": 12}})
@@ -238,3 +248,17 @@ def test_the_sidecar_names_a_curved_whitenings_pivots_with_their_subjects_where_
     assert one["adaptation"] == "diag (nutpie), per-subject whitened, curved along sigma_m"
     assert sampler_record("delayed", "profile", {"adaptation": "diag"}, {})["adaptation"] == (
         "diag (nutpie), per-subject whitened")
+
+
+def test_the_plan_names_each_choice_and_its_reason_and_writes_nothing(tiny_study, capsys):
+    from scioc.pipelines.cli import main
+
+    _, root = tiny_study
+    study = root / "data" / "study.parquet"
+    before = sorted(root.rglob("*"))
+    assert main(["fit", str(study), "--plan", "--tune", "321"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("plan of the maxent fit (nothing sampled):")
+    assert "  tune: 321  (given)" in out and "  target accept: 0.8  (nutpie's default)" in out
+    assert "  parameterization: theta1_mc " in out and "median SE of log θ1 per unit" in out
+    assert sorted(root.rglob("*")) == before

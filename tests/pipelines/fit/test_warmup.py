@@ -28,8 +28,12 @@ def test_the_pilot_runs_on_at_most_its_own_chains_and_no_longer_than_the_fit():
 
 
 def test_the_default_warm_up_is_shorter_only_after_a_pilot():
-    assert default_tune("delayed") == TUNE_AFTER_PILOT < TUNE
-    assert default_tune("delayed", adaptation="curved") == TUNE
-    assert default_tune("delayed", delay_mode="sampled") == TUNE
-    assert default_tune("maxent") == TUNE
+    from scioc.pipelines.human_model import get
+
+    assert default_tune() == TUNE_AFTER_PILOT < TUNE
+    assert default_tune(adaptation="curved") == TUNE
+    assert default_tune(delay_mode="sampled") == TUNE
+    assert get("delayed").default_tune({}) == TUNE_AFTER_PILOT
+    assert get("delayed").default_tune({"delay": "sampled"}) == TUNE
+    assert get("maxent").default_tune({}) == TUNE
 

@@ -187,7 +187,7 @@ def test_with_only_maxent_the_section_says_which_and_why(tmp_path):
     for measured in (False, True):
         html = _text(section(tmp_path, STUDY, measured=measured))
         assert "Only the max-ent human model" in html
-        assert "not requested" in html and "--human-models maxent,delayed" in html
+        assert "not requested" in html and "--human-model maxent,delayed" in html
 
 
 def test_from_angles_the_delayed_model_has_identify_and_tests_but_no_fit_and_the_section_says_why(tmp_path):

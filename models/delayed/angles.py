@@ -275,8 +275,22 @@ def window_loglik_grad(theta, tau_nm: float, sigma_m: float, delay: int, w: Angl
                        sigma_y: float, params: WheelParameters = WheelParameters()) -> AngleLoglikGrad:
     """:func:`window_loglik` and its exact gradient (:func:`angle_loglik_grad`).
 
-    The gradient in τ_nm includes the start's arm torque, which follows from the torques before
-    the window through the lag (:func:`.lag.window_tau0`).
+    Parameters
+    ----------
+    theta : array_like, shape (3,)
+        ``[q11, q22, R]``.
+    tau_nm, sigma_m, delay : float, float, int
+        Lag (s), motor-noise SD per sample (N·m), delay (samples).
+    w : AngleWindow
+        The recorded window; its start's prior comes from the data (:data:`START_SD`).
+    plant, sigma_y, params
+        As :func:`window_loglik`'s.
+
+    Returns
+    -------
+    AngleLoglikGrad
+        The gradient in τ_nm includes the start's arm torque, which follows from the torques before
+        the window through the lag (:func:`.lag.window_tau0`).
     """
     out, inn, dtau0 = _window(theta, tau_nm, sigma_m, delay, w, plant, sigma_y, params, True)
     g, gz0 = _gradient(out, sigma_m, np.array([0.0, 0.0, dtau0]))

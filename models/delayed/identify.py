@@ -65,7 +65,28 @@ def profile_argmax(n: int, value, *, stride: int = COARSE_STRIDE, tie: float = P
     unimodal profile's argmax is found; so is every peak the coarse pass shows, each refined apart.
     Where the values found show no peak (a flat profile: ties alone) or more than
     :data:`MAX_PEAKS`, every index is evaluated. A peak narrower than ``stride`` on a stretch the
-    coarse pass sees as monotone goes unseen. Returns (index, values (n,), NaN where not evaluated).
+    coarse pass sees as monotone goes unseen.
+
+    Parameters
+    ----------
+    n : int
+        The grid's size.
+    value : callable
+        ``value(i)``, the profile at index i (nats).
+    stride, tie : int, float
+        The coarse pass's step (default :data:`COARSE_STRIDE`) and the tie (default :data:`PROFILE_TIE`, nats).
+
+    Returns
+    -------
+    tuple
+        (index, values (n,), NaN where not evaluated).
+
+    Examples
+    --------
+    >>> p = -np.abs(np.arange(31) - 12.3)
+    >>> best, vals = profile_argmax(31, lambda i: p[i])
+    >>> best, int(np.isfinite(vals).sum())
+    (12, 13)
     """
     vals = np.full(n, np.nan)
 

@@ -13,7 +13,7 @@ forward sweep records: with x̄ = ∂ log p / ∂x, P̄ symmetric, c = P⁻[:, 0
     update:  ḡ = μ̄ ν,  c̄ = ḡ / s - 2 P̄ c / s,  s̄ = ν²/(2 s²) - 1/(2 s) - ḡ·c / s² + cᵀ P̄ c / s²,
              P̄⁻ = P̄ + sym(c̄ e_0ᵀ) + s̄ e_0 e_0ᵀ,  μ̄⁻ = μ̄ - e_0 (c·μ̄ / s - ν / s)
     predict: F̄ = μ̄⁻ μᵀ + 2 P̄⁻ F P,  μ̄ = Fᵀ μ̄⁻,  P̄ = Fᵀ P̄⁻ F,  and the noise's b_c, S_k, σ_m²
-    F_k:     Ā̄ += M̄,  b̄_c -= M̄ L_k + ...,  L̄_k = -M̄ᵀ b_c + sum_j h̄_j Ā^{j-1} b_c
+    F_k:     Ā̄ += M̄,  b̄_c -= M̄ L_k,  L̄_k = -M̄ᵀ b_c + sum_j h̄_j Ā^{j-1} b_c  (b_c also in the noise and offset)
 
 A held run's gain, s, M and h collect their adjoints over the run and hand them to the step that
 held it. The tape holds μ_k and ν_k of every step and P_k, c and s of the steps not held:

@@ -21,6 +21,7 @@ from scioc.models.design import STUDY, Design
 from scioc.models.runtime import configure
 from scioc.models.simulate import Population
 from scioc.pipelines.compare import compare_to_file
+from scioc.pipelines.experiment import find_experiment
 from scioc.pipelines.export import convention
 from scioc.pipelines.human_model.registry import ALTERNATIVE, PRIMARY
 from scioc.pipelines.identify import format_identify, identify_study, identify_to_dir
@@ -29,7 +30,13 @@ from scioc.pipelines.prepare import IdentifySettings, prepare_study
 from scioc.pipelines.report import build_report
 from scioc.pipelines.report.human_models import ANGLE_ONLY, RUN_FILE
 from scioc.pipelines.simulate import DEFAULT_SEED, simulate_to_dir
-from scioc.pipelines.storage import staged_dir, write_table_atomic, write_text_atomic
+from scioc.pipelines.storage import (
+    check_output_dir,
+    refuse_inputs_inside,
+    staged_dir,
+    write_table_atomic,
+    write_text_atomic,
+)
 
 DEFAULT_NAME = "default-study"
 
@@ -62,7 +69,7 @@ def default_human_models(design: Design, maxent_verdict: str | None) -> tuple[tu
     verdict = maxent_verdict or "not checked"
     if verdict == "pass":
         return (PRIMARY,), ("the max-ent human model passes its adequacy checks, so the delayed human model was not "
-                             "run (scioc run --human-model maxent,delayed runs it beside the max-ent model)")
+                             "run (--human-model maxent,delayed runs it beside the max-ent model)")
     angles = "" if design.torque_sensor else f" ({ANGLE_ONLY})"
     return (PRIMARY, ALTERNATIVE), (f"the max-ent human model's adequacy verdict is '{verdict}', so the delayed human "
                                    f"model was run beside it{angles}")
@@ -75,14 +82,84 @@ def run_verdicts(root) -> dict:
     return {k: json.loads(v.read_text())["adequacy"]["verdict"] for k, v in found.items() if v.exists()}
 
 
-def _stages(fit: bool, delayed: bool, sensor: bool = True) -> list[str]:
+def _stages(fit: bool, delayed: bool, sensor: bool = True, simulated: bool = True) -> list[str]:
     """The run's stages in order (their numbers in the log); the delayed fit needs the recorded torque (``sensor``)."""
-    stages = ["simulate", "identify", "true torques", "compare"]
+    stages = ["simulate", "identify", "true torques", "compare"] if simulated else ["identify", "compare"]
     if delayed:
         stages += ["identify delayed", "compare delayed"]
     if fit:
         stages += ["fit", "fit delayed", "human models"] if delayed and sensor else ["fit"]
     return stages + ["report"]
+
+
+def _requested(human_models) -> tuple[str, ...] | None:
+    requested = None if human_models is None else tuple(human_models)
+    if requested is not None and (PRIMARY not in requested or not set(requested) <= {PRIMARY, ALTERNATIVE}):
+        raise ValueError(f"human models must be {PRIMARY}, or {PRIMARY} and {ALTERNATIVE}; got {requested!r}")
+    return requested
+
+
+def _analyse(tmp: Path, study_path, prepared, settings: IdentifySettings, source, *, seed: int, fit: bool,
+             requested, stages: list, truth=None, title: str) -> None:
+    """Every stage after the data into the staged run folder ``tmp``: identify, (with ``truth``, the simulator's
+    ``{"dir", "trajectories"}``: identify from the true torques), compare, the choice of human models, the delayed
+    model's stages, the fits, leave-one-subject-out, the report."""
+    design = settings.design
+    sensor = design.torque_sensor
+    delayed = ALTERNATIVE in requested if requested is not None else True
+    at = lambda stage: f"[{stages.index(stage) + 1}/{len(stages)}]"  # noqa: E731
+    log(f"{at('identify')} identifying every subject × condition from the recorded "
+        f"{'angle and torque' if sensor else 'encoder angle'}")
+    identify_to_dir(study_path, tmp / "identify", settings, prepared=prepared, experiment_file=source)
+    log(format_identify(tmp / "identify"))
+    if truth is not None:
+        log(f"{at('true torques')} identifying again from the true torques (the cost of reconstruction)")
+        identify_with_truth(study_path, truth["trajectories"], tmp / "identify_true_torque", settings)
+        # The paper's likelihood (recorded u_A as a known input) on the same torques: its SC bias.
+        identify_with_truth(study_path, truth["trajectories"], tmp / "identify_true_torque_exogenous",
+                            replace(settings, assistant_model="exogenous"))
+    log(f"{at('compare')} Wilcoxon matched-pairs tests against {design.baseline}")
+    compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
+    if requested is None:
+        human_models, why = default_human_models(design, run_verdicts(tmp).get(PRIMARY))
+        if ALTERNATIVE not in human_models and delayed:  # fewer stages than counted
+            delayed = False
+            stages[:] = _stages(fit, False, sensor, simulated=truth is not None)
+        log(f"human models: {', '.join(human_models)}: {why} ({len(stages)} stages in all)")
+    else:
+        human_models, why = requested, "requested (--human-model)"
+    write_text_atomic(tmp / RUN_FILE, json.dumps({"human_models": list(human_models), "why": why,
+                                                  "requested": None if requested is None else list(requested)},
+                                                 indent=1) + "\n")
+    truth_dir = None if truth is None else truth["dir"]
+    if delayed:
+        # The same prepared segments: preparing does not depend on the human model.
+        delayed_prepared = replace(prepared, settings=replace(settings, human_model=ALTERNATIVE))
+        log(f"{at('identify delayed')} identifying again with the delayed human model (delay, lag, motor noise)")
+        identify_to_dir(study_path, tmp / "identify_delayed", delayed_prepared.settings, prepared=delayed_prepared,
+                        experiment_file=source)
+        log(format_identify(tmp / "identify_delayed"))
+        log(f"{at('compare delayed')} Wilcoxon matched-pairs tests of the delayed model's estimates")
+        compare_to_file(tmp / "identify_delayed" / "estimates.parquet", tmp / "compare_delayed.json")
+    if fit:
+        from scioc.pipelines.fit import fit_to_dir  # imports PyMC (seconds): not for --skip-fit
+
+        log(f"{at('fit')} hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
+        fit_to_dir(study_path, tmp / "fit", seed=seed, settings=settings, truth_dir=truth_dir,
+                   estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared,
+                   experiment_file=source)
+    if fit and delayed and sensor:
+        from scioc.pipelines.fit.human_models import compare_human_models, format_human_models
+
+        log(f"{at('fit delayed')} hierarchical Bayesian fit of the delayed human model (nutpie, 4 chains)")
+        fit_to_dir(study_path, tmp / "fit_delayed", seed=seed, settings=delayed_prepared.settings,
+                   truth_dir=truth_dir, estimates_path=tmp / "identify_delayed" / "estimates.parquet",
+                   show_progress=True, prepared=delayed_prepared, experiment_file=source)
+        log(f"{at('human models')} leave-one-subject-out: max-ent against delayed")
+        log(format_human_models(compare_human_models(tmp / "fit", tmp / "fit_delayed", prepared=prepared,
+                                                     seed=seed, out=tmp, relative_to=tmp)))
+    log(f"{at('report')} writing the report")
+    build_report(tmp, title=title)
 
 
 def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None = None,
@@ -102,17 +179,13 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     settings = IdentifySettings.for_design(design) if settings is None else settings
     if settings.design != design:
         raise ValueError("the settings were made for another experiment than the one simulated")
-    requested = None if human_models is None else tuple(human_models)
-    if requested is not None and (PRIMARY not in requested or not set(requested) <= {PRIMARY, ALTERNATIVE}):
-        raise ValueError(f"human models must be {PRIMARY}, or {PRIMARY} and {ALTERNATIVE}; got {requested!r}")
-    # By default the data choose (after the max-ent identification); the stages are counted as if both ran.
-    delayed = ALTERNATIVE in requested if requested is not None else True
+    requested = _requested(human_models)
+    delayed = ALTERNATIVE in requested if requested is not None else True  # by default counted as if both ran
     sensor = design.torque_sensor
     settings = replace(settings, human_model=PRIMARY)
     n_subjects = design.subjects if n_subjects is None else n_subjects
     root = Path(out) / name
     stages = _stages(fit, delayed, sensor)
-    at = lambda stage: f"[{stages.index(stage) + 1}/{len(stages)}]"  # noqa: E731
     levels = "/".join(design.levels)
     trials = f" × {design.trials} trials" if design.trials > 1 else ""
     if requested == (PRIMARY,):
@@ -123,65 +196,51 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
     # Every stage writes into one fresh folder that replaces ``root`` as a whole at the end:
     # an interrupted run leaves the previous results as they were, never a mix of two runs.
     with staged_dir(root, force=True) as tmp:
-        log(f"{at('simulate')} simulating {n_subjects} subjects × {len(design.levels)} conditions ({levels}){trials} × "
-            f"{design.run_seconds:g} s at {design.rate_hz:g} Hz (seed {seed}, human {human}) -> {root / 'data'}")
+        log(f"[1/{len(stages)}] simulating {n_subjects} subjects × {len(design.levels)} conditions ({levels}){trials} "
+            f"× {design.run_seconds:g} s at {design.rate_hz:g} Hz (seed {seed}, human {human}) -> {root / 'data'}")
         sim = simulate_to_dir(tmp / "data", n_subjects=n_subjects, seed=seed, human=human, population=population,
                               design=design)
         source = str(Path(sim["experiment"]).relative_to(tmp).as_posix())
-        log(f"{at('identify')} identifying every subject × condition from the recorded "
-            f"{'angle and torque' if design.torque_sensor else 'encoder angle'}")
         prepared = prepare_study(load_study(sim["study"], design), settings, show_progress=True)
-        identify_to_dir(sim["study"], tmp / "identify", settings, prepared=prepared, experiment_file=source)
-        log(format_identify(tmp / "identify"))
-        log(f"{at('true torques')} identifying again from the true torques (the cost of reconstruction)")
-        identify_with_truth(sim["study"], sim["truth_trajectories"], tmp / "identify_true_torque", settings)
-        # The paper's likelihood (recorded u_A as a known input) on the same torques: its SC bias.
-        identify_with_truth(sim["study"], sim["truth_trajectories"], tmp / "identify_true_torque_exogenous",
-                            replace(settings, assistant_model="exogenous"))
-        log(f"{at('compare')} Wilcoxon matched-pairs tests against {design.baseline}")
-        compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
-        if requested is None:
-            human_models, why = default_human_models(design, run_verdicts(tmp).get(PRIMARY))
-            if ALTERNATIVE not in human_models and delayed:  # fewer stages than counted
-                delayed, stages[:] = False, _stages(fit, False)
-            log(f"human models: {', '.join(human_models)}: {why}")
-        else:
-            human_models, why = requested, "requested (--human-model)"
-        write_text_atomic(tmp / RUN_FILE, json.dumps({"human_models": list(human_models), "why": why,
-                                                      "requested": None if requested is None else list(requested)},
-                                                     indent=1) + "\n")
-        if delayed:
-            # The same prepared segments: preparing does not depend on the human model.
-            delayed_prepared = replace(prepared, settings=replace(settings, human_model=ALTERNATIVE))
-            log(f"{at('identify delayed')} identifying again with the delayed human model (delay, lag, motor noise)")
-            identify_to_dir(sim["study"], tmp / "identify_delayed", delayed_prepared.settings,
-                            prepared=delayed_prepared, experiment_file=source)
-            log(format_identify(tmp / "identify_delayed"))
-            log(f"{at('compare delayed')} Wilcoxon matched-pairs tests of the delayed model's estimates")
-            compare_to_file(tmp / "identify_delayed" / "estimates.parquet", tmp / "compare_delayed.json")
-        if fit:
-            from scioc.pipelines.fit import fit_to_dir  # imports PyMC (seconds): not for --skip-fit
-
-            log(f"{at('fit')} hierarchical Bayesian fit (nutpie, 4 chains; the condition model and the pooled one)")
-            fit_to_dir(sim["study"], tmp / "fit", seed=seed, settings=settings, truth_dir=tmp / "data",
-                       estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared,
-                       experiment_file=source)
-        if fit and delayed and sensor:
-            from scioc.pipelines.fit.human_models import compare_human_models, format_human_models
-
-            log(f"{at('fit delayed')} hierarchical Bayesian fit of the delayed human model (nutpie, 4 chains)")
-            fit_to_dir(sim["study"], tmp / "fit_delayed", seed=seed, settings=delayed_prepared.settings,
-                       truth_dir=tmp / "data", estimates_path=tmp / "identify_delayed" / "estimates.parquet",
-                       show_progress=True, prepared=delayed_prepared, experiment_file=source)
-            log(f"{at('human models')} leave-one-subject-out: max-ent against delayed")
-            log(format_human_models(compare_human_models(tmp / "fit", tmp / "fit_delayed", prepared=prepared,
-                                                         seed=seed, out=tmp, relative_to=tmp)))
-        log(f"{at('report')} writing the report")
-        build_report(tmp, title=name)
+        _analyse(tmp, sim["study"], prepared, settings, source, seed=seed, fit=fit, requested=requested,
+                 stages=stages, truth={"dir": tmp / "data", "trajectories": sim["truth_trajectories"]}, title=name)
     report = root / "index.html"
     log(f"done in {time.perf_counter() - t0:.0f} s")
     log(f"report: {report}")
     return report
 
 
-__all__ = ["default_human_models", "identify_with_truth", "run_all", "run_verdicts"]
+def analyse_to_dir(study, out, *, experiment_file=None, seed: int = DEFAULT_SEED, fit: bool = True,
+                   human_models: tuple[str, ...] | None = None, force: bool = False) -> Path:
+    """Every stage on a lab's recordings, into the run folder ``out``, ending with its report; returns its path.
+
+    ``study``: a study file, a folder of them or a glob, read with the experiment (``experiment_file``, else
+    ``experiment.toml`` beside the study, else the paper's study) and its ``[analysis]``. The folder has the layout
+    of ``scioc run`` without the simulation's data and truth: ``identify/``, ``compare.json``, the delayed model's
+    stages when the max-ent model fails its adequacy checks (or ``human_models`` asks), ``fit/``..., ``run.json``
+    and ``index.html``. It replaces ``out`` as a whole, only with ``force`` when ``out`` is not empty; it never
+    writes inside the study's files. A failing adequacy verdict does not stop the analysis.
+    """
+    configure()
+    design, source = find_experiment(study, experiment_file)
+    settings = replace(IdentifySettings.for_design(design), human_model=PRIMARY)
+    requested = _requested(human_models)
+    delayed = ALTERNATIVE in requested if requested is not None else True
+    loaded = load_study(study, design)
+    out = Path(out)
+    refuse_inputs_inside(out, *loaded.files, *([source] if source else []))
+    check_output_dir(out, force=force)
+    stages = _stages(fit, delayed, design.torque_sensor, simulated=False)
+    t0 = time.perf_counter()
+    log(f"analysing {len(loaded.segments)} segments of {study} (experiment: {source or 'the paper study'}) -> {out}")
+    with staged_dir(out, force=force) as tmp:
+        prepared = prepare_study(loaded, settings, show_progress=True)
+        _analyse(tmp, study, prepared, settings, source, seed=seed, fit=fit, requested=requested, stages=stages,
+                 title=out.name)
+    report = out / "index.html"
+    log(f"done in {time.perf_counter() - t0:.0f} s")
+    log(f"report: {report}")
+    return report
+
+
+__all__ = ["analyse_to_dir", "default_human_models", "identify_with_truth", "run_all", "run_verdicts"]

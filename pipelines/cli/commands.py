@@ -199,6 +199,17 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_analyse(args) -> int:
+    from scioc.pipelines.run import analyse_to_dir, run_verdicts
+
+    report = analyse_to_dir(args.study, args.out, experiment_file=args.experiment, seed=args.seed,
+                            fit=not args.skip_fit, human_models=args.human_models, force=args.force)
+    verdicts = run_verdicts(report.parent)
+    print("adequacy at identify: " + ", ".join(f"{m} {v.upper()}" for m, v in verdicts.items()))
+    # The analysis ran; when every human model it ran fails its adequacy checks, that is a failed check (exit 1).
+    return 1 if all(v == "fail" for v in verdicts.values()) else 0
+
+
 def cmd_run(args) -> int:
     from scioc.models.simulate import Population
     from scioc.pipelines.experiment import load_experiment

@@ -34,7 +34,6 @@ from scioc.pipelines.cli.values import (
     window_spec,
 )
 
-
 #: The study argument of the commands that read one.
 STUDY_HELP = ("study: a file (Parquet, CSV, .mat), a folder of them or a quoted glob, in the experiment's "
               "[columns] and [units] (default: the data convention)")
@@ -227,6 +226,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("run_dir", help="folder with data/, identify/, compare.json (as `scioc run` writes)")
     p.add_argument("--subject", help="subject for the Fig. 6 trajectories (default: the third)")
     p.set_defaults(func=commands.cmd_report)
+
+    p = sub.add_parser("analyse", help="the whole workflow on a lab's recordings, ending with the report: identify, "
+                       "compare, the fits, the human models")
+    p.add_argument("study", help=STUDY_HELP)
+    p.add_argument("--out", required=True, metavar="DIR", help="the run folder (identify/, compare.json, fit/, ..., "
+                   "index.html)")
+    _add_experiment_option(p)
+    p.add_argument("--seed", type=nonnegative_int, default=2018, help="seed of the fits and checks (default 2018)")
+    p.add_argument("--skip-fit", action="store_true", help="leave out the hierarchical Bayesian fits (minutes)")
+    p.add_argument("--human-model", dest="human_models", type=human_models_list, default=None, metavar="LIST",
+                   help="comma-separated human models, maxent among them (default: chosen by the data: maxent, and "
+                        "delayed too when maxent fails its adequacy checks)")
+    _add_force_option(p)
+    p.set_defaults(func=commands.cmd_analyse)
 
     p = sub.add_parser("run", help="the whole workflow on the built-in simulated study, ending with the report")
     p.add_argument("--out", default="reports", metavar="DIR", help="where everything goes (default reports/)")

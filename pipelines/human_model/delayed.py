@@ -131,9 +131,10 @@ class Delayed(HumanModel):
     def identify_unit(self, prepared, idx, plant, settings):
         batches = [prepare_batch(plant, [prepared[i].segment]) for i in idx]
         angles = angle_windows(prepared, idx) if from_angles(prepared, idx) else None
+        # Every grid delay: the fit and the recovery sum each subject's unit profiles over the whole grid.
         return identify_unit_delayed(batches, plant, params=settings.design.wheel,
                                      tau0=[[prepared[i].warmup] for i in idx], angles=angles,
-                                     sigma_y=settings.design.encoder_sd)
+                                     sigma_y=settings.design.encoder_sd, delay_search="grid")
 
     def estimate_columns(self, e, prepared, idx):
         return {"delay_s": e.delay_s, "tau_nm": e.tau_nm, "sigma_m": e.sigma_m, "se_tau_nm": e.se_tau_nm,

@@ -32,13 +32,15 @@ def correct():
     return identify_study(_study("maxent", 30, 7), SETTINGS, show_progress=False)
 
 
-def test_false_alarms_within_budget_on_the_models_own_humans(correct):
+@pytest.mark.validation
+def test_false_alarms_within_budget_on_the_models_own_humans(correct, measured):
     """Angle-only acquisition, MC and SC, plug-in θ: flagged segments stay within the per-segment
     budget (binomial bound at FALSE_FAILURE), and the study verdict passes (family-wise 1 %)."""
     est = correct.estimates
     n = len(est)
     assert n == 60 and est["reconstructed"].all()
     limit = int(sps.binom.isf(FALSE_FAILURE, n, SEGMENT_ALPHA))  # P(count > limit) <= FALSE_FAILURE
+    measured("max-ent human, angles only: segments flagged of 60", est["adequacy_flagged"].sum(), f"<= {limit}")
     assert est["adequacy_flagged"].sum() <= limit
     assert correct.adequacy["verdict"] == "pass", correct.adequacy["combined_p"]
     for k in STATISTICS:
@@ -47,14 +49,18 @@ def test_false_alarms_within_budget_on_the_models_own_humans(correct):
         assert p.mean() > 0.4  # valid or conservative: not piled up near 0
 
 
-def test_a_misspecified_human_is_flagged():
+@pytest.mark.validation
+def test_a_misspecified_human_is_flagged(measured):
     res = identify_study(_study("lag", 10, 8), SETTINGS, show_progress=False)
+    measured("negative control, lagged human: share of segments flagged", res.estimates["adequacy_flagged"].mean(),
+             "> 0.5, verdict fail")
     assert res.adequacy["verdict"] == "fail"
     assert res.adequacy["failed_checks"]
     assert res.estimates["adequacy_flagged"].mean() > 0.5
     assert {"subject", "condition", "p", "checks_at_5_percent"} <= set(res.adequacy["flagged_segments"][0])
 
 
+@pytest.mark.validation
 def test_same_seed_same_adequacy(correct):
     again = identify_study(_study("maxent", 30, 7), SETTINGS, show_progress=False)
     cols = [c for c in correct.estimates if c.startswith("adequacy")]

@@ -94,11 +94,13 @@ def encoder_only():
     return prepared, thetas
 
 
-def test_false_alarms_within_budget_on_the_models_own_data(encoder_only):
+def test_false_alarms_within_budget_on_the_models_own_data(encoder_only, measured):
     """Angle only, MC and SC, the true parameters as the fit: 3 of 80 flagged (200 segments of the default
     window length: :func:`test_false_alarm_rate_over_200_segments_of_15_s`)."""
     prepared, thetas = encoder_only
     cols, summary = assess_study(prepared, thetas, PLANT, _settings(), delayed=_delayed(prepared))
+    measured("delayed human, angles only: segments flagged", cols["adequacy_flagged"].sum(),
+             f"<= {_limit(len(prepared))} of {len(prepared)}")
     assert cols["adequacy_flagged"].sum() <= _limit(len(prepared))
     assert summary["verdict"] == "pass", summary["combined_p"]
     assert summary["bootstrap"]["human_model"] == "delayed"
@@ -133,12 +135,14 @@ def test_false_alarms_within_budget_with_a_torque_sensor_or_an_exogenous_assista
     assert summary["verdict"] == "pass", summary["combined_p"]
 
 
-def test_negative_control_the_wrong_delay_is_flagged(encoder_only):
+def test_negative_control_the_wrong_delay_is_flagged(encoder_only, measured):
     """The same data (delay 12 samples) judged with d = 0: 61 of 80 flagged here (76 %); over 200 segments of
     15 s, 186 (93 %) angle only and 177 (89 %) with a torque sensor. The test asks for at least 40 % of 80: a
     76 % rate falls below with probability < 1e-9, a valid check at 5 % reaches it with probability < 1e-20."""
     prepared, thetas = encoder_only
     cols, summary = assess_study(prepared, thetas, PLANT, _settings(boot=19), delayed=_delayed(prepared, delay=0))
+    measured("negative control, wrong delay: share of segments flagged", cols["adequacy_flagged"].mean(),
+             ">= 0.4, verdict fail")
     assert cols["adequacy_flagged"].mean() >= 0.4
     assert summary["verdict"] == "fail" and "whiteness" in summary["failed_checks"]
 

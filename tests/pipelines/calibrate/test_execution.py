@@ -35,9 +35,11 @@ UNIT = dict(level="unit", replications=100, K=1500, chains=2, tune=400, draws=40
 
 
 @pytest.mark.validation
-def test_unit_level_sbc_passes_for_the_correct_model(tmp_path):
+def test_unit_level_sbc_passes_for_the_correct_model(tmp_path, measured):
     assert FAMILY_ALPHA == 0.01
     summary = calibrate(CalibrationConfig(**UNIT), tmp_path / "unit", show_progress=False)
+    for k, v in summary["parameters"].items():
+        measured(f"unit-level SBC, 100 replications: KS p of {k}", v["p_value"], "passes at 0.01 family-wise")
     assert summary["passed"], summary["parameters"]
     # The data teach a lot about θ1 and R, little about θ2 (the paper could not see it either).
     assert summary["parameters"]["theta1"]["contraction"] > 0.8
@@ -45,9 +47,11 @@ def test_unit_level_sbc_passes_for_the_correct_model(tmp_path):
 
 
 @pytest.mark.validation
-def test_unit_level_sbc_catches_a_wrong_inertia(tmp_path):
+def test_unit_level_sbc_catches_a_wrong_inertia(tmp_path, measured):
     # Negative control: the same draws and sizes, fitted with the inertia 10 % too high.
     summary = calibrate(CalibrationConfig(**UNIT, negative_control="inertia"), tmp_path / "neg", show_progress=False)
+    measured("unit-level SBC, negative control (inertia +10 %): KS p of theta1",
+             summary["parameters"]["theta1"]["p_value"], "fails")
     assert not summary["passed"]
     assert not summary["parameters"]["theta1"]["passed"]
 
@@ -158,15 +162,19 @@ STUDY = dict(level="study", replications=30, K=200, n_subjects=6, chains=2, tune
 
 
 @pytest.mark.validation
-def test_study_level_sbc_passes_for_the_correct_model(tmp_path):
+def test_study_level_sbc_passes_for_the_correct_model(tmp_path, measured):
     summary = calibrate(CalibrationConfig(**STUDY), tmp_path / "study", show_progress=False)
+    measured("study-level SBC, 30 replications: smallest KS p", min(v["p_value"] for v in summary["parameters"].values()),
+             "passes at 0.01 family-wise")
     assert summary["passed"], {k: v["p_value"] for k, v in summary["parameters"].items()}
 
 
 @pytest.mark.validation
-def test_study_level_sbc_catches_a_likelihood_that_ignores_u_A(tmp_path):
+def test_study_level_sbc_catches_a_likelihood_that_ignores_u_A(tmp_path, measured):
     summary = calibrate(CalibrationConfig(**STUDY, negative_control="ignore-uA"), tmp_path / "neg",
                         show_progress=False)
+    measured("study-level SBC, negative control (u_A ignored): smallest KS p",
+             min(v["p_value"] for v in summary["parameters"].values()), "fails")
     assert not summary["passed"]
 
 

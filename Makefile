@@ -8,7 +8,7 @@ PYTHON ?= $(shell for p in python3.12 python3.13 $$HOME/.pyenv/versions/3.12*/bi
 	$$p -c 'import sys; sys.exit(0 if sys.version_info >= (3, 12) else 1)' >/dev/null 2>&1 && { echo $$p; break; }; done)
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test validate bench calibrate power humans clean
+.PHONY: setup run test validate browser bench calibrate power humans clean
 
 $(STAMP): pyproject.toml
 	@test -n "$(PYTHON)" || { echo "error: no Python >= 3.12 found (PyMC 6 needs it); pass PYTHON=/path/to/python3.12" >&2; exit 1; }
@@ -27,8 +27,14 @@ test: $(STAMP)
 
 # Reduced-size statistical studies, SBC smoke runs, delayed fits and recovery; their report, stamped
 # with the commit, goes to docs/validation.md.
-validate: $(STAMP)
+validate: $(STAMP) browser
 	$(VENV)/bin/python -m pytest -m validation --validation-report docs/validation.md
+
+# Headless Chromium for the report's browser test (the Debian package; CI runs as root).
+browser:
+	@command -v chromium >/dev/null || command -v chromium-browser >/dev/null || { \
+		echo "installing chromium (Debian package) for the report's browser test"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; }
 
 bench: $(STAMP)
 	$(VENV)/bin/scioc bench

@@ -37,7 +37,7 @@ browser:
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; }
 
 bench: $(STAMP)
-	$(VENV)/bin/scioc bench
+	$(VENV)/bin/scioc bench --report docs/validation.md
 
 # Full simulation-based calibration (unit: 1000 replications, study: 200, each with its
 # negative control), then the report again with its results.

@@ -2,20 +2,24 @@
 
 from __future__ import annotations
 
+import builtins
+import datetime
 import json
 from pathlib import Path
 
 from scioc.pipelines.bench.common import default_study_segments, machine_info
 from scioc.pipelines.bench.identify import bench_identify, format_identify
 from scioc.pipelines.bench.likelihood import bench_likelihood, format_likelihood
+from scioc.pipelines.provenance import commit_stamp, replace_section
 from scioc.pipelines.storage import write_text_atomic
 
 #: The parts of ``scioc bench``, in the order they run.
 PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "sbc", "example")
 
 
-def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, keep=None) -> dict:
-    """Run the benchmarks; print tables; optionally write JSON (atomically).
+def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, keep=None, report=None) -> dict:
+    """Run the benchmarks; print tables; optionally write JSON (atomically) and the tables as the "speed" section of
+    the Markdown report ``report`` (docs/validation.md), stamped with the commit.
 
     ``quick``: small sizes to test the command, without the fits and SBC. ``parts``: any of :data:`PARTS`
     (the fit's dense comparison needs ``likelihood``). ``humans``: the ``fit_delayed`` part's simulated
@@ -33,6 +37,11 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
     kw = {"dense_k": (50, 100), "long_k": 2000} if quick else {}
     study = default_study_segments(n_subjects=2 if quick else 42)
     result = {"machine": machine_info(), "quick": quick}
+    tables = []
+
+    def print(text, flush=True):  # the console, and the report's section
+        tables.append(text)
+        builtins.print(text, flush=flush)
     if "likelihood" in parts:
         result["likelihood"] = bench_likelihood(study, **kw)
         print(format_likelihood(result["likelihood"]), flush=True)
@@ -81,4 +90,11 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
         print(format_example(result["example"]), flush=True)
     if json_path is not None:
         write_text_atomic(json_path, json.dumps(result, indent=2) + "\n")
+    if report is not None:
+        machine = ", ".join(f"{k} {v}" for k, v in result["machine"].items())
+        replace_section(report, "speed", "\n".join([
+            "## Speed (`make bench`)", "", f"- commit: `{commit_stamp()}`",
+            f"- generated: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC",
+            f"- parts: {', '.join(parts)}{' (quick sizes: not quotable)' if quick else ''}", f"- machine: {machine}",
+            "", "```text", *tables, "```"]))
     return result

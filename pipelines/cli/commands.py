@@ -57,7 +57,7 @@ def cmd_bench(args) -> int:
     from scioc.pipelines.bench import run_bench
 
     run_bench(args.json, quick=args.quick, parts=[p.strip() for p in args.parts.split(",") if p.strip()],
-              humans=args.humans, keep=args.keep)
+              humans=args.humans, keep=args.keep, report=args.report)
     if args.json:
         print(f"wrote {args.json}")
     return 0

@@ -304,6 +304,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="measured speed of the kernels, the identification, the full fit and SBC")
     p.add_argument("--json", metavar="PATH", help="also write the results as JSON")
+    p.add_argument("--report", metavar="PATH", help="also write the tables as the speed section of this Markdown "
+                   "report, stamped with the commit (make bench: docs/validation.md)")
     p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
     p.add_argument("--parts", default="likelihood,delayed,identify,fit,sbc,example", metavar="LIST", help="subset "
                    "of likelihood, delayed (its likelihood), identify, fit (the default study's, about 3 min), sbc "

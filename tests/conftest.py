@@ -19,6 +19,9 @@ import scioc
 
 scioc.configure()  # before any kernel compiles: numba's cache, PyTensor's fast-math off
 
+from scioc.models.plant import discretize  # noqa: E402
+from scioc.models.segment import Feedback, Segment  # noqa: E402
+
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -29,6 +29,11 @@ class WheelParameters(NamedTuple):
     damper: float = 0.286
 
 
+#: Longest preview, s: a minute is thirty times what a point of the reference takes to cross the subject's screen
+#: (docs/decisions/plan-preview.md), and a preview in milliseconds given as seconds lies beyond it.
+MAX_PREVIEW = 60.0
+
+
 def _finite(value, lo=None, strict=True) -> bool:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         return False
@@ -112,6 +117,8 @@ class Design:
         for name in ("window_start", "preview"):
             if not _finite(getattr(self, name), 0.0, strict=False):
                 raise ValueError(f"Design.{name} must be a finite number >= 0; got {getattr(self, name)!r}")
+        if self.preview > MAX_PREVIEW:
+            raise ValueError(f"Design.preview must be at most {MAX_PREVIEW:g} s; got {self.preview!r}")
         if not (isinstance(self.wheel, tuple) and len(self.wheel) == 3
                 and all(_finite(v, 0.0) for v in self.wheel)):
             raise ValueError(f"Design.wheel must be three finite numbers > 0; got {self.wheel!r}")
@@ -241,4 +248,5 @@ __all__ = [
     "WINDOW_START",
     "WINDOW_SECONDS",
     "PREVIEW_SECONDS",
+    "MAX_PREVIEW",
 ]

@@ -207,9 +207,9 @@ def _check_delayed(delayed: dict, n: int) -> dict:
         if v.shape != (n,) or not np.all(np.isfinite(v)):
             raise ValueError(f"delayed[{k!r}] must hold {n} finite values, one per segment; got shape {v.shape}")
         if k != "tau0" and np.any(v < 0):
-            raise ValueError(f"delayed[{k!r}] must be >= 0; got {v[v < 0][0]!r}")
+            raise ValueError(f"delayed[{k!r}] must be >= 0; got {float(v[v < 0][0])!r}")
         if k == "delay" and np.any(v != np.round(v)):
-            raise ValueError(f"delayed['delay'] must be whole samples; got {v[v != np.round(v)][0]!r}")
+            raise ValueError(f"delayed['delay'] must be whole samples; got {float(v[v != np.round(v)][0])!r}")
         out[k] = v.astype(np.int64) if k == "delay" else v
     return out
 

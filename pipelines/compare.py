@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import asdict
 from pathlib import Path
 
@@ -21,13 +20,17 @@ import pandas as pd
 from scioc.models.adequacy import STATISTICS, study_verdict
 from scioc.models.design import CONDITIONS, STUDY
 from scioc.models.identify import PLAUSIBLE_THETA1
+from scioc.pipelines import lineage
 from scioc.pipelines.adequacy import format_adequacy, not_checked
 from scioc.pipelines.experiment import parse_experiment, sidecar
 from scioc.pipelines.human_model.registry import get
 from scioc.pipelines.io import StudyFileError, read_table
 from scioc.pipelines.prepare import IdentifySettings
 from scioc.pipelines.signed_rank import ALPHA, holm, wilcoxon_signed_rank
-from scioc.pipelines.storage import write_text_atomic
+from scioc.pipelines.storage import WRITTEN_BY, check_output_file, write_text_atomic
+
+#: The command whose results :func:`compare_to_file` writes (:data:`scioc.pipelines.storage.WRITTEN_BY`).
+COMMAND = "scioc compare"
 
 
 def _converged(values: pd.Series) -> np.ndarray:
@@ -142,7 +145,17 @@ def _tests(usable: pd.DataFrame, pair, alpha: float) -> dict:
         a, b, _ = paired(usable, col, pair) if len(usable) else (np.array([]), np.array([]), [])
         out[col] = {k: _finite_or_none(v) for k, v in asdict(wilcoxon_signed_rank(a, b, parameter=col,
                                                                                  alpha=alpha)).items()}
+        if not out[col]["n_pairs"]:  # no pair: no p-value, rather than the p = 1 of no evidence
+            out[col]["p_value"] = None
     return out
+
+
+def _nothing_to_test(tests: dict, pair) -> str | None:
+    """Why a contrast has no test (no subject with usable estimates of both levels), or None."""
+    if tests["theta1"]["n_pairs"]:
+        return None
+    return (f"nothing to test: no subject has usable estimates of both {pair[0]} and {pair[1]} (the units left out "
+            "are listed with their reasons)")
 
 
 def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_nonconverged: bool = False,
@@ -160,15 +173,21 @@ def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_
             raise ValueError(f"no {c} estimates: the matched-pairs test needs every condition")
     if len(levels) == 2:
         out = _tests(usable, levels, alpha)
+        empty = {levels[1]: _nothing_to_test(out, levels)}
     else:
         per = {c: _tests(usable, (levels[0], c), alpha) for c in levels[1:]}
+        empty = {c: _nothing_to_test(per[c], (levels[0], c)) for c in levels[1:]}
+        tested = [c for c in levels[1:] if not empty[c]]  # Holm's family: the contrasts with a test
         for col in ("theta1", "theta2"):
-            adj = holm([per[c][col]["p_value"] for c in levels[1:]])
-            for c, a in zip(levels[1:], adj):
-                per[c][col].update(p_holm=float(a), reject_holm=bool(a <= alpha))
+            adj = dict(zip(tested, holm([per[c][col]["p_value"] for c in tested])))
+            for c in levels[1:]:
+                a = adj.get(c)
+                per[c][col].update(p_holm=None if a is None else float(a), reject_holm=bool(a is not None
+                                                                                             and a <= alpha))
         out = {"baseline": levels[0], "contrasts": per,
-               "multiplicity": f"Holm across the {len(levels) - 1} levels against {levels[0]}, per parameter, "
-                               f"at family-wise α = {alpha:g}"}
+               "multiplicity": f"Holm across the {len(tested)} levels against {levels[0]} with a test, per "
+                               f"parameter, at family-wise α = {alpha:g}"}
+    out["nothing_to_test"] = {c: why for c, why in empty.items() if why}
     counts = estimates.assign(subject=estimates["subject"].astype(str).str.strip()).groupby("subject").size()
     out["unpaired_subjects"] = sorted(counts.index[counts < 2])
     out["excluded"] = excluded
@@ -217,12 +236,6 @@ def _finite_or_none(value):
     return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    if a.resolve() == b.resolve():
-        return True
-    return a.exists() and b.exists() and os.path.samefile(a, b)
-
-
 def estimates_design(estimates_path):
     """The experiment recorded in ``identify.json`` beside ``estimates_path``, and its file; else ``(STUDY, None)``."""
     meta = Path(estimates_path).parent / "identify.json"
@@ -237,16 +250,22 @@ def estimates_design(estimates_path):
 def compare_to_file(estimates_path, out_path, *, alpha: float = ALPHA, include_nonconverged: bool = False) -> dict:
     """Read ``estimates.parquet``, test with the levels of :func:`estimates_design`, write ``compare.json`` atomically.
 
-    Raises ValueError if ``out_path`` is the estimates file itself.
+    The estimates must be those their ``identify.json`` records (LineageError naming both otherwise); ``out_path``
+    never replaces an input (:func:`scioc.pipelines.storage.check_output_file`, ValueError).
     """
-    if _same_file(Path(out_path), Path(estimates_path)):
-        raise ValueError(f"--out {out_path} is the estimates file itself; write the result elsewhere")
+    meta = Path(estimates_path).parent / "identify.json"
+    check_output_file(out_path, COMMAND, {"the estimates file": estimates_path, "the identification's sidecar": meta})
+    if not Path(estimates_path).is_file():
+        raise StudyFileError(estimates_path, "no such file")
+    found = lineage.identification(estimates_path)
     design, source = estimates_design(estimates_path)
     df = read_table(estimates_path)
     res = compare_estimates(df, alpha=alpha, include_nonconverged=include_nonconverged, path=estimates_path,
                             levels=design.ordered_levels)
     res.update(sidecar(design, source))
-    write_text_atomic(Path(out_path), json.dumps(res, indent=2, allow_nan=False) + "\n")
+    res["inputs"] = {"estimates": lineage.entry(estimates_path),
+                     "identification": None if found is None else lineage.entry(found[0])}
+    write_text_atomic(Path(out_path), json.dumps({**res, WRITTEN_BY: COMMAND}, indent=2, allow_nan=False) + "\n")
     return res
 
 
@@ -269,12 +288,15 @@ def format_compare(res: dict) -> str:
             r = t[col]
             crit = "-" if r["critical_value"] is None else str(r["critical_value"])
             r_rb = "-" if r["rank_biserial"] is None else f"{r['rank_biserial']:.3f}"
+            p, p_holm = (("-" if v is None else f"{v:.3g}") for v in (r["p_value"], r.get("p_holm")))
             lines.append(
-                f"{col:>10} {r['n']:>4} {r['w_plus']:>8.1f} {r['w_minus']:>8.1f} {r['T']:>8.1f} {r['p_value']:>10.3g} "
-                f"{crit:>6} {str(r['reject']):>7} {r_rb:>7}" + (f" {r['p_holm']:>8.3g}" if holm_col else ""))
+                f"{col:>10} {r['n']:>4} {r['w_plus']:>8.1f} {r['w_minus']:>8.1f} {r['T']:>8.1f} {p:>10} "
+                f"{crit:>6} {str(r['reject']):>7} {r_rb:>7}" + (f" {p_holm:>8}" if holm_col else ""))
     first = next(iter(tests.values()))
     lines.append(f"α = {first['theta1']['alpha']:g}; reject H0 when T <= crit"
                  + (f"; {res['multiplicity']}" if "multiplicity" in res else ""))
+    for level, why in (res.get("nothing_to_test") or {}).items():
+        lines.append(f"NOTHING TO TEST against {level}: {why}")
     excluded = res.get("excluded", [])
     if excluded:
         lines.append(f"left out of the test ({len(excluded)} units):")

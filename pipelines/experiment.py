@@ -32,7 +32,7 @@ Keys: ``section.key`` unit, default: meaning
 ``analysis.window_s``         s, 15.0: length of the analysis window, > 0.
 ``analysis.whole``            true/false, false: analyse every trial whole instead of one window
                               (refused together with a window key: a conflict).
-``analysis.preview_s``        s, 2.0: how far ahead the human sees the reference, >= 0; 0: the paper's horizon.
+``analysis.preview_s``        s, 2.0: how far ahead the human sees the reference, 0 to 60; 0: the paper's horizon.
 ``columns.KEY``               text, KEY: the file's name of scioc's column KEY, one of ``columns.subject``,
                               ``columns.condition``, ``columns.trial``, ``columns.t``, ``columns.angle``,
                               ``columns.angle_ref``, ``columns.u_A``, ``columns.velocity``, ``columns.u_H``.
@@ -72,7 +72,15 @@ import re
 import tomllib
 from pathlib import Path
 
-from scioc.models.design import ASSISTANT_KINDS, PAPER_ASSISTANT, STUDY, AssistantSpec, Design, WheelParameters
+from scioc.models.design import (
+    ASSISTANT_KINDS,
+    MAX_PREVIEW,
+    PAPER_ASSISTANT,
+    STUDY,
+    AssistantSpec,
+    Design,
+    WheelParameters,
+)
 from scioc.pipelines.export import (
     COLUMNS,
     FILE_NAME_GROUPS,
@@ -329,6 +337,9 @@ def parse_experiment(mapping: dict, path="<experiment>") -> Design:
     start = r.number(a.get("window_start_s", STUDY.window_start), "analysis.window_start_s", lo=0.0, strict=False)
     length = r.number(a.get("window_s", STUDY.window_seconds), "analysis.window_s", lo=0.0)
     preview = r.number(a.get("preview_s", STUDY.preview), "analysis.preview_s", lo=0.0, strict=False)
+    if preview > MAX_PREVIEW:
+        r.fail("analysis.preview_s", f"how far the human plans past the window must be at most {MAX_PREVIEW:g} s; "
+                                     f"got {_show(preview)} (milliseconds for seconds?)")
     run = r.number(m.get("run_s", STUDY.run_seconds), "simulation.run_s", lo=0.0)
     subjects = r.integer(m.get("subjects", STUDY.subjects), "simulation.subjects", 1)
     trials = r.integer(m.get("trials", STUDY.trials), "simulation.trials", 1)
@@ -401,9 +412,11 @@ def resolved(design: Design) -> dict:
     }
 
 
-def experiment_hash(design: Design) -> str:
-    """SHA-256 (hex) of the canonical JSON (sorted keys, no spaces) of :func:`resolved`."""
-    text = json.dumps(resolved(design), sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+def experiment_hash(design: Design, *, analysis: bool = False) -> str:
+    """SHA-256 (hex) of the canonical JSON (sorted keys, no spaces) of :func:`resolved`; with ``analysis``, of every
+    section but ``[simulation]``, which only simulating reads (what artifacts of one study must share)."""
+    tables = {k: v for k, v in resolved(design).items() if not (analysis and k == "simulation")}
+    text = json.dumps(tables, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
     return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 

@@ -11,7 +11,7 @@ adequacy bootstrap and gives the mean behaviour of the cross-prediction.
 
 Artifacts in ``--out DIR``: ``estimates.parquet`` (one row per unit), ``trajectories.parquet``
 (window samples: measured, used, predicted), ``validation.parquet`` (cross-prediction RMSE) and
-``identify.json`` (settings, timings, adequacy, experiment, versions).
+``identify.json`` (settings, timings, adequacy, experiment, the SHA-256 of its inputs and outputs, versions).
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from scioc.pipelines.adequacy import assess_study, format_adequacy, not_checked
 from scioc.pipelines.experiment import parse_experiment, sidecar
 from scioc.pipelines.human_model.registry import get
 from scioc.pipelines.io import InputDataError, Study, load_study
+from scioc.pipelines.lineage import experiment_entry, outputs, study_entry
 from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
 from scioc.pipelines.progress import progress
 from scioc.pipelines.provenance import versions
@@ -174,6 +175,7 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         prepared = prepare_study(load_study(study_path, settings.design), settings, show_progress=show_progress)
     elif prepared.settings != settings:
         raise ValueError("the prepared study was cut with other settings than these")
+    study_record = study_entry(study_path)
     est, traj, val, timing, adequacy = identify_prepared(prepared, show_progress=show_progress)
     model = get(settings.human_model)
     out = Path(out)
@@ -195,15 +197,17 @@ def identify_to_dir(study_path, out, settings: IdentifySettings = IdentifySettin
         "delay_grid": None,
         **model.identify_sidecar(est, settings),
         **sidecar(settings.design, experiment_file),
+        "inputs": {"study": study_record, "experiment": experiment_entry(settings.design, experiment_file)},
         "versions": versions(),
     }
-    with staged_dir(out, force=force) as tmp:
-        write_table_atomic(est, tmp / "estimates.parquet")
-        write_table_atomic(traj, tmp / "trajectories.parquet")
-        write_table_atomic(val, tmp / "validation.parquet")
-        write_text_atomic(tmp / "identify.json", json.dumps(meta, indent=2) + "\n")
     names = {"estimates": "estimates.parquet", "trajectories": "trajectories.parquet",
              "validation": "validation.parquet", "meta": "identify.json"}
+    with staged_dir(out, force=force) as tmp:
+        write_table_atomic(est, tmp / names["estimates"])
+        write_table_atomic(traj, tmp / names["trajectories"])
+        write_table_atomic(val, tmp / names["validation"])
+        meta["outputs"] = outputs(tmp, [names[k] for k in ("estimates", "trajectories", "validation")])
+        write_text_atomic(tmp / names["meta"], json.dumps(meta, indent=2) + "\n")
     return {k: str(out / v) for k, v in names.items()}
 
 

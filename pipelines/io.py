@@ -330,7 +330,9 @@ def _validate(df: pd.DataFrame, origin: _Origin, design: Design) -> Study:
         bad = ~np.isfinite(values)
         if bad.any():
             i = _first(bad)
-            fail(f"not a finite number: {df[col].iloc[i]!r}", column=col, row=i)
+            value = df[col].iloc[i]  # a NumPy scalar as Python's, so the message reads nan, not np.float64(nan)
+            fail(f"not a finite number: {(value.item() if isinstance(value, np.generic) else value)!r}", column=col,
+                 row=i)
         given[col] = values
         cols[col] = export.to_scioc(col, values)
     _check_plausible(cols, given, export, fail)

@@ -27,7 +27,15 @@ import numpy as np
 from scioc.models.adequacy import N_BOOT
 from scioc.models.assistant import MPCAssistant, build_assistant, human_feedback
 from scioc.models.delayed.lag import Warmup
-from scioc.models.design import CONDITIONS, PREVIEW_SECONDS, STUDY, WINDOW_SECONDS, WINDOW_START, Design
+from scioc.models.design import (
+    CONDITIONS,
+    MAX_PREVIEW,
+    PREVIEW_SECONDS,
+    STUDY,
+    WINDOW_SECONDS,
+    WINDOW_START,
+    Design,
+)
 from scioc.models.plant import discretize, propagate
 from scioc.models.reconstruct import DEFAULT_RESOLUTION, FixedReconstruction, initial_state, reconstruct
 from scioc.models.segment import Segment
@@ -92,6 +100,9 @@ class IdentifySettings:
             raise ValueError(f"window length must be > 0 s; got {self.window_seconds!r}")
         if not (self.preview >= 0 and self.margin >= 0):
             raise ValueError("preview and margin must be >= 0 s")
+        if not self.preview <= MAX_PREVIEW:
+            raise ValueError(f"preview must be at most {MAX_PREVIEW:g} s (the plan past the window); got "
+                             f"{self.preview:g} s")
         if self.reconstruct not in ("auto", "always"):
             raise ValueError(f"reconstruct must be 'auto' or 'always'; got {self.reconstruct!r}")
         check_assistant_model(self.assistant_model)

@@ -7,13 +7,17 @@ simulated human) how often the delay is exact and the errors of the delay, τ_nm
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 from scipy.stats import spearmanr
 
+from scioc.pipelines import lineage
 from scioc.pipelines.compare import estimates_design, human_model_of
 from scioc.pipelines.human_model.registry import get
-from scioc.pipelines.io import read_table
+from scioc.pipelines.io import StudyFileError, read_table
+from scioc.pipelines.lineage import LineageError
 from scioc.pipelines.simulate import read_truth
 
 
@@ -70,7 +74,18 @@ def format_recovery(res: dict) -> str:
 
 
 def recovery_of_files(estimates_path, truth_path) -> dict:
-    """:func:`recovery` of an ``estimates.parquet`` against a ``truth.parquet``, with the levels identify recorded."""
+    """:func:`recovery` of an ``estimates.parquet`` against a ``truth.parquet``, with the levels identify recorded,
+    after checking by content that the truth is of the study the estimates were identified from (their sidecars,
+    ``identify.json`` and ``simulation.json``; LineageError naming both otherwise)."""
+    for path, what in ((estimates_path, "estimates"), (truth_path, "truth")):
+        if not Path(path).is_file():
+            raise StudyFileError(path, f"no such {what} file")
+    found = lineage.identification(estimates_path)
+    if found is None:
+        raise LineageError(f"{estimates_path}: no identify.json beside it, so the study it was identified from is not "
+                           "known; give the estimates.parquet that scioc identify wrote, in its folder")
+    identified = (found[0], lineage.recorded(found[1], "study", found[0]))
+    lineage.require_one("study", identified, lineage.simulated_study(truth_path))
     design, _ = estimates_design(estimates_path)
     return recovery(read_table(estimates_path), read_truth(truth_path), design.ordered_levels, design.baseline)
 

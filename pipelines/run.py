@@ -20,6 +20,7 @@ import pandas as pd
 from scioc.models.design import STUDY, Design
 from scioc.models.runtime import configure
 from scioc.models.simulate import Population
+from scioc.pipelines import lineage
 from scioc.pipelines.compare import compare_to_file
 from scioc.pipelines.experiment import find_experiment
 from scioc.pipelines.export import convention
@@ -56,7 +57,10 @@ def identify_with_truth(study_path, truth_traj_path, out, settings: IdentifySett
     out = Path(out)
     write_table_atomic(est, out / "estimates.parquet")
     write_table_atomic(val, out / "validation.parquet")
-    write_text_atomic(out / "identify.json", json.dumps({"timing_s": timing, "source": "true velocity and u_H", "adequacy": adequacy}) + "\n")
+    meta = {"timing_s": timing, "source": "true velocity and u_H", "adequacy": adequacy,
+            "inputs": {"study": lineage.study_entry(study_path), "truth_trajectories": lineage.entry(truth_traj_path)},
+            "outputs": lineage.outputs(out, ["estimates.parquet", "validation.parquet"])}
+    write_text_atomic(out / "identify.json", json.dumps(meta) + "\n")
     return {"estimates": str(out / "estimates.parquet")}
 
 

@@ -4,12 +4,14 @@ Artifacts in ``--out DIR``: ``study.parquet`` (what a lab records: subject, cond
 encoder angle, angle_ref, u_A, and u_H with ``[simulation] torque_sensor``); ``experiment.toml``
 (the experiment simulated, found beside the study by every command); ``truth.parquet`` (per unit:
 run order, q11, q22, R, θ1, θ2 and :data:`BODY_COLUMNS`); ``truth_trajectories.parquet`` (true
-angle, velocity and u_H per sample); ``simulation.json`` (seed, population, design, versions).
+angle, velocity and u_H per sample); ``simulation.json`` (seed, population, design, the SHA-256 of the experiment
+given and of each file written, versions).
 """
 
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -25,6 +27,7 @@ from scioc.pipelines.assistant_check import assistant_alone
 from scioc.pipelines.experiment import EXPERIMENT_FILE, resolved, sidecar, write_experiment
 from scioc.pipelines.export import convention
 from scioc.pipelines.io import read_table
+from scioc.pipelines.lineage import experiment_entry, outputs
 from scioc.pipelines.provenance import versions
 from scioc.pipelines.storage import check_output_dir, staged_dir, write_table_atomic, write_text_atomic
 
@@ -65,9 +68,21 @@ def study_table(t, segs, design: Design = STUDY) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
+def window_inside_run(design: Design) -> tuple[Design, str | None]:
+    """``design`` as simulated, and why it changed: analysed whole where its window does not lie inside its runs."""
+    end = design.window_start + design.window_seconds
+    if design.whole or end <= design.run_seconds:
+        return design, None
+    return replace(design, whole=True), (
+        f"the experiment's analysis window {design.window_start:g}-{end:g} s lies outside the {design.run_seconds:g}-s "
+        "runs, so the experiment written beside the study analyses each run whole ([analysis] whole = true); "
+        "scioc identify --window START,SECONDS chooses a window inside the runs")
+
+
 def simulate_to_dir(
     out, *, n_subjects: int | None = None, seed: int = DEFAULT_SEED, population: Population | None = None,
     seconds: float | None = None, human: str = "maxent", force: bool = False, design: Design | None = None,
+    experiment_file: str | None = None,
 ) -> dict:
     """Simulate the experiment and write its artifacts (module docstring); returns their paths.
 
@@ -89,7 +104,10 @@ def simulate_to_dir(
     force : bool
         Replace a non-empty ``out`` as a whole (:func:`scioc.pipelines.storage.staged_dir`).
     design : Design, optional
-        The experiment (default the paper's), written as ``experiment.toml`` as simulated.
+        The experiment (default the paper's), written as ``experiment.toml`` as simulated (analysed whole where its
+        window lies outside the runs: :func:`window_inside_run`).
+    experiment_file : str, optional
+        Where ``design`` came from, recorded in ``simulation.json``'s ``inputs``.
     """
     configure()
     design = STUDY if design is None else convention(design)  # simulated studies are in the data convention
@@ -100,9 +118,13 @@ def simulate_to_dir(
     if int(seed) != seed or seed < 0:
         raise ValueError(f"--seed must be a non-negative integer; got {seed!r}")
     population = Population(betas=design.effects) if population is None else population
+    given = experiment_entry(design, experiment_file)
     design = replace(design, subjects=int(n_subjects), run_seconds=float(seconds),
                      effects=population.effects(len(design.contrasts)))
+    design, window_note = window_inside_run(design)
     out = check_output_dir(out, force=force)
+    if window_note:
+        print(f"scioc simulate: note: {window_note}", file=sys.stderr, flush=True)
     rng = np.random.default_rng(np.random.SeedSequence(int(seed)))
     t, segs = simulate_study(int(n_subjects), rng, population, seconds, human=human, design=design)
     spec = HUMANS[human]
@@ -133,16 +155,19 @@ def simulate_to_dir(
         # The paper's assistant alone on the study reference (scioc assistant), for the paper's rig.
         "assistant_alone": (assistant_alone(seconds) if (design.dt, design.wheel, design.assistants)
                             == (STUDY.dt, STUDY.wheel, STUDY.assistants) else None),
+        "analysis_window": window_note or "the experiment's",
         **sidecar(design, EXPERIMENT_FILE),
+        "inputs": {"experiment": given},
         "versions": versions(),
     }
-    with staged_dir(out, force=force) as tmp:
-        write_table_atomic(study, tmp / "study.parquet")
-        write_experiment(design, tmp / EXPERIMENT_FILE)
-        write_table_atomic(pd.DataFrame(truth), tmp / "truth.parquet")
-        write_table_atomic(pd.concat(traj, ignore_index=True), tmp / "truth_trajectories.parquet")
-        write_text_atomic(tmp / "simulation.json", json.dumps(meta, indent=2) + "\n")
     names = {"study": "study.parquet", "experiment": EXPERIMENT_FILE, "truth": "truth.parquet",
              "truth_trajectories": "truth_trajectories.parquet", "meta": "simulation.json"}
+    with staged_dir(out, force=force) as tmp:
+        write_table_atomic(study, tmp / names["study"])
+        write_experiment(design, tmp / names["experiment"])
+        write_table_atomic(pd.DataFrame(truth), tmp / names["truth"])
+        write_table_atomic(pd.concat(traj, ignore_index=True), tmp / names["truth_trajectories"])
+        meta["outputs"] = outputs(tmp, [v for k, v in names.items() if k != "meta"])
+        write_text_atomic(tmp / names["meta"], json.dumps(meta, indent=2) + "\n")
     return {k: str(out / v) for k, v in names.items()}
 

@@ -23,7 +23,7 @@ from scioc.pipelines.calibrate.store import earlier_summary, prepare_out, read_j
 from scioc.pipelines.calibrate.summary import sbc_tree, summarize
 from scioc.pipelines.human_model.registry import get
 from scioc.pipelines.progress import progress
-from scioc.pipelines.storage import atomic_path, write_text_atomic
+from scioc.pipelines.storage import atomic_path, refuse_file_on_path, write_text_atomic
 
 
 def run_replication(config: CalibrationConfig, i: int) -> dict:
@@ -32,6 +32,7 @@ def run_replication(config: CalibrationConfig, i: int) -> dict:
     replicate = get(config.human_model).calibration_replication(config.level)
     res = replicate(config, i, replication_seed(config.seed, i))
     res["index"] = i
+    res["fingerprint"] = config.fingerprint()  # which calibration it belongs to (the summary checks it)
     res["seconds"] = time.perf_counter() - t0
     res["worker_pid"] = os.getpid()
     return res
@@ -144,5 +145,6 @@ def calibrate_runs(runs, out, *, scheduler: str | None = None, n_workers: int = 
     """``scioc calibrate``: each (name, config) of ``runs`` (:func:`scioc.pipelines.calibrate.config.level_configs`)
     into ``out/NAME``; every folder is checked before anything runs."""
     for name, cfg in runs:
+        refuse_file_on_path(Path(out) / name)
         earlier_summary(cfg, Path(out) / name)
     return [calibrate(cfg, Path(out) / name, scheduler=scheduler, n_workers=n_workers) for name, cfg in runs]

@@ -58,15 +58,34 @@ def earlier_summary(config: CalibrationConfig, out_dir) -> dict:
     return earlier
 
 
-def load_replications(out_dir, n: int) -> list[dict]:
+def load_replications(out_dir, config: CalibrationConfig) -> list[dict]:
+    """The first ``config.replications`` replication files, each checked: its fields, that it is replication i of this
+    configuration (its ``index`` and ``fingerprint``), and every rank in 0..L with the first file's quantities."""
+    n, fingerprint = config.replications, config.fingerprint()
     missing = [i for i in range(n) if not rep_path(out_dir, i).exists()]
     if missing:
         raise FileNotFoundError(f"{out_dir}: {len(missing)} replications missing (first {missing[0]}); rerun to resume")
     reps = [read_json(rep_path(out_dir, i)) for i in range(n)]
+    names = set(reps[0].get("ranks", {})) if isinstance(reps[0], dict) else set()
     for i, rep in enumerate(reps):
-        if not (isinstance(rep, dict) and REPLICATION_FIELDS <= rep.keys()):
-            raise InputDataError(f"{rep_path(out_dir, i)}: damaged replication file (fields missing); "
+        path = rep_path(out_dir, i)
+        if not (isinstance(rep, dict) and REPLICATION_FIELDS <= rep.keys() and isinstance(rep["ranks"], dict)):
+            raise InputDataError(f"{path}: damaged replication file (fields missing); delete it and rerun to "
+                                 "recompute it")
+        if rep.get("index") != i:
+            raise InputDataError(f"{path}: key 'index' is {rep.get('index')!r}: it holds another replication than {i} "
+                                 "(copied under another name?); delete it and rerun to recompute it")
+        if rep.get("fingerprint") != fingerprint:
+            raise InputDataError(f"{path}: key 'fingerprint' is {rep.get('fingerprint')!r}, this calibration's "
+                                 f"{fingerprint} ({out_dir / 'config.json'}): a replication of another configuration; "
                                  "delete it and rerun to recompute it")
+        if set(rep["ranks"]) != names:
+            raise InputDataError(f"{path}: key 'ranks' ranks {', '.join(sorted(rep['ranks']))}, "
+                                 f"{rep_path(out_dir, 0)} {', '.join(sorted(names))}: delete it and rerun")
+        for name, r in rep["ranks"].items():
+            if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r <= config.L:
+                raise InputDataError(f"{path}: key 'ranks.{name}' is {r!r}; a rank among L = {config.L} draws is an "
+                                     f"integer from 0 to {config.L}: delete it and rerun to recompute it")
     return reps
 
 

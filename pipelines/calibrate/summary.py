@@ -34,7 +34,7 @@ def summarize(out_dir, config: CalibrationConfig) -> dict:
     The verdict: KS of the randomized PIT at ``FAMILY_ALPHA / (number of quantities)``; ``pot_c_p_value``:
     ArviZ's ``pot_c`` test of the same values (docs/decisions/sbc-ks-verdict.md).
     """
-    reps = load_replications(out_dir, config.replications)
+    reps = load_replications(out_dir, config)
     alpha = FAMILY_ALPHA / len(reps[0]["ranks"])
     params = {}
     for name, pit in pits(reps, config.L).items():
@@ -73,7 +73,7 @@ def sbc_tree(out_dir, config: CalibrationConfig) -> xr.DataTree:
     """Every replication of a calibration as one DataTree in simuk's layout (``chain`` of length 1, ``draw`` =
     replication): ``prior_sbc`` the ranks, ``prior`` the truths, ``pit`` the randomized PIT, and
     ``thinned_posterior`` the L kept draws (dim ``thinned``), to re-rank without refitting."""
-    reps = load_replications(out_dir, config.replications)
+    reps = load_replications(out_dir, config)
     names = list(reps[0]["ranks"])
     coords = {"chain": [0], "draw": np.arange(len(reps))}
 

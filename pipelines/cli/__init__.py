@@ -18,11 +18,18 @@ EXIT_OK, EXIT_FAILED_CHECK, EXIT_USAGE, EXIT_BAD_DATA, EXIT_INTERRUPTED = 0, 1, 
 EXIT_BROKEN_PIPE = 141
 
 
+def _bars_drawn() -> int:
+    """Progress bars drawn so far (:data:`scioc.pipelines.progress.drawn`; none where that module is not loaded)."""
+    bars = sys.modules.get("scioc.pipelines.progress")
+    return 0 if bars is None else bars.drawn
+
+
 def main(argv=None) -> int:
     """Run ``scioc`` with ``argv`` (default: the command line); returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
     configure()
+    bars = _bars_drawn()
     try:
         return args.func(args)
     except BrokenPipeError:
@@ -32,12 +39,13 @@ def main(argv=None) -> int:
         os.dup2(devnull, sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
     except KeyboardInterrupt:
-        print(f"scioc {args.command}: interrupted", file=sys.stderr)
+        print(("\n" if _bars_drawn() > bars else "") + f"scioc {args.command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
         from scioc.pipelines.io import InputDataError  # lazy: pandas takes a second to import; only errors need it
 
-        print(f"scioc {args.command}: error: {exc}", file=sys.stderr)
+        # A progress bar's line ends in a carriage return: the error goes on a line of its own.
+        print(("\n" if _bars_drawn() > bars else "") + f"scioc {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_DATA if isinstance(exc, InputDataError) else EXIT_USAGE
 
 

@@ -153,7 +153,7 @@ def cmd_simulate(args) -> int:
     paths = simulate_to_dir(args.out, n_subjects=args.subjects, seed=args.seed,
                             population=None if args.beta is None else Population(beta=args.beta),
                             seconds=args.run_seconds, human=simulated_human(args),
-                            force=args.force, design=design)
+                            force=args.force, design=design, experiment_file=args.experiment)
     for k, v in paths.items():
         print(f"{k}: {v}")
     return 0
@@ -180,8 +180,8 @@ def cmd_compare(args) -> int:
     res = compare_to_file(args.estimates, out, alpha=args.alpha, include_nonconverged=args.include_nonconverged)
     print(format_compare(res))
     print(f"wrote {out}")
-    # The test ran; a human model that fails its adequacy checks is a failed check (exit 1).
-    return 1 if res["adequacy"]["verdict"] == "fail" else 0
+    # A human model that fails its adequacy checks, or nothing to test, is a failed check (exit 1).
+    return 1 if res["adequacy"]["verdict"] == "fail" or res["nothing_to_test"] else 0
 
 
 def cmd_recovery(args) -> int:
@@ -260,7 +260,8 @@ def cmd_fit(args) -> int:
                   human_model=args.human_model, target_accept=args.target_accept)
     try:
         if args.plan:
-            plan = fit_to_dir(args.study, args.out or ".", plan_only=True, sampler_options=options, **common)
+            plan = fit_to_dir(args.study, args.out or ".", plan_only=True, sampler_options=options, show_progress=True,
+                              **common)
             print(format_plan(plan))
             return 0
         if args.compare_to is not None:
@@ -269,7 +270,7 @@ def cmd_fit(args) -> int:
             from scioc.pipelines.storage import refuse_inputs_inside
 
             refuse_inputs_inside(args.out, args.compare_to)
-            est, _ = default_inputs(Path(args.study), args.estimates, args.truth)
+            est = default_inputs(Path(args.study), args.estimates, args.truth, args.experiment).estimates
             settings, _, _ = resolve_settings(Path(args.study), est, None, args.experiment, args.human_model)
             check_maxent_fit(args.compare_to, args.study, settings)  # before minutes of sampling, not after
         paths = fit_to_dir(args.study, args.out, show_progress=True, force=args.force, sampler_options=options,
@@ -303,15 +304,20 @@ def format_plan(plan: dict) -> str:
     return "\n".join(lines)
 
 
+def fit_files(folder) -> dict:
+    """``{what: path}`` of a fit folder's files, the inputs an ``--out`` never replaces."""
+    return {f"{name} of the fit {folder}": Path(folder) / name for name in ("posterior.json", "posterior.nc",
+                                                                            "contrasts.json")}
+
+
 def cmd_adequacy(args) -> int:
     from scioc.pipelines.adequacy import format_adequacy
     from scioc.pipelines.fit.artifacts import strict_json
-    from scioc.pipelines.fit.recheck import recheck_adequacy, write_recheck
-    from scioc.pipelines.storage import refuse_inputs_inside
+    from scioc.pipelines.fit.recheck import COMMAND, recheck_adequacy, write_recheck
+    from scioc.pipelines.storage import check_output_file
 
-    if args.out is not None:  # never onto one of the fit's own files
-        refuse_inputs_inside(args.out, *(Path(args.fit) / name for name in ("posterior.json", "posterior.nc",
-                                                                            "contrasts.json")))
+    if args.out is not None:  # never onto an input (before the work)
+        check_output_file(args.out, COMMAND, {"the study": args.study, **fit_files(args.fit)})
     res = recheck_adequacy(args.fit, at=args.at, seed=args.seed, study=args.study)
     if args.format == "json":
         print(strict_json(res), end="")
@@ -330,16 +336,17 @@ def cmd_adequacy(args) -> int:
 def cmd_human_models(args) -> int:
     from scioc.pipelines.fit.artifacts import strict_json
     from scioc.pipelines.fit.human_models import (
+        COMMAND,
         HUMAN_MODELS_POINTS,
         compare_human_models,
         format_human_models,
         write_human_models,
     )
-    from scioc.pipelines.storage import refuse_inputs_inside
+    from scioc.pipelines.storage import check_output_file
 
-    if args.out is not None:  # never onto one of the fits' own files
-        refuse_inputs_inside(args.out, *(Path(f) / name for f in (args.maxent_fit, args.delayed_fit)
-                                         for name in ("posterior.json", "posterior.nc", "contrasts.json")))
+    if args.out is not None:  # never onto an input (before the work)
+        check_output_file(args.out, COMMAND, {"the study": args.study, **fit_files(args.maxent_fit),
+                                              **fit_files(args.delayed_fit)})
     res = compare_human_models(args.maxent_fit, args.delayed_fit, seed=args.seed, study=args.study,
                                points=args.points or HUMAN_MODELS_POINTS)
     if args.format == "json":

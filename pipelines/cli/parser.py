@@ -30,6 +30,7 @@ from scioc.pipelines.cli.values import (
     nonnegative_seconds,
     positive_int,
     positive_seconds,
+    preview_seconds,
     significance_level,
     window_spec,
 )
@@ -70,7 +71,7 @@ def _add_window_options(p):
                    help=f"analysis window on each trial's time axis, s (default: the experiment's [analysis], "
                         f"without one the paper's {WINDOW_TEXT})")
     p.add_argument("--whole-run", action="store_true", help="analyse each segment whole")
-    p.add_argument("--preview", type=nonnegative_seconds, default=None,
+    p.add_argument("--preview", type=preview_seconds, default=None,
                    help=f"seconds the human's plan looks past the window (default: the experiment's; without one "
                         f"{PREVIEW:g}; 0 = the paper's horizon)")
     _add_assistant_model_option(p)

@@ -15,6 +15,8 @@ MIN_WINDOW_SECONDS = 0.1
 #: code (tests/pipelines/cli/test_parser.py holds them equal): sample time, analysis window
 #: (start, length), preview and run length, s.
 SAMPLE_TIME, WINDOW, PREVIEW, RUN_SECONDS = 0.01, (210, 15), 2.0, 240.0
+#: The longest preview, s (models.design.MAX_PREVIEW).
+MAX_PREVIEW = 60.0
 WINDOW_TEXT = f"{WINDOW[0]:g},{WINDOW[1]:g}"
 
 
@@ -37,6 +39,8 @@ positive_int = checked_number(int, lambda v: v >= 1, "a positive integer")
 nonnegative_int = checked_number(int, lambda v: v >= 0, "an integer >= 0")
 positive_seconds = checked_number(float, lambda v: math.isfinite(v) and v > 0, "a finite number of seconds > 0")
 nonnegative_seconds = checked_number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number of seconds >= 0")
+preview_seconds = checked_number(float, lambda v: 0 <= v <= MAX_PREVIEW,
+                                 f"a number of seconds >= 0 and at most {MAX_PREVIEW:g}")
 significance_level = checked_number(float, lambda v: 0 < v < 1, "a significance level between 0 and 1")
 finite_float = checked_number(float, math.isfinite, "a finite number")
 nonnegative_float = checked_number(float, lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0")

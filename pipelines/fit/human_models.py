@@ -19,13 +19,15 @@ from scioc.models.bayes.hierarchical import Priors
 from scioc.models.plant import discretize
 from scioc.models.segment import prepare_batch
 from scioc.models.units import index_study
+from scioc.pipelines import lineage
 from scioc.pipelines.experiment import experiment_hash, parse_experiment
 from scioc.pipelines.fit.artifacts import strict_json
 from scioc.pipelines.fit.loo import LOSO_POINTS, comparison_reliability, reliability_words, subject_elpd
 from scioc.pipelines.human_model.registry import ALTERNATIVE, PRIMARY, get
-from scioc.pipelines.io import InputDataError, load_study
+from scioc.pipelines.io import InputDataError, load_study, study_files
+from scioc.pipelines.lineage import LineageError
 from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, prepare_study
-from scioc.pipelines.storage import write_text_atomic
+from scioc.pipelines.storage import WRITTEN_BY, write_text_atomic
 
 #: Human models compared, in the order of the difference (second minus first).
 HUMAN_MODELS_COMPARED = (PRIMARY, ALTERNATIVE)
@@ -34,6 +36,8 @@ HUMAN_MODELS_COMPARED = (PRIMARY, ALTERNATIVE)
 HUMAN_MODELS_POINTS = 2 * LOSO_POINTS
 #: The comparison's file, in the delayed fit's folder (``--compare-to``) or the run folder.
 HUMAN_MODELS_FILE = "human_models.json"
+#: The command whose results these are (:data:`scioc.pipelines.storage.WRITTEN_BY`).
+COMMAND = "scioc human-models"
 _FIT_FILES = ("posterior.json", "posterior.nc", "contrasts.json")
 _SIDECAR_KEYS = ("study", "identify_settings")
 
@@ -65,16 +69,17 @@ def _same_settings(a: dict, b: dict) -> bool:
     return keep(a) == keep(b)
 
 
-def _same_study(a, b) -> bool:
-    """The same study file, however each command spelled its path."""
-    return str(a) == str(b) or Path(a).resolve() == Path(b).resolve()
+def _study_sha256(side: dict, where) -> str:
+    return lineage.recorded(side, "study", where)["sha256"]
 
 
-def _differences(a: dict, b: dict) -> list[str]:
-    """What makes two fits (their sidecars' study, settings and experiment) not fits of the same data."""
+def _differences(a: dict, b: dict, where=("first", "second")) -> list[str]:
+    """What makes two fits (their sidecars' study hash, settings and experiment) not fits of the same data;
+    ``where``: the sidecars' paths, for the messages."""
     out = []
-    if not _same_study(a["study"], b["study"]):
-        out.append(f"study file {a['study']} against {b['study']}")
+    if _study_sha256(a, where[0]) != _study_sha256(b, where[1]):
+        out.append(f"study {a['inputs']['study']['path']} (SHA-256 {lineage.short(_study_sha256(a, where[0]))}) "
+                   f"against {b['inputs']['study']['path']} (SHA-256 {lineage.short(_study_sha256(b, where[1]))})")
     if not _same_settings(a["identify_settings"], b["identify_settings"]):
         diff = sorted(k for k in set(a["identify_settings"]) | set(b["identify_settings"])
                       if k not in _NOT_THE_DATA and a["identify_settings"].get(k) != b["identify_settings"].get(k))
@@ -87,18 +92,19 @@ def _differences(a: dict, b: dict) -> list[str]:
 
 def check_maxent_fit(folder, study_path, settings: IdentifySettings) -> dict:
     """Refuse, before a delayed fit of ``study_path`` starts, a ``folder`` it could not be compared with; return its
-    sidecar. ``folder`` must be a finished max-ent fit of the same study, settings and experiment (ValueError
-    naming what differs)."""
+    sidecar. ``folder`` must be a finished max-ent fit (else ValueError) of the same study by content, settings and
+    experiment (else LineageError naming what differs)."""
     side = fit_sidecar(folder)
     reference = HUMAN_MODELS_COMPARED[0]
     if side.get("human_model", reference) != reference:
         raise ValueError(f"{folder} is a {side['human_model']} fit; compare with a max-ent fit "
                          "(scioc fit without --human-model)")
-    ours = {"study": str(study_path), "identify_settings": settings.as_dict(),
+    ours = {"inputs": {"study": lineage.study_entry(study_path)}, "identify_settings": settings.as_dict(),
             "experiment_sha256": experiment_hash(settings.design)}
-    diff = _differences({**side, "study": located_study(side, folder)}, ours)
+    diff = _differences(side, ours, (Path(folder) / "posterior.json", study_path))
     if diff:
-        raise ValueError(f"{folder} is not a fit of the same data: {'; '.join(diff)}")
+        raise LineageError(f"{Path(folder) / 'posterior.json'} is not a fit of the same data as {study_path}: "
+                           f"{'; '.join(diff)}")
     return side
 
 
@@ -115,23 +121,34 @@ def fit_settings(side: dict, folder) -> IdentifySettings:
         raise InputDataError(f"{path}: identify_settings: {exc}") from None
 
 
+def _found(study) -> bool:
+    """Whether a study (a file, a folder or a glob) has its files."""
+    try:
+        return all(f.is_file() for f in study_files(study))
+    except InputDataError:
+        return False
+
+
 def located_study(side: dict, folder) -> str:
-    """Where the study file a fit read is now: the path as given, or else the one relative to the fit's folder
+    """Where the study a fit read is now: the path as given, or else the one relative to the fit's folder
     (``study_relative``), which survives a run folder moved into place."""
     study, relative = str(side["study"]), side.get("study_relative")
-    if not Path(study).is_file() and relative is not None and (Path(folder) / relative).is_file():
+    if not _found(study) and relative is not None and _found(Path(folder) / relative):
         return str(Path(folder) / relative)
     return study
 
 
 def fit_study(side: dict, folder, study=None) -> Path:
-    """The study file a fit read: ``study`` if given, else :func:`located_study` (InputDataError if not there)."""
+    """The study a fit read: ``study`` if given, else :func:`located_study` (InputDataError if not there), checked by
+    content against the fit's sidecar (LineageError naming both otherwise)."""
     folder = Path(folder)
     if study is None:
         study = located_study(side, folder)
-    if not Path(study).is_file():
-        raise InputDataError(f"{folder / 'posterior.json'}: its study file {study} is not there "
-                             "(moved, or the fit ran in another folder); give the study file")
+    if not _found(study):
+        raise InputDataError(f"{folder / 'posterior.json'}: its study {study} is not there "
+                             "(moved, or the fit ran in another folder); give the study")
+    where = folder / "posterior.json"
+    lineage.require_same("study", where, lineage.recorded(side, "study", where), study, lineage.study_entry(study))
     return Path(study)
 
 
@@ -217,9 +234,10 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
         if side.get("human_model", HUMAN_MODELS_COMPARED[0]) != k:
             raise ValueError(f"{folders[k]} is a {side.get('human_model', HUMAN_MODELS_COMPARED[0])} fit, not a {k} "
                              "fit")
-    diff = _differences(*({**sides[k], "study": located_study(sides[k], folders[k])} for k in ("maxent", "delayed")))
+    where = tuple(folders[k] / "posterior.json" for k in ("maxent", "delayed"))
+    diff = _differences(sides["maxent"], sides["delayed"], where)
     if diff:
-        raise ValueError(f"the two fits are not of the same data: {'; '.join(diff)}")
+        raise LineageError(f"{where[0]} and {where[1]} are not fits of the same data: {'; '.join(diff)}")
     if prepared is None:
         settings = fit_settings(sides["maxent"], folders["maxent"]) if settings is None else settings
         if not _same_settings(settings.as_dict(), sides["maxent"]["identify_settings"]):
@@ -253,11 +271,14 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
                        "n_preferring_delayed": int((diff_i > 0).sum()), "n": int(n),
                        **comparison_reliability(summaries["maxent"], summaries["delayed"])},
         "seed": int(seed), "fits": {k: _shown_path(v, relative_to) for k, v in folders.items()},
+        "inputs": {**{f"{k}_fit": lineage.entry(_shown_path(v, relative_to), lineage.artifact_sha256(v))
+                      for k, v in folders.items()}, "study": sides["maxent"]["inputs"]["study"]},
         "adequacy": {k: adequacy_brief(json.loads((v / "contrasts.json").read_text()).get("adequacy"),
                                        f"at the posterior θ ({_shown_path(v / 'contrasts.json', relative_to)})")
                      for k, v in folders.items()},
         # Each fit's draws feed the ELPD, so whether its sampler converged goes beside it.
         "convergence": {k: (side.get("convergence_verdict") or {}).get("condition") for k, side in sides.items()},
+        WRITTEN_BY: COMMAND,
     }
     if out is not None:
         write_human_models(result, Path(out) / HUMAN_MODELS_FILE)

@@ -9,12 +9,17 @@ from pathlib import Path
 import arviz as az
 
 from scioc.models.plant import discretize
+from scioc.pipelines import lineage
 from scioc.pipelines.fit.artifacts import strict_json
 from scioc.pipelines.fit.human_models import fit_settings, fit_sidecar, fit_study
 from scioc.pipelines.human_model.registry import get
 from scioc.pipelines.io import load_study
 from scioc.pipelines.prepare import IdentifySettings, prepare_study
-from scioc.pipelines.storage import write_text_atomic
+from scioc.pipelines.storage import WRITTEN_BY, write_text_atomic
+
+
+#: The command whose results these are (:data:`scioc.pipelines.storage.WRITTEN_BY`).
+COMMAND = "scioc adequacy"
 
 
 def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, study=None) -> dict:
@@ -29,12 +34,13 @@ def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, stud
     seed : int, optional
         The adequacy seed (the draw and the bootstrap); default: the fit's.
     study : str or Path, optional
-        The study file (default: the path ``posterior.json`` records).
+        The study (default: the path ``posterior.json`` records); it must be the one the fit read, by content
+        (LineageError naming both files otherwise).
 
     Returns
     -------
     dict
-        ``fit``, ``study``, ``human_model`` and ``adequacy`` (as ``contrasts.json``'s).
+        ``fit``, ``study``, ``human_model``, ``adequacy`` (as ``contrasts.json``'s) and ``inputs`` (their SHA-256).
     """
     folder = Path(fit_dir)
     side = fit_sidecar(folder)
@@ -47,7 +53,9 @@ def recheck_adequacy(fit_dir, *, at: str = "draw", seed: int | None = None, stud
     idata = az.from_netcdf(folder / "posterior.nc")
     human_model = side.get("human_model", IdentifySettings.human_model)
     summary = get(human_model).posterior_adequacy(idata, prepared, plant, side, folder, at)
-    return {"fit": str(folder), "study": str(study), "human_model": human_model, "adequacy": summary}
+    return {"fit": str(folder), "study": str(study), "human_model": human_model, "adequacy": summary,
+            "inputs": {"fit": lineage.entry(folder), "study": {**side["inputs"]["study"], "path": str(study)}},
+            WRITTEN_BY: COMMAND}
 
 
 def write_recheck(result: dict, path) -> Path:

@@ -6,17 +6,19 @@ paper's question) and pooled, which only serves the LOO comparison. The delayed 
 (:mod:`scioc.pipelines.fit.delayed`). Artifacts in ``--out DIR``: ``posterior.nc`` (the condition model's DataTree,
 with ``log_likelihood``, ``observed_data``, one subject's ``posterior_predictive`` and ``constant_data``),
 ``posterior_pooled.nc``, ``posterior.json`` (the sidecar: seeds, settings, priors, diagnostics and verdict, times,
-inputs, experiment, versions), ``contrasts.json`` (β, contrasts, LOO, cross-checks, adequacy) and ``ppc.parquet``
-(predictive bands). The same root seed gives the same draws (:func:`scioc.pipelines.fit.sampling.child_seeds`).
+inputs with their SHA-256, experiment, versions), ``contrasts.json`` (β, contrasts, LOO, cross-checks, adequacy) and
+``ppc.parquet`` (predictive bands). The same root seed gives the same draws
+(:func:`scioc.pipelines.fit.sampling.child_seeds`).
 """
 
 from __future__ import annotations
 
-import json
 import os
+import sys
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -26,7 +28,8 @@ from scioc.models.identify import identify_unit
 from scioc.models.plant import discretize
 from scioc.models.runtime import configure
 from scioc.models.segment import prepare_batch
-from scioc.pipelines.experiment import find_experiment, load_experiment
+from scioc.pipelines import lineage
+from scioc.pipelines.experiment import find_experiment
 from scioc.pipelines.experiment import sidecar as experiment_fields
 from scioc.pipelines.fit.artifacts import require_netcdf, strict_json, write_netcdf
 from scioc.pipelines.fit.checks import ADEQUACY_POINTS
@@ -36,6 +39,7 @@ from scioc.pipelines.fit.sampling import child_seeds
 from scioc.pipelines.human_model.registry import FitContext, get
 from scioc.pipelines.identify import identification_settings
 from scioc.pipelines.io import InputDataError, load_study
+from scioc.pipelines.lineage import LineageError
 from scioc.pipelines.prepare import IdentifySettings, PreparedStudy, check_design, prepare_study
 from scioc.pipelines.provenance import versions
 from scioc.pipelines.storage import (
@@ -47,35 +51,82 @@ from scioc.pipelines.storage import (
 )
 
 
-def default_inputs(study_path: Path, estimates_path, truth_dir):
-    """Inputs beside the study in ``scioc run``'s folder layout when not given; the estimates only if
-    ``<run>/identify/identify.json`` says they come from this very study file."""
-    if estimates_path is None:
-        guess = study_path.parent.parent / "identify"
+class FitInputs(NamedTuple):
+    """What :func:`default_inputs` finds: the estimates and the simulation's folder a fit reads (None: none), and
+    why a proposed one is not read."""
+
+    estimates: Path | None
+    truth_dir: Path | None
+    notes: dict  # "estimates" / "truth": why the one proposed is not read
+
+
+def estimates_of(estimates_path, study_path, study: dict, experiment_file=None) -> Path:
+    """``identify.json`` of ``estimates_path`` after checking by content that it identified this study with this
+    experiment (``--experiment``, else the one beside the study, if any): LineageError naming both files otherwise."""
+    if not Path(estimates_path).is_file():
+        raise InputDataError(f"{estimates_path}: no such estimates file")
+    found = lineage.identification(estimates_path)
+    if found is None:
+        raise LineageError(f"{estimates_path}: no identify.json beside it, so the study it was identified from is not "
+                           "known; give the estimates.parquet that scioc identify wrote, in its folder")
+    meta_path, meta = found
+    lineage.require_same("study", meta_path, lineage.recorded(meta, "study", meta_path), study_path, study)
+    design, source = find_experiment(study_path, experiment_file)
+    if source is not None:
+        lineage.require_same("experiment", meta_path, lineage.recorded(meta, "experiment", meta_path), source,
+                             lineage.experiment_entry(design, source))
+    return meta_path
+
+
+def truth_of(truth_dir, study_path, study: dict) -> None:
+    """LineageError naming both files unless ``truth_dir`` holds the truth of the simulation that wrote this study."""
+    meta_path, simulated = lineage.simulated_study(Path(truth_dir) / "truth.parquet")
+    lineage.require_same("study", meta_path, simulated, study_path, study)
+
+
+def default_inputs(study_path: Path, estimates_path, truth_dir, experiment_file=None,
+                   study: dict | None = None) -> FitInputs:
+    """The estimates and the simulation's folder a fit of ``study_path`` reads, checked by content.
+
+    Given ones must belong to the study (:func:`estimates_of`, :func:`truth_of`). Else the run folder's
+    ``identify/`` and the study's folder are proposed, and read only when their sidecars record this study;
+    ``notes`` says why one is not. ``study``: :func:`scioc.pipelines.lineage.study_entry` of ``study_path``.
+    """
+    study_path = Path(study_path)
+    study = lineage.study_entry(study_path) if study is None else study
+    notes = {}
+    if estimates_path is not None:
+        estimates_of(estimates_path, study_path, study, experiment_file)
+    else:
+        guess = study_path.parent.parent / "identify" / "estimates.parquet"
         try:
-            meta = json.loads((guess / "identify.json").read_text())
-            same = (guess / meta["study_relative"]).resolve() == study_path.resolve()
-        except (OSError, ValueError, KeyError, TypeError):
-            same = False
-        estimates_path = guess / "estimates.parquet" if same and (guess / "estimates.parquet").exists() else None
-    if truth_dir is None:
-        folder = study_path.parent
-        if (folder / "simulation.json").exists() and (folder / "truth.parquet").exists():
-            truth_dir = folder
-    return estimates_path, truth_dir
+            estimates_of(guess, study_path, study, experiment_file)
+            estimates_path = guess
+        except InputDataError as exc:
+            why = str(exc) if guess.is_file() else f"no estimates given (--estimates) nor at {guess}"
+            notes["estimates"] = ("the fit identifies every unit itself, as it needs the estimates, and has no "
+                                  f"mixed-model cross-check: {why}")
+    if truth_dir is not None:
+        truth_of(truth_dir, study_path, study)
+    elif (study_path.parent / "simulation.json").exists() and (study_path.parent / "truth.parquet").exists():
+        try:
+            truth_of(study_path.parent, study_path, study)
+            truth_dir = study_path.parent
+        except InputDataError as exc:
+            notes["truth"] = f"no ground-truth check: {exc}"
+    return FitInputs(None if estimates_path is None else Path(estimates_path),
+                     None if truth_dir is None else Path(truth_dir), notes)
 
 
 def resolve_settings(study_path: Path, estimates_path, settings, experiment_file, human_model):
     """The fit's settings, their experiment file and where they came from: ``settings`` as given, else the
-    identification's whose estimates the fit reads, else the experiment's ``[analysis]``."""
+    identification's whose estimates the fit reads (:func:`estimates_of` checked its experiment), else the
+    experiment's ``[analysis]``."""
     if settings is not None:
         return settings, experiment_file, "given"
     found = identification_settings(estimates_path) if estimates_path is not None else None
     if found is not None:
         settings, source = found
-        if experiment_file is not None and load_experiment(experiment_file) != settings.design:
-            raise InputDataError(f"{experiment_file} is not the experiment {Path(estimates_path).parent / 'identify.json'}"
-                                 " records; the fit reads the identification's")
         if human_model is not None:
             settings = replace(settings, human_model=human_model)
         return settings, source, f"the identification of {estimates_path}"
@@ -167,7 +218,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     configure()
     require_netcdf()
     study_path, out = Path(study_path), Path(out)
-    estimates_path, truth_dir = default_inputs(study_path, estimates_path, truth_dir)
+    study_record = lineage.study_entry(study_path)
+    estimates_path, truth_dir, notes = default_inputs(study_path, estimates_path, truth_dir, experiment_file,
+                                                      study_record)
     settings, experiment_file, settings_from = resolve_settings(study_path, estimates_path, settings, experiment_file,
                                                             human_model)
     human_model = settings.human_model if human_model is None else human_model
@@ -224,6 +277,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                 f"{estimates_path}: its subjects × conditions ({len(theirs)}) are not those of {study_path} "
                 f"({len(units)}); e.g. {sorted(units ^ theirs)[:3]}. Pass the estimates identified from this study "
                 "with --estimates")
+    if show_progress:  # every check passed: what the fit reads, and what it does without
+        for note in notes.values():
+            print(f"scioc fit: note: {note}", file=sys.stderr, flush=True)
     form, form_reason = choose_parameterization(estimates if estimates is not None
                                                 else unit_se_log_theta1(prepared, plant))
     ctx = FitContext(prepared, batch, plant, priors, form, form_reason, estimates, estimates_path, truth_dir, subject,
@@ -260,8 +316,13 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "diagnostics": diag,
         "convergence_verdict": {name: d["convergence_verdict"] for name, d in diag.items()},
         "seconds": timing,
-        "inputs": {"estimates": None if estimates_path is None else str(estimates_path),
-                   "truth_dir": None if truth_dir is None else str(truth_dir)},
+        "inputs": {"study": study_record, "experiment": lineage.experiment_entry(design, experiment_file),
+                   "estimates": None if estimates_path is None else {
+                       **lineage.entry(estimates_path), "identification": lineage.entry(estimates_path.parent)},
+                   "truth": None if truth_dir is None else {
+                       **lineage.entry(Path(truth_dir) / "truth.parquet"), "simulation": lineage.entry(truth_dir)}},
+        "identified_itself": notes.get("estimates"),
+        "input_notes": notes,
         "note_timing": "wall-clock times on a shared machine: other jobs may have competed for the CPU",
         **experiment_fields(design, experiment_file),
         **extra,

@@ -6,8 +6,6 @@ simulated studies, ``data/truth.parquet``; the per-contrast parts are in :mod:`s
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pandas as pd
 from markupsafe import Markup
 
@@ -17,7 +15,7 @@ from scioc.pipelines.fit.summary import fit_remedies
 from scioc.pipelines.report import figures
 from scioc.pipelines.report.contrasts import blocks, label, section_forest, section_methods, section_truth_check
 from scioc.pipelines.report.levels import assisted, joined, window_noun
-from scioc.pipelines.report.render import figure, number, read_artifact, render, table
+from scioc.pipelines.report.render import RunParts, figure, number, render, table
 
 #: The two fitted models as the report names them.
 MODELS = {"condition": "with condition effects", "pooled": "pooled (β = 0)"}
@@ -109,28 +107,34 @@ def section_ppc(ppc: pd.DataFrame, meta: dict, design: Design = STUDY, reconstru
                                 f"tracking error and human torque over {window_noun(design)}{first}."))
 
 
-def section_bayes(root, design: Design = STUDY, reconstructed: bool = True, trials: bool = False) -> Markup:
-    """HTML of the Bayesian section of run folder ``root`` (no level-2 heading; a note if there is no fit).
+def section_bayes(run, design: Design = STUDY, reconstructed: bool = True, trials: bool = False) -> Markup:
+    """HTML of the Bayesian section of a run folder or its parts (no level-2 heading; a note if there is no fit).
 
     ``design``: the run's experiment; ``reconstructed``: u_H was reconstructed from the angle (not
     recorded); ``trials``: units have several trials, each a segment of its own.
     """
-    root = Path(root)
-    fit = root / "fit"
-    side = read_artifact(fit / "posterior.json")
-    res = read_artifact(fit / "contrasts.json")
+    run = RunParts.of(run)
+    fit = run.root / "fit"
+    side = run.read("fit/posterior.json")
+    res = run.read("fit/contrasts.json")
     if side is None or res is None:
-        return render("bayes.html.j2", missing=True, fit_dir=str(fit), study=str(root / "data" / "study.parquet"))
-    truth = read_artifact(root / "data" / "truth.parquet")
+        return render("bayes.html.j2", missing=True, fit_dir=str(fit), study=str(run.root / "data" / "study.parquet"),
+                      left_out=run.left_out.get("fit"))
+    missing = [name for name in MODELS if name not in side["diagnostics"]]
+    if missing:  # the comparison of this section needs both models: a fit of another human model has one
+        return render("bayes.html.j2", missing=True, fit_dir=str(fit), study=None,
+                      left_out=f"{fit / 'posterior.json'} is a fit of the {side.get('human_model')} human model, "
+                               f"without the {' and '.join(missing)} model this section compares with")
+    truth = run.read("data/truth.parquet")
     if truth is not None and not truth["theta1"].notna().any():
         truth = None  # a simulated human without a cost θ (the crossover operator)
-    ppc = read_artifact(fit / "ppc.parquet")
+    ppc = run.read("fit/ppc.parquet")
     found = blocks(res, design)
     return render("bayes.html.j2", missing=False, levels=len(design.levels),
                   no_blocks=None if found is not None else
                   f"{fit / 'contrasts.json'} has no per-level block (\"contrasts\") for the {len(design.contrasts)} "
                   "levels against the baseline: the Bayesian contrasts are not shown (refit with this scioc).",
-                  methods=section_methods(read_artifact(root / "compare.json"), res, design),
+                  methods=section_methods(run.read("compare.json"), res, design),
                   diagnostics=section_diagnostics(side, design), forest=section_forest(res, truth, design),
                   loo=section_loo(res["loo"], res.get("loo_subject"), trials),
                   ppc=section_ppc(ppc, res["ppc"], design, reconstructed) if ppc is not None and res.get("ppc")

@@ -3,13 +3,16 @@
 It reads under a run folder ``data/``, ``identify/``, ``identify_true_torque/`` and
 ``identify_true_torque_exogenous/`` (simulated studies), ``compare.json``, ``fit/``, the delayed model's
 ``identify_delayed/``, ``compare_delayed.json``, ``fit_delayed/`` and ``human_models.json``, and beside
-it ``../calibration/`` and ``../power/``. A section whose artifacts are missing is left out with a note.
+it ``../calibration/`` and ``../power/``. A section whose artifacts are missing is left out with a note; a part
+not made from the study ``identify/`` identified is left out too, named at the top with why
+(:mod:`scioc.pipelines.report.parts`).
 The words follow the run's experiment (:func:`scioc.pipelines.report.levels.run_experiment`); with the
 paper's study the report reads as the paper's analysis.
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from markupsafe import Markup
@@ -27,6 +30,7 @@ from scioc.pipelines.report.identify import (
     section_wilcoxon,
 )
 from scioc.pipelines.report.levels import acquisition, joined, paper_labels, run_experiment
+from scioc.pipelines.report.parts import check_run
 from scioc.pipelines.report.render import read_artifact, render
 from scioc.pipelines.report.truth import section_reconstruction, section_truth
 from scioc.pipelines.storage import write_text_atomic
@@ -48,23 +52,24 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     ``scioc calibrate``'s folder (default ``root/../calibration``); ``title``: default the folder's name.
     """
     root = Path(root)
-    sim = read_artifact(root / "data" / "simulation.json")
-    study = read_artifact(root / "data" / "study.parquet")
-    truth = read_artifact(root / "data" / "truth.parquet")
-    truth_traj = read_artifact(root / "data" / "truth_trajectories.parquet")
-    est = read_artifact(root / "identify" / "estimates.parquet")
-    traj = read_artifact(root / "identify" / "trajectories.parquet")
-    val = read_artifact(root / "identify" / "validation.parquet")
-    meta = read_artifact(root / "identify" / "identify.json")
-    est_true = read_artifact(root / "identify_true_torque" / "estimates.parquet")
-    est_paper = read_artifact(root / "identify_true_torque_exogenous" / "estimates.parquet")
-    cmp = read_artifact(root / "compare.json")
-    fit_res = read_artifact(root / "fit" / "contrasts.json")
+    run = check_run(root)
+    for part, why in run.left_out.items():
+        print(f"scioc report: note: {part} is left out of the report: {why}", file=sys.stderr, flush=True)
+    sim = run.read("data/simulation.json")
+    study = run.read("data/study.parquet")
+    truth = run.read("data/truth.parquet")
+    truth_traj = run.read("data/truth_trajectories.parquet")
+    est = run.read("identify/estimates.parquet")
+    traj = run.read("identify/trajectories.parquet")
+    val = run.read("identify/validation.parquet")
+    meta = run.read("identify/identify.json")
+    est_true = run.read("identify_true_torque/estimates.parquet")
+    est_paper = run.read("identify_true_torque_exogenous/estimates.parquet")
+    cmp = run.read("compare.json")
+    fit_res = run.read("fit/contrasts.json")
     adequacy = (meta or {}).get("adequacy")
     fit_adequacy = (fit_res or {}).get("adequacy")
     power = read_artifact(root.parent / "power" / "power.json")
-    if est is None:
-        raise FileNotFoundError(f"{root / 'identify' / 'estimates.parquet'}: no estimates; run `scioc identify` first")
     subjects = sorted(est.subject.unique())
     subject = subject or (subjects[2] if len(subjects) > 2 else subjects[0])
     exp = run_experiment(meta, sim)
@@ -73,7 +78,9 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     trials = int(est["trials"].max()) if "trials" in est else 1
     chain = acquisition(design, not measured)
 
-    body = [report_adequacy.headline(adequacy, fit_adequacy, chain[0]), report_human_models.headline(root, design),
+    body = [report_adequacy.headline(adequacy, fit_adequacy, chain[0]),
+            render("left_out.html.j2", parts=list(run.left_out.items())) if run.left_out else Markup(""),
+            report_human_models.headline(run, design),
             section_design(sim, meta, exp, trials=trials, torque_measured=measured)]
     if study is not None:
         body.append(section_reference(study, meta, design))
@@ -84,8 +91,8 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
              render("note.html.j2", text="No compare.json: run `scioc compare`.")]
     if (root / "fit").exists():
         body += [_h2("Hierarchical Bayesian model"), report_adequacy.caveat(fit_adequacy if fit_adequacy else adequacy),
-                 section_bayes(root, design, not measured, trials > 1)]
-    body.append(report_human_models.section(root, design, measured))
+                 section_bayes(run, design, not measured, trials > 1)]
+    body.append(report_human_models.section(run, design, measured))
     body += [report_adequacy.section(est, adequacy, power, chain[1]), _h2("Model validation (Fig. 6)")]
     if traj is not None:
         body.append(section_fig6(traj, subject, design, not measured))

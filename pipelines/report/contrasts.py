@@ -15,7 +15,7 @@ from markupsafe import Markup
 from scioc.models.design import STUDY, Design
 from scioc.pipelines.report import figures
 from scioc.pipelines.report.levels import assisted, joined, paper_labels
-from scioc.pipelines.report.render import figure, render, table
+from scioc.pipelines.report.render import figure, number, render, table
 from scioc.pipelines.report.truth import unit_truth
 
 #: The population parameters as the report prints them; {base}, {level} and {vs} are filled in per contrast.
@@ -76,7 +76,8 @@ def _methods_table(level: str, base: str, w: dict | None, b: dict | None, mm: di
         w_est = f"T = {w['T']:g} (W+ = {w['w_plus']:g}, W− = {w['w_minus']:g}, N = {w['n']})"
         w_int = ("–" if w["critical_value"] is None
                  else f"critical T = {w['critical_value']} at α = {w['alpha']:g}")
-        w_ev = f"exact p = {w['p_value']:.3g}" + (f", Holm p = {w['p_holm']:.3g}" if "p_holm" in w else "")
+        w_ev = (f"exact p = {number(w['p_value'], '.3g')}"
+                + (f", Holm p = {number(w['p_holm'], '.3g')}" if "p_holm" in w else ""))
         w_dec = (f"reject H0 (Holm): {'yes' if w['reject_holm'] else 'no'}" if "reject_holm" in w
                  else f"reject H0: {'yes' if w['reject'] else 'no'}")
         w_ratio = f"median {level} − {base} of θ1: {w['median_difference']:.3g} rad⁻²"

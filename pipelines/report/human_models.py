@@ -10,7 +10,6 @@ that of a supported model, with its adequacy verdict beside it.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import NamedTuple
 
 import pandas as pd
@@ -22,7 +21,7 @@ from scioc.pipelines.human_model.registry import ALTERNATIVE, PRIMARY
 from scioc.pipelines.report.contrasts import blocks
 from scioc.pipelines.report.identify import tests_by_level
 from scioc.pipelines.report.levels import contrast_label, joined
-from scioc.pipelines.report.render import number, read_artifact, render, table
+from scioc.pipelines.report.render import RunParts, number, render, table
 
 #: Per human model: its identify folder, its Wilcoxon tests and its fit folder, under the run folder.
 MODEL_ARTIFACTS = {PRIMARY: ("identify", "compare.json", "fit"),
@@ -54,18 +53,19 @@ class ModelRun(NamedTuple):
     population: str | None = None  # the delayed fit's population of R and why (posterior.json), :func:`population_words`
 
 
-def read_models(root) -> dict[str, ModelRun]:
-    """The human models a run folder holds (those with an identify folder), in :data:`MODEL_ARTIFACTS`' order."""
-    root = Path(root)
+def read_models(run) -> dict[str, ModelRun]:
+    """The human models a run folder (or its :class:`~scioc.pipelines.report.render.RunParts`) holds (those with an
+    identify folder), in :data:`MODEL_ARTIFACTS`' order."""
+    run = RunParts.of(run)
     out = {}
     for name, (ident, tests, fit) in MODEL_ARTIFACTS.items():
-        meta = read_artifact(root / ident / "identify.json")
+        meta = run.read(f"{ident}/identify.json")
         if meta is None:
             continue
-        res = read_artifact(root / fit / "contrasts.json")
-        side = read_artifact(root / fit / "posterior.json")
+        res = run.read(f"{fit}/contrasts.json")
+        side = run.read(f"{fit}/posterior.json")
         out[name] = ModelRun(name, meta.get("adequacy"), None if res is None else res.get("adequacy") or {},
-                             read_artifact(root / tests), res,
+                             run.read(tests), res,
                              None if side is None else (side.get("convergence_verdict") or {}).get("condition"),
                              () if side is None else tuple(t for m, t in fit_remedies(side) if m == "condition"),
                              population_words(side))
@@ -226,19 +226,20 @@ def _per_subject(hm: dict) -> dict:
     return {k: [f"{s} ({v['difference']:+.1f})" for s, v in by.items() if v["preferred"] == k] for k in NAMES}
 
 
-def section(root, design: Design = STUDY, measured: bool = False) -> Markup:
-    """The "Human models" section of a run folder (``measured``: the torque was recorded, not reconstructed)."""
-    root = Path(root)
-    models = read_models(root)
+def section(run, design: Design = STUDY, measured: bool = False) -> Markup:
+    """The "Human models" section of a run folder or its parts (``measured``: the torque was recorded, not
+    reconstructed)."""
+    run = RunParts.of(run)
+    models = read_models(run)
     if ALTERNATIVE not in models:
-        run = read_artifact(root / RUN_FILE)  # scioc run's choice of human models and its reason
-        if run and run.get("requested") is None:
-            why = run["why"][0].upper() + run["why"][1:] + "."
+        chosen = run.read(RUN_FILE)  # scioc run's choice of human models and its reason
+        if chosen and chosen.get("requested") is None:
+            why = chosen["why"][0].upper() + chosen["why"][1:] + "."
         else:
             why = ("The delayed human model was not requested in this run (scioc run --human-model maxent,delayed "
                    "runs it beside the max-ent model).")
         return render("human_models.html.j2", both=False, why=why)
-    hm = read_artifact(root / "human_models.json")
+    hm = run.read("human_models.json")
     note = (f"The delayed human model has no Bayesian fit here: {ANGLE_ONLY}."
             if models[ALTERNATIVE].fit is None and not measured else None)
     return render("human_models.html.j2", both=True, table=_table(models, hm, design), note=note,
@@ -247,12 +248,13 @@ def section(root, design: Design = STUDY, measured: bool = False) -> Markup:
                   contrasts=joined(contrast_label(design, v) for v in design.contrasts))
 
 
-def headline(root, design: Design = STUDY) -> Markup:
+def headline(run, design: Design = STUDY) -> Markup:
     """The conclusion box under the adequacy headline, when the run has both models; else nothing."""
-    models = read_models(root)
+    run = RunParts.of(run)
+    models = read_models(run)
     if ALTERNATIVE not in models:
         return Markup("")
-    hm = read_artifact(Path(root) / "human_models.json")
+    hm = run.read("human_models.json")
     return render("human_models_headline.html.j2", ok=bool(supported(models, hm)),
                   conclusion=conclusion(models, hm, design))
 

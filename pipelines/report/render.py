@@ -12,6 +12,7 @@ import io
 import json
 import math
 from pathlib import Path
+from typing import NamedTuple
 
 import jinja2
 import matplotlib
@@ -80,3 +81,23 @@ def read_artifact(path: Path):
     if path.suffix == ".json":
         return json.loads(path.read_text())
     return pd.read_parquet(path)
+
+
+class RunParts(NamedTuple):
+    """A run folder as the report reads it: ``root``, less the parts (a folder or file name directly under it)
+    :func:`scioc.pipelines.report.parts.check_run` leaves out, each with why."""
+
+    root: Path
+    left_out: dict = {}
+
+    @classmethod
+    def of(cls, run) -> "RunParts":
+        """``run`` itself, or a folder read as it is (no part left out)."""
+        return run if isinstance(run, RunParts) else cls(Path(run), {})
+
+    def kept(self, rel: str) -> bool:
+        return Path(rel).parts[0] not in self.left_out
+
+    def read(self, rel: str):
+        """:func:`read_artifact` of ``root / rel``; None where its part is left out."""
+        return read_artifact(self.root / rel) if self.kept(rel) else None

@@ -7,6 +7,7 @@ import pandas as pd
 import pytest
 
 from scioc.pipelines.cli import main
+from scioc.pipelines.lineage import file_sha256
 from scioc.pipelines.recovery import format_recovery, recovery
 
 
@@ -40,10 +41,20 @@ def test_recovery_of_delay_lag_and_motor_noise():
     assert "delay exact in 10 of 12 units" in format_recovery(recovery(est, truth, ["MC", "SC"], "MC"))
 
 
+def _write(folder, est, truth, simulation=None):
+    """The estimates and the truth with the sidecars that say which study each is of (one study, hashed "1" * 64)."""
+    est.to_parquet(folder / "estimates.parquet")
+    truth.to_parquet(folder / "truth.parquet")
+    study = {"path": "study.parquet", "sha256": "1" * 64}
+    (folder / "identify.json").write_text(json.dumps({"inputs": {"study": study}, "outputs": {
+        "estimates.parquet": file_sha256(folder / "estimates.parquet")}}))
+    (folder / "simulation.json").write_text(json.dumps({**(simulation or {}), "outputs": {
+        "study.parquet": study["sha256"], "truth.parquet": file_sha256(folder / "truth.parquet")}}))
+
+
 def test_cli(tmp_path, capsys):
     est, truth = _tables(-0.5, -0.2)
-    est.to_parquet(tmp_path / "estimates.parquet")
-    truth.to_parquet(tmp_path / "truth.parquet")
+    _write(tmp_path, est, truth)
     assert main(["recovery", str(tmp_path / "estimates.parquet"), "--truth", str(tmp_path / "truth.parquet"),
                  "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out)["contrasts"]["SC"]["bias"] == pytest.approx(-0.3)
@@ -69,14 +80,13 @@ def test_the_paper_agents_truth_has_no_delay_lag_or_motor_noise(tmp_path, capsys
     """A truth file written before the body columns were recorded for the paper's agent reads them as 0."""
     est, truth = _tables(0.0, 0.0, delayed=True)
     truth = truth.drop(columns=["delay_s", "tau_nm", "motor_sd"])
-    est.to_parquet(tmp_path / "estimates.parquet")
-    truth.to_parquet(tmp_path / "truth.parquet")
     args = ["recovery", str(tmp_path / "estimates.parquet"), "--truth", str(tmp_path / "truth.parquet"),
             "--format", "json"]
-    assert main(args) == 0 and "delayed" not in json.loads(capsys.readouterr().out)  # no simulation.json: unknown
-    (tmp_path / "simulation.json").write_text(json.dumps({"human": {"name": "kbl"}}))
+    _write(tmp_path, est, truth)  # a simulation.json without the human: unknown
+    assert main(args) == 0 and "delayed" not in json.loads(capsys.readouterr().out)
+    _write(tmp_path, est, truth, {"human": {"name": "kbl"}})
     assert main(args) == 0 and "delayed" not in json.loads(capsys.readouterr().out)  # another human: not assumed
-    (tmp_path / "simulation.json").write_text(json.dumps({"human": {"name": "maxent"}}))
+    _write(tmp_path, est, truth, {"human": {"name": "maxent"}})
     assert main(args) == 0
     d = json.loads(capsys.readouterr().out)["delayed"]
     assert d["delay_exact"] == 0 and d["delay_mean_error_s"] == pytest.approx((0.12 * 10 + 0.15 + 0.09) / 12)

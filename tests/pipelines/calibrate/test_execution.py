@@ -22,6 +22,7 @@ from scioc.pipelines.calibrate import (
     calibrate,
     check_scheduler,
     format_summary,
+    level_configs,
     rep_path,
 )
 from scioc.pipelines.cli import main
@@ -178,14 +179,17 @@ def test_study_level_sbc_catches_a_likelihood_that_ignores_u_A(tmp_path, measure
     assert not summary["passed"]
 
 
-def _fake_replications(out_dir, n, L, seed=0):
-    """Replication files with uniform ranks, as a calibrated fit would give (no sampling)."""
+def _fake_replications(out_dir, n, L, seed=0, fingerprint=None):
+    """Replication files with uniform ranks, as a calibrated fit would give (no sampling), of the configuration
+    ``fingerprint`` (default: the unit level's of ``scioc calibrate --replications n``)."""
+    if fingerprint is None:
+        fingerprint = level_configs("unit", replications=n)[0][1].fingerprint()
     rng = np.random.default_rng(seed)
     names = ("theta1", "theta2", "R", "loglik")
     for i in range(n):
         thinned = {p: np.sort(rng.normal(size=L)).tolist() for p in names}
         truth = {p: float(rng.normal()) for p in names}
-        rep = {"index": i, "seconds": 0.1, "divergences": 0, "truth": truth, "thinned": thinned,
+        rep = {"index": i, "fingerprint": fingerprint, "seconds": 0.1, "divergences": 0, "truth": truth, "thinned": thinned,
                "ranks": {p: int(np.sum(np.array(thinned[p]) < truth[p])) for p in names},
                "pit_u": {p: float(rng.uniform()) for p in names},
                "ess": {p: 1000.0 for p in names},
@@ -197,7 +201,7 @@ def _fake_replications(out_dir, n, L, seed=0):
 
 def test_a_smaller_rerun_does_not_replace_a_larger_summary(tmp_path):
     cfg = CalibrationConfig(**{**UNIT, "replications": 40})
-    _fake_replications(tmp_path, 40, cfg.L)
+    _fake_replications(tmp_path, 40, cfg.L, fingerprint=cfg.fingerprint())
     summary = calibrate(cfg, tmp_path, show_progress=False)
     assert summary["replications"] == 40 and "40 replications" in format_summary({**summary})
     before = (tmp_path / "summary.json").read_text()
@@ -221,8 +225,8 @@ def test_a_damaged_replication_file_is_named(tmp_path, capsys):
 
 def test_exit_status_and_wording_say_whether_the_calibration_came_out_as_it_must(tmp_path, capsys):
     out = tmp_path / "cal"
-    for name in ("unit", "unit-negative"):
-        _fake_replications(out / name, 40, 99)  # uniform ranks: both pass, the negative control wrongly
+    for (name, cfg) in level_configs("unit", replications=40):
+        _fake_replications(out / name, 40, 99, fingerprint=cfg.fingerprint())  # uniform: both pass, one wrongly
     assert main(["calibrate", "--replications", "40", "--out", str(out)]) == 1
     text = capsys.readouterr().out
     assert "negative control 'inertia'" in text and "a negative control must fail" in text

@@ -3,6 +3,7 @@ and one end-to-end comparison of two tiny real fits."""
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
@@ -11,17 +12,28 @@ from scioc.pipelines.cli import EXIT_BAD_DATA, EXIT_USAGE, main
 from scioc.pipelines.cli.parser import build_parser
 from scioc.pipelines.experiment import experiment_hash
 from scioc.pipelines.fit.human_models import HUMAN_MODELS_POINTS
+from scioc.pipelines.lineage import study_entry
 from scioc.pipelines.prepare import IdentifySettings
 from scioc.pipelines.run import default_human_models
 from scioc.pipelines.simulate import simulate_to_dir
+from scioc.pipelines.storage import write_table_atomic
+from tests.pipelines.test_io import small_table
+
+
+def study_file(path):
+    """A small valid study at ``path`` (its content: the lineage checks read it)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write_table_atomic(small_table(K=40), path)
 
 
 def fake_fit(folder, *, human_model="maxent", study="study.parquet", settings=None, **extra):
-    """The files of a finished fit folder, with a sidecar saying what was fitted (nothing is sampled)."""
+    """The files of a finished fit folder, with a sidecar saying what was fitted (nothing is sampled); the study's
+    SHA-256 is recorded where the study exists."""
     settings = settings or IdentifySettings()
     folder.mkdir(parents=True)
+    recorded = study_entry(study) if Path(study).is_file() else {"path": str(study), "sha256": "0" * 64}
     side = {"study": str(study), "human_model": human_model, "identify_settings": settings.as_dict(),
-            "experiment_sha256": experiment_hash(settings.design), **extra}
+            "experiment_sha256": experiment_hash(settings.design), "inputs": {"study": recorded}, **extra}
     (folder / "posterior.json").write_text(json.dumps(side))
     (folder / "posterior.nc").write_bytes(b"")
     (folder / "contrasts.json").write_text(json.dumps({"adequacy": {"verdict": "not checked"}}))
@@ -29,6 +41,8 @@ def fake_fit(folder, *, human_model="maxent", study="study.parquet", settings=No
 
 
 def _fit(tmp_path, *options):
+    if not (tmp_path / "study.parquet").exists():
+        study_file(tmp_path / "study.parquet")
     return main(["fit", str(tmp_path / "study.parquet"), "--out", str(tmp_path / "out"), *options])
 
 
@@ -62,30 +76,37 @@ def test_the_sampler_settings_are_checked_against_the_human_model(tmp_path, caps
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize("case, message", [
-    ("missing", "is not a finished scioc fit folder (no posterior.json, posterior.nc, contrasts.json)"),
-    ("delayed", "is a delayed fit; compare with a max-ent fit"),
-    ("other study", "is not a fit of the same data: study file"),
-    ("other window", "is not a fit of the same data: settings window_seconds 10.0 against 15.0"),
-    ("the output", "holds the input"),
+@pytest.mark.parametrize("case, message, status", [
+    ("missing", "is not a finished scioc fit folder (no posterior.json, posterior.nc, contrasts.json)", EXIT_USAGE),
+    ("delayed", "is a delayed fit; compare with a max-ent fit", EXIT_USAGE),
+    ("other study", "is not a fit of the same data as", EXIT_BAD_DATA),
+    ("other window", "is not a fit of the same data as", EXIT_BAD_DATA),
+    ("the output", "holds the input", EXIT_USAGE),
 ])
-def test_compare_to_a_folder_it_cannot_be_compared_with_is_a_usage_error_before_fitting(tmp_path, capsys, case,
-                                                                                         message):
-    study = tmp_path / "study.parquet"
+def test_compare_to_a_folder_it_cannot_be_compared_with_is_refused_before_fitting(tmp_path, capsys, case, message,
+                                                                                   status):
+    study = study_file(tmp_path / "study.parquet")
     target = tmp_path / "maxent"
     if case == "delayed":
         fake_fit(target, human_model="delayed", study=study)
-    elif case == "other study":
-        fake_fit(target, study=tmp_path / "another.parquet")
+    elif case == "other study":  # another study's content, though at this study's path
+        fake_fit(target, study=study)
+        side = json.loads((target / "posterior.json").read_text())
+        side["inputs"]["study"]["sha256"] = "f" * 64
+        (target / "posterior.json").write_text(json.dumps(side))
     elif case == "other window":
         fake_fit(target, study=study, settings=IdentifySettings(window_seconds=10.0))
     elif case == "the output":
         target = tmp_path / "out"
         fake_fit(target, study=study)
     options = ["--human-model", "delayed", "--compare-to", str(target)] + (["--force"] if case == "the output" else [])
-    assert _fit(tmp_path, *options) == EXIT_USAGE
+    assert _fit(tmp_path, *options) == status
     err = capsys.readouterr().err
     assert err.startswith("scioc fit: error:") and message in err, err
+    if case.startswith("other"):
+        assert str(target / "posterior.json") in err and str(study) in err
+        assert ("SHA-256 ffffffffffff" in err) == (case == "other study")
+        assert ("window_seconds 10.0 against 15.0" in err) == (case == "other window")
     assert case == "the output" or not (tmp_path / "out").exists()
 
 
@@ -93,7 +114,7 @@ def test_compare_to_accepts_another_adequacy_bootstrap(tmp_path):
     """The adequacy bootstrap's size and seed do not make two fits different studies."""
     from scioc.pipelines.fit.human_models import check_maxent_fit
 
-    study = tmp_path / "study.parquet"
+    study = study_file(tmp_path / "study.parquet")
     fake_fit(tmp_path / "maxent", study=study, settings=IdentifySettings(adequacy_boot=0, adequacy_seed=1))
     check_maxent_fit(tmp_path / "maxent", study, IdentifySettings(human_model="delayed"))
 
@@ -101,16 +122,20 @@ def test_compare_to_accepts_another_adequacy_bootstrap(tmp_path):
 def test_compare_to_finds_the_study_of_a_fit_made_by_scioc_run(tmp_path):
     """A fit of ``scioc run`` recorded its study inside the run's staging folder, since renamed: the comparison
     finds the study relative to the fit's folder (``study_relative``), as every other reader does."""
-    from scioc.pipelines.fit.human_models import check_maxent_fit
+    from scioc.pipelines.fit.human_models import check_maxent_fit, fit_study
+    from scioc.pipelines.lineage import LineageError
 
-    (tmp_path / "run" / "data").mkdir(parents=True)
-    study = tmp_path / "run" / "data" / "study.parquet"
-    study.write_bytes(b"")
-    fake_fit(tmp_path / "run" / "fit", study=tmp_path / ".run.staging" / "data" / "study.parquet",
-             study_relative="../data/study.parquet")
+    study = study_file(tmp_path / "run" / "data" / "study.parquet")
+    staged = tmp_path / ".run.staging" / "data" / "study.parquet"
+    fake_fit(tmp_path / "run" / "fit", study=study, study_relative="../data/study.parquet")
+    side = json.loads((tmp_path / "run" / "fit" / "posterior.json").read_text())
+    (tmp_path / "run" / "fit" / "posterior.json").write_text(json.dumps({**side, "study": str(staged)}))
     check_maxent_fit(tmp_path / "run" / "fit", study, IdentifySettings(human_model="delayed"))
-    with pytest.raises(ValueError, match="not a fit of the same data: study file"):
-        check_maxent_fit(tmp_path / "run" / "fit", tmp_path / "other.parquet", IdentifySettings(human_model="delayed"))
+    assert fit_study(json.loads((tmp_path / "run" / "fit" / "posterior.json").read_text()),
+                     tmp_path / "run" / "fit").resolve() == study.resolve()
+    other = write_table_atomic(small_table(K=41), tmp_path / "other.parquet")
+    with pytest.raises(LineageError, match="not a fit of the same data as .*other.parquet: study"):
+        check_maxent_fit(tmp_path / "run" / "fit", other, IdentifySettings(human_model="delayed"))
 
 
 def test_human_models_command_names_what_is_wrong(tmp_path, capsys):
@@ -127,7 +152,7 @@ def test_human_models_command_names_what_is_wrong(tmp_path, capsys):
     # --out never replaces one of the fits' files.
     assert main(["human-models", str(tmp_path / "a"), str(tmp_path / "b"), "--out",
                  str(tmp_path / "a" / "contrasts.json")]) == EXIT_USAGE
-    assert "holds the input" in capsys.readouterr().err
+    assert f"is contrasts.json of the fit {tmp_path / 'a'} itself, an input" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
         main(["human-models", str(tmp_path / "a"), str(tmp_path / "b"), "--points", "0"])
     assert exc.value.code == EXIT_USAGE and "--points: expected a positive integer" in capsys.readouterr().err
@@ -185,7 +210,7 @@ def test_fit_compare_to_and_the_human_models_command_agree(tmp_path, capsys):
     # The command reads the two folders and prints the same, writing nothing without --out.
     before = sorted(p.name for p in tmp_path.rglob("*"))
     assert main(["human-models", maxent, delayed, "--seed", "4", "--format", "json"]) == 0
-    assert json.loads(capsys.readouterr().out) == written
+    assert json.loads(capsys.readouterr().out) == written and written["written_by"] == "scioc human-models"
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
     assert main(["human-models", maxent, delayed, "--seed", "4", "--out", str(tmp_path / "hm.json")]) == 0
     assert json.loads((tmp_path / "hm.json").read_text()) == written

@@ -26,6 +26,7 @@ from scioc.pipelines.fit.warmup import PILOT_CHAINS, PILOT_MAX_TREE_DEPTH, PILOT
 from scioc.pipelines.fit.whiten import nutpie_setting
 from scioc.pipelines.identify import identify_to_dir
 from scioc.pipelines.io import load_study
+from scioc.pipelines.lineage import file_sha256
 from scioc.pipelines.prepare import IdentifySettings, prepare_study
 from scioc.pipelines.simulate import simulate_to_dir
 
@@ -316,6 +317,10 @@ def test_estimates_without_motor_noise_fold_its_block_end_to_end(delayed_study, 
     root, sim, prepared = delayed_study
     est = pd.read_parquet(root / "identify" / "estimates.parquet").assign(sigma_m=0.0, se_sigma_m=np.nan)
     est.to_parquet(tmp_path / "estimates.parquet")
+    # Estimates edited by hand come with their identification's sidecar, recording them as its output.
+    meta = json.loads((root / "identify" / "identify.json").read_text())
+    meta["outputs"]["estimates.parquet"] = file_sha256(tmp_path / "estimates.parquet")
+    (tmp_path / "identify.json").write_text(json.dumps(meta))
     small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
     paths = fit_to_dir(sim["study"], root / "fit_folded", settings=SETTINGS, prepared=prepared,
                        estimates_path=tmp_path / "estimates.parquet", **small)

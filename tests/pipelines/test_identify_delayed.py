@@ -102,7 +102,7 @@ def test_identify_delayed_writes_its_columns_and_sidecar(combined, tmp_path):
         row = est[(est.subject == p.data.subject) & (est.condition == p.data.condition)].iloc[0]
         seg = study.segments[[s.label for s in study.segments].index(p.data.label)]
         ref = identify_unit_delayed([prepare_batch(plant, [p.segment])], plant,
-                                    tau0=[[Warmup(seg.u_H[: p.rows.start])]])
+                                    tau0=[[Warmup(seg.u_H[: p.rows.start])]], delay_search="grid")
         assert (row.theta1, row.tau_nm, row.sigma_m, row.delay_s, row.loglik) == \
                (ref.theta1, ref.tau_nm, ref.sigma_m, ref.delay_s, ref.loglik)
         np.testing.assert_array_equal(row.profile_loglik, ref.profile)
@@ -263,7 +263,7 @@ def test_without_a_torque_sensor_the_delayed_model_is_identified_from_the_angles
     row = est[(est.subject == p.data.subject) & (est.condition == p.data.condition)].iloc[0]
     ref = identify_unit_delayed([prepare_batch(plant, [p.segment])], plant, params=SENSOR.wheel,
                                 tau0=[[p.warmup]], angles=angle_windows(prepared.segments, [0]),
-                                sigma_y=SENSOR.encoder_sd)
+                                sigma_y=SENSOR.encoder_sd, delay_search="grid")  # scioc identify's search
     assert (row.theta1, row.tau_nm, row.sigma_m, row.delay_s) == (ref.theta1, ref.tau_nm, ref.sigma_m, ref.delay_s)
     # the literature's human (delay 0.12 s, lag 0.06 s, motor noise 0.25 N·m) from 10-s windows of angles
     assert est.converged.all() and not est.lag_at_bound.any()

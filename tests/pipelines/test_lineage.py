@@ -129,6 +129,40 @@ def test_d1_after_simulate_force_replaces_the_data_the_old_identification_is_not
     assert found.truth_dir == run / "data"  # the new simulation is this study's
 
 
+def test_the_fit_finds_the_identification_beside_its_own_folder_when_it_is_of_this_study(runs, tmp_path):
+    """The README's recipe: ``identify STUDY --out results/`` then ``fit STUDY --out results/fit``."""
+    (root1, _), (root2, _) = runs[1], runs[2]
+    study = tmp_path / "my" / "study.parquet"
+    shutil.copytree(root1 / "data", study.parent)
+    results = tmp_path / "results"
+    shutil.copytree(root1 / "identify", results)
+    assert default_inputs(study, None, None, out=results / "fit").estimates == results / "estimates.parquet"
+    assert default_inputs(study, None, None, out=tmp_path / "elsewhere" / "fit").estimates is None
+    other = tmp_path / "other" / "study.parquet"
+    shutil.copytree(root2 / "data", other.parent)
+    found = default_inputs(other, None, None, out=results / "fit")
+    assert found.estimates is None and f"{results / 'identify.json'} was made from" in found.notes["estimates"]
+
+
+def test_a_run_with_its_fit_combines_every_part_by_content(tmp_path, monkeypatch):
+    """``scioc run`` records its experiment relative to the run folder; its fit reads the identification it made and
+    the report leaves nothing out."""
+    import scioc.pipelines.fit as fit
+    from scioc.pipelines.run import run_all
+
+    real = fit.fit_to_dir
+    monkeypatch.setattr(fit, "fit_to_dir", lambda *a, **k: real(*a, **{**k, "chains": 1, "draws": 25, "tune": 25,
+                                                                       "cores": 1}))
+    report = run_all(tmp_path, n_subjects=2, seed=5, design=TINY, settings=SETTINGS, human_models=("maxent",))
+    run = report.parent
+    side = json.loads((run / "fit" / "posterior.json").read_text())
+    assert side["identified_itself"] is None and side["inputs"]["experiment"]["path"] == "data/experiment.toml"
+    assert side["inputs"]["estimates"]["sha256"] == file_sha256(run / "identify" / "estimates.parquet")
+    assert side["inputs"]["study"]["sha256"] == file_sha256(run / "data" / "study.parquet")
+    html = report.read_text()
+    assert "Left out of this report" not in html and "Sampler convergence" in html
+
+
 # D2: adequacy checks the study it reads against the fit's.
 
 def test_d2_adequacy_refuses_another_study_a_replaced_one_and_an_angles_only_one(small_fit, tmp_path, capsys):

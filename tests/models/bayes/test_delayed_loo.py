@@ -31,6 +31,7 @@ def _posterior(w, S, rng):
     return post
 
 
+@pytest.mark.validation
 def test_terms_are_scipys_prior_and_the_kernels_likelihood(plant):
     w = delayed_windows(2, np.random.default_rng(4), K=200, preview=20)
     batch = prepare_batch(plant, w.segments)

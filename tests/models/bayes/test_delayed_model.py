@@ -35,6 +35,7 @@ def _point(model, seed):
     return {k: v + rng.normal(0, 0.3, np.shape(v)) for k, v in model.initial_point().items()}
 
 
+@pytest.mark.validation
 def test_pointwise_log_likelihood_is_the_kernels(plant, study):
     w = study
     model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, tau0=w.tau0)
@@ -57,6 +58,7 @@ def test_pointwise_log_likelihood_is_the_kernels(plant, study):
     assert tau.shape == (3,) and sig.shape == (3,)
 
 
+@pytest.mark.validation
 def test_nutpie_compiled_logp_equals_pymcs(plant, study):
     """The numba function nutpie samples with (the Op's numba dispatch) gives PyMC's logp and gradient."""
     w = study
@@ -100,6 +102,7 @@ def test_cost_blocks_are_the_max_ent_models(plant, study):
         DelayedForm("sometimes")
 
 
+@pytest.mark.validation
 def test_folded_motor_blocks(plant, study):
     """DelayedForm(sigma_m="folded"): σ_m = s_m |z|, z ~ N(0, 1) unconstrained (so σ_m -> 0 is the interior point
     z = 0, where the likelihood, a function of σ_m², is smooth), starting at z = 1; the law of σ_m is the centred
@@ -138,6 +141,7 @@ def test_folded_motor_blocks(plant, study):
         DelayedForm(sigma_m="partial")
 
 
+@pytest.mark.validation
 def test_folded_centred_motor_block(plant, study):
     """DelayedForm(sigma_m="folded_centred"): σ_m = |v|, v ~ N(0, s_m) unconstrained, starting off 0 at
     FOLDED_CENTRED_START; the model's density is the centred one's at the same σ_m less the log transform's
@@ -343,6 +347,7 @@ def test_sigma_R_can_have_a_boundary_avoiding_gamma_prior(plant, study):
             DelayedPriors(sigma_log_R_gamma=bad)
 
 
+@pytest.mark.validation
 def test_policy_scale_population_of_R(plant, study):
     """DelayedPriors(R_population="policy_scale"): the baseline log R is -2 log ρ, ρ ~ HalfNormal(s_ρ) per
     subject; the level changes are the lognormal model's; the LOSO density of log R is that law's."""
@@ -487,6 +492,7 @@ def test_short_fit_recovers_lag_and_motor_noise(plant):
     assert float(np.quantile(i0["posterior"]["sigma_m"].values, 0.97)) < 0.1
 
 
+@pytest.mark.validation
 def test_sampled_delays_give_the_fixed_delay_model_at_each_index(plant, study):
     # delay=None: a delay index per subject, uniform over the grid. At any index the log density is the fixed-delay
     # model's at those delays plus the uniform prior, and the step's per-subject log-likelihoods sum to u_H's.

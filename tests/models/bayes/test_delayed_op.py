@@ -82,6 +82,7 @@ def test_outputs_are_the_kernels(plant, setup, mode):
     assert not np.allclose(g0[3], g[3], rtol=1e-3)
 
 
+@pytest.mark.validation
 def test_verify_grad(plant, setup):
     w, batch, warm, tau = setup
     op = DelayedLoglikOp(batch, plant, delay=w.delay, tau0=warm)
@@ -126,6 +127,7 @@ def test_logp_and_gradient_use_one_kernel_call(plant, setup):
                                atol=RTOL * np.abs(ref.grad * weights).max())
 
 
+@pytest.mark.validation
 def test_data_op_equals_the_bound_op_bit_for_bit(plant, setup):
     w, batch, warm, tau = setup
     th, tt, ss = pt.dmatrix(), pt.dvector(), pt.dvector()
@@ -204,6 +206,7 @@ def test_long_warm_ups_run_only_their_last_samples_to_rounding(plant, setup):
     np.testing.assert_allclose(g, ref.grad, rtol=RTOL, atol=RTOL * np.abs(ref.grad).max())
 
 
+@pytest.mark.validation
 @pytest.mark.parametrize("mode", ["NUMBA", "FAST_COMPILE"])
 def test_a_delay_input_replaces_the_bound_delays(plant, setup, mode):
     # The sampled-delay form: the same Op with the delays as a fourth (integer, non-differentiable) input.
@@ -235,6 +238,7 @@ def test_the_kernels_value_alone_is_its_value_with_the_gradient_bit_for_bit(plan
 
 
 # the rewrite runs in the optimizer's specialize phase: PyTensor's default (numba) and a Python linker (perform)
+@pytest.mark.validation
 @pytest.mark.parametrize("mode", ["NUMBA", pytensor.compile.mode.Mode(linker="py", optimizer="fast_run")])
 def test_a_graph_that_does_not_read_the_gradient_runs_the_value_alone(plant, setup, mode):
     w, batch, warm, tau = setup

@@ -207,6 +207,7 @@ def test_three_level_pooled_model_shares_log_theta1_across_levels(plant):
     assert lt1.shape == (3, 3) and (lt1 == lt1[:, :1]).all()
 
 
+@pytest.mark.validation
 def test_three_level_model_samples_briefly(plant):
     """nutpie on tiny data: the posterior has the coordinates and dims the fit stage reads."""
     import nutpie

@@ -3,10 +3,12 @@
 import json
 
 import numpy as np
+import pytest
 
 from scioc.pipelines.cli import main
 
 
+@pytest.mark.validation
 def test_bench_quick_writes_json(tmp_path, capsys):
     path = tmp_path / "bench.json"
     assert main(["bench", "--quick", "--json", str(path)]) == 0
@@ -31,6 +33,7 @@ def test_bench_quick_writes_json(tmp_path, capsys):
     assert ex["identify_s"] > 0 and "fit_s" not in ex
 
 
+@pytest.mark.validation
 def test_bench_fit_of_the_delayed_human_records_its_settings(tmp_path, capsys):
     """``scioc bench-fit --human-model delayed``: the variant asked for is the one fitted, and the JSON says which."""
     path = tmp_path / "fit.json"

@@ -57,6 +57,7 @@ def test_unit_level_sbc_catches_a_wrong_inertia(tmp_path, measured):
     assert not summary["parameters"]["theta1"]["passed"]
 
 
+@pytest.mark.validation
 def test_resume_skips_finished_replications(tmp_path):
     cfg = CalibrationConfig(**{**UNIT, "replications": 4, "K": 200, "tune": 100, "draws": 100, "L": 19,
                                "batch_size": 2})

@@ -1,6 +1,7 @@
 """Study-level SBC of an experiment with more than two levels: β, σ_β, β_R and σ_βR ranked once per contrast."""
 
 import numpy as np
+import pytest
 
 from scioc.pipelines.calibrate.config import CalibrationConfig, level_configs, replication_seed
 from scioc.pipelines.calibrate.study import population_targets, study_replication
@@ -19,6 +20,7 @@ def test_population_targets_split_a_contrast_axis():
     assert np.array_equal(scalar[0].draws, draws[..., 0])
 
 
+@pytest.mark.validation
 def test_one_three_level_replication_ranks_every_contrast():
     design = load_experiment(THREE)
     (_, cfg), _ = level_configs("study", design=design, replications=1, n_subjects=3, seconds=0.5)

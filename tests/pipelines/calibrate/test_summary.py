@@ -20,6 +20,7 @@ def small_run(tmp_path_factory):
     return out, calibrate(CalibrationConfig(**SMALL), out, n_workers=1, show_progress=False)
 
 
+@pytest.mark.validation
 def test_the_log_likelihood_is_ranked_beside_the_parameters(small_run):
     _, summary = small_run
     assert list(summary["parameters"]) == ["theta1", "theta2", "R", LOGLIK]

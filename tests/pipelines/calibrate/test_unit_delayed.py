@@ -43,6 +43,7 @@ def test_prior_draws_cover_the_literature_ranges():
     assert set(UNIT_DELAYED_PARAMETERS) <= set(draws[0])
 
 
+@pytest.mark.validation
 def test_one_replication_ranks_every_parameter_and_the_loglik():
     cfg = CalibrationConfig(level="unit", replications=2, K=600, chains=1, tune=150, draws=150, L=19,
                             human_model="delayed")

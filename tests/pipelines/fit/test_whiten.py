@@ -81,6 +81,7 @@ def whitened_run():
     return model, idata, sec, record
 
 
+@pytest.mark.validation
 def test_the_whitened_draws_are_the_models_posterior(whitened_run):
     model, idata, sec, record = whitened_run
     post = idata["posterior"]
@@ -200,6 +201,7 @@ def _crossed_bananas():
     return model
 
 
+@pytest.mark.validation
 def test_with_two_pivots_each_subject_bends_along_the_one_whose_fold_its_mode_is_nearest():
     # pivots ("u", "v"): subject 0's mode is at v = 0, 2.5 scales of u from u's fold, so it bends along v; subject 1
     # along u; one group per pivot, each with its own ridge's curvature, and the draws are the exact posterior's
@@ -268,6 +270,7 @@ def test_the_symmetric_banana_check_passes_exact_draws_and_fails_wrong_ones():
     assert _symmetric_failures(1.1 * v, y, ess, ess) != []  # v's scale 10 % off
 
 
+@pytest.mark.validation
 def test_pilot_runs_change_the_coordinates_not_the_posterior():
     # sampled again after two pilot runs, each measuring the whitening on its draws (models/bayes/whiten_draws.py,
     # with v signed: reflected about 0), the symmetric banana's draws are still its exact posterior's; and the
@@ -296,6 +299,7 @@ def test_pilot_runs_change_the_coordinates_not_the_posterior():
             sample_whitened(_banana(), None, seed=4, chains=2, draws=10, tune=10, cores=1, pilot=[bad])
 
 
+@pytest.mark.validation
 def test_a_pilot_runs_on_its_own_chains_target_acceptance_and_tree_depth():
     # (tune, draws, chains, target_accept, max_tree_depth): what nutpie itself recorded for the pilot, not what was
     # asked; the kept run keeps the fit's own

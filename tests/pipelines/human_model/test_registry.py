@@ -84,6 +84,7 @@ def dummy():
     unregister(model.name)
 
 
+@pytest.mark.validation
 def test_a_third_model_runs_through_identify_and_fit_without_any_stage_changing(dummy, small_fit, tmp_path):
     from dataclasses import replace
 

@@ -28,7 +28,7 @@ from scioc.models.cost import validate_theta
 from scioc.models.delayed.angle_kernel import OUT, window_kernel
 from scioc.models.delayed.kalman import FREEZE_RTOL, angle_filter
 from scioc.models.delayed.lag import Warmup, check_wheel, lag_coefficients, window_tau0
-from scioc.models.delayed.sample import delayed_setup
+from scioc.models.delayed.sample import delayed_setup, known_inputs
 from scioc.models.design import WheelParameters
 from scioc.models.plant import DiscretePlant, continuous_matrices, discretize, discretize_lagged
 from scioc.models.segment import Feedback
@@ -136,26 +136,6 @@ def check_angles(angles, n_plan: int, delay, sigma_m, sigma_y, z0_mean, z0_cov):
     return y, d, mu0, P0
 
 
-def _known(angle_ref, u_A, feedback):
-    """(reference (K + M + 1,), the human's known input (K + M,), the assistant's gain (2,)), checked."""
-    ref = np.ascontiguousarray(angle_ref, dtype=float)
-    if ref.ndim != 1 or ref.shape[0] < 2:
-        raise ValueError(f"angle_ref must be a vector of K + M + 1 >= 2 samples; got shape {ref.shape}")
-    n_plan = ref.shape[0] - 1
-    if u_A is not None and feedback is not None:
-        raise ValueError("give the assistant either as a torque sequence u_A or as a feedback law, not both")
-    if feedback is not None:
-        gain = np.asarray(feedback.gain, dtype=float).reshape(2)
-        known = np.ascontiguousarray(feedback.feedforward, dtype=float)
-    else:
-        gain = np.zeros(2)
-        known = np.zeros(n_plan) if u_A is None else np.ascontiguousarray(u_A, dtype=float)
-    if known.shape != (n_plan,):
-        raise ValueError(f"the assistant's torque or feedforward needs {n_plan} samples (angle_ref has {n_plan + 1}); "
-                         f"got shape {known.shape}")
-    return ref, known, gain
-
-
 def _run(theta, y, ref, known, gain, plant, params, tau_nm, sigma_m, d, sigma_y, mu0, P0, freeze, grad):
     """:func:`.angle_kernel.window_kernel` on checked arguments: (out (:data:`.angle_kernel.OUT`,), innovations)."""
     q11, q22, R = (float(v) for v in validate_theta(theta))
@@ -177,7 +157,7 @@ def _gradient(out, sigma_m: float, dmu0_dtau) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _angle_args(theta, angles, angle_ref, u_A, feedback, delay, sigma_m, sigma_y, z0_mean, z0_cov):
-    ref, known, gain = _known(angle_ref, u_A, feedback)
+    ref, known, gain = known_inputs(angle_ref, u_A, feedback)
     y, d, mu0, P0 = check_angles(angles, known.shape[0], delay, sigma_m, sigma_y, z0_mean, z0_cov)
     return y, ref, known, gain, d, mu0, P0
 
@@ -256,7 +236,7 @@ def _window(theta, tau_nm, sigma_m, delay, w: AngleWindow, plant, sigma_y, param
     tau_nm = float(tau_nm)
     lag = lag_coefficients(tau_nm, plant.dt, params)
     tau0, dtau0 = window_tau0([w.warmup], lag.a, lag.alpha)
-    ref, known, gain = _known(w.angle_ref, w.u_A, w.feedback)
+    ref, known, gain = known_inputs(w.angle_ref, w.u_A, w.feedback)
     y, d = _check_window(w.angles, known.shape[0], delay, sigma_m, sigma_y)
     mu0 = np.array([y[0], w.velocity0, tau0[0]])
     P0 = np.diag([float(sigma_y) ** 2, START_SD[0] ** 2, START_SD[1] ** 2])

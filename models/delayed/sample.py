@@ -108,17 +108,9 @@ class DelayedSetup(NamedTuple):
     physical: bool
 
 
-def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback: Feedback | None = None,
-                  tau_nm: float = 0.0, params: WheelParameters = WheelParameters(),
-                  physical: bool = False) -> DelayedSetup:
-    """The lag, the planning plant, the assistant and the policy (command cost θ) of one window.
-
-    ``angle_ref`` has K + M + 1 entries; the assistant is ``u_A`` (a given sequence) or
-    ``feedback`` (its law and feedforward), neither for manual control. ``physical``
-    (τ_nm > 0): the human plans and predicts on the physically lagged wheel it moves.
-    """
-    q11, q22, R = validate_theta(theta)
-    check_wheel(plant, params)
+def known_inputs(angle_ref, u_A, feedback):
+    """(reference (K + M + 1,), the human's known input (K + M,), the assistant's gain (2,)), checked: the
+    assistant as a torque sequence ``u_A`` or as a :class:`~scioc.models.segment.Feedback` law, or neither."""
     ref = np.ascontiguousarray(angle_ref, dtype=float)
     if ref.ndim != 1 or ref.shape[0] < 2:
         raise ValueError(f"angle_ref must be a vector of K + M + 1 >= 2 samples; got shape {ref.shape}")
@@ -134,6 +126,22 @@ def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback:
     if known.shape != (n_plan,):
         raise ValueError(f"the assistant's torque or feedforward needs {n_plan} samples (angle_ref has {n_plan + 1}); "
                          f"got shape {known.shape}")
+    return ref, known, gain
+
+
+def delayed_setup(theta, angle_ref, plant: DiscretePlant, *, u_A=None, feedback: Feedback | None = None,
+                  tau_nm: float = 0.0, params: WheelParameters = WheelParameters(),
+                  physical: bool = False) -> DelayedSetup:
+    """The lag, the planning plant, the assistant and the policy (command cost θ) of one window.
+
+    ``angle_ref`` has K + M + 1 entries; the assistant is ``u_A`` (a given sequence) or
+    ``feedback`` (its law and feedforward), neither for manual control. ``physical``
+    (τ_nm > 0): the human plans and predicts on the physically lagged wheel it moves.
+    """
+    q11, q22, R = validate_theta(theta)
+    check_wheel(plant, params)
+    ref, known, gain = known_inputs(angle_ref, u_A, feedback)
+    n_plan = ref.shape[0] - 1
     lag = lag_coefficients(float(tau_nm), plant.dt, params)
     pp = lagged_planning_plant(plant, lag.a, lag.alpha, gain)
     physical = bool(physical) and float(tau_nm) > 0.0
@@ -223,4 +231,4 @@ def forward_delayed(theta, x0, angle_ref, plant: DiscretePlant, *, u_A=None, fee
     return Demonstration(z[:, :2, 0], uH[:, 0])
 
 
-__all__ = ["DelayedDraw", "DelayedSetup", "closed_loop", "delayed_setup", "forward_delayed", "sample_delayed"]
+__all__ = ["DelayedDraw", "DelayedSetup", "closed_loop", "delayed_setup", "forward_delayed", "known_inputs", "sample_delayed"]

@@ -270,7 +270,7 @@ def cmd_fit(args) -> int:
             from scioc.pipelines.storage import refuse_inputs_inside
 
             refuse_inputs_inside(args.out, args.compare_to)
-            est = default_inputs(Path(args.study), args.estimates, args.truth, args.experiment).estimates
+            est = default_inputs(Path(args.study), args.estimates, args.truth, args.experiment, out=args.out).estimates
             settings, _, _ = resolve_settings(Path(args.study), est, None, args.experiment, args.human_model)
             check_maxent_fit(args.compare_to, args.study, settings)  # before minutes of sampling, not after
         paths = fit_to_dir(args.study, args.out, show_progress=True, force=args.force, sampler_options=options,

@@ -60,9 +60,10 @@ class FitInputs(NamedTuple):
     notes: dict  # "estimates" / "truth": why the one proposed is not read
 
 
-def estimates_of(estimates_path, study_path, study: dict, experiment_file=None) -> Path:
+def estimates_of(estimates_path, study_path, study: dict, experiment_file=None, design=None) -> Path:
     """``identify.json`` of ``estimates_path`` after checking by content that it identified this study with this
-    experiment (``--experiment``, else the one beside the study, if any): LineageError naming both files otherwise."""
+    experiment (``design`` from ``experiment_file``, else the file ``--experiment``, else the one beside the study, if
+    any): LineageError naming both files otherwise."""
     if not Path(estimates_path).is_file():
         raise InputDataError(f"{estimates_path}: no such estimates file")
     found = lineage.identification(estimates_path)
@@ -71,7 +72,9 @@ def estimates_of(estimates_path, study_path, study: dict, experiment_file=None) 
                            "known; give the estimates.parquet that scioc identify wrote, in its folder")
     meta_path, meta = found
     lineage.require_same("study", meta_path, lineage.recorded(meta, "study", meta_path), study_path, study)
-    design, source = find_experiment(study_path, experiment_file)
+    source = experiment_file
+    if design is None:
+        design, source = find_experiment(study_path, experiment_file)
     if source is not None:
         lineage.require_same("experiment", meta_path, lineage.recorded(meta, "experiment", meta_path), source,
                              lineage.experiment_entry(design, source))
@@ -84,28 +87,36 @@ def truth_of(truth_dir, study_path, study: dict) -> None:
     lineage.require_same("study", meta_path, simulated, study_path, study)
 
 
-def default_inputs(study_path: Path, estimates_path, truth_dir, experiment_file=None,
-                   study: dict | None = None) -> FitInputs:
-    """The estimates and the simulation's folder a fit of ``study_path`` reads, checked by content.
+def default_inputs(study_path: Path, estimates_path, truth_dir, experiment_file=None, *, study: dict | None = None,
+                   out=None, design=None) -> FitInputs:
+    """The estimates and the simulation's folder a fit of ``study_path`` into ``out`` reads, checked by content.
 
-    Given ones must belong to the study (:func:`estimates_of`, :func:`truth_of`). Else the run folder's
-    ``identify/`` and the study's folder are proposed, and read only when their sidecars record this study;
-    ``notes`` says why one is not. ``study``: :func:`scioc.pipelines.lineage.study_entry` of ``study_path``.
+    Given ones must belong to the study (:func:`estimates_of`, :func:`truth_of`). Else the estimates beside the fit's
+    folder (``out/../identify/``, ``out/../``) or in the study's run folder (``../identify/``) and the simulation in
+    the study's folder are proposed, and read only where their sidecars record this study; ``notes`` says why none
+    is. ``study``: :func:`scioc.pipelines.lineage.study_entry` of ``study_path``; ``design``: the experiment the fit
+    reads, from ``experiment_file`` (default: read from that file, or found beside the study).
     """
     study_path = Path(study_path)
     study = lineage.study_entry(study_path) if study is None else study
     notes = {}
     if estimates_path is not None:
-        estimates_of(estimates_path, study_path, study, experiment_file)
+        estimates_of(estimates_path, study_path, study, experiment_file, design)
     else:
-        guess = study_path.parent.parent / "identify" / "estimates.parquet"
-        try:
-            estimates_of(guess, study_path, study, experiment_file)
-            estimates_path = guess
-        except InputDataError as exc:
-            why = str(exc) if guess.is_file() else f"no estimates given (--estimates) nor at {guess}"
+        near = [] if out is None else [Path(out).parent / "identify", Path(out).parent]
+        guesses = [f / "estimates.parquet" for f in dict.fromkeys([*near, study_path.parent.parent / "identify"])]
+        why = []
+        for guess in (g for g in guesses if g.is_file()):
+            try:
+                estimates_of(guess, study_path, study, experiment_file, design)
+                estimates_path = guess
+                break
+            except InputDataError as exc:
+                why.append(str(exc))
+        if estimates_path is None:
             notes["estimates"] = ("the fit identifies every unit itself, as it needs the estimates, and has no "
-                                  f"mixed-model cross-check: {why}")
+                                  "mixed-model cross-check: " + ("; ".join(why) or "no estimates given (--estimates) "
+                                                                 f"nor at {' or '.join(map(str, guesses))}"))
     if truth_dir is not None:
         truth_of(truth_dir, study_path, study)
     elif (study_path.parent / "simulation.json").exists() and (study_path.parent / "truth.parquet").exists():
@@ -188,7 +199,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         Subject of the posterior predictive bands (default: the third in sorted order).
     estimates_path, truth_dir : optional
         ``estimates.parquet`` of ``scioc identify`` (mixed-model check, starts, the delayed model's delays) and
-        a simulation's folder (truth check). Default: the run folder's, when they belong to this study.
+        a simulation's folder (truth check). Default: those :func:`default_inputs` finds that belong to this study.
     cores : int, optional
         Chains sampled in parallel (default: every CPU); the draws do not depend on it.
     prepared : PreparedStudy, optional
@@ -220,7 +231,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     study_path, out = Path(study_path), Path(out)
     study_record = lineage.study_entry(study_path)
     estimates_path, truth_dir, notes = default_inputs(study_path, estimates_path, truth_dir, experiment_file,
-                                                      study_record)
+                                                      study=study_record, out=out,
+                                                      design=None if settings is None else settings.design)
     settings, experiment_file, settings_from = resolve_settings(study_path, estimates_path, settings, experiment_file,
                                                             human_model)
     human_model = settings.human_model if human_model is None else human_model

@@ -45,7 +45,7 @@ def section_diagnostics(side: dict, design: Design = STUDY) -> Markup:
     d = side["diagnostics"]["condition"]
     prow = [{"parameter": label(v, design), "R-hat": p["rhat"], "bulk ESS": p["ess_bulk"], "tail ESS": p["ess_tail"],
              "bulk ESS/s": p["ess_bulk_per_s"],
-             "meets criteria": "yes" if (p["rhat"] <= crit["rhat_max"]
+             "meets criteria": "yes" if (p["rhat"] is not None and p["rhat"] <= crit["rhat_max"]  # None: one chain
                                          and smaller_ess(p) >= crit["ess_bulk_and_tail_min"]) else "NO"}
             for v, p in d["population"].items()]
     urow = [{"unit quantity (subject × condition)": v, **u} for v, u in d["units"].items()]

@@ -142,7 +142,8 @@ def paired(estimates: pd.DataFrame, column: str, pair=CONDITIONS) -> tuple[np.nd
 def _tests(usable: pd.DataFrame, pair, alpha: float) -> dict:
     out = {}
     for col in ("theta1", "theta2"):
-        a, b, _ = paired(usable, col, pair) if len(usable) else (np.array([]), np.array([]), [])
+        testable = set(pair) <= set(usable["condition"])  # else no pair: every unit of a level left out
+        a, b, _ = paired(usable, col, pair) if testable else (np.array([]), np.array([]), [])
         out[col] = {k: _finite_or_none(v) for k, v in asdict(wilcoxon_signed_rank(a, b, parameter=col,
                                                                                  alpha=alpha)).items()}
         if not out[col]["n_pairs"]:  # no pair: no p-value, rather than the p = 1 of no evidence
@@ -154,8 +155,8 @@ def _nothing_to_test(tests: dict, pair) -> str | None:
     """Why a contrast has no test (no subject with usable estimates of both levels), or None."""
     if tests["theta1"]["n_pairs"]:
         return None
-    return (f"nothing to test: no subject has usable estimates of both {pair[0]} and {pair[1]} (the units left out "
-            "are listed with their reasons)")
+    return (f"no subject has usable estimates of both {pair[0]} and {pair[1]} (the units left out are listed with "
+            "their reasons)")
 
 
 def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_nonconverged: bool = False,
@@ -185,8 +186,9 @@ def compare_estimates(estimates: pd.DataFrame, *, alpha: float = ALPHA, include_
                 per[c][col].update(p_holm=None if a is None else float(a), reject_holm=bool(a is not None
                                                                                              and a <= alpha))
         out = {"baseline": levels[0], "contrasts": per,
-               "multiplicity": f"Holm across the {len(tested)} levels against {levels[0]} with a test, per "
-                               f"parameter, at family-wise α = {alpha:g}"}
+               "multiplicity": f"Holm across the {len(tested)} levels against {levels[0]}, per parameter, at "
+                               f"family-wise α = {alpha:g}" + "".join(f"; not {c}: nothing to test" for c in levels[1:]
+                                                                       if empty[c])}
     out["nothing_to_test"] = {c: why for c, why in empty.items() if why}
     counts = estimates.assign(subject=estimates["subject"].astype(str).str.strip()).groupby("subject").size()
     out["unpaired_subjects"] = sorted(counts.index[counts < 2])

@@ -408,9 +408,17 @@ def test_compare_with_nothing_to_test_says_so_and_exits_1(tmp_path, capsys):
     path = write_table_atomic(estimates, tmp_path / "estimates.parquet")
     assert main(["compare", str(path)]) == EXIT_FAILED_CHECK
     out = capsys.readouterr().out
-    assert "NOTHING TO TEST against SC: nothing to test: no subject has usable estimates of both MC and SC" in out
+    assert "NOTHING TO TEST against SC: no subject has usable estimates of both MC and SC" in out
     res = json.loads((tmp_path / "compare.json").read_text())
     assert res["theta1"]["n_pairs"] == 0 and res["theta1"]["p_value"] is None and res["nothing_to_test"]
+    # With three levels, one contrast without a pair: Holm's family is the contrasts with a test.
+    from scioc.pipelines.compare import compare_estimates
+
+    three = pd.concat([estimates.assign(converged=True), estimates.assign(condition=["MC", "WEAK"] * 2)])
+    three = three.drop_duplicates(["subject", "condition"]).assign(converged=lambda d: d.condition != "WEAK")
+    res = compare_estimates(three, levels=("MC", "SC", "WEAK"))
+    assert list(res["nothing_to_test"]) == ["WEAK"] and res["contrasts"]["WEAK"]["theta1"]["p_holm"] is None
+    assert res["contrasts"]["SC"]["theta1"]["p_holm"] == res["contrasts"]["SC"]["theta1"]["p_value"]
 
 
 def test_a_run_shorter_than_the_window_is_simulated_to_be_analysed_whole(tmp_path, capsys):

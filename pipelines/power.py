@@ -30,7 +30,7 @@ from scioc.pipelines.io import InputDataError, validate_table
 from scioc.pipelines.prepare import IdentifySettings
 from scioc.pipelines.provenance import versions
 from scioc.pipelines.simulate import study_table
-from scioc.pipelines.storage import write_table_atomic, write_text_atomic
+from scioc.pipelines.storage import refuse_file_on_path, write_table_atomic, write_text_atomic
 
 DEFAULT_HUMANS = tuple(HUMANS)
 
@@ -76,6 +76,7 @@ def power_study(out, *, humans=DEFAULT_HUMANS, studies: int = 20, seed: int = 20
     if unknown:
         raise ValueError(f"unknown human(s) {', '.join(unknown)}; choose from {', '.join(HUMANS)}")
     out = Path(out)
+    refuse_file_on_path(out)  # a resumable folder: refused only where a file stands in its way
     fp = _fingerprint(seed, n_subjects, beta, n_boot)
     done_dir = out / "studies"
     todo, rows = [], {}

@@ -398,8 +398,9 @@ def test_the_current_folder_and_a_file_are_refused_as_output_folders(tmp_path, c
     assert main(["simulate", "--subjects", "1", "--run-seconds", "8", "--out", ".", "--force"]) == EXIT_USAGE
     assert "the output folder . is the current folder" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt"]  # no ..*.old folder left
-    assert main(["calibrate", "--out", "keep.txt"]) == EXIT_USAGE
-    assert "keep.txt exists and is not a folder" in capsys.readouterr().err
+    for command in ("calibrate", "power"):
+        assert main([command, "--out", "keep.txt"]) == EXIT_USAGE
+        assert "keep.txt exists and is not a folder" in capsys.readouterr().err
 
 
 def test_compare_with_nothing_to_test_says_so_and_exits_1(tmp_path, capsys):

@@ -183,7 +183,7 @@ def test_run_human_models_default_follows_the_torque_sensor_and_the_maxent_adequ
 TINY = replace(STUDY, torque_sensor=True, run_seconds=8.0, window_start=2.0, window_seconds=4.0, preview=1.0,
                subjects=3)
 #: Tiny samplers: the numbers are checked for consistency, not quality (they do not converge).
-SAMPLER = ["--chains", "2", "--draws", "20", "--tune", "30", "--adequacy-boot", "2", "--seed", "4"]
+SAMPLER = ["--chains", "2", "--draws", "20", "--tune", "30", "--seed", "4"]
 
 
 @pytest.mark.validation

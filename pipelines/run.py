@@ -126,10 +126,11 @@ def _analyse(tmp: Path, study_path, prepared, settings: IdentifySettings, source
     compare_to_file(tmp / "identify" / "estimates.parquet", tmp / "compare.json")
     if requested is None:
         human_models, why = default_human_models(design, run_verdicts(tmp).get(PRIMARY))
-        if ALTERNATIVE not in human_models and delayed:  # fewer stages than counted
+        log(f"human models: {', '.join(human_models)}: {why}")
+        if ALTERNATIVE not in human_models and delayed:  # the stages counted for it are not needed: said so, in order
             delayed = False
-            stages[:] = _stages(fit, False, sensor, simulated=truth is not None)
-        log(f"human models: {', '.join(human_models)}: {why} ({len(stages)} stages in all)")
+            for st in ("identify delayed", "compare delayed"):
+                log(f"{at(st)} {st}: not needed")
     else:
         human_models, why = requested, "requested (--human-model)"
     write_text_atomic(tmp / RUN_FILE, json.dumps({"human_models": list(human_models), "why": why,
@@ -152,6 +153,9 @@ def _analyse(tmp: Path, study_path, prepared, settings: IdentifySettings, source
         fit_to_dir(study_path, tmp / "fit", seed=seed, settings=settings, truth_dir=truth_dir,
                    estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared,
                    experiment_file=source)
+    for st in ("fit delayed", "human models"):  # counted, and not needed after all
+        if st in stages and not delayed:
+            log(f"{at(st)} {st}: not needed")
     if fit and delayed and sensor:
         from scioc.pipelines.fit.human_models import compare_human_models, format_human_models
 

@@ -243,7 +243,8 @@ def test_by_default_a_maxent_model_that_fits_is_not_joined_by_the_delayed_one(tm
                    settings=IdentifySettings.for_design(SENSOR, adequacy_boot=39)).parent
     log = capsys.readouterr().out
     assert "human models: maxent: the max-ent human model passes its adequacy checks" in log
-    assert "[1/7] simulating" in log and "[5/5] writing the report" in log  # counted as if both ran, then fewer
+    assert "[1/7] simulating" in log and "[5/7] identify delayed: not needed" in log  # counted, then said unneeded
+    assert "[7/7] writing the report" in log
     assert not (root / "identify_delayed").exists()
     run = json.loads((root / "run.json").read_text())
     assert run["human_models"] == ["maxent"] and run["requested"] is None

@@ -49,3 +49,16 @@ def test_a_folder_without_an_identification_is_refused(tmp_path):
 
     with pytest.raises(FileNotFoundError, match="no estimates"):
         scioc.open_run(tmp_path)
+
+
+def test_the_stage_counter_counts_every_stage_once_in_order(tmp_path, capsys):
+    # The delayed model's stages are counted before the data decide; where they are not needed they say so, in
+    # their place, so the log reads [1/N], [2/N], ..., [N/N].
+    import re
+
+    from scioc.pipelines.run import analyse_to_dir
+
+    analyse_to_dir(ROOT / "data" / "examples" / "lab-export", tmp_path / "run", fit=False)
+    counts = re.findall(r"^\[(\d+)/(\d+)\]", capsys.readouterr().out, flags=re.M)
+    n = int(counts[0][1])
+    assert [(int(k), int(t)) for k, t in counts] == [(k, n) for k in range(1, n + 1)]

@@ -17,18 +17,18 @@
 # Reads the artifacts of `scioc fit` (it never refits): `posterior.nc` (model with
 # condition effects: one DataTree with the groups `posterior`, `sample_stats`,
 # `log_likelihood`, `observed_data`, `posterior_predictive` and `constant_data`),
-# `posterior_pooled.nc` (β = 0) and the sidecar `posterior.json` beside them. Set `SCIOC_POSTERIOR` to another `posterior.nc` to inspect that fit;
-# the default is the one `scioc fit` writes for the default study.
+# `posterior_pooled.nc` (β = 0) and the sidecar `posterior.json` beside them, through
+# `scioc.open_run`, which reads a run folder as the report does (a part made from another study is
+# left out, with why). Set `SCIOC_RUN` to another run folder (`scioc run`, `scioc analyse`, or the
+# stages alone); the default is the one `make run` writes.
 #
 # Steps: the sampler's own statistics and the verdict, then trace, rank, energy, pair
 # and forest plots (ArviZ, matplotlib backend), the posterior predictive draws against
 # the observed torques, then the PSIS-LOO comparison with its Pareto k diagnostics.
 
 # %%
-import json
 import os
 import warnings
-from pathlib import Path
 
 import arviz as az
 import arviz_plots as azp
@@ -37,13 +37,19 @@ import numpy as np
 
 from scioc.models.bayes.hierarchical import POPULATION_PARAMETERS
 
-POSTERIOR = Path(os.environ.get("SCIOC_POSTERIOR", "reports/default-study/fit/posterior.nc"))
-POOLED = POSTERIOR.with_name("posterior_pooled.nc")
-SIDECAR = POSTERIOR.with_name("posterior.json")
+import scioc
+
+RUN = scioc.open_run(os.environ.get("SCIOC_RUN", "reports/default-study"))
+FIT = RUN.models["maxent"]
+if RUN.left_out:
+    print("left out of this run folder:", RUN.left_out)
+print("verdicts:", FIT.verdicts)
+POSTERIOR = FIT.fit_dir / "posterior.nc"
+POOLED = FIT.fit_dir / "posterior_pooled.nc"
 POPULATION = list(POPULATION_PARAMETERS)
 BACKEND = "matplotlib"
 
-idata = az.from_netcdf(POSTERIOR)
+idata = FIT.posterior()
 print(f"posterior: {POSTERIOR}")
 print(idata)
 
@@ -56,8 +62,8 @@ print(idata)
 # `var_names` filter on a Dataset changes later results in arviz-stats 1.x).
 
 # %%
-if SIDECAR.exists():
-    side = json.loads(SIDECAR.read_text())
+if FIT.sidecar is not None:
+    side = FIT.sidecar
     print("seed", side["seed"], "| sampler", side["sampler"])
     for name, verdict in side["convergence_verdict"].items():
         print(f"{name}: {verdict}")
@@ -183,8 +189,8 @@ else:
 # `scioc fit` stores it in `contrasts.json`; every Pareto k should lie below the threshold.
 
 # %%
-CONTRASTS = POSTERIOR.with_name("contrasts.json")
-if CONTRASTS.exists() and "loo_subject" in (res := json.loads(CONTRASTS.read_text())):
+CONTRASTS = FIT.fit_dir / "contrasts.json"
+if FIT.contrasts is not None and "loo_subject" in (res := FIT.contrasts):
     ls = res["loo_subject"]
     for name in ("condition", "pooled"):
         m = ls[name]

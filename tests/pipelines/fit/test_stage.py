@@ -142,7 +142,7 @@ def test_diagnostics_notebook_runs_on_the_fit(small_fit, tmp_path, monkeypatch):
     # A kernel spec for this very interpreter, whatever the machine has installed.
     write_kernel_spec(tmp_path / "kernels" / "scioc-test", overrides={"display_name": "scioc test"})
     monkeypatch.setenv("JUPYTER_PATH", str(tmp_path))
-    monkeypatch.setenv("SCIOC_POSTERIOR", str(root / "fit" / "posterior.nc"))
+    monkeypatch.setenv("SCIOC_RUN", str(root))
     nb = jupytext.read(NOTEBOOK)
     NotebookClient(nb, kernel_name="scioc-test", timeout=300, resources={"metadata": {"path": str(tmp_path)}}).execute()
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]

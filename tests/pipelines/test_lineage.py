@@ -144,6 +144,7 @@ def test_the_fit_finds_the_identification_beside_its_own_folder_when_it_is_of_th
     assert found.estimates is None and f"{results / 'identify.json'} was made from" in found.notes["estimates"]
 
 
+@pytest.mark.validation
 def test_a_run_with_its_fit_combines_every_part_by_content(tmp_path, monkeypatch):
     """``scioc run`` records its experiment relative to the run folder; its fit reads the identification it made and
     the report leaves nothing out."""

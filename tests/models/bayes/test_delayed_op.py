@@ -60,6 +60,7 @@ def _compile_quietly(inputs, outputs, mode):
     return f, [str(m.message) for m in caught]
 
 
+@pytest.mark.validation
 @pytest.mark.parametrize("mode", ["NUMBA", "FAST_COMPILE"])
 def test_outputs_are_the_kernels(plant, setup, mode):
     w, batch, warm, tau = setup

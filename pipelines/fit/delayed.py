@@ -115,7 +115,8 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
         for (s, c), idx in units.items():
             est = identify_unit_delayed([prepare_batch(plant, [prepared.segments[i].segment]) for i in idx], plant,
                                         params=prepared.settings.design.wheel,
-                                        tau0=[[prepared.segments[i].warmup] for i in idx])
+                                        tau0=[[prepared.segments[i].warmup] for i in idx],
+                                        delay_search="grid")  # the whole profile, as scioc identify writes it
             profiles[(str(s), str(c))] = np.asarray(est.profile, dtype=float)
             # The unit's ML point at its own best delay, as identify writes it: the start's targets.
             rows.append({"subject": s, "condition": c, "theta1": est.theta1, "se_log_theta1": est.se_log_theta1,

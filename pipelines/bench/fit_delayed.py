@@ -51,7 +51,7 @@ def bench_delay_profile(n_subjects: int = 6, *, seed: int = 2018, delay: int = 1
     t0 = time.perf_counter()
     units = []
     for j, seg in enumerate(w.segments):
-        est = identify_unit_delayed([prepare_batch(plant, [seg])], plant)
+        est = identify_unit_delayed([prepare_batch(plant, [seg])], plant, delay_search="grid")  # the whole profile
         grid, prof = np.asarray(est.delays), np.asarray(est.profile)
         k = int(np.argmax(prof))
 

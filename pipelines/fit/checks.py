@@ -175,7 +175,7 @@ def motor_truth(idata, truth_dir) -> dict | None:
     return out
 
 
-#: Where the adequacy check at the posterior takes its one parameter point (``scioc fit --adequacy-at``): ``draw``,
+#: Where the adequacy check at the posterior takes its one parameter point (``adequacy_at`` in ``scioc fit --sampler-config``): ``draw``,
 #: one joint posterior draw (the default), or ``means``, each parameter's posterior mean on its own
 #: (docs/decisions/adequacy-at-a-posterior-draw.md).
 ADEQUACY_POINTS = ("draw", "means")

@@ -77,7 +77,7 @@ def check_recorded_torques(prepared) -> None:
             f"{prepared.path}: {len(rec)} of {len(prepared.segments)} segments have no recorded torque (u_H; e.g. "
             f"{rec[0].data.label}) or are reconstructed by --reconstruct always; the hierarchical delayed model needs "
             "the recorded torque. Identify them from their encoder angles with scioc identify --human-model delayed "
-            "(README \"Human models\")")
+            "(docs/methods.md, \"Human models\")")
 
 
 def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=None) -> Delays:
@@ -230,7 +230,7 @@ def delayed_choices(prepared, plant, delays: Delays, *, estimates: pd.DataFrame 
     arcs = None
     if rho_form is not None:
         if rho_form == "mixed" and len(delayed_form.rho_pinned) != len(subjects):
-            raise ValueError("--rho-form mixed chooses each subject's form by its ML estimates (se_log_R): give "
+            raise ValueError("rho_form \"mixed\" chooses each subject's form by its ML estimates (se_log_R): give "
                              "--estimates with that column, or another form")
         if rho_form == "polar":
             ks, arcs = noise_arcs(prepared, plant, ml, delays.samples, tau0_function(prepared, plant), subjects)

@@ -20,7 +20,7 @@ CENTRED_Z = 3.0
 #: The forms of τ_nm's and σ_m's blocks where the data do not pin them
 #: (docs/decisions/delayed-lag-and-noise-forms.md).
 LOOSE_FORM = {"tau_nm": "noncentred", "sigma_m": "folded_centred"}
-#: The forms the baseline log R blocks may take (``scioc fit --log-R-form``; default: :func:`log_R_form`).
+#: The forms the baseline log R blocks may take (``log_R_form`` in ``scioc fit --sampler-config``; default: :func:`log_R_form`).
 LOG_R_FORMS = ("centred", "noncentred")
 #: θ2's form in the delayed fit (:func:`scioc.models.bayes.blocks.theta2_block`): where the torque barely constrains
 #: θ2, its posterior is about its prior, a standard normal in this form (docs/decisions/delayed-target-accept.md).
@@ -53,7 +53,7 @@ def choose_delayed_form(estimates: pd.DataFrame | None, subjects=None) -> tuple[
             with np.errstate(divide="ignore"):
                 z = 2.0 / se
             forms["rho"], reason = _form_by_z("rho", z, se > 0, loose="folded_centred")
-        why.append(reason + " (with --R-population policy_scale)")
+        why.append(reason + " (with R_population = \"policy_scale\")")
     return DelayedForm(**forms), "; ".join(why)
 
 

@@ -178,7 +178,7 @@ def remedies(diag: dict, *, chains: int, draws: int, target_accept: float | None
     if {"mu_log_R", "sigma_log_R"} & (set(low) | set(high)) and "sigma_m_scale" in pop and lam >= LOOSE_POOLING:
         out.append(f"the data barely fix each subject's R (pooling factor of its baseline log R {lam:.2f}, at least "
                    f"{LOOSE_POOLING}): a population of log R is then held by its prior and each subject's lower bound "
-                   "and mixes slowly in any form; refit with --R-population policy_scale (R^(-1/2) half-normal, "
-                   "which converged on the README's kbl study)")
+                   "and mixes slowly in any form; refit with R_population = \"policy_scale\" (R^(-1/2) half-normal) in "
+                   "--sampler-config (docs/decisions/delayed-R-population.md)")
     return out
 

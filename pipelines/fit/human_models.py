@@ -175,7 +175,7 @@ def adequacy_brief(adequacy: dict | None, where: str) -> dict:
 
 
 def unpooled_log_R_prior(side: dict, folder: Path):
-    """(m, s) of the baseline log R's prior of a delayed fit with ``--R-population unpooled``, else None."""
+    """(m, s) of the baseline log R's prior of a delayed fit with ``R_population = "unpooled"``, else None."""
     population = side.get("delayed_priors", {}).get("R_population", "lognormal")
     if population != "unpooled":
         return None

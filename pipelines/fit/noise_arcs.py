@@ -1,4 +1,4 @@
-"""Which subjects' noise the delayed fit samples in polar coordinates (``--rho-form polar``), and their k.
+"""Which subjects' noise the delayed fit samples in polar coordinates (``rho_form = "polar"`` in ``--sampler-config``), and their k.
 
 :mod:`scioc.models.bayes.noise_blocks` straightens a subject's arc ρ² + k σ_m² ≈ c given k; :func:`noise_arcs`
 sets ρ² to :data:`RHO2_SCALES` times its ML value, maximizes the likelihood over σ_m² at each, and takes

@@ -1,4 +1,4 @@
-"""How long a fit warms up: the default warm-up, and the delayed fit's pilot run (``--adaptation pilot``).
+"""How long a fit warms up: the default warm-up, and the delayed fit's pilot run (``adaptation = "pilot"``, the default).
 
 The pilot's draws measure each subject's whitened coordinates again (:mod:`scioc.models.bayes.whiten_draws`,
 :func:`scioc.pipelines.fit.whiten.sample_whitened`); the run whose draws are kept then starts inside the posterior's

@@ -37,7 +37,7 @@ RUN_FILE = "run.json"
 #: Why ``scioc run`` fits no delayed model without a torque sensor (docs/decisions/run-human-models.md).
 ANGLE_ONLY = ("without a torque sensor the delayed model is identified from the encoder's angles; its hierarchical "
               "fit, and so the leave-one-subject-out comparison of the two models, needs the recorded torque and is "
-              "not built for angles (README, \"Human models\")")
+              "not built for angles (docs/methods.md, \"Human models\")")
 
 
 class ModelRun(NamedTuple):

@@ -120,7 +120,7 @@ def _delayed_diag(pooling):
 def test_a_loose_R_whose_population_does_not_mix_is_sent_to_the_policy_scale_population():
     out = remedies(_delayed_diag(0.78), chains=4, draws=1000, target_accept=0.9)
     assert out[-1].startswith("the data barely fix each subject's R (pooling factor of its baseline log R 0.78, ")
-    assert "refit with --R-population policy_scale (" in out[-1]
+    assert "refit with R_population = \"policy_scale\" (" in out[-1] and "--sampler-config" in out[-1]
     # negative controls: R fixed by the data (the max-ent human's 0.07), or a max-ent fit (no motor noise), or no
     # pooling factor at all: the same failing σ_R gets only the generic advice
     assert not any("policy_scale" in t for t in remedies(_delayed_diag(0.07), chains=4, draws=1000, target_accept=0.9))

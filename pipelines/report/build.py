@@ -15,6 +15,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import matplotlib
 from markupsafe import Markup
 
 from scioc.pipelines.report import adequacy as report_adequacy
@@ -51,6 +52,7 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     ``subject``: for the Fig. 6 trajectories (default the third, as in the paper); ``calibration``:
     ``scioc calibrate``'s folder (default ``root/../calibration``); ``title``: default the folder's name.
     """
+    matplotlib.use("Agg")  # figures are rendered to PNG, never shown: the report is built without a display
     root = Path(root)
     run = check_run(root)
     for part, why in run.left_out.items():

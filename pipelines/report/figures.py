@@ -7,12 +7,10 @@ experiment's order, baseline first (:attr:`scioc.models.design.Design.ordered_le
 
 from __future__ import annotations
 
+import arviz_plots as azp
 import matplotlib
+import matplotlib.pyplot as plt
 import matplotlib.ticker
-
-matplotlib.use("Agg")
-import arviz_plots as azp  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy.stats import binom  # noqa: E402

@@ -15,11 +15,8 @@ from pathlib import Path
 from typing import NamedTuple
 
 import jinja2
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 import pandas as pd  # noqa: E402
 from markupsafe import Markup  # noqa: E402
 

@@ -210,7 +210,7 @@ def test_ctrl_c_stops_the_fit_and_leaves_the_old_folder(tiny_study, tmp_path):
     out.mkdir()
     (out / "contrasts.json").write_text('{"old": true}')
     cmd = [sys.executable, "-m", "scioc.pipelines.cli", "fit", str(root / "data" / "study.parquet"), "--out", str(out),
-           "--force", "--draws", "200000", "--tune", "200", "--chains", "2", "--window", "20,5"]
+           "--force", "--draws", "200000", "--tune", "200", "--chains", "2"]
     # PYTHONFAULTHANDLER: if it does not stop, SIGABRT makes it print where every thread is.
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONFAULTHANDLER": "1"})

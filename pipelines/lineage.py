@@ -146,20 +146,27 @@ def simulated_study(truth_path) -> tuple[Path, dict]:
     return meta_path, {"path": str(meta_path.parent / "study.parquet"), "sha256": wrote}
 
 
+def _written_by(path: Path, meta_path: Path, what: str, hint: str = "") -> dict:
+    """The sidecar at ``meta_path``, after checking that it wrote ``path`` as it is (LineageError naming both)."""
+    meta = read_sidecar(meta_path)
+    wrote = recorded(meta, path.name, meta_path, where="outputs")
+    have = file_sha256(path)
+    if wrote != have:
+        raise LineageError(f"{path} is not the {what} {meta_path} records: it wrote {path.name} with SHA-256 "
+                           f"{short(wrote)}, this file has {short(have)}{hint}")
+    return meta
+
+
 def identification(estimates_path) -> tuple[Path, dict] | None:
     """``identify.json`` beside ``estimates_path`` and its content, after checking that it wrote these estimates
     (LineageError naming both otherwise); None where there is no ``identify.json``."""
-    meta_path = Path(estimates_path).parent / SIDECARS["identify"]
+    estimates_path = Path(estimates_path)
+    meta_path = estimates_path.parent / SIDECARS["identify"]
     if not meta_path.is_file():
         return None
-    meta = read_sidecar(meta_path)
-    name = Path(estimates_path).name
-    wrote = recorded(meta, name, meta_path, where="outputs")
-    if wrote != file_sha256(estimates_path):
-        raise LineageError(f"{estimates_path} is not the estimates {meta_path} records: it wrote {name} with SHA-256 "
-                           f"{short(wrote)}, this file has {short(file_sha256(estimates_path))} (replaced or edited "
-                           "since); identify again, or give the estimates and identify.json written together")
-    return meta_path, meta
+    return meta_path, _written_by(estimates_path, meta_path, "estimates",
+                                  " (replaced or edited since); identify again, or give the estimates and "
+                                  "identify.json written together")
 
 
 def simulation(truth_path) -> tuple[Path, dict]:
@@ -170,12 +177,7 @@ def simulation(truth_path) -> tuple[Path, dict]:
     if not meta_path.is_file():
         raise LineageError(f"{truth_path}: no {meta_path.name} beside it, so which simulated study it is the truth of "
                            "is not known; give the truth.parquet scioc simulate wrote, in its folder")
-    meta = read_sidecar(meta_path)
-    wrote = recorded(meta, truth_path.name, meta_path, where="outputs")
-    if wrote != file_sha256(truth_path):
-        raise LineageError(f"{truth_path} is not the truth {meta_path} records: it wrote {truth_path.name} with "
-                           f"SHA-256 {short(wrote)}, this file has {short(file_sha256(truth_path))}")
-    return meta_path, meta
+    return meta_path, _written_by(truth_path, meta_path, "truth")
 
 
 __all__ = ["LineageError", "SIDECARS", "artifact_sha256", "entry", "experiment_entry", "file_sha256",

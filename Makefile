@@ -23,12 +23,12 @@ run: $(STAMP)
 	$(VENV)/bin/scioc run
 
 test: $(STAMP)
-	$(VENV)/bin/python -m pytest -m "not validation"
+	$(VENV)/bin/python -m pytest tests -m "not validation"
 
 # Reduced-size statistical studies, SBC smoke runs, delayed fits and recovery; their report, stamped
 # with the commit, goes to docs/validation.md.
 validate: $(STAMP) browser
-	$(VENV)/bin/python -m pytest -m validation --validation-report docs/validation.md
+	$(VENV)/bin/python -m pytest tests -m validation --validation-report=docs/validation.md
 
 # Headless Chromium for the report's browser test (the Debian package; CI runs as root).
 browser:

@@ -69,13 +69,8 @@ def _phi_series(X):
 
 
 @njit(cache=True, fastmath=False, error_model="python")
-def lag_nb(tau_nm, dt, A_c, b_w, Pb, b1, poles):
-    """``(a, α, da/dτ_nm, dα/dτ_nm)`` of one τ_nm >= 0 (s); the wheel's constants from :func:`wheel_constants`."""
-    if tau_nm < TAU_TINY:
-        # a = e^{-dt/τ} is 0 here and α = τ (Φ b_w)_1 / b_1 + O(τ²) to rounding; μ² would overflow.
-        return 0.0, tau_nm * Pb[1] / b1, 0.0, Pb[1] / b1
-    mu = 1.0 / tau_nm
-    a = math.exp(-dt * mu)
+def _response(mu, a, dt, A_c, b_w, Pb, poles):
+    """(v0, v1, dv0/dμ, dv1/dμ) at μ = 1/τ_nm > 0, a = e^{-μ dt} (module docstring)."""
     dist = np.inf
     for lam in poles:
         dist = min(dist, abs(mu + lam) / (mu + abs(lam)))
@@ -85,15 +80,50 @@ def lag_nb(tau_nm, dt, A_c, b_w, Pb, b1, poles):
         r0, r1 = Pb[0] - a * b_w[0], Pb[1] - a * b_w[1]
         v0, v1 = (m11 * r0 - m01 * r1) / det, (m00 * r1 - m10 * r0) / det
         s0, s1 = dt * a * b_w[0] - v0, dt * a * b_w[1] - v1
-        dv1 = (m00 * s1 - m10 * s0) / det
-        alpha = v1 / b1
+        return v0, v1, (m11 * s0 - m01 * s1) / det, (m00 * s1 - m10 * s0) / det
+    X = (A_c + mu * np.eye(2)) * dt
+    P1, P2 = _phi_series(X)
+    v0 = a * dt * (P1[0, 0] * b_w[0] + P1[0, 1] * b_w[1])
+    v1 = a * dt * (P1[1, 0] * b_w[0] + P1[1, 1] * b_w[1])
+    return (v0, v1, -dt * v0 + a * dt * dt * (P2[0, 0] * b_w[0] + P2[0, 1] * b_w[1]),
+            -dt * v1 + a * dt * dt * (P2[1, 0] * b_w[0] + P2[1, 1] * b_w[1]))
+
+
+@njit(cache=True, fastmath=False, error_model="python")
+def lag_nb(tau_nm, dt, A_c, b_w, Pb, b1, poles):
+    """``(a, α, da/dτ_nm, dα/dτ_nm)`` of one τ_nm >= 0 (s); the wheel's constants from :func:`wheel_constants`."""
+    if tau_nm < TAU_TINY:
+        # a = e^{-dt/τ} is 0 here and α = τ (Φ b_w)_1 / b_1 + O(τ²) to rounding; μ² would overflow.
+        return 0.0, tau_nm * Pb[1] / b1, 0.0, Pb[1] / b1
+    mu = 1.0 / tau_nm
+    a = math.exp(-dt * mu)
+    _, v1, _, dv1 = _response(mu, a, dt, A_c, b_w, Pb, poles)
+    return a, v1 / b1, a * dt * mu * mu, -mu * mu * dv1 / b1
+
+
+@njit(cache=True, fastmath=False, error_model="python")
+def lagged_wheel_nb(tau_nm, dt, A_c, b_w, Phi, b, poles):
+    """(A (3, 3), b_c (3,), dA/dτ_nm, db_c/dτ_nm) of the physically lagged wheel at τ_nm >= 0 (s)
+    (:func:`scioc.models.delayed.angles.lagged_wheel`): ``A = [[Φ, v], [0, a]]``, ``b_c = (b - v, 1 - a)``, v the
+    wheel's response over a sample to an arm torque decaying from 1; ``Phi``, ``b``: the wheel's ZOH step."""
+    Pb = Phi @ b_w
+    if tau_nm < TAU_TINY:  # v = τ Φ b_w + O(τ²) to rounding
+        a, da = 0.0, 0.0
+        v0, v1, dv0, dv1 = tau_nm * Pb[0], tau_nm * Pb[1], Pb[0], Pb[1]
     else:
-        X = (A_c + mu * np.eye(2)) * dt
-        P1, P2 = _phi_series(X)
-        v1 = a * dt * (P1[1, 0] * b_w[0] + P1[1, 1] * b_w[1])
-        dv1 = -dt * v1 + a * dt * dt * (P2[1, 0] * b_w[0] + P2[1, 1] * b_w[1])
-        alpha = v1 / b1
-    return a, alpha, a * dt * mu * mu, -mu * mu * dv1 / b1
+        mu = 1.0 / tau_nm
+        a = math.exp(-dt * mu)
+        da = a * dt * mu * mu
+        v0, v1, dv0, dv1 = _response(mu, a, dt, A_c, b_w, Pb, poles)
+        dv0, dv1 = -mu * mu * dv0, -mu * mu * dv1
+    A = np.zeros((3, 3))
+    dA = np.zeros((3, 3))
+    A[:2, :2] = Phi
+    A[0, 2], A[1, 2], A[2, 2] = v0, v1, a
+    dA[0, 2], dA[1, 2], dA[2, 2] = dv0, dv1, da
+    b_c = np.array([b[0] - v0, b[1] - v1, 1.0 - a])
+    db_c = np.array([-dv0, -dv1, -da])
+    return A, b_c, dA, db_c
 
 
-__all__ = ["TAU_TINY", "lag_nb", "wheel_constants"]
+__all__ = ["TAU_TINY", "lag_nb", "lagged_wheel_nb", "wheel_constants"]

@@ -128,7 +128,27 @@ def _frozen(x, dtype=np.float64) -> np.ndarray:
     return arr
 
 
-class DelayedLoglikDataOp(Op):
+class ParameterGradient:
+    """The pullback of an Op whose outputs are ``loglik`` (n,) and ``grad`` (5, n) in its first
+    :data:`N_PARAMETER_INPUTS` inputs, θ (3, n), τ_nm (n,) and σ_m (n,): logp and gradient cost one call."""
+
+    def pullback(self, inputs, outputs, cotangents):
+        _, grad = outputs
+        g_ll, g_grad = cotangents
+        params = inputs[:N_PARAMETER_INPUTS]
+        rest = [disconnected_type() for _ in inputs[N_PARAMETER_INPUTS:]]
+        if not isinstance(g_grad.type, DisconnectedType):
+            return [grad_not_implemented(self, j, v, "second derivatives of the delayed likelihood")
+                    for j, v in enumerate(params)] + rest
+        if isinstance(g_ll.type, DisconnectedType):
+            return [pt.zeros_like(v) for v in params] + rest
+        return [grad[:3] * g_ll[None, :], grad[3] * g_ll, grad[4] * g_ll, *rest]
+
+    def connection_pattern(self, node):
+        return [[True, True]] * N_PARAMETER_INPUTS + [[False, False] for _ in node.inputs[N_PARAMETER_INPUTS:]]
+
+
+class DelayedLoglikDataOp(ParameterGradient, Op):
     """Per-segment ``delayed`` log-likelihood and its gradient in (θ, τ_nm, σ_m), the data as inputs.
 
     Inputs: ``theta`` (3, n) rows q11, q22, R; ``tau_nm`` (n,), s; ``sigma_m`` (n,), N·m; :data:`DELAYED_DATA_NAMES`.
@@ -171,22 +191,6 @@ class DelayedLoglikDataOp(Op):
     def infer_shape(self, node, input_shapes):
         n = input_shapes[1][0]
         return [(n,), (5, n)]
-
-    def pullback(self, inputs, outputs, cotangents):
-        _, grad = outputs
-        g_ll, g_grad = cotangents
-        params = inputs[:N_PARAMETER_INPUTS]
-        rest = [disconnected_type() for _ in inputs[N_PARAMETER_INPUTS:]]
-        if not isinstance(g_grad.type, DisconnectedType):
-            return [grad_not_implemented(self, j, v, "second derivatives of the delayed likelihood")
-                    for j, v in enumerate(params)] + rest
-        if isinstance(g_ll.type, DisconnectedType):
-            return [pt.zeros_like(v) for v in params] + rest
-        return [grad[:3] * g_ll[None, :], grad[3] * g_ll, grad[4] * g_ll, *rest]
-
-    def connection_pattern(self, node):
-        return [[True, True]] * N_PARAMETER_INPUTS + [[False, False] for _ in node.inputs[N_PARAMETER_INPUTS:]]
-
 
 class DelayedLoglikOp(DelayedLoglikDataOp):
     """Per-segment ``delayed`` log-likelihood for fixed data: inputs θ (3, n), τ_nm (n,), σ_m (n,), and
@@ -280,5 +284,5 @@ def delayed_loglik(theta, tau_nm, sigma_m, batch: SegmentBatch, plant: DiscreteP
     return ll
 
 
-__all__ = ["WARM_EPS", "warm_samples", "DELAYED_DATA_NAMES", "DelayedLoglikDataOp", "DelayedLoglikOp", "delayed_loglik",
+__all__ = ["ParameterGradient", "WARM_EPS", "warm_samples", "DELAYED_DATA_NAMES", "DelayedLoglikDataOp", "DelayedLoglikOp", "delayed_loglik",
            "numba_funcify_delayed_loglik", "pack_tau0", "warmups_of"]

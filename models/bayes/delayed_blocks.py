@@ -15,21 +15,13 @@ import pytensor.tensor as pt
 
 from scioc.models.bayes.blocks import Parameterization, theta2_block, unit_block
 from scioc.models.bayes.hierarchical import Priors
-from scioc.models.bayes.noise_blocks import (
-    NOISE_A,
-    NOISE_B,
-    mixed_half_normal_block,
-    polar_noise_block,
-    squared_half_normal_block,
-)
 
 #: Population parameters of the lag and motor-noise blocks (and of ρ, with ``R_population="policy_scale"``).
 DELAYED_POPULATION_PARAMETERS = ("tau_nm_scale", "sigma_m_scale", "rho_scale")
 #: The populations of the subjects' baseline R (:class:`DelayedPriors`).
 R_POPULATIONS = ("lognormal", "policy_scale", "unpooled")
-#: The forms of τ_nm and σ_m (:class:`DelayedForm`), and of ρ.
+#: The forms of τ_nm, σ_m and ρ (:class:`DelayedForm`).
 MOTOR_FORMS = ("centred", "noncentred", "folded", "folded_centred")
-RHO_FORMS = MOTOR_FORMS + ("mixed", "polar", "squared")
 
 
 @dataclass(frozen=True)
@@ -37,35 +29,22 @@ class DelayedPriors:
     """Hyperpriors of the lag and motor-noise blocks and the population of R (τ_nm in s, σ_m in N·m per sample).
 
     ``tau_nm_scale``: scale of s_τ's half-normal prior. s_m² ~ InverseGamma(``sigma_m_variance_inverse_gamma``:
-    shape, scale; docs/decisions/motor-noise-scale-prior.md), else s_m ~ Gamma(``sigma_m_scale_gamma``: shape, rate),
-    else HalfNormal(``sigma_m_scale``). ``R_population``: log R ~ N(μ_R, σ_R), σ_R half-normal or
-    Gamma(``sigma_log_R_gamma``); ρ = R^(-1/2) ~ HalfNormal(s_ρ), s_ρ ~ HalfNormal(``rho_scale_factor`` e^(-μ_R/2));
-    or each subject's own N(m, s) (:meth:`unpooled_log_R_prior`).
+    shape, scale; docs/decisions/motor-noise-scale-prior.md). ``R_population``: log R ~ N(μ_R, σ_R), σ_R
+    half-normal; ρ = R^(-1/2) ~ HalfNormal(s_ρ), s_ρ ~ HalfNormal(``rho_scale_factor`` e^(-μ_R/2)); or each subject's
+    own N(m, s) (:meth:`unpooled_log_R_prior`).
     """
 
     tau_nm_scale: float = 0.1
-    sigma_m_scale: float = 0.3
-    sigma_m_variance_inverse_gamma: tuple[float, float] | None = (1.0, 0.03)
-    sigma_m_scale_gamma: tuple[float, float] | None = None
-    sigma_log_R_gamma: tuple[float, float] | None = None
+    sigma_m_variance_inverse_gamma: tuple[float, float] = (1.0, 0.03)
     R_population: str = "lognormal"
     rho_scale_factor: float = 2.0
 
     def __post_init__(self):
-        for name in ("sigma_log_R_gamma", "sigma_m_scale_gamma", "sigma_m_variance_inverse_gamma"):
-            g = getattr(self, name)
-            if g is not None and not (len(g) == 2 and all(np.isfinite(v) and v > 0 for v in g)):
-                what = "(shape, scale)" if name == "sigma_m_variance_inverse_gamma" else "(shape, rate)"
-                raise ValueError(f"{name} must be {what}, both > 0; got {g!r}")
-        if self.sigma_m_variance_inverse_gamma is not None and self.sigma_m_scale_gamma is not None:
-            raise ValueError("s_m has one prior: give sigma_m_variance_inverse_gamma or sigma_m_scale_gamma, not both "
-                             "(sigma_m_variance_inverse_gamma=None for the Gamma)")
-        g = self.sigma_log_R_gamma
+        g = self.sigma_m_variance_inverse_gamma
+        if g is None or not (len(g) == 2 and all(np.isfinite(v) and v > 0 for v in g)):
+            raise ValueError(f"sigma_m_variance_inverse_gamma must be (shape, scale), both > 0; got {g!r}")
         if self.R_population not in R_POPULATIONS:
             raise ValueError(f"R_population must be one of {R_POPULATIONS}; got {self.R_population!r}")
-        if self.R_population != "lognormal" and g is not None:
-            raise ValueError("sigma_log_R_gamma is a prior of the lognormal R population; "
-                             f"R_population={self.R_population!r} has no σ_R")
         if not (np.isfinite(self.rho_scale_factor) and self.rho_scale_factor > 0):
             raise ValueError(f"rho_scale_factor must be > 0; got {self.rho_scale_factor!r}")
 
@@ -85,48 +64,29 @@ class DelayedForm:
     """The forms of the lag, motor-noise and ρ blocks: each the same half-normal law in other coordinates.
 
     ``centred`` samples the value; ``noncentred`` z ~ HalfNormal(1), value s z; ``folded`` z ~ N(0, 1), value s |z|;
-    ``folded_centred`` v ~ N(0, s), value |v|. ρ adds ``mixed`` (per ``rho_pinned``), ``polar`` (per ``polar_k``)
-    and ``squared``: :mod:`scioc.models.bayes.noise_blocks`.
+    ``folded_centred`` v ~ N(0, s), value |v|.
     """
 
     tau_nm: str = "centred"
     sigma_m: str = "centred"
     rho: str = "folded"
-    rho_pinned: tuple = ()
-    polar_k: tuple = ()
 
     def __post_init__(self):
-        for name, allowed in (("tau_nm", MOTOR_FORMS), ("sigma_m", MOTOR_FORMS), ("rho", RHO_FORMS)):
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"DelayedForm.{name} must be one of {allowed}; got {getattr(self, name)!r}")
-        if not all(isinstance(v, (bool, np.bool_)) for v in self.rho_pinned):
-            raise ValueError(f"DelayedForm.rho_pinned must hold one bool per subject; got {self.rho_pinned!r}")
-        if self.rho == "mixed" and not self.rho_pinned:
-            raise ValueError("DelayedForm.rho='mixed' needs rho_pinned, one flag per subject (from ML estimates)")
-        if self.rho == "polar" and not self.polar_k:
-            raise ValueError("DelayedForm.rho='polar' needs polar_k, one k (or NaN) per subject (from ML estimates)")
+        for name in ("tau_nm", "sigma_m", "rho"):
+            if getattr(self, name) not in MOTOR_FORMS:
+                raise ValueError(f"DelayedForm.{name} must be one of {MOTOR_FORMS}; got {getattr(self, name)!r}")
 
 
 def baseline_log_R(priors: Priors, delayed_priors: DelayedPriors, form: DelayedForm):
     """The subjects' baseline log R = -2 log ρ, ρ ~ HalfNormal(s_ρ) in ``form.rho``, starting at R = e^μ."""
     scale = pm.HalfNormal("rho_scale", delayed_priors.rho_prior_scale(priors))
-    start = float(np.exp(-0.5 * priors.mu_log_R[0]))
-    if form.rho == "mixed":
-        rho = mixed_half_normal_block("rho", scale, np.asarray(form.rho_pinned, dtype=bool), start=start)
-    elif form.rho == "squared":
-        rho = squared_half_normal_block("rho", scale, start=start)
-    elif form.rho == "polar":
-        rho, _ = polar_noise_block(scale, motor_noise_scale(delayed_priors), form.polar_k, start_rho=start,
-                                   start_sigma=FOLDED_CENTRED_START["sigma_m"])
-    else:
-        rho = half_normal_block("rho", scale, form.rho, start=start)
+    rho = half_normal_block("rho", scale, form.rho, start=float(np.exp(-0.5 * priors.mu_log_R[0])))
     return -2.0 * pt.log(rho)
 
 
 def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: dict, delayed_priors: DelayedPriors,
                 delayed_form: DelayedForm):
     """The population parameters and unit blocks of θ, as in the max-ent model but for the population of R."""
-    sigma_R_gamma = delayed_priors.sigma_log_R_gamma
     mu = pm.Normal("mu_log_theta1", *priors.mu_log_theta1)
     beta = pm.Normal("beta", 0.0, priors.beta_sd, **effect)
     sigma = pm.HalfNormal("sigma_log_theta1", priors.sigma_log_theta1)
@@ -140,8 +100,7 @@ def cost_blocks(priors: Priors, form: Parameterization, n_levels: int, effect: d
         mu_R, sigma_R, form_R = pm.Normal("log_R_base", m, sd, dims="subject"), None, "given"
     else:
         mu_R = pm.Normal("mu_log_R", *priors.mu_log_R)
-        sigma_R = (pm.HalfNormal("sigma_log_R", priors.sigma_log_R) if sigma_R_gamma is None
-                   else pm.Gamma("sigma_log_R", alpha=sigma_R_gamma[0], beta=sigma_R_gamma[1]))
+        sigma_R = pm.HalfNormal("sigma_log_R", priors.sigma_log_R)
         form_R = form.R_mc
     tau = pm.HalfNormal("tau_theta2", priors.tau_theta2)
     log_theta1 = unit_block("log_theta1", mu, beta, sigma, sigma_b, form.theta1_mc, form.theta1_sc, n_levels)
@@ -157,23 +116,17 @@ FOLDED_CENTRED_START = {"tau_nm": 0.05, "sigma_m": 0.05}
 
 
 def motor_noise_scale(priors: DelayedPriors):
-    """s_m, the population scale of σ_m: s_m² inverse gamma, else Gamma or half-normal (:class:`DelayedPriors`)."""
-    if priors.sigma_m_variance_inverse_gamma is not None:
-        a, b = priors.sigma_m_variance_inverse_gamma
-        return pm.Deterministic("sigma_m_scale", pt.sqrt(pm.InverseGamma("sigma_m_scale_sq", alpha=a, beta=b)))
-    if priors.sigma_m_scale_gamma is not None:
-        return pm.Gamma("sigma_m_scale", alpha=priors.sigma_m_scale_gamma[0], beta=priors.sigma_m_scale_gamma[1])
-    return pm.HalfNormal("sigma_m_scale", priors.sigma_m_scale)
+    """s_m, the population scale of σ_m: s_m² inverse gamma (:class:`DelayedPriors`)."""
+    a, b = priors.sigma_m_variance_inverse_gamma
+    return pm.Deterministic("sigma_m_scale", pt.sqrt(pm.InverseGamma("sigma_m_scale_sq", alpha=a, beta=b)))
 
 
 def motor_blocks(priors: DelayedPriors, form: DelayedForm):
-    """τ_nm and σ_m per subject from half-normal populations, in ``form``; σ_m made with ρ (``polar``) is kept."""
+    """τ_nm and σ_m per subject from half-normal populations, in ``form``."""
     s_tau = pm.HalfNormal("tau_nm_scale", priors.tau_nm_scale)
-    model = pm.modelcontext(None)
-    made = "sigma_m" in model.named_vars
-    s_m = None if made else motor_noise_scale(priors)
+    s_m = motor_noise_scale(priors)
     tau_nm = half_normal_block("tau_nm", s_tau, form.tau_nm)
-    return tau_nm, model["sigma_m"] if made else half_normal_block("sigma_m", s_m, form.sigma_m)
+    return tau_nm, half_normal_block("sigma_m", s_m, form.sigma_m)
 
 
 def motor_coordinate(name: str, form: str) -> str:
@@ -194,18 +147,6 @@ def ridge_pivots(priors: DelayedPriors, form: DelayedForm, n_subjects: int) -> t
     sigma_m = (motor_coordinate("sigma_m", form.sigma_m), np.full(n_subjects, form.sigma_m in SIGNED_FORMS))
     if priors.R_population != "policy_scale":
         return (sigma_m,)
-    if form.rho == "polar":
-        polar = np.isfinite(np.asarray(form.polar_k, dtype=float))
-        if polar.shape != (n_subjects,):
-            raise ValueError(f"polar_k has {polar.size} values for {n_subjects} subjects")
-        return (NOISE_A, ~polar), (NOISE_B, np.full(n_subjects, True))
-    if form.rho == "squared":
-        return ("rho_root", np.full(n_subjects, True)), sigma_m
-    if form.rho == "mixed":
-        pinned = np.asarray(form.rho_pinned, dtype=bool)
-        if pinned.shape != (n_subjects,):
-            raise ValueError(f"rho_pinned has {pinned.size} flags for {n_subjects} subjects")
-        return ("rho_free", ~pinned), sigma_m
     return (motor_coordinate("rho", form.rho), np.full(n_subjects, form.rho in SIGNED_FORMS)), sigma_m
 
 
@@ -225,5 +166,5 @@ def half_normal_block(name: str, scale, form: str, *, start: float | None = None
 
 
 __all__ = ["DELAYED_POPULATION_PARAMETERS", "FOLDED_CENTRED_START", "DelayedForm", "DelayedPriors", "MOTOR_FORMS",
-           "RHO_FORMS", "R_POPULATIONS", "SIGNED_FORMS", "baseline_log_R", "cost_blocks", "half_normal_block",
+           "R_POPULATIONS", "SIGNED_FORMS", "baseline_log_R", "cost_blocks", "half_normal_block",
            "motor_blocks", "motor_coordinate", "motor_noise_scale", "ridge_pivots"]

@@ -45,40 +45,19 @@ from scioc.models.units import index_study
 DELAY_INDEX = "delay_index"
 #: The cost blocks' default forms: log R non-centred (docs/decisions/delayed-log-R-form.md), the rest the max-ent's.
 DELAYED_PARAMETERIZATION = Parameterization(R_mc="noncentred", R_sc="noncentred")
-#: nutpie's own mass matrices: low rank and diagonal.
-NUTPIE_ADAPTATIONS = ("low_rank", "diag")
 #: nutpie's options on the model's own coordinates (``scioc bench-fit``: no mode to whiten at).
-DELAYED_NUTS = {"adaptation": NUTPIE_ADAPTATIONS[0]}
-# Names in ADAPTATIONS: whitened, curved along each subject's ridge, curved with nutpie's low-rank matrix on top,
-# and curved measured again on a pilot run's draws.
-WHITENED = "whitened"
-CURVED = "curved"
-CURVED_LOW_RANK = "curved_low_rank"
-PILOT = "pilot"
-#: The mass matrices of a delayed fit with profile delays (``scioc fit --adaptation``), the default first.
-ADAPTATIONS = (PILOT, CURVED, WHITENED, *NUTPIE_ADAPTATIONS, CURVED_LOW_RANK)
-#: The entries of :data:`ADAPTATIONS` sampled on each subject's whitened coordinates, and those of them curved.
-WHITENED_ADAPTATIONS = (PILOT, CURVED, WHITENED, CURVED_LOW_RANK)
-CURVED_ADAPTATIONS = (PILOT, CURVED, CURVED_LOW_RANK)
-
-
+DELAYED_NUTS = {"adaptation": "low_rank"}
 #: nutpie's target acceptance rate on whitened coordinates (docs/decisions/delayed-target-accept.md).
 WHITENED_TARGET_ACCEPT = 0.9
 #: The rate with a pilot run and ρ signed, whose pivots' tail maps remove the divergences 0.9 prevents.
 PILOT_ADAPTATION_TARGET_ACCEPT = 0.8
 
 
-def nutpie_options(adaptation: str, rho_signed: bool = False) -> dict:
-    """nutpie's options for an :data:`ADAPTATIONS` entry; ``rho_signed``: ρ's coordinate is signed."""
-    if adaptation not in ADAPTATIONS:
-        raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}; got {adaptation!r}")
-    if adaptation in WHITENED_ADAPTATIONS:
-        return {"adaptation": "low_rank" if adaptation == CURVED_LOW_RANK else "diag",
-                "target_accept": PILOT_ADAPTATION_TARGET_ACCEPT if adaptation == PILOT and rho_signed
-                else WHITENED_TARGET_ACCEPT}
-    return {"adaptation": adaptation}
-
-
+def nutpie_options(rho_signed: bool = False) -> dict:
+    """nutpie's options on the whitened, curved coordinates of ``scioc fit`` (profile delays): its diagonal mass
+    matrix and the target rate; ``rho_signed``: ρ's coordinate is signed."""
+    return {"adaptation": "diag",
+            "target_accept": PILOT_ADAPTATION_TARGET_ACCEPT if rho_signed else WHITENED_TARGET_ACCEPT}
 
 
 def _tau0_at(spec, n: int, dt: float, params: WheelParameters):
@@ -190,7 +169,6 @@ def delay_step(model: pm.Model, **kwargs) -> DelayMetropolis:
                            **kwargs)
 
 
-__all__ = ["ADAPTATIONS", "CURVED", "CURVED_ADAPTATIONS", "CURVED_LOW_RANK", "DELAY_INDEX", "DELAYED_NUTS",
-           "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm", "DelayedPriors",
-           "NUTPIE_ADAPTATIONS", "PILOT", "PILOT_ADAPTATION_TARGET_ACCEPT", "R_POPULATIONS", "WHITENED",
-           "WHITENED_ADAPTATIONS", "WHITENED_TARGET_ACCEPT", "build_delayed_model", "delay_step", "nutpie_options"]
+__all__ = ["DELAY_INDEX", "DELAYED_NUTS", "DELAYED_PARAMETERIZATION", "DELAYED_POPULATION_PARAMETERS", "DelayedForm",
+           "DelayedPriors", "PILOT_ADAPTATION_TARGET_ACCEPT", "R_POPULATIONS", "WHITENED_TARGET_ACCEPT",
+           "build_delayed_model", "delay_step", "nutpie_options"]

@@ -77,11 +77,11 @@ def bench_delay_profile(n_subjects: int = 6, *, seed: int = 2018, delay: int = 1
 
 def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4, draws: int = 1000,
                       tune: int = 1000, delayed_form=None, parameterization=None, delayed_priors=None,
-                      nuts: dict | None = None, idata_path=None) -> dict:
+                      idata_path=None) -> dict:
     """Fit a default-size study of the ``delayed`` human once and time it (module docstring).
 
     Returns ``settings``, ``seconds``, ``diagnostics``, ``recovery`` (β, τ_nm, σ_m) and ``grad_evals``;
-    ``idata_path`` also keeps the posterior; ``nuts`` default :data:`scioc.models.bayes.delayed_model.DELAYED_NUTS`.
+    ``idata_path`` also keeps the posterior; nutpie samples with :data:`scioc.models.bayes.delayed_model.DELAYED_NUTS`.
     """
     plant = discretize(DT_HUMAN)
     w = delayed_windows(n_subjects, np.random.default_rng(np.random.SeedSequence(seed)))
@@ -89,14 +89,13 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
     delayed_priors = DelayedPriors() if delayed_priors is None else delayed_priors
     delayed_form = DelayedForm() if delayed_form is None else delayed_form
     parameterization = DELAYED_PARAMETERIZATION if parameterization is None else parameterization
-    nuts = DELAYED_NUTS if nuts is None else nuts
     t0 = time.perf_counter()
     model = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay, tau0=w.tau0,
                                 delayed_priors=delayed_priors, delayed_form=delayed_form,
                                 parameterization=parameterization)
     t1 = time.perf_counter()
     idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, log_likelihood=False,
-                              nuts=nuts)
+                              nuts=DELAYED_NUTS)
     diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
     post = idata["posterior"]
     recovery = {}
@@ -117,7 +116,7 @@ def bench_fit_delayed(*, n_subjects: int = 42, seed: int = 2018, chains: int = 4
                          "delays": [int(w.delay.min()), int(w.delay.max())],
                          "delayed_priors": asdict(delayed_priors), "delayed_form": asdict(delayed_form),
                          "parameterization": asdict(parameterization),
-                         "nuts": dict(nuts) or {"adaptation": "diag (nutpie's default)"}},
+                         "nuts": dict(DELAYED_NUTS)},
             "seconds": {"build": t1 - t0, "compile_and_sample": sec["compile_and_sample"], "sample": sec["sample"],
                         "fit": fit_s},
             "diagnostics": diag, "recovery": recovery,

@@ -73,7 +73,7 @@ def cmd_bench_fit(args) -> int:
 
         res = bench_fit_delayed(n_subjects=args.subjects, seed=args.seed, chains=args.chains, draws=args.draws,
                                 tune=args.tune, delayed_priors=DelayedPriors(R_population=args.R_population),
-                                delayed_form=DelayedForm(rho=args.rho_form), nuts={"adaptation": args.adaptation})
+                                delayed_form=DelayedForm(rho=args.rho_form))
         print(format_fit_delayed(res))
     else:
         from scioc.models.bayes.hierarchical import Parameterization

@@ -14,7 +14,6 @@ from scioc.pipelines.cli.values import (
     HUMAN_NAMES,
     LIKELIHOOD_NAMES,
     MAX_DELAY_S,
-    NUTPIE_ADAPTATION_NAMES,
     PARAMETERIZATION_BLOCKS,
     PREVIEW,
     R_POPULATION_NAMES,
@@ -341,11 +340,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--tune", type=positive_int, default=1000, help="tuning draws per chain (default 1000)")
     g.add_argument("--R-population", dest="R_population", choices=R_POPULATION_NAMES, default="lognormal", help="the "
                    "baseline R's population (default lognormal; policy_scale: R^(-1/2) half-normal; unpooled: none)")
-    g.add_argument("--rho-form", choices=[f for f in RHO_FORM_NAMES if f not in ("mixed", "polar")], default="folded",
-                   help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded; mixed and polar need a "
-                   "fit's ML estimates)")
-    g.add_argument("--adaptation", choices=NUTPIE_ADAPTATION_NAMES, default="low_rank",
-                   help="nutpie's mass matrix (default low_rank; curved and whitened need a fit's ML start)")
+    g.add_argument("--rho-form", choices=RHO_FORM_NAMES, default="folded",
+                   help="form of ρ = R^(-1/2) with --R-population policy_scale (default folded)")
     p.add_argument("--json", metavar="PATH", help="also write the result as JSON")
     p.set_defaults(func=commands.cmd_bench_fit)
     return parser

@@ -79,12 +79,8 @@ MAX_DELAY_S = 0.3
 LIKELIHOOD_NAMES = ("torques", "angles")
 #: The delayed model's baseline-R populations (:data:`scioc.models.bayes.delayed_model.R_POPULATIONS`, tested equal).
 R_POPULATION_NAMES = ("lognormal", "policy_scale", "unpooled")
-#: The forms of ρ (:data:`scioc.models.bayes.delayed_blocks.RHO_FORMS`, tested equal).
-RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred", "mixed", "polar", "squared")
-#: The delayed fit's mass matrices, default first, then nutpie's own (:data:`scioc.models.bayes.delayed_model.ADAPTATIONS`).
-ADAPTATION_NAMES = ("pilot", "curved", "whitened", "low_rank", "diag", "curved_low_rank")
-#: nutpie's own mass matrices among them (``scioc bench-fit --adaptation``; tested equal).
-NUTPIE_ADAPTATION_NAMES = ADAPTATION_NAMES[3:5]
+#: The forms of ρ (:data:`scioc.models.bayes.delayed_blocks.MOTOR_FORMS`, tested equal).
+RHO_FORM_NAMES = ("centred", "noncentred", "folded", "folded_centred")
 #: Points of the adequacy check at the posterior (:data:`scioc.pipelines.fit.checks.ADEQUACY_POINTS`, tested equal).
 ADEQUACY_AT_NAMES = ("draw", "means")
 ADEQUACY_AT_HELP = ("posterior point of the adequacy check (default draw: one joint posterior draw picked by the "

@@ -5,7 +5,7 @@
 * :mod:`.diagnostics`: R-hat, ESS, E-BFMI, divergences and the sampler's verdict.
 * :mod:`.contrasts`: β, exp(β), P(β < 0), HDIs; :mod:`.loo`: PSIS-LOO over segments and leaving subjects out;
   :mod:`.ppc`: posterior predictive draws; :mod:`.checks`: mixed model, truth check, adequacy at a posterior point.
-* :mod:`.delayed`, :mod:`.delayed_forms`, :mod:`.noise_arcs`: the delayed human's fit and its blocks' forms.
+* :mod:`.delayed`, :mod:`.delayed_forms`: the delayed human's fit and its blocks' forms.
 * :mod:`.human_models`: max-ent against delayed by leaving subjects out; :mod:`.recheck`: ``scioc adequacy``;
   :mod:`.summary`: the lines ``scioc fit`` prints.
 

@@ -17,11 +17,8 @@ import pandas as pd
 
 from scioc.models.bayes.delayed_blocks import SIGNED_FORMS, ridge_pivots
 from scioc.models.bayes.delayed_model import (
-    ADAPTATIONS,
-    CURVED_ADAPTATIONS,
     DELAY_INDEX,
     DELAYED_POPULATION_PARAMETERS,
-    WHITENED_ADAPTATIONS,
     DelayedForm,
     DelayedPriors,
     build_delayed_model,
@@ -44,7 +41,6 @@ from scioc.pipelines.fit.delayed_forms import (
 )
 from scioc.pipelines.fit.diagnostics import diagnostics
 from scioc.pipelines.fit.loo import psis_summary
-from scioc.pipelines.fit.noise_arcs import noise_arcs
 from scioc.pipelines.fit.ppc import PPC_DRAWS, posterior_predictive, ppc_coverage
 from scioc.pipelines.fit.sampling import sample_model
 from scioc.pipelines.fit.start import scale_sources, start_point
@@ -188,7 +184,6 @@ def sampled_delays(idata, prepared, dt: float, grid: np.ndarray) -> Delays:
 class DelayedChoices(NamedTuple):
     """The delayed fit's coordinates, populations and sampler settings, and why (:func:`delayed_choices`)."""
 
-    adaptation: str
     whiten: bool
     delayed_priors: DelayedPriors
     R_population_reason: str
@@ -196,23 +191,18 @@ class DelayedChoices(NamedTuple):
     form_reason: str
     log_R: str
     log_R_reason: str
-    arcs: object
     nuts: dict
 
 
 def delayed_choices(prepared, plant, delays: Delays, *, estimates: pd.DataFrame | None = None,
                     delay_mode: str = "profile", delayed_priors: DelayedPriors | None = None,
                     delayed_form: DelayedForm | None = None, rho_form: str | None = None,
-                    adaptation: str | None = None, log_R: str | None = None,
-                    target_accept: float | None = None) -> DelayedChoices:
+                    log_R: str | None = None, target_accept: float | None = None) -> DelayedChoices:
     """What :func:`sample_delayed_model` samples with: the options given, the rest chosen by the ML estimates
     (given, or the fit's own profile's) as :mod:`scioc.pipelines.fit.delayed_forms` says, each with its reason."""
     if delay_mode not in DELAY_MODES:
         raise ValueError(f"delay_mode must be one of {', '.join(DELAY_MODES)}; got {delay_mode!r}")
-    if adaptation is not None and (adaptation not in ADAPTATIONS or delay_mode != "profile"):
-        raise ValueError(f"adaptation must be one of {', '.join(ADAPTATIONS)}, with profile delays; got {adaptation!r}")
-    adaptation = ADAPTATIONS[0] if adaptation is None else adaptation
-    whiten = delay_mode == "profile" and adaptation in WHITENED_ADAPTATIONS
+    whiten = delay_mode == "profile"
     if log_R is not None and log_R not in LOG_R_FORMS:
         raise ValueError(f"log_R must be one of {', '.join(LOG_R_FORMS)}; got {log_R!r}")
     ml = estimates if estimates is not None else delays.estimates  # the ML estimates: given, or the fit's own profile's
@@ -227,42 +217,32 @@ def delayed_choices(prepared, plant, delays: Delays, *, estimates: pd.DataFrame 
     else:
         form_reason = "given"
     log_R, R_reason = log_R_form(delayed_form) if log_R is None else (log_R, "given")
-    arcs = None
     if rho_form is not None:
-        if rho_form == "mixed" and len(delayed_form.rho_pinned) != len(subjects):
-            raise ValueError("rho_form \"mixed\" chooses each subject's form by its ML estimates (se_log_R): give "
-                             "--estimates with that column, or another form")
-        if rho_form == "polar":
-            ks, arcs = noise_arcs(prepared, plant, ml, delays.samples, tau0_function(prepared, plant), subjects)
-            delayed_form = replace(delayed_form, polar_k=ks)
         delayed_form = replace(delayed_form, rho=rho_form)
     rho_signed = delayed_priors.R_population == "policy_scale" and delayed_form.rho in SIGNED_FORMS
-    nuts = (nutpie_options(adaptation, rho_signed)
-            | ({} if target_accept is None else {"target_accept": float(target_accept)}))
-    return DelayedChoices(adaptation, whiten, delayed_priors, population_reason, delayed_form, form_reason, log_R,
-                          R_reason, arcs, nuts)
+    nuts = nutpie_options(rho_signed) | ({} if target_accept is None else {"target_accept": float(target_accept)})
+    return DelayedChoices(whiten, delayed_priors, population_reason, delayed_form, form_reason, log_R, R_reason, nuts)
 
 
 def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *, seed: int, chains: int, draws: int,
                          tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors | None = None,
                          delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
-                         delay_mode: str = "profile", rho_form: str | None = None,
-                         adaptation: str | None = None, log_R: str | None = None,
+                         delay_mode: str = "profile", rho_form: str | None = None, log_R: str | None = None,
                          target_accept: float | None = None) -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms; θ2 takes ``THETA2_FORM``, the log R blocks ``log_R``. None for ``log_R``,
     ``delayed_priors`` or ``delayed_form``: chosen by the data (:mod:`scioc.pipelines.fit.delayed_forms`).
-    ``delay_mode``: ``sampled`` samples one delay per subject (the returned delays: its posterior modes). ``rho_form``
-    replaces ρ's form; ``adaptation`` (:data:`scioc.models.bayes.delayed_model.ADAPTATIONS`, profile delays only; None:
-    ``pilot``) chooses the coordinates and mass matrix; ``target_accept`` (None: the adaptation's) the rate.
+    ``delay_mode``: ``profile`` samples each subject's whitened coordinates, curved along its ridge, after a pilot run
+    (:func:`scioc.pipelines.fit.whiten.sample_whitened`); ``sampled`` samples one delay per subject (the returned
+    delays: its posterior modes). ``rho_form`` replaces ρ's form; ``target_accept`` (None: :func:`nutpie_options`'s)
+    the rate.
     """
     c = delayed_choices(prepared, plant, delays, estimates=estimates, delay_mode=delay_mode,
                         delayed_priors=delayed_priors, delayed_form=delayed_form, rho_form=rho_form,
-                        adaptation=adaptation, log_R=log_R, target_accept=target_accept)
-    adaptation, whiten, delayed_priors, delayed_form = c.adaptation, c.whiten, c.delayed_priors, c.delayed_form
-    population_reason, form_reason, R_reason, arcs, nuts = c.R_population_reason, c.form_reason, c.log_R_reason, \
-        c.arcs, c.nuts
+                        log_R=log_R, target_accept=target_accept)
+    whiten, delayed_priors, delayed_form = c.whiten, c.delayed_priors, c.delayed_form
+    population_reason, form_reason, R_reason, nuts = c.R_population_reason, c.form_reason, c.log_R_reason, c.nuts
     form = replace(form, R_mc=c.log_R, R_sc=c.log_R, theta2=THETA2_FORM)
     levels = prepared.settings.design.ordered_levels
     ml = estimates if estimates is not None else delays.estimates
@@ -270,8 +250,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     t0 = time.perf_counter()
     sampled = delay_mode == "sampled"
     n_subjects = len(subjects)
-    curved = whiten and adaptation in CURVED_ADAPTATIONS
-    pivots = ridge_pivots(delayed_priors, delayed_form, n_subjects) if curved else None
+    pivots = ridge_pivots(delayed_priors, delayed_form, n_subjects) if whiten else None
     grid = delay_grid(float(plant.dt))
     model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant,
                                 delay=None if sampled else delays.samples, delay_grid=grid if sampled else None,
@@ -286,13 +265,10 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                   show_progress=show_progress, steps=[delay_step(model, mode="NUMBA")],
                                   initvals=start, target_accept=target_accept)
         delays = sampled_delays(idata, prepared, float(plant.dt), grid)
-    elif whiten:
+    else:
         idata, sec, whitening = sample_whitened(model, start, seed=seed, chains=chains, draws=draws, tune=tune,
                                                 cores=cores, show_progress=show_progress, nuts=nuts, pivots=pivots,
-                                                pilot=pilot_runs(adaptation, delay_mode, tune, draws, chains))
-    else:
-        idata, sec = sample_model(model, seed=seed, chains=chains, draws=draws, tune=tune, cores=cores,
-                                  show_progress=show_progress, nuts=nuts, initvals=start)
+                                                pilot=pilot_runs(delay_mode, tune, draws, chains))
     timing = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
     diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
     side = {"delay": {"mode": delay_mode, "source": delays.source, "by_unit": delays.by_unit,
@@ -322,7 +298,6 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                 "pymc_nuts_options": {} if target_accept is None else {"target_accept": float(target_accept)}}
                if sampled else {"nutpie_options": dict(nuts)}),
             "delayed_form": {**asdict(delayed_form), "reason": form_reason},
-            **({"noise_arcs": arcs} if arcs is not None else {}),
             **({"whitening": whitening} if whiten else {})}
     return DelayedFit(idata, diag, timing, delays, side)
 
@@ -387,7 +362,7 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
 
 def fit_delayed(ctx: FitContext) -> FitOutcome:
     """Sample the delayed model of the prepared study in ``ctx`` with its sampler options (``delay``,
-    ``R_population``, ``rho_form``, ``adaptation``, ``log_R_form``), then contrasts, predictive bands and adequacy."""
+    ``R_population``, ``rho_form``, ``log_R_form``), then contrasts, predictive bands and adequacy."""
     prepared, plant, opts = ctx.prepared, ctx.plant, ctx.options
     delays = unit_delays(prepared, ctx.estimates, plant, ctx.estimates_path)
     population = opts.get("R_population")
@@ -396,8 +371,8 @@ def fit_delayed(ctx: FitContext) -> FitOutcome:
                                show_progress=ctx.show_progress, estimates=ctx.estimates,
                                delay_mode=opts.get("delay", "profile"),
                                delayed_priors=None if population is None else DelayedPriors(R_population=population),
-                               rho_form=opts.get("rho_form"), adaptation=opts.get("adaptation"),
-                               log_R=opts.get("log_R_form"), target_accept=ctx.target_accept)
+                               rho_form=opts.get("rho_form"), log_R=opts.get("log_R_form"),
+                               target_accept=ctx.target_accept)
     timing = {"condition": fit.timing}
     t0 = time.perf_counter()
     res, ppc, ppc_draws = delayed_results(fit, prepared, plant, ctx.estimates, ctx.truth_dir, ctx.subject,

@@ -47,7 +47,7 @@ def choose_delayed_form(estimates: pd.DataFrame | None, subjects=None) -> tuple[
         why.append(reason)
     if "se_log_R" in estimates.columns:
         if subjects is not None and "subject" in estimates.columns:
-            forms["rho"], forms["rho_pinned"], reason = _rho_by_subject(estimates, subjects)
+            forms["rho"], reason = _rho_by_subject(estimates, subjects)
         else:
             se = pd.to_numeric(estimates["se_log_R"], errors="coerce").to_numpy(dtype=float)
             with np.errstate(divide="ignore"):
@@ -67,12 +67,12 @@ def rho_pinned(estimates: pd.DataFrame, subjects) -> tuple[bool, ...]:
     return tuple(bool(by_subject.get(str(s), 0.0) >= CENTRED_Z) for s in subjects)
 
 
-def _rho_by_subject(estimates: pd.DataFrame, subjects) -> tuple[str, tuple, str]:
-    """(ρ's form, rho_pinned, reason): centred if :func:`rho_pinned` flags every subject, else folded centred."""
+def _rho_by_subject(estimates: pd.DataFrame, subjects) -> tuple[str, str]:
+    """(ρ's form, reason): centred if :func:`rho_pinned` flags every subject, else folded centred."""
     pinned = rho_pinned(estimates, subjects)
     form = "centred" if all(pinned) else "folded_centred"
-    return form, pinned, (f"rho {form} ({sum(pinned)} of {len(pinned)} subjects with their units' estimate/SE "
-                          f"combined at least the threshold {CENTRED_Z:g})")
+    return form, (f"rho {form} ({sum(pinned)} of {len(pinned)} subjects with their units' estimate/SE "
+                  f"combined at least the threshold {CENTRED_Z:g})")
 
 
 def choose_R_population(estimates: pd.DataFrame | None, subjects) -> tuple[str, str]:

@@ -109,22 +109,18 @@ class Delayed(HumanModel):
 
     @property
     def sampler_keys(self):
-        from scioc.models.bayes.delayed_blocks import R_POPULATIONS, RHO_FORMS
-        from scioc.models.bayes.delayed_model import ADAPTATIONS
+        from scioc.models.bayes.delayed_blocks import MOTOR_FORMS, R_POPULATIONS
         from scioc.pipelines.fit.delayed import DELAY_MODES
         from scioc.pipelines.fit.delayed_forms import LOG_R_FORMS
 
-        return {"delay": DELAY_MODES, "R_population": R_POPULATIONS, "rho_form": RHO_FORMS,
-                "adaptation": ADAPTATIONS, "log_R_form": LOG_R_FORMS}
+        return {"delay": DELAY_MODES, "R_population": R_POPULATIONS, "rho_form": MOTOR_FORMS,
+                "log_R_form": LOG_R_FORMS}
 
     def sampler_options(self, options, source):
         options = super().sampler_options(options, source)
         if "rho_form" in options and options.get("R_population") != "policy_scale":
             raise ValueError(f"{source}: rho_form is the form of R^(-1/2) under R_population = \"policy_scale\": "
                              "set that too")
-        if "adaptation" in options and options.get("delay", "profile") != "profile":
-            raise ValueError(f"{source}: adaptation is nutpie's mass matrix with profile delays; delay = \"sampled\" "
-                             "runs PyMC's NUTS")
         return options
 
     # identification
@@ -221,7 +217,7 @@ class Delayed(HumanModel):
     def default_tune(self, options):
         from scioc.pipelines.fit.warmup import default_tune
 
-        return default_tune(options.get("delay", "profile"), options.get("adaptation"))
+        return default_tune(options.get("delay", "profile"))
 
     def plan(self, ctx):
         from scioc.pipelines.fit.delayed import delayed_choices, unit_delays
@@ -235,8 +231,8 @@ class Delayed(HumanModel):
             population = DelayedPriors(R_population=population)
         c = delayed_choices(ctx.prepared, ctx.plant, delays, estimates=ctx.estimates,
                             delay_mode=opts.get("delay", "profile"), delayed_priors=population,
-                            rho_form=opts.get("rho_form"), adaptation=opts.get("adaptation"),
-                            log_R=opts.get("log_R_form"), target_accept=ctx.target_accept)
+                            rho_form=opts.get("rho_form"), log_R=opts.get("log_R_form"),
+                            target_accept=ctx.target_accept)
         return {"models": {"value": "the delayed model with condition effects", "reason": "the delayed human's fit"},
                 "delays": {"value": opts.get("delay", "profile"), "reason": delays.source},
                 "parameterization": {"value": f"log θ1: {parameterization_text(ctx.form)}; log R: {c.log_R}; θ2: quantile",
@@ -244,7 +240,9 @@ class Delayed(HumanModel):
                 "R_population": {"value": c.delayed_priors.R_population, "reason": c.R_population_reason},
                 "lag_and_noise_forms": {"value": f"τ_nm {c.delayed_form.tau_nm}, σ_m {c.delayed_form.sigma_m}, "
                                                  f"ρ {c.delayed_form.rho}", "reason": c.form_reason},
-                "adaptation": {"value": c.adaptation, "reason": "given" if "adaptation" in opts else "the default"},
+                "adaptation": {"value": "nutpie diag, per-subject whitened, curved along each ridge, after a pilot run"
+                               if c.whiten else "PyMC's NUTS (diag) beside DelayMetropolis",
+                               "reason": f"with {opts.get('delay', 'profile')} delays"},
                 "tune": {"value": ctx.tune, "reason": "given" if ctx.tune_given else
                          "the default warm-up (after the pilot run where there is one)"},
                 "target_accept": {"value": c.nuts.get("target_accept"),

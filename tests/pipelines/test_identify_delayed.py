@@ -8,8 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from scioc.models.bayes.delayed_blocks import R_POPULATIONS, RHO_FORMS
-from scioc.models.bayes.delayed_model import ADAPTATIONS, CURVED, DELAYED_NUTS, NUTPIE_ADAPTATIONS, PILOT, WHITENED
+from scioc.models.bayes.delayed_blocks import MOTOR_FORMS, R_POPULATIONS
 from scioc.models.delayed import (
     DELAY_GRID_S,
     Warmup,
@@ -26,11 +25,9 @@ from scioc.models.plant import discretize
 from scioc.models.segment import prepare_batch
 from scioc.pipelines.cli import main
 from scioc.pipelines.cli.values import (
-    ADAPTATION_NAMES,
     HUMAN_MODEL_NAMES,
     LIKELIHOOD_NAMES,
     MAX_DELAY_S,
-    NUTPIE_ADAPTATION_NAMES,
     R_POPULATION_NAMES,
     RHO_FORM_NAMES,
 )
@@ -63,10 +60,8 @@ def test_the_names_the_parser_spells_are_the_pipelines():
 
     assert HUMAN_MODEL_NAMES == names()[:2]
     assert LIKELIHOOD_NAMES == LIKELIHOODS
-    assert R_POPULATION_NAMES == R_POPULATIONS and RHO_FORM_NAMES == RHO_FORMS
+    assert R_POPULATION_NAMES == R_POPULATIONS and RHO_FORM_NAMES == MOTOR_FORMS
     assert RHO_FORM_NAMES[:2] == LOG_R_FORMS  # scioc fit --log-R-form's choices
-    assert ADAPTATION_NAMES == ADAPTATIONS and ADAPTATIONS[:3] == (PILOT, CURVED, WHITENED)  # the default first
-    assert NUTPIE_ADAPTATION_NAMES == NUTPIE_ADAPTATIONS and DELAYED_NUTS["adaptation"] == NUTPIE_ADAPTATIONS[0]
     assert MAX_DELAY_S == DELAY_GRID_S[-1]
 
 

@@ -185,39 +185,28 @@ def test_motor_coordinate_is_the_free_variable_each_form_samples(plant, study):
 
 def test_the_ridge_pivots_are_rhos_coordinate_where_rho_has_one_then_sigma_ms_with_where_each_is_signed(plant, study):
     """models.bayes.delayed_blocks.ridge_pivots: with R_population="policy_scale" a curved whitening may bend along ρ's
-    free variable (signed where its form is folded or folded centred, or, mixed, in the subjects not rho_pinned),
-    and along σ_m's, last (signed where its form is); each subject's is the signed one whose fold its mode is nearest,
-    else σ_m's (models.bayes.whiten.nearest_fold). Without ρ, σ_m's alone. polar: the block's a (signed where a subject
-    has no k: a = ρ̃) and b (φ or σ̃; signed), whatever σ_m's form. Each is a free variable of the model with one value
-    per subject."""
-    from scioc.models.bayes.delayed_blocks import MOTOR_FORMS, RHO_FORMS, SIGNED_FORMS, ridge_pivots
+    free variable (signed where its form is folded or folded centred), and along σ_m's, last (signed where its form
+    is); each subject's is the signed one whose fold its mode is nearest, else σ_m's (models.bayes.whiten.nearest_fold).
+    Without ρ, σ_m's alone. Each is a free variable of the model with one value per subject."""
+    from scioc.models.bayes.delayed_blocks import MOTOR_FORMS, SIGNED_FORMS, ridge_pivots
     from scioc.models.bayes.delayed_model import DelayedPriors
 
     w = study
     n = len(dict.fromkeys(w.subjects))
-    rho_name = {"centred": "rho", "noncentred": "z_rho", "folded": "z_rho",
-                "folded_centred": "rho_signed", "mixed": "rho_free", "polar": "noise_a",
-                "squared": "rho_root"}
+    rho_name = {"centred": "rho", "noncentred": "z_rho", "folded": "z_rho", "folded_centred": "rho_signed"}
     sigma_m = {"centred": "sigma_m", "noncentred": "z_sigma_m", "folded": "z_sigma_m",
                "folded_centred": "sigma_m_signed"}
-    assert set(SIGNED_FORMS) == {"folded", "folded_centred"} and set(rho_name) == set(RHO_FORMS)
-    pinned = tuple(bool(i % 2) for i in range(n))
-    ks = tuple(2.0 if i % 2 else float("nan") for i in range(n))
+    assert set(SIGNED_FORMS) == {"folded", "folded_centred"} and set(rho_name) == set(MOTOR_FORMS)
     seen = set()
     for population in ("lognormal", "policy_scale", "unpooled"):
-        for rho in RHO_FORMS:
+        for rho in MOTOR_FORMS:
             for sm in ("centred", "folded_centred"):
                 dp = DelayedPriors(R_population=population)
-                form = DelayedForm("noncentred", sm, rho=rho, rho_pinned=pinned if rho == "mixed" else (),
-                                   polar_k=ks if rho == "polar" else ())
+                form = DelayedForm("noncentred", sm, rho=rho)
                 pivots = ridge_pivots(dp, form, n)
                 want_sm = (sigma_m[sm], [sm in SIGNED_FORMS] * n)
-                if population == "policy_scale" and rho == "polar":
-                    want = [("noise_a", [not p for p in pinned]), ("noise_b", [True] * n)]
-                elif population == "policy_scale":
-                    rho_signed = ([not p for p in pinned] if rho == "mixed"
-                                  else [rho in SIGNED_FORMS or rho == "squared"] * n)
-                    want = [(rho_name[rho], rho_signed), want_sm]
+                if population == "policy_scale":
+                    want = [(rho_name[rho], [rho in SIGNED_FORMS] * n), want_sm]
                 else:
                     want = [want_sm]
                 assert [(name, list(signed)) for name, signed in pivots] == want, (population, rho, sm)
@@ -227,79 +216,22 @@ def test_the_ridge_pivots_are_rhos_coordinate_where_rho_has_one_then_sigma_ms_wi
                                                 delayed_priors=dp, delayed_form=form)
                     for name, _ in pivots:
                         assert model[name] in model.free_RVs and model.named_vars_to_dims[name] == ("subject",)
-                    if rho == "polar":  # σ_m is the polar block's, not a block of its own
-                        assert not {v.name for v in model.free_RVs} & {"sigma_m", "z_sigma_m", "sigma_m_signed"}
-                        assert model["sigma_m"] in model.deterministics
-    assert seen == set(rho_name.values()) | {"sigma_m", "sigma_m_signed", "noise_b"}
-    with pytest.raises(ValueError, match="polar_k has 1 values"):
-        ridge_pivots(DelayedPriors(R_population="policy_scale"), DelayedForm(rho="polar", polar_k=(2.0,)), n)
-    with pytest.raises(ValueError, match="needs polar_k"):
-        DelayedForm(rho="polar")
-    with pytest.raises(ValueError, match="rho_pinned has 1 flags"):
-        ridge_pivots(DelayedPriors(R_population="policy_scale"), DelayedForm(rho="mixed", rho_pinned=(True,)), n)
-    assert MOTOR_FORMS == RHO_FORMS[:4]
+    assert seen == set(rho_name.values()) | {"sigma_m", "sigma_m_signed"}
+    for gone in ("mixed", "polar", "squared"):  # no forms of ρ
+        with pytest.raises(ValueError, match="DelayedForm.rho must be one of"):
+            DelayedForm(rho=gone)
 
 
-def test_the_mixed_form_of_rho_is_the_half_normal_law_centred_where_pinned_and_folded_centred_elsewhere(plant, study):
-    """models.bayes.noise_blocks.mixed_half_normal_block: ρ = exp(v) where pinned, |v| elsewhere, with v's density
-    such that ρ ~ HalfNormal(s_ρ) in both: its log density at given values against the half-normal's with each form's
-    Jacobian, its prior draws against the half-normal's quantiles (KS test, false alarm 1e-3), and the model's
-    posterior graph reads ρ from v as said. Negative controls: draws of v itself (not ρ) fail the KS test."""
-    import pytensor
-    from scipy import stats
-
-    from scioc.models.bayes.noise_blocks import mixed_half_normal_block
-
-    pinned = np.array([True, False, True])
-    with pm.Model(coords={"subject": ["a", "b", "c"]}) as model:
-        scale = pm.HalfNormal("s", 1.0)
-        mixed_half_normal_block("rho", scale, pinned, start=0.3)
-    assert {v.name for v in model.value_vars} == {"s_log__", "rho_free"}
-    assert model.rvs_to_transforms.get(model["rho_free"]) is None  # unconstrained
-    ip = model.initial_point()
-    np.testing.assert_allclose(ip["rho_free"], [np.log(0.3), 0.3, np.log(0.3)])
-    v = np.array([np.log(0.5), -0.7, 0.2])
-    rho = np.array([0.5, 0.7, np.exp(0.2)])
-    logp = model.compile_logp()({"s_log__": np.log(0.8), "rho_free": v})
-    want = (stats.halfnorm.logpdf(0.8) + np.log(0.8)  # s and its log transform's Jacobian
-            + stats.halfnorm.logpdf(rho[[0, 2]], scale=0.8).sum() + v[0] + v[2]  # pinned: exp(v)'s Jacobians
-            + stats.norm.logpdf(v[1], scale=0.8))  # folded centred: v ~ N(0, s)
-    np.testing.assert_allclose(logp, want, rtol=1e-12)
-    value = model.rvs_to_values[model["rho_free"]]
-    read = pytensor.function([value], model.replace_rvs_by_values([model["rho"]])[0])
-    np.testing.assert_allclose(read(v), rho, rtol=1e-12)
-    s_draws, rho_draws, v_draws = pm.draw([model["s"], model["rho"], model["rho_free"]], draws=4000, random_seed=3)
-    for j in range(3):
-        assert stats.kstest(rho_draws[:, j] / s_draws, stats.halfnorm.cdf).pvalue > 1e-3
-    assert stats.kstest(v_draws[:, 0] / s_draws, stats.halfnorm.cdf).pvalue < 1e-3  # log ρ is not half-normal
-    assert stats.kstest(v_draws[:, 1] / s_draws, stats.halfnorm.cdf).pvalue < 1e-3  # ρ̃ is signed
-    with pytest.raises(ValueError, match="2 pinned flags for 3 subjects"):
-        with pm.Model(coords={"subject": ["a", "b", "c"]}):
-            mixed_half_normal_block("rho", 1.0, pinned[:2], start=0.3)
-    with pytest.raises(ValueError, match="needs rho_pinned"):
-        DelayedForm(rho="mixed")
-    with pytest.raises(ValueError, match="one bool per subject"):
-        DelayedForm(rho="mixed", rho_pinned=(1, 0))
-
-
-def test_the_motor_noise_variance_has_an_inverse_gamma_prior_by_default(plant, study):
-    """s_m² ~ IG(1, 0.03) (sampled as sigma_m_scale_sq, s_m its square root); without it s_m ~ Gamma(2, rate 8)
-    (the default before) or HalfNormal(sigma_m_scale); one prior at a time, each checked."""
+def test_the_motor_noise_variance_has_an_inverse_gamma_prior(plant, study):
+    """s_m² ~ IG(1, 0.03) (sampled as sigma_m_scale_sq, s_m its square root), its shape and scale checked."""
     from scipy import stats
 
     from scioc.models.bayes.delayed_model import DelayedPriors
 
     w = study
     assert DelayedPriors().sigma_m_variance_inverse_gamma == (1.0, 0.03)
-    assert DelayedPriors().sigma_m_scale_gamma is None
     ig = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
-    gamma = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
-                                delayed_priors=DelayedPriors(sigma_m_variance_inverse_gamma=None,
-                                                             sigma_m_scale_gamma=(2.0, 8.0)))
-    half = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
-                               delayed_priors=DelayedPriors(sigma_m_variance_inverse_gamma=None))
-    assert {v.name for v in gamma.free_RVs} == {v.name for v in half.free_RVs}
-    assert {v.name for v in ig.free_RVs} - {v.name for v in gamma.free_RVs} == {"sigma_m_scale_sq"}
+    assert "sigma_m_scale_sq" in {v.name for v in ig.free_RVs} and ig["sigma_m_scale"] in ig.deterministics
     s_of = ig.compile_fn(ig.replace_rvs_by_values([ig["sigma_m_scale"]])[0], inputs=ig.value_vars,
                          on_unused_input="ignore")
     point = _point(ig, 4)
@@ -308,43 +240,13 @@ def test_the_motor_noise_variance_has_an_inverse_gamma_prior_by_default(plant, s
             stats.invgamma(1.0, scale=0.03).logpdf(x ** 2), rel=1e-6)
         point["sigma_m_scale_sq_log__"] = np.log(x ** 2)
         assert float(s_of(point)) == pytest.approx(x, rel=1e-12)
-        assert float(pm.logp(gamma["sigma_m_scale"], x).eval()) == pytest.approx(
-            stats.gamma(2.0, scale=1 / 8.0).logpdf(x), rel=1e-6)
-        assert float(pm.logp(half["sigma_m_scale"], x).eval()) == pytest.approx(
-            stats.halfnorm(scale=0.3).logpdf(x), rel=1e-6)
-    assert float(pm.logp(gamma["sigma_m_scale"], 0.0).eval()) == -np.inf
     # the quantiles the docstrings quote: median 0.21 N·m, 90 % on 0.10-0.77, below 0.05 at odds of 1 in 160 000
     s_q = np.sqrt(stats.invgamma(1.0, scale=0.03).ppf([0.05, 0.5, 0.95]))
     np.testing.assert_allclose(s_q, [0.100, 0.208, 0.765], atol=1e-3)
     assert 1 / stats.invgamma(1.0, scale=0.03).cdf(0.05 ** 2) == pytest.approx(162_755, rel=1e-3)
-    for bad in ((2.0,), (2.0, -1.0)):
-        with pytest.raises(ValueError, match="sigma_m_scale_gamma"):
-            DelayedPriors(sigma_m_variance_inverse_gamma=None, sigma_m_scale_gamma=bad)
+    for bad in (None, (2.0,), (2.0, -1.0), (0.0, 0.03), (1.0, np.nan)):
         with pytest.raises(ValueError, match="sigma_m_variance_inverse_gamma"):
             DelayedPriors(sigma_m_variance_inverse_gamma=bad)
-    with pytest.raises(ValueError, match="one prior"):
-        DelayedPriors(sigma_m_scale_gamma=(2.0, 8.0))
-
-
-def test_sigma_R_can_have_a_boundary_avoiding_gamma_prior(plant, study):
-    # DelayedPriors(sigma_log_R_gamma=(shape, rate)): σ_R's prior is that Gamma (density 0 at 0), the rest unchanged.
-    from scipy import stats
-
-    from scioc.models.bayes.delayed_model import DelayedPriors
-
-    w = study
-    gamma = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay,
-                                delayed_priors=DelayedPriors(sigma_log_R_gamma=(2.0, 4.0)))
-    half = build_delayed_model(w.subjects, w.conditions, w.segments, plant, delay=w.delay)
-    assert {v.name for v in gamma.free_RVs} == {v.name for v in half.free_RVs}
-    for x in (0.05, 0.3, 1.2):
-        got = float(pm.logp(gamma["sigma_log_R"], x).eval())
-        assert got == pytest.approx(stats.gamma(2.0, scale=1 / 4.0).logpdf(x), rel=1e-6)  # PyTensor's gammaln
-        assert got != pytest.approx(float(pm.logp(half["sigma_log_R"], x).eval()))
-    assert float(pm.logp(gamma["sigma_log_R"], 0.0).eval()) == -np.inf
-    for bad in ((2.0,), (0.0, 4.0), (2.0, np.nan)):
-        with pytest.raises(ValueError, match="sigma_log_R_gamma"):
-            DelayedPriors(sigma_log_R_gamma=bad)
 
 
 @pytest.mark.validation
@@ -419,8 +321,6 @@ def test_policy_scale_population_of_R(plant, study):
         DelayedForm(rho="partial")
     with pytest.raises(ValueError, match="R_population"):
         DelayedPriors(R_population="flat")
-    with pytest.raises(ValueError, match="policy_scale"):
-        DelayedPriors(R_population="policy_scale", sigma_log_R_gamma=(2.0, 4.0))
 
 
 def test_unpooled_baseline_R(plant, study):
@@ -459,8 +359,6 @@ def test_unpooled_baseline_R(plant, study):
     np.testing.assert_allclose(got, np.tile(stats.norm(m, s).logpdf(x), (2, 1)), rtol=1e-12)
     with pytest.raises(ValueError, match="policy_scale"):
         DelayedSubjectTerms({**post, "rho_scale": np.ones(2)}, batch, plant, w.delay, baseline_log_R_prior=(m, s))
-    with pytest.raises(ValueError, match="unpooled"):
-        DelayedPriors(R_population="unpooled", sigma_log_R_gamma=(2.0, 4.0))
 
 
 @pytest.mark.validation

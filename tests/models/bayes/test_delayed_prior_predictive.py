@@ -20,9 +20,10 @@ def test_delayed_prior_predictive_is_seeded_ordered_and_sees_the_motor_noise(pla
         np.testing.assert_array_equal(a.summary.torque_rms[c], b.summary.torque_rms[c])
         assert np.all(np.diff(a.summary.error_rms[c]) >= 0) and np.all(a.summary.torque_rms[c] > 0)
     assert np.all(np.diff(a.tau_nm) >= 0) and 0.0 < a.tau_nm[0] and a.tau_nm[-1] < 2.0
-    # The same draws of everything else with motor noise ~ 0: smaller torques (it adds variance).
+    # The same draws of everything else with motor noise ~ 0 (s_m² ~ IG(100, 1e-10): s_m about 1e-6): smaller torques
+    # (it adds variance).
+    quiet_prior = DelayedPriors(sigma_m_variance_inverse_gamma=(100.0, 1e-10))
     quiet = delayed_prior_predictive_summary(w.subjects, w.conditions, w.segments, plant, np.random.default_rng(5),
-                                             delayed_priors=DelayedPriors(sigma_m_scale=1e-6, sigma_m_variance_inverse_gamma=None),
-                                             **kw)
+                                             delayed_priors=quiet_prior, **kw)
     assert quiet.sigma_m[-1] < 1e-5
     assert quiet.summary.torque_rms["MC"][2] < a.summary.torque_rms["MC"][2]

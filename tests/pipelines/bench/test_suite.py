@@ -38,12 +38,12 @@ def test_bench_fit_of_the_delayed_human_records_its_settings(tmp_path, capsys):
     """``scioc bench-fit --human-model delayed``: the variant asked for is the one fitted, and the JSON says which."""
     path = tmp_path / "fit.json"
     argv = ["bench-fit", "--human-model", "delayed", "--subjects", "2", "--chains", "1", "--draws", "20", "--tune",
-            "20", "--R-population", "policy_scale", "--rho-form", "folded", "--adaptation", "diag", "--json", str(path)]
+            "20", "--R-population", "policy_scale", "--rho-form", "folded", "--json", str(path)]
     assert main(argv) == 0
     res = json.loads(path.read_text())
     st = res["settings"]
     assert st["segments"] == 4 and (st["chains"], st["draws"], st["tune"]) == (1, 20, 20)
     assert st["delayed_priors"]["R_population"] == "policy_scale" and st["delayed_form"]["rho"] == "folded"
-    assert st["nuts"] == {"adaptation": "diag"}
+    assert st["nuts"] == {"adaptation": "low_rank"}
     assert "rho_scale" in res["diagnostics"]["population"] and "mu_log_R" not in res["diagnostics"]["population"]
-    assert "baseline R population: policy_scale (ρ folded); mass matrix: diag" in capsys.readouterr().out
+    assert "baseline R population: policy_scale (ρ folded); mass matrix: low_rank" in capsys.readouterr().out

@@ -57,10 +57,10 @@ def test_compare_to_needs_the_delayed_human_model(tmp_path, capsys):
 @pytest.mark.parametrize("config, model, needs", [
     ('R_population = "policy_scale"\n', "maxent", "unknown key(s) R_population for the maxent human model's fit"),
     ('rho_form = "folded_centred"\n', "delayed", 'under R_population = "policy_scale"'),
-    ('adaptation = "diag"\n', "maxent", "unknown key(s) adaptation"),
     ('log_R_form = "centred"\n', "maxent", "unknown key(s) log_R_form"),
-    ('delay = "sampled"\nadaptation = "diag"\n', "delayed", "with profile delays"),
-    ('adaptation = "nope"\n', "delayed", "adaptation must be one of pilot"),
+    ('adaptation = "curved"\n', "delayed", "unknown key(s) adaptation for the delayed human model's fit"),
+    ('R_population = "policy_scale"\nrho_form = "polar"\n', "delayed",
+     "rho_form must be one of centred, noncentred, folded, folded_centred; got 'polar'"),
     ('adequacy_at = "mode"\n', "maxent", "adequacy_at must be one of draw, means"),
     ('[delayed]\ndelay = "sampled"\n', "delayed", "key 'delayed': the sampler settings are plain keys"),
     ('delay = \n', "delayed", "not a TOML file"),

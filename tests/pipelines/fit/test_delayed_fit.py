@@ -20,7 +20,7 @@ from scioc.models.design import STUDY
 from scioc.models.plant import discretize
 from scioc.pipelines.fit import fit_to_dir, format_fit
 from scioc.pipelines.fit.delayed import unit_delays
-from scioc.pipelines.fit.delayed_forms import CENTRED_Z, choose_delayed_form, log_R_form
+from scioc.pipelines.fit.delayed_forms import CENTRED_Z, choose_delayed_form, log_R_form, rho_pinned
 from scioc.pipelines.fit.human_models import compare_human_models, format_human_models
 from scioc.pipelines.fit.warmup import PILOT_CHAINS, PILOT_MAX_TREE_DEPTH, PILOT_RUNS, PILOT_TARGET_ACCEPT
 from scioc.pipelines.fit.whiten import nutpie_setting
@@ -72,20 +72,19 @@ def test_sidecar_records_the_human_model_and_the_delays(delayed_study, delayed_f
     # ρ's scale, which has no target
     assert side["start_scales_from"] == {**{k: "units' spread" for k in side["start_scales"]},
                                          "sigma_m_scale_sq": "PyMC's initial point", "rho_scale": "PyMC's initial point"}
-    # by default on each subject's whitened coordinates curved along its ridge (scioc fit --adaptation curved), with
-    # what the whitening found: along ρ's coordinate where it is signed (σ_m's block is centred here, the data fix
-    # σ_m), else along σ_m's; ρ's form per subject as the data chose it
+    # on each subject's whitened coordinates curved along its ridge, with what the whitening found: along ρ's
+    # coordinate where it is signed (σ_m's block is centred here, the data fix σ_m), else along σ_m's; ρ's form as
+    # the data chose it
     form = side["delayed_form"]
-    assert form["sigma_m"] == "centred" and len(form["rho_pinned"]) == 3
-    signed_rho = {"folded_centred": [True] * 3, "centred": [False] * 3,
-                  "mixed": [not p for p in form["rho_pinned"]]}[form["rho"]]
-    rho = "rho_free" if form["rho"] == "mixed" else motor_coordinate("rho", form["rho"])
+    assert form["sigma_m"] == "centred" and set(form) == {"tau_nm", "sigma_m", "rho", "reason"}
+    signed_rho = {"folded_centred": [True] * 3, "centred": [False] * 3}[form["rho"]]
+    rho = motor_coordinate("rho", form["rho"])
     pivots = [rho if signed else "sigma_m" for signed in signed_rho]
     assert side["whitening"]["pivot_by_subject"] == pivots
     assert side["whitening"]["curved_along"] == {p: pivots.count(p) for p in (rho, "sigma_m") if p in pivots}
     assert side["sampler"]["adaptation"].startswith("diag (nutpie), per-subject whitened, curved along ")
-    # ... and measured again on a pilot run's draws (scioc fit --adaptation pilot, the default), as long as the
-    # fit's own warm-up and draws allow (pipelines/fit/warmup.py)
+    # ... and measured again on a pilot run's draws, as long as the fit's own warm-up and draws allow
+    # (pipelines/fit/warmup.py)
     assert side["sampler"]["adaptation"].endswith(", measured again on a pilot run's draws")
     [pilot] = side["whitening"]["pilot"]
     assert (pilot["tune"], pilot["draws"]) == (min(PILOT_RUNS[0][0], TINY["tune"]),
@@ -271,9 +270,9 @@ def test_given_the_subjects_rhos_form_is_centred_only_where_their_units_combined
                         "sigma_m": 0.25, "se_sigma_m": 0.02,
                         "se_log_R": [0.8, 0.8, 0.8, np.nan, 0.625, 50.0]})
     form, reason = choose_delayed_form(est, ["C", "B", "A", "D"])
-    assert form.rho_pinned == (True, False, True, False)  # for --rho-form mixed
+    assert rho_pinned(est, ["C", "B", "A", "D"]) == (True, False, True, False)
     assert form.rho == "folded_centred" and "rho folded_centred (2 of 4 subjects" in reason  # not every one fixed
-    assert choose_delayed_form(est, ["A", "C"])[0] == DelayedForm("centred", "centred", "centred", (True, True))
+    assert choose_delayed_form(est, ["A", "C"])[0] == DelayedForm("centred", "centred", "centred")
     assert choose_delayed_form(est, ["B", "D"])[0].rho == "folded_centred"
 
 
@@ -329,7 +328,6 @@ def test_estimates_without_motor_noise_fold_its_block_end_to_end(delayed_study, 
     assert "sigma_m folded_centred" in side["delayed_form"]["reason"]
     assert side["delayed_parameterization"]["R_mc"] == "centred"
     assert side["delayed_priors"]["sigma_m_variance_inverse_gamma"] == [1.0, 0.03]
-    assert side["delayed_priors"]["sigma_m_scale_gamma"] is None
     post = az.from_netcdf(paths["posterior"])["posterior"]
     np.testing.assert_array_equal(post["sigma_m"].values, np.abs(post["sigma_m_signed"].values))
     np.testing.assert_allclose(post["sigma_m_scale"].values, np.sqrt(post["sigma_m_scale_sq"].values), rtol=1e-15)
@@ -366,17 +364,21 @@ def test_sampled_delays_fit_end_to_end(delayed_study):
 
 @pytest.mark.validation
 def test_the_fit_takes_the_policy_scale_population_of_R(delayed_study):
-    # scioc fit --R-population policy_scale --rho-form folded_centred --adaptation diag: the sidecar records the
-    # population, the ρ form and the mass matrix, the lag and noise forms are still the data's, the posterior has ρ
-    # and no log-normal μ_R.
-    root, sim, prepared = delayed_study
-    small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
-    paths = fit_to_dir(sim["study"], root / "fit_rho", settings=SETTINGS, prepared=prepared,
-                       sampler_options={"R_population": "policy_scale", "rho_form": "folded_centred",
-                                        "adaptation": "diag"}, **small)
-    side = json.loads(open(paths["sidecar"]).read())
-    assert side["sampler"]["adaptation"] == "diag (nutpie)" and side["nutpie_options"] == {"adaptation": "diag"}
-    assert side["sampler"]["target_accept"] == 0.8  # nutpie's own, off the whitened coordinates
+    # scioc fit --R-population policy_scale --rho-form folded_centred: the sidecar records the population, the ρ form
+    # and the rate (0.8: ρ signed), the lag and noise forms are still the data's, the posterior has ρ and no
+    # log-normal μ_R. Each subject's block bends along ρ's signed coordinate
+    # (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.
+    root = delayed_study[0]
+    paths, side = _small_fit(delayed_study, "fit_rho", R_population="policy_scale", rho_form="folded_centred")
+    assert side["nutpie_options"] == {"adaptation": "diag", "target_accept": PILOT_ADAPTATION_TARGET_ACCEPT}
+    assert side["sampler"]["target_accept"] == 0.8
+    assert side["delayed_form"]["sigma_m"] not in SIGNED_FORMS  # chosen by these data: ρ's is the only pivot
+    assert side["whitening"]["curved_along"] == {"rho_signed": 3}
+    assert side["sampler"]["adaptation"] == ("diag (nutpie), per-subject whitened, curved along rho_signed, "
+                                             "measured again on a pilot run's draws")
+    assert "curved along its ridge in rho_signed (models" in side["start"]
+    scales = side["whitening"]["ridge"]["rho_signed"]["pivot_scale_range"]
+    assert 0 < scales[0] <= scales[1]
     assert side["delayed_priors"]["R_population"] == "policy_scale" and side["R_population_reason"] == "given"
     assert "population of R: policy_scale (given)" in format_fit(root / "fit_rho")
     chosen, _ = choose_delayed_form(pd.read_parquet(root / "identify" / "estimates.parquet"))
@@ -394,54 +396,6 @@ def _small_fit(delayed_study, out: str, **kwargs):
     small = {**TINY, "chains": 1, "draws": 30, "tune": 30, "cores": 1}
     paths = fit_to_dir(sim["study"], root / out, settings=SETTINGS, prepared=prepared, sampler_options=kwargs, **small)
     return paths, json.loads(open(paths["sidecar"]).read())
-
-
-@pytest.mark.validation
-def test_a_polar_fit_chooses_its_subjects_by_their_arcs_and_records_them(delayed_study):
-    # scioc fit --R-population policy_scale --rho-form polar: each subject's k and fall (pipelines.fit.noise_arcs) are
-    # in the sidecar, the subjects whose fall reaches ARC_MIN (and only they) have a k in the form, the whitening bends
-    # them along φ (noise_b), and the posterior's ρ and σ_m are the polar block's, positive.
-    from scioc.pipelines.fit.noise_arcs import ARC_MIN
-
-    paths, side = _small_fit(delayed_study, "fit_polar", R_population="policy_scale",
-                             rho_form="polar")
-    arcs, form = side["noise_arcs"], side["delayed_form"]
-    assert form["rho"] == "polar" and len(form["polar_k"]) == len(arcs) == 3
-    for k, (subject, arc) in zip(form["polar_k"], arcs.items()):
-        polar = arc["fall"] is not None and arc["fall"] >= ARC_MIN and arc["k"] is not None and arc["k"] > 0
-        assert (k == arc["k"]) if polar else (k is None), subject  # NaN is stored as null
-    assert side["whitening"]["curved_along"].get("noise_b", 0) >= sum(k is not None for k in form["polar_k"])
-    import arviz as az
-
-    post = az.from_netcdf(paths["posterior"])["posterior"]
-    assert float(post["rho"].min()) >= 0 and float(post["sigma_m"].min()) >= 0
-    assert {"noise_a", "noise_b"} <= set(post.data_vars)
-
-
-@pytest.mark.validation
-def test_the_curved_coordinates_take_nutpies_low_rank_mass_matrix_on_request(delayed_study):
-    # scioc fit --adaptation curved_low_rank: the same whitened, curved coordinates as the default, sampled with
-    # nutpie's low-rank mass matrix at the whitened fit's target acceptance rate, and the sidecar says so.
-    _, side = _small_fit(delayed_study, "fit_curved_lr", adaptation="curved_low_rank")
-    assert side["nutpie_options"] == {"adaptation": "low_rank", "target_accept": WHITENED_TARGET_ACCEPT}
-    assert side["sampler"]["adaptation"].startswith("low_rank (nutpie), per-subject whitened, curved along ")
-    assert side["whitening"]["curved_along"]
-
-
-@pytest.mark.validation
-def test_a_curved_fit_with_a_signed_rho_bends_along_rho(delayed_study):
-    # scioc fit --R-population policy_scale --rho-form folded_centred, the default whitening (curved, then measured
-    # again on a pilot run's draws): each subject's block bends along ρ's signed coordinate
-    # (models.bayes.delayed_blocks.ridge_pivots), not σ_m's, and says so.
-    _, side = _small_fit(delayed_study, "fit_rho_curved", R_population="policy_scale",
-                         rho_form="folded_centred")
-    assert side["delayed_form"]["sigma_m"] not in SIGNED_FORMS  # chosen by these data: ρ's is the only pivot
-    assert side["whitening"]["curved_along"] == {"rho_signed": 3}
-    assert side["sampler"]["adaptation"] == ("diag (nutpie), per-subject whitened, curved along rho_signed, "
-                                             "measured again on a pilot run's draws")
-    assert "curved along its ridge in rho_signed (models" in side["start"]
-    scales = side["whitening"]["ridge"]["rho_signed"]["pivot_scale_range"]
-    assert 0 < scales[0] <= scales[1]
 
 
 @pytest.mark.validation
@@ -486,40 +440,8 @@ def test_same_seed_same_delayed_fit(delayed_study, delayed_fit, tmp_path):
     np.testing.assert_array_equal(a["sample_stats"]["step_size"].values, b["sample_stats"]["step_size"].values)
 
 
-@pytest.mark.validation
-def test_nutpies_own_low_rank_fit_has_the_same_variables_and_repeats_with_its_seed(delayed_study, delayed_fit,
-                                                                                   tmp_path):
-    # scioc fit --adaptation low_rank: nutpie's own mass matrix on the model's coordinates, no whitening; the same
-    # posterior variables as the default (whitened) fit's, whose draws are mapped back from the whitened
-    # coordinates, and the same seed gives the same draws.
-    import arviz as az
+def test_the_whitened_fits_rate_is_08_only_with_a_signed_rho():
+    from scioc.models.bayes.delayed_model import nutpie_options
 
-    _, sim, prepared = delayed_study
-    small = {**TINY, "draws": 30, "tune": 30}
-    paths = [fit_to_dir(sim["study"], tmp_path / name, settings=SETTINGS, prepared=prepared, sampler_options={"adaptation": "low_rank"},
-                        **small) for name in ("a", "b")]
-    side = json.loads(open(paths[0]["sidecar"]).read())
-    assert side["sampler"]["adaptation"] == "low_rank (nutpie)" and side["nutpie_options"] == {"adaptation": "low_rank"}
-    assert "whitening" not in side and "whitening_s" not in side["seconds"]["condition"]
-    assert side["start"].startswith("the chains start near the ML estimates") and "whitened" not in side["start"]
-    a, b = (az.from_netcdf(p["posterior"]) for p in paths)
-    default = az.from_netcdf(delayed_fit["posterior"])
-    assert set(a["posterior"].data_vars) == set(default["posterior"].data_vars)
-    for v in default["posterior"].data_vars:
-        assert a["posterior"][v].dims == default["posterior"][v].dims
-    assert a["log_likelihood"]["u_H"].shape[2:] == default["log_likelihood"]["u_H"].shape[2:]
-    for v in ("beta", "log_theta1", "log_R", "tau_nm", "sigma_m"):
-        np.testing.assert_array_equal(a["posterior"][v].values, b["posterior"][v].values)
-    res = json.loads(open(paths[0]["contrasts"]).read())
-    assert "beta" in res and res["adequacy"]["verdict"] in ("pass", "fail")
-
-
-def test_the_whitened_fits_rate_is_08_only_with_the_pilot_and_a_signed_rho():
-    from scioc.models.bayes.delayed_model import ADAPTATIONS, PILOT, nutpie_options
-
-    assert nutpie_options(PILOT, rho_signed=True)["target_accept"] == 0.8
-    assert nutpie_options(PILOT, rho_signed=False)["target_accept"] == 0.9
-    assert nutpie_options(PILOT)["target_accept"] == 0.9
-    for adaptation in ADAPTATIONS:
-        if adaptation != PILOT:
-            assert nutpie_options(adaptation, rho_signed=True).get("target_accept") in (0.9, None)
+    assert nutpie_options(rho_signed=True) == {"adaptation": "diag", "target_accept": 0.8}
+    assert nutpie_options(rho_signed=False) == nutpie_options() == {"adaptation": "diag", "target_accept": 0.9}

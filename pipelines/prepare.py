@@ -26,6 +26,7 @@ import numpy as np
 
 from scioc.models.adequacy import N_BOOT
 from scioc.models.assistant import MPCAssistant, build_assistant, human_feedback
+from scioc.models.delayed.angles import AngleWindow
 from scioc.models.delayed.lag import Warmup
 from scioc.models.design import (
     CONDITIONS,
@@ -315,3 +316,19 @@ def prepare_study(study: Study, settings: IdentifySettings = IdentifySettings(),
     segments = tuple(prepare_segment(s, settings, plant, study.path)
                      for s in progress(study.segments, desc="reconstruct", enabled=show_progress))
     return PreparedStudy(study.path, settings, segments, time.perf_counter() - t0)
+
+
+def from_angles(prepared, idx) -> bool:
+    """The unit is identified from its recorded angles: its torques are reconstructed."""
+    return any(prepared[i].reconstructed for i in idx)
+
+
+def angle_windows(prepared, idx) -> list[AngleWindow]:
+    """The unit's windows as the encoder recorded them, for the angle likelihood (:mod:`scioc.models.delayed.angles`)."""
+    out = []
+    for i in idx:
+        p = prepared[i]
+        s = p.segment
+        out.append(AngleWindow(np.ascontiguousarray(p.data.angle[p.rows], dtype=float), s.angle_ref,
+                               None if s.feedback is not None else s.u_A, s.feedback, float(p.velocity[0]), p.warmup))
+    return out

@@ -25,7 +25,7 @@ from scioc.models.maxent import loglik_grad as maxent_loglik_grad
 from scioc.models.plant import DT_HUMAN, discretize
 from scioc.models.segment import prepare_batch
 from scioc.pipelines.bench.common import timeit
-from scioc.pipelines.human_model.delayed import angle_windows
+from scioc.pipelines.prepare import angle_windows
 
 #: Delays timed, in samples of 0.01 s (0 to 300 ms).
 DELAYS = (0, 10, 30)

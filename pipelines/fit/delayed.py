@@ -15,6 +15,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
+from scioc.models.bayes.angle_model import OBSERVED as ANGLE_OBSERVED
+from scioc.models.bayes.angle_model import build_angle_model
 from scioc.models.bayes.delayed_blocks import SIGNED_FORMS, ridge_pivots
 from scioc.models.bayes.delayed_model import (
     DELAY_INDEX,
@@ -48,6 +50,7 @@ from scioc.pipelines.fit.warmup import pilot_runs
 from scioc.pipelines.fit.whiten import sample_whitened
 from scioc.pipelines.human_model.registry import FitContext, FitOutcome
 from scioc.pipelines.io import InputDataError
+from scioc.pipelines.prepare import angle_windows, from_angles
 
 #: Unit-level quantities of the delayed model whose diagnostics are reported.
 DELAYED_UNITS = ("log_theta1", "log_R", "theta2", "tau_nm", "sigma_m")
@@ -64,16 +67,20 @@ class Delays(NamedTuple):
     estimates: pd.DataFrame | None = None
 
 
-def check_recorded_torques(prepared) -> None:
-    """Refuse a study whose torques are reconstructed (InputDataError): a reconstructed torque is smoothed, which the
-    delayed model's likelihood of the torques would read as neuromuscular lag."""
-    rec = [p for p in prepared.segments if p.reconstructed]
-    if rec:
-        raise InputDataError(
-            f"{prepared.path}: {len(rec)} of {len(prepared.segments)} segments have no recorded torque (u_H; e.g. "
-            f"{rec[0].data.label}) or are reconstructed by --reconstruct always; the hierarchical delayed model needs "
-            "the recorded torque. Identify them from their encoder angles with scioc identify --human-model delayed "
-            "(docs/methods.md, \"Human models\")")
+def likelihood_of(prepared) -> str:
+    """``torques`` where every window has its recorded torque, else ``angles``: the fit then scores every window by
+    its encoder's angles (a reconstructed torque is smoothed, which the torque likelihood would read as lag)."""
+    return "angles" if from_angles(prepared.segments, range(len(prepared.segments))) else "torques"
+
+
+def check_angle_fit(prepared, delay_mode: str) -> None:
+    """Refuse what the angle fit does not do (InputDataError): sampled delays, an encoder without resolution."""
+    if delay_mode != "profile":
+        raise InputDataError(f"{prepared.path}: the fit from the encoder's angles fixes each subject's delay at its "
+                             "profile maximum; delay = \"sampled\" needs the recorded torque")
+    if not prepared.settings.design.encoder_sd > 0:
+        raise InputDataError(f"{prepared.path}: the angle likelihood needs the encoder's resolution (experiment "
+                             "[rig] encoder counts)")
 
 
 def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=None) -> Delays:
@@ -81,10 +88,9 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
 
     The profiles (over :func:`scioc.models.delayed.identify.delay_grid`) come from the estimates' ``profile_loglik``
     or are computed here (:func:`scioc.models.delayed.identify.identify_unit_delayed`, a unit's trials together);
-    estimates with ``delay_s`` but no profile give each unit its own. Reconstructed torques are refused first
-    (:func:`check_recorded_torques`).
+    estimates with ``delay_s`` but no profile give each unit its own. A unit without recorded torques is profiled on
+    its angles.
     """
-    check_recorded_torques(prepared)
     dt = float(plant.dt)
     units = prepared.units
     grid = delay_grid(dt)
@@ -109,9 +115,11 @@ def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=
     else:
         rows = []
         for (s, c), idx in units.items():
+            angles = angle_windows(prepared.segments, idx) if from_angles(prepared.segments, idx) else None
             est = identify_unit_delayed([prepare_batch(plant, [prepared.segments[i].segment]) for i in idx], plant,
                                         params=prepared.settings.design.wheel,
-                                        tau0=[[prepared.segments[i].warmup] for i in idx],
+                                        tau0=[[prepared.segments[i].warmup] for i in idx], angles=angles,
+                                        sigma_y=prepared.settings.design.encoder_sd,
                                         delay_search="grid")  # the whole profile, as scioc identify writes it
             profiles[(str(s), str(c))] = np.asarray(est.profile, dtype=float)
             # The unit's ML point at its own best delay, as identify writes it: the start's targets.
@@ -252,11 +260,21 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     n_subjects = len(subjects)
     pivots = ridge_pivots(delayed_priors, delayed_form, n_subjects) if whiten else None
     grid = delay_grid(float(plant.dt))
-    model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant,
-                                delay=None if sampled else delays.samples, delay_grid=grid if sampled else None,
-                                tau0=[p.warmup for p in prepared.segments], priors=priors,
-                                delayed_priors=delayed_priors, parameterization=form, delayed_form=delayed_form,
-                                segment_ids=prepared.labels, levels=levels, params=prepared.settings.design.wheel)
+    likelihood = likelihood_of(prepared)
+    design = prepared.settings.design
+    if likelihood == "angles":
+        check_angle_fit(prepared, delay_mode)
+        model = build_angle_model(prepared.subjects, prepared.conditions,
+                                  angle_windows(prepared.segments, range(len(prepared.segments))), plant,
+                                  delay=delays.samples, sigma_y=design.encoder_sd, priors=priors,
+                                  delayed_priors=delayed_priors, parameterization=form, delayed_form=delayed_form,
+                                  segment_ids=prepared.labels, levels=levels, params=design.wheel)
+    else:
+        model = build_delayed_model(prepared.subjects, prepared.conditions, batch, plant,
+                                    delay=None if sampled else delays.samples, delay_grid=grid if sampled else None,
+                                    tau0=[p.warmup for p in prepared.segments], priors=priors,
+                                    delayed_priors=delayed_priors, parameterization=form, delayed_form=delayed_form,
+                                    segment_ids=prepared.labels, levels=levels, params=design.wheel)
     start = start_point(model, ml)
     sources = scale_sources(model, ml) if start else {}  # where each held population scale starts
     t1 = time.perf_counter()
@@ -271,7 +289,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                                 pilot=pilot_runs(delay_mode, tune, draws, chains))
     timing = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
     diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
-    side = {"delay": {"mode": delay_mode, "source": delays.source, "by_unit": delays.by_unit,
+    side = {"likelihood": likelihood, "delay": {"mode": delay_mode, "source": delays.source, "by_unit": delays.by_unit,
                       "note": ("sampled per subject (the other parameters' draws are delay-marginal)" if sampled else
                                "fixed per subject at the profile maximum (plug-in), not sampled: "
                                "models/bayes/delayed_model.py says what that costs")},
@@ -340,7 +358,7 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
     res = {"model": "hierarchical delayed human: the max-ent model's condition effects on log θ1 and log R (command "
                     "cost), τ_nm and σ_m per subject, plug-in delays (models.bayes.delayed_model)",
            "human_model": "delayed", **contrasts(idata)}
-    loo, _ = psis_summary(idata, "u_H", "segment")
+    loo, _ = psis_summary(idata, observed_name(fit.sidecar), "segment")
     res["loo"] = {"delayed": loo, "note": "this model alone (no pooled model is fitted for the delayed human)"}
     res["loo_subject"] = None
     res["human_models"] = ("not computed in this fit: pipelines.fit.human_models.compare_human_models compares the "
@@ -358,6 +376,11 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
                           "assistant model) at each draw's θ, τ_nm, σ_m and the plug-in delay; u_H is the "
                           "reconstructed torque where the file has none"}
     return res, ppc, ppc_draws
+
+
+def observed_name(side: dict) -> str:
+    """The observed variable of a delayed fit: the recorded angles or torques (the sidecar's ``likelihood``)."""
+    return ANGLE_OBSERVED if side.get("likelihood") == "angles" else "u_H"
 
 
 def fit_delayed(ctx: FitContext) -> FitOutcome:
@@ -385,5 +408,5 @@ def fit_delayed(ctx: FitContext) -> FitOutcome:
                       ppc_draws)
 
 
-__all__ = ["DELAY_MODES", "DelayedChoices", "check_recorded_torques", "delayed_choices", "fit_delayed", "sampled_delays", "DELAYED_UNITS", "DelayedFit", "Delays", "delayed_adequacy",
+__all__ = ["DELAY_MODES", "DelayedChoices", "check_angle_fit", "likelihood_of", "observed_name", "delayed_choices", "fit_delayed", "sampled_delays", "DELAYED_UNITS", "DelayedFit", "Delays", "delayed_adequacy",
            "delayed_results", "per_segment_motor", "sample_delayed_model", "tau0_function", "unit_delays"]

@@ -235,6 +235,11 @@ def compare_human_models(maxent_dir, delayed_dir, *, settings: IdentifySettings 
             raise ValueError(f"{folders[k]} is a {side.get('human_model', HUMAN_MODELS_COMPARED[0])} fit, not a {k} "
                              "fit")
     where = tuple(folders[k] / "posterior.json" for k in ("maxent", "delayed"))
+    scored = {k: side.get("likelihood", "torques") for k, side in sides.items()}
+    if scored["maxent"] != scored["delayed"]:
+        raise LineageError(f"{where[0]} and {where[1]} score different data (the max-ent fit the {scored['maxent']}, "
+                           f"the delayed fit the {scored['delayed']}): leave-one-subject-out compares fits of the same "
+                           "recordings")
     diff = _differences(sides["maxent"], sides["delayed"], where)
     if diff:
         raise LineageError(f"{where[0]} and {where[1]} are not fits of the same data: {'; '.join(diff)}")

@@ -12,7 +12,6 @@ import pandas as pd
 
 from scioc.models.delayed import (
     DELAY_GRID_S,
-    AngleWindow,
     delay_grid,
     forward_delayed,
     identify_unit_delayed,
@@ -25,6 +24,7 @@ from scioc.models.delayed.search import TAU_NM_MAX
 from scioc.models.segment import prepare_batch
 from scioc.pipelines.adequacy import CHECK_TEXT_DELAYED
 from scioc.pipelines.human_model.registry import HumanModel, parameterization_text
+from scioc.pipelines.prepare import angle_windows, from_angles
 from scioc.pipelines.simulate import BODY_COLUMNS
 
 
@@ -33,22 +33,6 @@ class DelayedParameters:
 
     def __init__(self, delay: int, tau_nm: float, sigma_m: float):
         self.delay, self.tau_nm, self.sigma_m = delay, tau_nm, sigma_m
-
-
-def from_angles(prepared, idx) -> bool:
-    """The unit is identified from its recorded angles: its torques are reconstructed."""
-    return any(prepared[i].reconstructed for i in idx)
-
-
-def angle_windows(prepared, idx) -> list[AngleWindow]:
-    """The unit's windows as the encoder recorded them, for the angle likelihood (:mod:`scioc.models.delayed.angles`)."""
-    out = []
-    for i in idx:
-        p = prepared[i]
-        s = p.segment
-        out.append(AngleWindow(np.ascontiguousarray(p.data.angle[p.rows], dtype=float), s.angle_ref,
-                               None if s.feedback is not None else s.u_A, s.feedback, float(p.velocity[0]), p.warmup))
-    return out
 
 
 def arm_torque_at_start(p, tau_nm: float, dt: float, wheel) -> float:
@@ -168,8 +152,8 @@ class Delayed(HumanModel):
             return []
         return [f"  NOTE: {meta['reconstructed_units']} of {meta['segments']} units have no recorded torque: the "
                 "delayed model identified them from their encoder angles (docs/methods.md, \"Human models\"; the "
-                "delay and the lag less precisely than from a torque sensor); the hierarchical fit (scioc fit) of "
-                "such data is not built."]
+                "delay and the lag less precisely than from a torque sensor); scioc fit --human-model delayed fits "
+                "them from their angles too."]
 
     # likelihood
     def loglik_parameters(self, dt, delay_s, tau_nm, sigma_m):
@@ -210,9 +194,10 @@ class Delayed(HumanModel):
 
     # hierarchical fit
     def check_fit_data(self, prepared):
-        from scioc.pipelines.fit.delayed import check_recorded_torques
+        from scioc.pipelines.fit.delayed import check_angle_fit, likelihood_of
 
-        check_recorded_torques(prepared)
+        if likelihood_of(prepared) == "angles":
+            check_angle_fit(prepared, "profile")
 
     def default_tune(self, options):
         from scioc.pipelines.fit.warmup import default_tune
@@ -324,5 +309,5 @@ class Delayed(HumanModel):
 
 DELAYED = Delayed()
 
-__all__ = ["DELAYED", "DELAY_EXACT_S", "PROFILE_DROPS", "Delayed", "DelayedParameters", "angle_windows",
-           "arm_torque_at_start", "curved_along", "delay_profile_spread", "from_angles"]
+__all__ = ["DELAYED", "DELAY_EXACT_S", "PROFILE_DROPS", "Delayed", "DelayedParameters", "arm_torque_at_start",
+           "curved_along", "delay_profile_spread"]

@@ -36,8 +36,9 @@ LOSO_Z = 2.0
 RUN_FILE = "run.json"
 #: Why ``scioc run`` fits no delayed model without a torque sensor (docs/decisions/run-human-models.md).
 ANGLE_ONLY = ("without a torque sensor the delayed model is identified from the encoder's angles; its hierarchical "
-              "fit, and so the leave-one-subject-out comparison of the two models, needs the recorded torque and is "
-              "not built for angles (docs/methods.md, \"Human models\")")
+              "fit from the angles runs alone (scioc fit --human-model delayed), but the leave-one-subject-out "
+              "comparison of the two models on the same angle likelihood is not built, so the run does not fit it "
+              "(docs/methods.md, \"Human models\")")
 
 
 class ModelRun(NamedTuple):

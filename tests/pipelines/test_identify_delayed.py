@@ -246,7 +246,7 @@ def test_without_a_torque_sensor_the_delayed_model_is_identified_from_the_angles
     # The same recordings with the torque reconstructed from the encoder: the delayed model is fitted to the
     # angles themselves (models.delayed.angles), as identify_unit_delayed does with the unit's AngleWindows.
     # Before, the torque likelihood of the reconstructed torque put τ_nm at its 1-s bound (README "Human models").
-    from scioc.pipelines.human_model.delayed import angle_windows
+    from scioc.pipelines.prepare import angle_windows
 
     s_rec = settings(reconstruct="always")
     paths = identify_to_dir(combined["study"], tmp_path / "id", s_rec, show_progress=False)
@@ -273,7 +273,7 @@ def test_cli_loglik_of_the_angles_is_the_models(combined, tmp_path, capsys):
     # --likelihood angles: the delayed human's likelihood of the encoder's angles, window by window, as identify
     # evaluates it (models.delayed.window_loglik on the prepared windows); on a file without u_H too (the torques
     # before each window then reconstructed), where the torque likelihood is refused and says what to use instead.
-    from scioc.pipelines.human_model.delayed import angle_windows
+    from scioc.pipelines.prepare import angle_windows
 
     exp = tmp_path / "experiment.toml"
     exp.write_text("[analysis]\nwindow_start_s = 12.0\nwindow_s = 10.0\npreview_s = 2.0\n")

@@ -5,6 +5,7 @@ compare by leave-one-subject-out."""
 import json
 from dataclasses import replace
 
+import arviz as az
 import numpy as np
 import pandas as pd
 import pytest
@@ -191,17 +192,27 @@ def test_human_models_compare_by_leaving_subjects_out(delayed_study, delayed_fit
         assert (f"CAVEAT: the {k} fit's sampler did not converge ({verdict})" in text) == (verdict != "pass")
 
 
-def test_the_delayed_fit_refuses_reconstructed_torques(tmp_path):
-    # Its likelihood is the recorded torques'; a reconstructed torque reads as lag (identify uses the angles).
-    from scioc.pipelines.io import InputDataError
+@pytest.mark.validation
+def test_without_recorded_torques_the_delayed_fit_scores_the_angles(tmp_path):
+    """The paper's rig (angles only): the fit's likelihood is the encoder's angles (sidecar, log-likelihood, LOO), the
+    delays the angle identification's profile maxima; its comparison with a max-ent fit of the reconstructed torques
+    is refused, as the two score different data."""
+    from scioc.pipelines.lineage import LineageError
 
-    small = replace(SENSOR, run_seconds=8.0, window_start=2.0, window_seconds=4.0, preview=1.0)
+    small = replace(STUDY, run_seconds=8.0, window_start=2.0, window_seconds=4.0, preview=1.0)
     sim = simulate_to_dir(tmp_path / "data", n_subjects=2, seed=3, human="kbl", design=small)
-    rec = IdentifySettings.for_design(small, human_model="delayed", adequacy_boot=0, reconstruct="always")
-    with pytest.raises(InputDataError, match="4 of 4 segments have no recorded torque .* scioc identify --human-model "
-                                             "delayed"):
-        fit_to_dir(sim["study"], tmp_path / "fit", settings=rec, **TINY)
-    assert not (tmp_path / "fit").exists()
+    rec = IdentifySettings.for_design(small, human_model="delayed", adequacy_boot=19)
+    fit_to_dir(sim["study"], tmp_path / "fit_delayed", settings=rec, **TINY)
+    side = json.loads((tmp_path / "fit_delayed" / "posterior.json").read_text())
+    assert side["likelihood"] == "angles" and side["human_model"] == "delayed"
+    idata = az.from_netcdf(tmp_path / "fit_delayed" / "posterior.nc")
+    assert set(idata["log_likelihood"].data_vars) == {"angle"}
+    res = json.loads((tmp_path / "fit_delayed" / "contrasts.json").read_text())
+    assert np.isfinite(res["loo"]["delayed"]["elpd_loo"]) and res["adequacy"]["verdict"] in ("pass", "fail")
+    assert {"tau_nm", "sigma_m", "beta"} <= set(idata["posterior"].data_vars)
+    fit_to_dir(sim["study"], tmp_path / "fit", settings=replace(rec, human_model="maxent"), **TINY)
+    with pytest.raises(LineageError, match="score different data"):
+        compare_human_models(tmp_path / "fit", tmp_path / "fit_delayed")
 
 
 def test_the_comparison_says_when_a_fit_did_not_converge():

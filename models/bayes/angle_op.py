@@ -29,6 +29,7 @@ from scioc.models.design import WheelParameters
 from scioc.models.plant import DiscretePlant
 from scioc.models.runtime import njit
 
+
 @njit(cache=True, fastmath=False, error_model="numpy")
 def _evaluate(wheel, Phi, b, theta, tau_nm, sigma_m, delay, s2y, y, ylen, ref, known, nlen, gain, vel0, warm, wstart,
               tstart, p0, grad):

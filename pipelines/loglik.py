@@ -92,8 +92,7 @@ def study_loglik(path, theta, assistant_model: str = "feedback", *, design: Desi
     human = model.loglik_parameters(design.dt, delay_s, tau_nm, sigma_m)
     if likelihood not in model.likelihoods:
         raise ValueError(f"--likelihood {likelihood}: the {model.name} human model has no such likelihood (it has "
-                         f"{', '.join(model.likelihoods)}); the angles' likelihood is the delayed human's, use it "
-                         "with --human-model delayed")
+                         f"{', '.join(model.likelihoods)})")
     study = load_study(path, design)
     for s in study.segments:
         if s.u_H is None and likelihood == "torques":

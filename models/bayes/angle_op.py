@@ -31,10 +31,11 @@ from scioc.models.runtime import njit
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _evaluate(wheel, Phi, b, theta, tau_nm, sigma_m, delay, s2y, y, ylen, ref, known, nlen, gain, vel0, warm, wstart,
-              tstart, p0, grad):
+def _evaluate(wheel, Phi, b, theta, tau_nm, sigma_m, rows, delay, s2y, y, ylen, ref, known, nlen, gain, vel0, warm,
+              wstart, tstart, p0, grad):
+    """Point i: window ``rows[i]`` at θ[:, i], τ_nm[i], σ_m[i]; (log-likelihood (P,), gradient (5, P))."""
     dt, A_c, b_w, Pb, b1, poles = wheel
-    n = y.shape[0]
+    n = rows.shape[0]
     J = warm.shape[1]
     ll = np.empty(n)
     g = np.zeros((5, n))
@@ -44,35 +45,36 @@ def _evaluate(wheel, Phi, b, theta, tau_nm, sigma_m, delay, s2y, y, ylen, ref, k
     ba = np.array([b[0], b[1], 0.0])
     out = np.empty(OUT)
     for i in range(n):
+        w = rows[i]
         la, al, da, dal = lag_nb(tau_nm[i], dt, A_c, b_w, Pb, b1, poles)
-        j0 = wstart[i]
-        start = tstart[i]
+        j0 = wstart[w]
+        start = tstart[w]
         m = warm_samples(la, al)
         if j0 < J - m:  # the warm-up's older part weighs less than WARM_EPS
             j0 = J - m
-            start = warm[i, j0 - 1]
+            start = warm[w, j0 - 1]
         tau[j0] = start
         dtau[j0, 0] = 0.0
         dtau[j0, 1] = 0.0
-        arm_torque_recursion(warm[i, j0:], la, al, tau[j0:], dtau[j0:], dct)
+        arm_torque_recursion(warm[w, j0:], la, al, tau[j0:], dtau[j0:], dct)
         A, bc, dA, dbc_t = lagged_wheel_nb(tau_nm[i], dt, A_c, b_w, Phi, b, poles)
         Ab = A.copy()
         for r in range(3):
-            Ab[r, 0] -= ba[r] * gain[i, 0]
-            Ab[r, 1] -= ba[r] * gain[i, 1]
+            Ab[r, 0] -= ba[r] * gain[w, 0]
+            Ab[r, 1] -= ba[r] * gain[w, 1]
         dAb = np.zeros((3, 3, 4))
         dbc = np.zeros((3, 4))
         for r in range(3):
             dbc[r, 2] = dbc_t[r]
             for c in range(3):
                 dAb[r, c, 2] = dA[r, c]
-        K = ylen[i]
-        N = nlen[i]
-        mu0 = np.array([y[i, 0], vel0[i], tau[J]])
+        K = ylen[w]
+        N = nlen[w]
+        mu0 = np.array([y[w, 0], vel0[w], tau[J]])
         P0 = np.diag(np.array([s2y, p0[0], p0[1]]))
         inn = np.empty(K - 1)
-        window_kernel(Ab, bc, ba, dAb, dbc, theta[0, i], theta[1, i], theta[2, i], ref[i, :N + 1], known[i, :N],
-                      delay[i], sigma_m[i] ** 2, s2y, y[i, :K], mu0, P0, True, grad, inn, out)
+        window_kernel(Ab, bc, ba, dAb, dbc, theta[0, i], theta[1, i], theta[2, i], ref[w, :N + 1], known[w, :N],
+                      delay[w], sigma_m[i] ** 2, s2y, y[w, :K], mu0, P0, True, grad, inn, out)
         ll[i] = out[0]
         if grad:
             g[0, i] = out[1]
@@ -144,6 +146,7 @@ class AngleLoglikOp(ParameterGradient, Op):
         self.p0 = _frozen(np.square(START_SD))
         self.data = {k: _frozen(v, v.dtype) for k, v in pack_windows(windows).items()}
         self.delay = _frozen(d, np.int64)
+        self.rows = _frozen(np.arange(n), np.int64)
         self.n = n
 
     def __str__(self):
@@ -151,7 +154,7 @@ class AngleLoglikOp(ParameterGradient, Op):
 
     def _args(self):
         D = self.data
-        return (self.delay, self.s2y, D["y"], D["ylen"], D["ref"], D["known"], D["nlen"], D["gain"], D["vel0"],
+        return (self.rows, self.delay, self.s2y, D["y"], D["ylen"], D["ref"], D["known"], D["nlen"], D["gain"], D["vel0"],
                 D["warm"], D["wstart"], D["tstart"], self.p0)
 
     def make_node(self, theta, tau_nm, sigma_m):
@@ -168,6 +171,12 @@ class AngleLoglikOp(ParameterGradient, Op):
         theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:N_PARAMETER_INPUTS])
         return _evaluate(self.wheel, self.Phi, self.b, theta, tau_nm, sigma_m, *self._args(), grad)
 
+    def window_values(self, j: int, theta, tau_nm, sigma_m) -> np.ndarray:
+        """Window j's log-likelihood (P,) at P points: θ (3, P), τ_nm (P,), σ_m (P,)."""
+        theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in (theta, tau_nm, sigma_m))
+        rows = np.full(tau_nm.shape[0], int(j), dtype=np.int64)
+        return _evaluate(self.wheel, self.Phi, self.b, theta, tau_nm, sigma_m, rows, *self._args()[1:], False)[0]
+
     def perform(self, node, inputs, output_storage):
         ll, g = self.values(inputs)
         output_storage[0][0] = ll
@@ -182,14 +191,14 @@ def numba_funcify_angle_loglik(op: AngleLoglikOp, node=None, **kwargs):
     """Numba implementation of :class:`AngleLoglikOp`, no object mode."""
     wheel, Phi, b = op.wheel, op.Phi, op.b
     args = op._args()
-    delay, s2y, y, ylen, ref, known, nlen, gain, vel0, warm, wstart, tstart, p0 = args
+    rows, delay, s2y, y, ylen, ref, known, nlen, gain, vel0, warm, wstart, tstart, p0 = args
     evaluate = _evaluate
 
     @numba_basic.numba_njit
     def angle_loglik(theta, tau_nm, sigma_m):
         c = np.ascontiguousarray
-        return evaluate(wheel, Phi, b, c(theta), c(tau_nm), c(sigma_m), delay, s2y, y, ylen, ref, known, nlen, gain,
-                        vel0, warm, wstart, tstart, p0, True)
+        return evaluate(wheel, Phi, b, c(theta), c(tau_nm), c(sigma_m), rows, delay, s2y, y, ylen, ref, known, nlen,
+                        gain, vel0, warm, wstart, tstart, p0, True)
 
     return angle_loglik
 

@@ -37,6 +37,14 @@ class DelayedSubjectTerms:
 
     def __init__(self, post: dict, batch: SegmentBatch, plant: DiscretePlant, delay, tau0=0.0,
                  params: WheelParameters = WheelParameters(), chunk: int = 256, baseline_log_R_prior=None):
+        self._population(post, baseline_log_R_prior)
+        self.batch, self.plant, self.params, self.chunk = batch, plant, params, int(chunk)
+        self.delay = np.broadcast_to(np.asarray(delay, dtype=np.int64), (batch.n,))
+        self.warmups = warmups_of(tau0, batch.n)
+        self.tau0_fixed = pack_tau0(tau0, batch.n)[2] if self.warmups is None else None
+
+    def _population(self, post: dict, baseline_log_R_prior) -> None:
+        """The draws of τ_nm, σ_m and their population scales, and the population of the baseline log R."""
         self.log_tau = np.log(np.asarray(post["tau_nm"], dtype=float))
         self.log_sig = np.log(np.asarray(post["sigma_m"], dtype=float))
         self.s_t = np.asarray(post["tau_nm_scale"], dtype=float)[:, None]
@@ -52,10 +60,6 @@ class DelayedSubjectTerms:
             self.m_R, self.s_R = (float(v) for v in baseline_log_R_prior)
             self.n_draws = self.s_t.shape[0]
             self.baseline_log_R_logpdf = self._unpooled_logpdf
-        self.batch, self.plant, self.params, self.chunk = batch, plant, params, int(chunk)
-        self.delay = np.broadcast_to(np.asarray(delay, dtype=np.int64), (batch.n,))
-        self.warmups = warmups_of(tau0, batch.n)
-        self.tau0_fixed = pack_tau0(tau0, batch.n)[2] if self.warmups is None else None
 
     def columns(self, i: int) -> list:
         """Posterior draws of subject i's (log τ_nm, log σ_m), each (S,)."""
@@ -119,4 +123,37 @@ class DelayedSubjectTerms:
         return out
 
 
-__all__ = ["DelayedSubjectTerms", "SCALE_GRID"]
+class AngleSubjectTerms(DelayedSubjectTerms):
+    """:class:`DelayedSubjectTerms` of a fit scored by the encoder's angles: each window's angle likelihood
+    (``op``, an :class:`scioc.models.bayes.angle_op.AngleLoglikOp` of the fitted windows at their delays)."""
+
+    def __init__(self, post: dict, op, baseline_log_R_prior=None):
+        self._population(post, baseline_log_R_prior)
+        self.op = op
+
+    def segment_loglik(self, j: int, lt1, lR, t2, z) -> np.ndarray:
+        theta = from_normalized(np.exp(lt1), t2, np.exp(lR))
+        return self.op.window_values(j, theta, np.exp(z[:, 0]), np.exp(z[:, 1]))
+
+
+class MaxentAngleTerms:
+    """The terms (``extra``) of :func:`scioc.models.bayes.subject_loo.subject_loglik` that score the max-ent human by
+    the encoder's angles: no parameters besides the cost, each window's angle likelihood with no delay, lag or motor
+    noise (``op`` built with delay 0)."""
+
+    def __init__(self, op):
+        self.op = op
+
+    def columns(self, i: int) -> list:
+        return []
+
+    def log_prior(self, z: np.ndarray) -> float:
+        return 0.0
+
+    def segment_loglik(self, j: int, lt1, lR, t2, z) -> np.ndarray:
+        theta = from_normalized(np.exp(lt1), t2, np.exp(lR))
+        zero = np.zeros(lt1.shape[0])
+        return self.op.window_values(j, theta, zero, zero)
+
+
+__all__ = ["AngleSubjectTerms", "DelayedSubjectTerms", "MaxentAngleTerms", "SCALE_GRID"]

@@ -257,7 +257,7 @@ def cmd_fit(args) -> int:
     options = sampler_config(args.sampler_config)
     common = dict(seed=args.seed, chains=args.chains, draws=args.draws, tune=args.tune, experiment_file=args.experiment,
                   estimates_path=args.estimates, truth_dir=args.truth, cores=args.cores, subject=args.subject,
-                  human_model=args.human_model, target_accept=args.target_accept)
+                  human_model=args.human_model, target_accept=args.target_accept, likelihood=args.likelihood)
     try:
         if args.plan:
             plan = fit_to_dir(args.study, args.out or ".", plan_only=True, sampler_options=options, show_progress=True,

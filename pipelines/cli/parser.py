@@ -154,6 +154,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="output folder (required unless --plan)")
     p.add_argument("--human-model", choices=HUMAN_MODEL_NAMES, default="maxent", help="the human model: maxent "
                    "(the paper's, default) or delayed (perceptual delay, neuromuscular lag, motor noise)")
+    p.add_argument("--likelihood", choices=LIKELIHOOD_NAMES, default=None,
+                   help="what the fit scores: the torques u_H (recorded or reconstructed), or the encoder's angles "
+                   "(default: the torques; the delayed model scores the angles where no torque was recorded)")
     p.add_argument("--estimates", metavar="PATH", help="estimates.parquet of scioc identify: its settings (window, "
                    "preview, assistant model, experiment) and the mixed-model check (default: the run folder's "
                    "identify/, when it identified this study)")

@@ -163,6 +163,7 @@ class DelayedFit(NamedTuple):
     timing: dict
     delays: Delays
     sidecar: dict
+    likelihood: str = "torques"
 
 
 #: How the delayed fit treats the delays: ``profile`` fixes each subject's at its profile maximum (nutpie);
@@ -236,7 +237,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                          tune: int, cores, show_progress: bool, delayed_priors: DelayedPriors | None = None,
                          delayed_form: DelayedForm | None = None, estimates: pd.DataFrame | None = None,
                          delay_mode: str = "profile", rho_form: str | None = None, log_R: str | None = None,
-                         target_accept: float | None = None) -> DelayedFit:
+                         target_accept: float | None = None, likelihood: str = "torques") -> DelayedFit:
     """Build and sample the delayed model of the prepared study (with the pointwise log-likelihood).
 
     ``form``: the log θ1 blocks' forms; θ2 takes ``THETA2_FORM``, the log R blocks ``log_R``. None for ``log_R``,
@@ -244,7 +245,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     ``delay_mode``: ``profile`` samples each subject's whitened coordinates, curved along its ridge, after a pilot run
     (:func:`scioc.pipelines.fit.whiten.sample_whitened`); ``sampled`` samples one delay per subject (the returned
     delays: its posterior modes). ``rho_form`` replaces ρ's form; ``target_accept`` (None: :func:`nutpie_options`'s)
-    the rate.
+    the rate. ``likelihood``: the recorded torques, or the encoder's ``angles``.
     """
     c = delayed_choices(prepared, plant, delays, estimates=estimates, delay_mode=delay_mode,
                         delayed_priors=delayed_priors, delayed_form=delayed_form, rho_form=rho_form,
@@ -260,7 +261,6 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
     n_subjects = len(subjects)
     pivots = ridge_pivots(delayed_priors, delayed_form, n_subjects) if whiten else None
     grid = delay_grid(float(plant.dt))
-    likelihood = likelihood_of(prepared)
     design = prepared.settings.design
     if likelihood == "angles":
         check_angle_fit(prepared, delay_mode)
@@ -289,7 +289,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                                                 pilot=pilot_runs(delay_mode, tune, draws, chains))
     timing = {"build_s": t1 - t0, **{f"{k}_s": v for k, v in sec.items()}}
     diag = diagnostics(idata, sec["sample"], POPULATION_PARAMETERS + DELAYED_POPULATION_PARAMETERS, DELAYED_UNITS)
-    side = {"likelihood": likelihood, "delay": {"mode": delay_mode, "source": delays.source, "by_unit": delays.by_unit,
+    side = {"delay": {"mode": delay_mode, "source": delays.source, "by_unit": delays.by_unit,
                       "note": ("sampled per subject (the other parameters' draws are delay-marginal)" if sampled else
                                "fixed per subject at the profile maximum (plug-in), not sampled: "
                                "models/bayes/delayed_model.py says what that costs")},
@@ -317,7 +317,7 @@ def sample_delayed_model(prepared, batch, plant, priors, form, delays: Delays, *
                if sampled else {"nutpie_options": dict(nuts)}),
             "delayed_form": {**asdict(delayed_form), "reason": form_reason},
             **({"whitening": whitening} if whiten else {})}
-    return DelayedFit(idata, diag, timing, delays, side)
+    return DelayedFit(idata, diag, timing, delays, side, likelihood)
 
 
 def per_segment_motor(point, prepared, plant, delays: Delays, own_delay: bool = False) -> dict:
@@ -358,7 +358,7 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
     res = {"model": "hierarchical delayed human: the max-ent model's condition effects on log θ1 and log R (command "
                     "cost), τ_nm and σ_m per subject, plug-in delays (models.bayes.delayed_model)",
            "human_model": "delayed", **contrasts(idata)}
-    loo, _ = psis_summary(idata, observed_name(fit.sidecar), "segment")
+    loo, _ = psis_summary(idata, observed_name(fit.likelihood), "segment")
     res["loo"] = {"delayed": loo, "note": "this model alone (no pooled model is fitted for the delayed human)"}
     res["loo_subject"] = None
     res["human_models"] = ("not computed in this fit: pipelines.fit.human_models.compare_human_models compares the "
@@ -378,9 +378,9 @@ def delayed_results(fit: DelayedFit, prepared, plant, estimates, truth_dir, subj
     return res, ppc, ppc_draws
 
 
-def observed_name(side: dict) -> str:
-    """The observed variable of a delayed fit: the recorded angles or torques (the sidecar's ``likelihood``)."""
-    return ANGLE_OBSERVED if side.get("likelihood") == "angles" else "u_H"
+def observed_name(likelihood: str) -> str:
+    """The observed variable of a fit that scores ``likelihood``: the recorded angles or torques."""
+    return ANGLE_OBSERVED if likelihood == "angles" else "u_H"
 
 
 def fit_delayed(ctx: FitContext) -> FitOutcome:
@@ -395,7 +395,7 @@ def fit_delayed(ctx: FitContext) -> FitOutcome:
                                delay_mode=opts.get("delay", "profile"),
                                delayed_priors=None if population is None else DelayedPriors(R_population=population),
                                rho_form=opts.get("rho_form"), log_R=opts.get("log_R_form"),
-                               target_accept=ctx.target_accept)
+                               target_accept=ctx.target_accept, likelihood=ctx.likelihood)
     timing = {"condition": fit.timing}
     t0 = time.perf_counter()
     res, ppc, ppc_draws = delayed_results(fit, prepared, plant, ctx.estimates, ctx.truth_dir, ctx.subject,

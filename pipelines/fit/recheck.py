@@ -17,7 +17,6 @@ from scioc.pipelines.io import load_study
 from scioc.pipelines.prepare import IdentifySettings, prepare_study
 from scioc.pipelines.storage import WRITTEN_BY, write_text_atomic
 
-
 #: The command whose results these are (:data:`scioc.pipelines.storage.WRITTEN_BY`).
 COMMAND = "scioc adequacy"
 

@@ -180,7 +180,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                estimates_path=None, truth_dir=None, cores: int | None = None, show_progress: bool = False,
                force: bool = False, prepared: PreparedStudy | None = None, experiment_file: str | None = None,
                human_model: str | None = None, sampler_options: dict | None = None,
-               target_accept: float | None = None, plan_only: bool = False) -> dict:
+               target_accept: float | None = None, likelihood: str | None = None, plan_only: bool = False) -> dict:
     """Fit the human model's hierarchical model(s) to a study file and write every artifact (module docstring).
 
     Parameters
@@ -213,6 +213,9 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         :attr:`~scioc.pipelines.human_model.HumanModel.sampler_keys`.
     target_accept : float, optional
         The sampler's target acceptance rate in (0, 1) (None: the model's own, recorded in the sidecar).
+    likelihood : str, optional
+        What the fit scores: ``torques`` or ``angles`` (None: the human model's default for these recordings,
+        :meth:`~scioc.pipelines.human_model.HumanModel.fit_likelihood`).
     plan_only : bool
         Return the plan (:meth:`~scioc.pipelines.human_model.HumanModel.plan`) without sampling or writing.
 
@@ -272,6 +275,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     else:
         check_design(prepared.path, prepared.subjects, prepared.conditions, levels=levels)
     model.check_fit_data(prepared)
+    requested_likelihood = likelihood
+    likelihood = model.fit_likelihood(prepared, likelihood)
     subjects = sorted(dict.fromkeys(prepared.subjects))
     subject = subject or (subjects[2] if len(subjects) > 2 else subjects[0])
     if subject not in subjects:
@@ -296,9 +301,11 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
                                                 else unit_se_log_theta1(prepared, plant))
     ctx = FitContext(prepared, batch, plant, priors, form, form_reason, estimates, estimates_path, truth_dir, subject,
                      child_seeds(seed), chains, draws, tune, tune_given, cores, show_progress, target_accept,
-                     adequacy_at, options)
+                     adequacy_at, options, likelihood)
     if plan_only:
-        return {"human_model": model.name, **model.plan(ctx)}
+        return {"human_model": model.name, "likelihood": {"value": likelihood, "reason": "given" if requested_likelihood
+                                                          else "the human model's default for these recordings"},
+                **model.plan(ctx)}
     outcome = model.fit(ctx)
     fits, diag, res, extra, ppc, ppc_draws = (outcome.fits, outcome.diagnostics, outcome.results, outcome.sidecar,
                                                outcome.ppc, outcome.ppc_draws)
@@ -310,7 +317,7 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
         "study": str(study_path),
         "study_relative": os.path.relpath(study_path.resolve(), out.resolve()),
         "truth_relative": None if res.get("truth") is None else res["truth"]["source"],
-        "human_model": human_model, "seed": int(seed), "seeds": ctx.seeds,
+        "human_model": human_model, "likelihood": likelihood, "seed": int(seed), "seeds": ctx.seeds,
         "sampler": {**model.sampler_record(ctx, outcome),
                     "chains": int(chains), "draws": int(draws), "tune": int(tune),
                     "cores": int(min(chains, cores or os.cpu_count() or 1)),

@@ -193,11 +193,21 @@ class Delayed(HumanModel):
         return ll
 
     # hierarchical fit
-    def check_fit_data(self, prepared):
+    def fit_likelihood(self, prepared, requested):
         from scioc.pipelines.fit.delayed import check_angle_fit, likelihood_of
+        from scioc.pipelines.io import InputDataError
 
-        if likelihood_of(prepared) == "angles":
+        found = likelihood_of(prepared)
+        if requested == "torques" and found == "angles":
+            rec = sum(p.reconstructed for p in prepared.segments)
+            raise InputDataError(
+                f"{prepared.path}: {rec} of {len(prepared.segments)} segments have no recorded torque (u_H) or are "
+                "reconstructed by --reconstruct always; a reconstructed torque is smoothed, which the delayed model's "
+                "torque likelihood would read as neuromuscular lag. Fit the encoder's angles (--likelihood angles)")
+        chosen = found if requested is None else super().fit_likelihood(prepared, requested)
+        if chosen == "angles":
             check_angle_fit(prepared, "profile")
+        return chosen
 
     def default_tune(self, options):
         from scioc.pipelines.fit.warmup import default_tune
@@ -260,13 +270,18 @@ class Delayed(HumanModel):
         return lines
 
     def subject_loo_terms(self, side, folder, prepared, batch, plant):
-        from scioc.models.bayes.delayed_loo import DelayedSubjectTerms
+        from scioc.models.bayes.delayed_loo import AngleSubjectTerms, DelayedSubjectTerms
         from scioc.pipelines.fit.human_models import sidecar_delays, unpooled_log_R_prior
 
         delay = sidecar_delays(side, folder, prepared)
         warm = [p.warmup for p in prepared.segments]
         base_R = unpooled_log_R_prior(side, folder)
         wheel = prepared.settings.design.wheel
+        if side.get("likelihood") == "angles":
+            from scioc.pipelines.fit.angles import angle_op
+
+            op = angle_op(prepared, plant, delay)
+            return lambda flat: AngleSubjectTerms(flat, op, baseline_log_R_prior=base_R)
         return lambda flat: DelayedSubjectTerms(flat, batch, plant, delay, warm, params=wheel,
                                                 baseline_log_R_prior=base_R)
 

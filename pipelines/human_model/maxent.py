@@ -24,6 +24,8 @@ class MaxEnt(HumanModel):
     #: level must catch the first, the study level the second.
     negative_controls = ("inertia", "ignore-uA")
     default_negative_control = {"unit": "inertia", "study": "ignore-uA"}
+    #: ``angles``: the delayed human's angle likelihood with no delay, lag or motor noise, which is this human's.
+    likelihoods = ("torques", "angles")
 
     def identify_unit(self, prepared, idx, plant, settings):
         return identify_unit([prepare_batch(plant, [prepared[i].segment]) for i in idx], plant)
@@ -42,6 +44,14 @@ class MaxEnt(HumanModel):
         return None
 
     def loglik(self, theta, prepared, plant, design, parameters, likelihood):
+        if likelihood == "angles":
+            from scioc.models.delayed import window_loglik
+            from scioc.pipelines.prepare import angle_windows
+
+            segs = prepared.segments
+            return np.array([window_loglik(theta, 0.0, 0.0, 0, w, plant, sigma_y=design.encoder_sd,
+                                           params=design.wheel).loglik
+                             for w in angle_windows(segs, range(len(segs)))])
         return loglik_segments(theta, [p.segment for p in prepared.segments], plant).loglik
 
     def default_tune(self, options):
@@ -63,6 +73,15 @@ class MaxEnt(HumanModel):
         from scioc.pipelines.fit.maxent import fit_maxent
 
         return fit_maxent(ctx)
+
+    def subject_loo_terms(self, side, folder, prepared, batch, plant):
+        if side.get("likelihood") != "angles":
+            return None
+        from scioc.models.bayes.delayed_loo import MaxentAngleTerms
+        from scioc.pipelines.fit.angles import angle_op
+
+        op = angle_op(prepared, plant, 0)
+        return lambda flat: MaxentAngleTerms(op)
 
     def sampler_record(self, ctx, outcome):
         return {"name": "nutpie", "via": "pymc.sample(nuts_sampler='nutpie')", "adaptation": "diag (nutpie default)"}

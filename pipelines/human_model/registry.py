@@ -95,6 +95,16 @@ class HumanModel:
     def check_fit_data(self, prepared) -> None:
         """Raise InputDataError where this model's fit cannot use the study's recordings."""
 
+    def fit_likelihood(self, prepared, requested: str | None) -> str:
+        """What the fit scores (``--likelihood``): ``requested``, checked against :attr:`likelihoods`, or the model's
+        default for these recordings (the torques)."""
+        if requested is None:
+            return "torques"
+        if requested not in self.likelihoods:
+            raise ValueError(f"--likelihood {requested} is not one of the {self.name} human model's: "
+                             f"{', '.join(self.likelihoods)}")
+        return requested
+
     def sampler_options(self, options: dict, source: str) -> dict:
         """``options`` (from ``--sampler-config``) validated against :attr:`sampler_keys`, naming ``source``."""
         bad = sorted(set(options) - set(self.sampler_keys))
@@ -175,6 +185,7 @@ class FitContext(NamedTuple):
     target_accept: float | None
     adequacy_at: str
     options: dict  # the model's validated sampler options
+    likelihood: str = "torques"  # what the fit scores: the recorded (or reconstructed) torques, or the angles
 
 
 def parameterization_text(form) -> str:

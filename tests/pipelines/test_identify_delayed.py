@@ -293,6 +293,7 @@ def test_cli_loglik_of_the_angles_is_the_models(combined, tmp_path, capsys):
     assert all(a["loglik"] != t["loglik"] for a, t in zip(got, torques))  # another likelihood, not a relabelling
     assert _status(["loglik", str(angle_only), "--theta", "400,0,20", *human, "--experiment", str(exp)]) == 3
     assert "use --likelihood angles" in capsys.readouterr().err
-    assert _status(["loglik", str(angle_only), "--theta", "400,0,20", "--likelihood", "angles",
-                    "--experiment", str(exp)]) == 2
-    assert "use it with --human-model delayed" in capsys.readouterr().err
+    # the max-ent human's likelihood of the angles: the delayed human's with no delay, lag or motor noise
+    maxent = _loglik_json(str(angle_only), capsys, "--likelihood", "angles", "--experiment", str(exp))
+    for rec, w in zip(maxent, wins):
+        assert rec["loglik"] == window_loglik([400.0, 0.0, 20.0], 0.0, 0.0, 0, w, plant, sigma_y=STUDY.encoder_sd).loglik

@@ -74,3 +74,31 @@ def test_it_draws_angles_of_each_windows_length(plant, recorded):
         assert np.all(np.isfinite(draws[:, i, :K])) and np.all(draws[:, i, K:] == 0.0)
         # each draw starts at its window's recorded angle, read by the encoder
         assert np.all(np.abs(draws[:, i, 0] - w.angles[0]) < 6 * SIGMA_Y)
+
+
+def test_the_leave_one_subject_out_terms_score_each_window_by_its_angles(plant, recorded):
+    """The delayed and max-ent terms of the integrated importance sampling: each window's angle likelihood at every
+    point, the max-ent's with no delay, lag or motor noise."""
+    from scioc.models.bayes.angle_op import AngleLoglikOp
+    from scioc.models.bayes.delayed_loo import AngleSubjectTerms, MaxentAngleTerms
+
+    rng = np.random.default_rng(4)
+    M = 5
+    lt1, lR, t2 = rng.normal(3.0, 0.5, M), rng.normal(2.5, 0.5, M), rng.uniform(0.0, 1.0, M)
+    z = np.column_stack([np.log(rng.uniform(0.01, 0.2, M)), np.log(rng.uniform(0.05, 0.4, M))])
+    post = {"tau_nm": np.full((3, 3), 0.05), "sigma_m": np.full((3, 3), 0.2), "tau_nm_scale": np.full(3, 0.1),
+            "sigma_m_scale": np.full(3, 0.3)}
+    delayed = AngleSubjectTerms(post, AngleLoglikOp(recorded, plant, delay=DELAY, sigma_y=SIGMA_Y))
+    maxent = MaxentAngleTerms(AngleLoglikOp(recorded, plant, delay=0, sigma_y=SIGMA_Y))
+    assert maxent.columns(0) == [] and maxent.log_prior(z) == 0.0
+    for j in (0, 3, 5):
+        got_d = delayed.segment_loglik(j, lt1, lR, t2, z)
+        got_m = maxent.segment_loglik(j, lt1, lR, t2, z[:, :0])
+        for m in range(M):
+            R = np.exp(lR[m])
+            theta = [np.exp(lt1[m]) * R, t2[m] * R, R]
+            ref_d = window_loglik(theta, np.exp(z[m, 0]), np.exp(z[m, 1]), int(DELAY[j]), recorded[j], plant,
+                                  sigma_y=SIGMA_Y).loglik
+            ref_m = window_loglik(theta, 0.0, 0.0, 0, recorded[j], plant, sigma_y=SIGMA_Y).loglik
+            assert got_d[m] == pytest.approx(ref_d, rel=1e-10)
+            assert got_m[m] == pytest.approx(ref_m, rel=1e-10)

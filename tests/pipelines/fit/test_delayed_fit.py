@@ -210,9 +210,29 @@ def test_without_recorded_torques_the_delayed_fit_scores_the_angles(tmp_path):
     res = json.loads((tmp_path / "fit_delayed" / "contrasts.json").read_text())
     assert np.isfinite(res["loo"]["delayed"]["elpd_loo"]) and res["adequacy"]["verdict"] in ("pass", "fail")
     assert {"tau_nm", "sigma_m", "beta"} <= set(idata["posterior"].data_vars)
-    fit_to_dir(sim["study"], tmp_path / "fit", settings=replace(rec, human_model="maxent"), **TINY)
+    maxent = replace(rec, human_model="maxent")
+    fit_to_dir(sim["study"], tmp_path / "fit", settings=maxent, **TINY)
     with pytest.raises(LineageError, match="score different data"):
         compare_human_models(tmp_path / "fit", tmp_path / "fit_delayed")
+    # the max-ent human through the same angle likelihood: leave-one-subject-out compares the two on the same data
+    fit_to_dir(sim["study"], tmp_path / "fit_angles", settings=maxent, likelihood="angles", **TINY)
+    side = json.loads((tmp_path / "fit_angles" / "posterior.json").read_text())
+    assert side["likelihood"] == "angles" and "tau_nm" not in az.from_netcdf(tmp_path / "fit_angles" /
+                                                                           "posterior.nc")["posterior"]
+    res = compare_human_models(tmp_path / "fit_angles", tmp_path / "fit_delayed", points=200)
+    assert all(np.isfinite(v[k]) for v in res["by_subject"].values() for k in ("elpd_maxent", "elpd_delayed"))
+
+
+def test_the_delayed_fit_refuses_to_score_reconstructed_torques(tmp_path):
+    # A reconstructed torque is smoothed, which the torque likelihood reads as lag: --likelihood torques is refused.
+    from scioc.pipelines.io import InputDataError
+
+    small = replace(SENSOR, run_seconds=8.0, window_start=2.0, window_seconds=4.0, preview=1.0)
+    sim = simulate_to_dir(tmp_path / "data", n_subjects=2, seed=3, human="kbl", design=small)
+    rec = IdentifySettings.for_design(small, human_model="delayed", adequacy_boot=0, reconstruct="always")
+    with pytest.raises(InputDataError, match="4 of 4 segments have no recorded torque .*--likelihood angles"):
+        fit_to_dir(sim["study"], tmp_path / "fit", settings=rec, likelihood="torques", **TINY)
+    assert not (tmp_path / "fit").exists()
 
 
 def test_the_comparison_says_when_a_fit_did_not_converge():

@@ -29,7 +29,7 @@ from scioc.pipelines.identify import format_identify, identify_study, identify_t
 from scioc.pipelines.io import load_study, validate_table
 from scioc.pipelines.prepare import IdentifySettings, prepare_study
 from scioc.pipelines.report import build_report
-from scioc.pipelines.report.human_models import ANGLE_ONLY, RUN_FILE
+from scioc.pipelines.report.human_models import ANGLE_FIT, ANGLE_ONLY, RUN_FILE
 from scioc.pipelines.simulate import DEFAULT_SEED, simulate_to_dir
 from scioc.pipelines.storage import (
     check_output_dir,
@@ -74,7 +74,7 @@ def default_human_models(design: Design, maxent_verdict: str | None) -> tuple[tu
     if verdict == "pass":
         return (PRIMARY,), ("the max-ent human model passes its adequacy checks, so the delayed human model was not "
                              "run (--human-model maxent,delayed runs it beside the max-ent model)")
-    angles = "" if design.torque_sensor else f" ({ANGLE_ONLY})"
+    angles = "" if design.torque_sensor else f"; {ANGLE_ONLY}"
     return (PRIMARY, ALTERNATIVE), (f"the max-ent human model's adequacy verdict is '{verdict}', so the delayed human "
                                    f"model was run beside it{angles}")
 
@@ -87,12 +87,13 @@ def run_verdicts(root) -> dict:
 
 
 def _stages(fit: bool, delayed: bool, sensor: bool = True, simulated: bool = True) -> list[str]:
-    """The run's stages in order (their numbers in the log); the delayed fit needs the recorded torque (``sensor``)."""
+    """The run's stages in order (their numbers in the log); without a torque sensor (``sensor``) the max-ent human
+    is also fitted to the angles, which the delayed fit scores."""
     stages = ["simulate", "identify", "true torques", "compare"] if simulated else ["identify", "compare"]
     if delayed:
         stages += ["identify delayed", "compare delayed"]
     if fit:
-        stages += ["fit", "fit delayed", "human models"] if delayed and sensor else ["fit"]
+        stages += ["fit", *([] if sensor else ["fit angles"]), "fit delayed", "human models"] if delayed else ["fit"]
     return stages + ["report"]
 
 
@@ -153,18 +154,26 @@ def _analyse(tmp: Path, study_path, prepared, settings: IdentifySettings, source
         fit_to_dir(study_path, tmp / "fit", seed=seed, settings=settings, truth_dir=truth_dir,
                    estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared,
                    experiment_file=source)
-    for st in ("fit delayed", "human models"):  # counted, and not needed after all
+    for st in ("fit angles", "fit delayed", "human models"):  # counted, and not needed after all
         if st in stages and not delayed:
             log(f"{at(st)} {st}: not needed")
-    if fit and delayed and sensor:
+    if fit and delayed:
         from scioc.pipelines.fit.human_models import compare_human_models, format_human_models
 
+        maxent_fit = tmp / "fit"
+        if not sensor:  # the comparison scores the same data: the angles, which the delayed fit scores
+            maxent_fit = tmp / ANGLE_FIT
+            log(f"{at('fit angles')} hierarchical Bayesian fit of the max-ent human model to the encoder's angles "
+                "(nutpie, 4 chains)")
+            fit_to_dir(study_path, maxent_fit, seed=seed, settings=settings, truth_dir=truth_dir,
+                       estimates_path=tmp / "identify" / "estimates.parquet", show_progress=True, prepared=prepared,
+                       experiment_file=source, likelihood="angles")
         log(f"{at('fit delayed')} hierarchical Bayesian fit of the delayed human model (nutpie, 4 chains)")
         fit_to_dir(study_path, tmp / "fit_delayed", seed=seed, settings=delayed_prepared.settings,
                    truth_dir=truth_dir, estimates_path=tmp / "identify_delayed" / "estimates.parquet",
                    show_progress=True, prepared=delayed_prepared, experiment_file=source)
         log(f"{at('human models')} leave-one-subject-out: max-ent against delayed")
-        log(format_human_models(compare_human_models(tmp / "fit", tmp / "fit_delayed", prepared=prepared,
+        log(format_human_models(compare_human_models(maxent_fit, tmp / "fit_delayed", prepared=prepared,
                                                      seed=seed, out=tmp, relative_to=tmp)))
     log(f"{at('report')} writing the report")
     build_report(tmp, title=title)

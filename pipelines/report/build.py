@@ -94,7 +94,7 @@ def build_report(root, *, subject: str | None = None, out=None, calibration=None
     if (root / "fit").exists():
         body += [_h2("Hierarchical Bayesian model"), report_adequacy.caveat(fit_adequacy if fit_adequacy else adequacy),
                  section_bayes(run, design, not measured, trials > 1)]
-    body.append(report_human_models.section(run, design, measured))
+    body.append(report_human_models.section(run, design))
     body += [report_adequacy.section(est, adequacy, power, chain[1]), _h2("Model validation (Fig. 6)")]
     if traj is not None:
         body.append(section_fig6(traj, subject, design, not measured))

@@ -34,11 +34,11 @@ LOSO_Z = 2.0
 #: The file in a run folder where ``scioc run`` records which human models it analysed and why
 #: (:func:`scioc.pipelines.run.default_human_models`).
 RUN_FILE = "run.json"
-#: Why ``scioc run`` fits no delayed model without a torque sensor (docs/decisions/run-human-models.md).
-ANGLE_ONLY = ("without a torque sensor the delayed model is identified from the encoder's angles; its hierarchical "
-              "fit from the angles runs alone (scioc fit --human-model delayed), but the leave-one-subject-out "
-              "comparison of the two models on the same angle likelihood is not built, so the run does not fit it "
-              "(docs/methods.md, \"Human models\")")
+#: Where ``scioc run`` fits the max-ent human to the encoder's angles, for the comparison without a torque sensor.
+ANGLE_FIT = "fit_angles"
+#: How ``scioc run`` compares the models without a torque sensor (docs/decisions/run-human-models.md).
+ANGLE_ONLY = ("without a torque sensor both human models are fitted to the encoder's angles for their comparison "
+              f"(the max-ent one in {ANGLE_FIT}/, beside its fit of the reconstructed torques in fit/)")
 
 
 class ModelRun(NamedTuple):
@@ -227,9 +227,8 @@ def _per_subject(hm: dict) -> dict:
     return {k: [f"{s} ({v['difference']:+.1f})" for s, v in by.items() if v["preferred"] == k] for k in NAMES}
 
 
-def section(run, design: Design = STUDY, measured: bool = False) -> Markup:
-    """The "Human models" section of a run folder or its parts (``measured``: the torque was recorded, not
-    reconstructed)."""
+def section(run, design: Design = STUDY) -> Markup:
+    """The "Human models" section of a run folder or its parts."""
     run = RunParts.of(run)
     models = read_models(run)
     if ALTERNATIVE not in models:
@@ -241,8 +240,9 @@ def section(run, design: Design = STUDY, measured: bool = False) -> Markup:
                    "runs it beside the max-ent model).")
         return render("human_models.html.j2", both=False, why=why)
     hm = run.read("human_models.json")
-    note = (f"The delayed human model has no Bayesian fit here: {ANGLE_ONLY}."
-            if models[ALTERNATIVE].fit is None and not measured else None)
+    note = ("The delayed human model has no Bayesian fit here." if models[ALTERNATIVE].fit is None else
+            f"The leave-one-subject-out comparison scores the encoder's angles: {ANGLE_ONLY}."
+            if (hm or {}).get("fits", {}).get(PRIMARY) == ANGLE_FIT else None)
     return render("human_models.html.j2", both=True, table=_table(models, hm, design), note=note,
                   d=(hm or {}).get("difference"), per=_per_subject(hm) if hm else None, loso=_loso_words(hm),
                   ok=bool(supported(models, hm)), conclusion=conclusion(models, hm, design), loso_z=LOSO_Z,
@@ -260,6 +260,6 @@ def headline(run, design: Design = STUDY) -> Markup:
                   conclusion=conclusion(models, hm, design))
 
 
-__all__ = ["ANGLE_ONLY", "LOSO_Z", "MODEL_ARTIFACTS", "RUN_FILE", "ModelRun", "adequacy_words", "conclusion",
+__all__ = ["ANGLE_FIT", "ANGLE_ONLY", "LOSO_Z", "MODEL_ARTIFACTS", "RUN_FILE", "ModelRun", "adequacy_words", "conclusion",
            "cost_words", "headline", "loso_preference", "passes", "population_words", "read_models", "section",
            "supported", "verdict_words"]

@@ -12,8 +12,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from scioc.pipelines import lineage
+from scioc.pipelines.human_model.registry import PRIMARY
 from scioc.pipelines.io import InputDataError
-from scioc.pipelines.report.human_models import MODEL_ARTIFACTS
+from scioc.pipelines.report.human_models import ANGLE_FIT, MODEL_ARTIFACTS
 from scioc.pipelines.report.render import RunParts, read_artifact
 
 #: The identifications a simulated run adds from the true torques (``scioc run``), checked like ``identify/``.
@@ -58,8 +59,10 @@ def _check_human_models(root: Path) -> None:
     where = root / "human_models.json"
     side = read_artifact(where)
     for model, (_, _, fit) in MODEL_ARTIFACTS.items():
-        lineage.require_same("fit", where, lineage.recorded(side, f"{model}_fit", where), root / fit,
-                             lineage.entry(root / fit))
+        theirs = lineage.recorded(side, f"{model}_fit", where)
+        if model == PRIMARY and theirs.get("path") == ANGLE_FIT:  # the max-ent fit of the angles (no torque sensor)
+            fit = ANGLE_FIT
+        lineage.require_same("fit", where, theirs, root / fit, lineage.entry(root / fit))
 
 
 def check_run(root) -> RunParts:
@@ -91,6 +94,7 @@ def check_run(root) -> RunParts:
                                                                      _study_of(root / ident / "identify.json")))
         checks[tests] = lambda tests=tests, ident=ident: _check_tests(root, tests, ident)
         checks[fit] = lambda fit=fit, model=model: _check_fit(root, fit, model, anchor)
+    checks[ANGLE_FIT] = lambda: _check_fit(root, ANGLE_FIT, PRIMARY, anchor)
     checks["human_models.json"] = lambda: _check_human_models(root)
     left_out = {}
     for part, check in checks.items():
@@ -104,7 +108,8 @@ def check_run(root) -> RunParts:
         for part in (tests, fit):
             if ident in left_out and (root / part).exists() and part not in left_out:
                 left_out[part] = f"made from {ident}/, which is left out"
-    if any(fit in left_out for _, _, fit in MODEL_ARTIFACTS.values()) and (root / "human_models.json").exists():
+    if any(fit in left_out for fit in (ANGLE_FIT, *(f for _, _, f in MODEL_ARTIFACTS.values()))) and \
+            (root / "human_models.json").exists():
         left_out.setdefault("human_models.json", "it compares fits of which one is left out")
     return RunParts(root, left_out)
 

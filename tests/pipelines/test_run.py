@@ -130,7 +130,8 @@ def test_run_reconstructs_every_segment_once_for_identify_and_fit(tmp_path, monk
         seen["prepared"] = prepared
 
     monkeypatch.setattr(scioc.pipelines.fit, "fit_to_dir", fake_fit)
-    run_all(tmp_path, n_subjects=2, seed=5, fit=True, settings=IdentifySettings(adequacy_boot=0))
+    run_all(tmp_path, n_subjects=2, seed=5, fit=True, settings=IdentifySettings(adequacy_boot=0),
+            human_models=("maxent",))
     assert len(calls) == 4  # 2 subjects × MC and SC, from the angle; the true-torque runs need none
     assert [p.data.subject for p in seen["prepared"].segments] == ["S01", "S01", "S02", "S02"]
 
@@ -202,28 +203,41 @@ def test_a_run_with_a_torque_sensor_adds_the_delayed_model(tmp_path, monkeypatch
 ANGLES = replace(SENSOR, torque_sensor=False)
 
 
-def test_a_run_without_a_torque_sensor_identifies_the_delayed_model_from_the_angles(tmp_path, monkeypatch, capsys):
+def test_a_run_without_a_torque_sensor_compares_the_two_models_on_the_angles(tmp_path, monkeypatch, capsys):
     """The kbl human on the paper's rig: the max-ent model fails its adequacy checks, so the delayed model is identified
-    (from the encoder's angles) and tested; its hierarchical fit, which needs the recorded torque, is not run."""
+    from the encoder's angles and fitted to them, the max-ent model too (beside its fit of the reconstructed
+    torques), and leave-one-subject-out compares the two fits of the angles; fits and LOSO stand in here."""
     import scioc.pipelines.fit
-    from scioc.pipelines.report.human_models import ANGLE_ONLY
+    import scioc.pipelines.fit.human_models
+    from scioc.pipelines.report.human_models import ANGLE_FIT, ANGLE_ONLY
     from scioc.pipelines.run import run_all
 
-    seen = []
-    monkeypatch.setattr(scioc.pipelines.fit, "fit_to_dir", lambda study, out, **kw: seen.append(Path(out).name))
+    seen = {}
+
+    def fake_fit(study_path, out, *, settings=None, likelihood=None, **kwargs):  # stands in for minutes of sampling
+        seen[Path(out).name] = (settings.human_model, likelihood)
+
+    def fake_compare(maxent_dir, delayed_dir, *, prepared=None, seed=None, out=None, relative_to=None):
+        seen["human_models"] = (Path(maxent_dir).name, Path(delayed_dir).name)
+        return {"difference": {"elpd_diff": 1.0, "se": 1.0, "z": 1.0, "reliable": True, "n": 2,
+                               "n_preferring_delayed": 1, "preferred": "delayed"}}
+
+    monkeypatch.setattr(scioc.pipelines.fit, "fit_to_dir", fake_fit)
+    monkeypatch.setattr(scioc.pipelines.fit.human_models, "compare_human_models", fake_compare)
     root = run_all(tmp_path, n_subjects=2, seed=5, design=ANGLES, human="kbl",
                    settings=IdentifySettings.for_design(ANGLES, adequacy_boot=39)).parent
     log = capsys.readouterr().out
-    assert "human models: maxent, delayed: the max-ent human model's adequacy verdict is 'fail'" in log
-    for stage in ("[5/8] identifying again with the delayed human model", "[6/8] Wilcoxon matched-pairs tests of the "
-                  "delayed model's estimates", "[7/8] hierarchical", "[8/8] writing the report"):
+    assert f"human models: maxent, delayed: the max-ent human model's adequacy verdict is 'fail', so the delayed " \
+           f"human model was run beside it; {ANGLE_ONLY}" in log
+    for stage in ("[5/11] identifying again with the delayed human model", "[6/11] Wilcoxon matched-pairs tests of "
+                  "the delayed model's estimates", "[7/11] hierarchical", "[8/11] hierarchical Bayesian fit of the "
+                  "max-ent human model to the encoder's angles", "[9/11] hierarchical Bayesian fit of the delayed",
+                  "[10/11] leave-one-subject-out", "[11/11] writing the report"):
         assert stage in log, stage
-    assert seen == ["fit"]  # the max-ent fit only
+    assert seen == {"fit": ("maxent", None), ANGLE_FIT: ("maxent", "angles"), "fit_delayed": ("delayed", None),
+                    "human_models": (ANGLE_FIT, "fit_delayed")}
     est = pd.read_parquet(root / "identify_delayed" / "estimates.parquet")
     assert set(est.likelihood) == {"angles"} and (root / "compare_delayed.json").exists()
-    assert not (root / "fit_delayed").exists() and not (root / "human_models.json").exists()
-    html = unescape((root / "index.html").read_text()).replace("“", "\"").replace("”", "\"")
-    assert "The delayed human model has no Bayesian fit here: " + ANGLE_ONLY in html
 
 
 def test_run_with_maxent_only_on_a_torque_sensor_says_delayed_was_not_requested(tmp_path, capsys):

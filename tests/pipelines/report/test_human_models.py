@@ -15,6 +15,7 @@ import pytest
 
 from scioc.models.design import STUDY, AssistantSpec, Design
 from scioc.pipelines.report.human_models import (
+    ANGLE_FIT,
     ANGLE_ONLY,
     LOSO_Z,
     conclusion,
@@ -169,7 +170,7 @@ def test_without_fits_the_choice_rests_on_adequacy_and_says_loso_was_not_compute
 
 def test_the_section_shows_the_table_the_loso_numbers_and_the_per_subject_preference(tmp_path):
     root = write_run(tmp_path, loso=_loso(z=5.0))
-    html = _text(section(root, STUDY, measured=True))
+    html = _text(section(root, STUDY))
     assert "Human models" in html and "max-ent human" in html and "delayed human" in html
     for row in ("adequacy at identify", "adequacy at the posterior θ (fit)", "Wilcoxon on θ1, SC − MC", "β, SC − MC",
                 "LOSO ELPD (sum over subjects ± SE)", "subjects better predicted (LOSO)"):
@@ -185,25 +186,33 @@ def test_the_section_shows_the_table_the_loso_numbers_and_the_per_subject_prefer
 def test_with_only_maxent_the_section_says_which_and_why(tmp_path):
     write_run(tmp_path, delayed=(None, None))
     for measured in (False, True):
-        html = _text(section(tmp_path, STUDY, measured=measured))
+        html = _text(section(tmp_path, STUDY))
         assert "Only the max-ent human model" in html
         assert "not requested" in html and "--human-model maxent,delayed" in html
 
 
-def test_from_angles_the_delayed_model_has_identify_and_tests_but_no_fit_and_the_section_says_why(tmp_path):
+def test_without_a_delayed_fit_the_section_says_so_and_concludes_from_a_passing_model(tmp_path):
     import shutil
 
     write_run(tmp_path, delayed=("pass", None))
     shutil.rmtree(tmp_path / "fit_delayed")
-    html = _text(section(tmp_path, STUDY, measured=False))
-    assert "The delayed human model has no Bayesian fit here: " + ANGLE_ONLY in html.replace("“", "\"").replace(
-        "”", "\"")
+    html = _text(section(tmp_path, STUDY))
+    assert "The delayed human model has no Bayesian fit here." in html
     assert "no fit" in html and "(no Bayesian fit)" in html
     # the conclusion still comes from a model that passes, with its verdict beside it
     assert "The data support the delayed human model: it passes its adequacy checks (pass at identify, no fit;" in html
     assert "leave-one-subject-out was not computed" in html
-    # with the torque recorded, a missing delayed fit is not explained by the angles
-    assert "no Bayesian fit here" not in _text(section(tmp_path, STUDY, measured=True))
+
+
+def test_a_comparison_of_the_angle_fits_says_what_it_scores(tmp_path):
+    write_run(tmp_path, loso=_loso(z=5.0))
+    hm = json.loads((tmp_path / "human_models.json").read_text())
+    html = _text(section(tmp_path, STUDY)).replace("“", "\"").replace("”", "\"")
+    assert "scores the encoder's angles" not in html
+    hm["fits"] = {"maxent": ANGLE_FIT, "delayed": "fit_delayed"}
+    (tmp_path / "human_models.json").write_text(json.dumps(hm))
+    html = _text(section(tmp_path, STUDY)).replace("“", "\"").replace("”", "\"")
+    assert "The leave-one-subject-out comparison scores the encoder's angles: " + ANGLE_ONLY in html
 
 
 def test_several_levels_get_a_row_per_contrast_with_holm(tmp_path):
@@ -217,7 +226,7 @@ def test_several_levels_get_a_row_per_contrast_with_holm(tmp_path):
            "contrasts": {v: _fit(0.01, (-0.09, 0.11), "pass") for v in ("weak", "auto")}}
     (tmp_path / "compare_delayed.json").write_text(json.dumps(cmp))
     (tmp_path / "fit_delayed" / "contrasts.json").write_text(json.dumps(fit))
-    html = _text(section(tmp_path, design, measured=True))
+    html = _text(section(tmp_path, design))
     assert "Wilcoxon on θ1, weak − none" in html and "β, auto − none" in html
     assert "Holm p = 1, does not reject H0 (no change) at α = 0.05" in html
     assert "weak − none: Wilcoxon on θ1" in html and "auto − none: Wilcoxon on θ1" in html
@@ -234,7 +243,7 @@ def test_a_beta_from_a_sampler_that_did_not_converge_says_so_wherever_it_appears
     assert text.startswith("The data support the delayed human model")
     assert f"β = +0.010, 94 % HDI [-0.090, +0.110] (contains 0); but the sampler did not converge ({failed}), " \
            "so this β is not a result to rely on" in text
-    html = _text(section(root, STUDY, measured=True))
+    html = _text(section(root, STUDY))
     assert "sampler convergence (fit)" in html and failed in html
     assert html.count("not a result to rely on") == 2  # the table's β and the conclusion's; max-ent's β unflagged
     assert "what to try" not in html  # no diagnostics recorded, no advice
@@ -245,7 +254,7 @@ def test_a_beta_from_a_sampler_that_did_not_converge_says_so_wherever_it_appears
         "population": {"sigma_m_scale": {"rhat": 1.03, "ess_bulk": 128.0, "ess_tail": 192.0}}}})
     (root / "fit_delayed" / "posterior.json").write_text(json.dumps(side))
     assert len(read_models(root)["delayed"].remedies) == 3
-    html = _text(section(root, STUDY, measured=True))
+    html = _text(section(root, STUDY))
     assert "what to try (fit's sampler)" in html and "refit with --target-accept 0.95" in html
     assert "about --draws 3200 per chain" in html and "R-hat of sigma_m_scale 1.030" in html
 
@@ -256,7 +265,7 @@ def test_too_few_importance_points_make_the_loso_unreliable_and_the_section_says
                               importance={"is_ess_loo_min": 12.0, "threshold": 100, "mcse": 0.61})
     assert loso_preference(loso) is None
     root = write_run(tmp_path, loso=loso)
-    html = _text(section(root, STUDY, measured=True))
+    html = _text(section(root, STUDY))
     assert "the estimates are unreliable (importance-sampling ESS below 100)" in html
     assert "smallest ESS is 12, the Monte Carlo SE of the difference 0.61" in html
     assert "leave-one-subject-out is unreliable (importance-sampling ESS below 100;" in html

@@ -259,8 +259,8 @@ def fit_to_dir(study_path, out, *, seed: int = 2018, chains: int = 4, draws: int
     if chains * draws < MIN_TOTAL_DRAWS:
         raise ValueError(f"--chains × --draws must be at least {MIN_TOTAL_DRAWS} (PSIS-LOO smooths a tail of "
                          f"0.2 × draws, which needs 5 draws); got {chains} × {draws}")
-    refuse_inputs_inside(out, study_path, estimates_path, truth_dir)
-    if not plan_only:
+    if not plan_only:  # a plan writes nothing
+        refuse_inputs_inside(out, study_path, estimates_path, truth_dir)
         check_output_dir(out, force=force)  # before minutes of sampling, not after
     t_start = time.perf_counter()
     design = settings.design

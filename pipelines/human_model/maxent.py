@@ -62,8 +62,12 @@ class MaxEnt(HumanModel):
     def plan(self, ctx):
         from scioc.pipelines.fit.diagnostics import NUTPIE_TARGET_ACCEPT
 
-        return {"models": {"value": "condition effects, and pooled (for the LOO comparison)",
-                           "reason": "the max-ent human's fit"},
+        angles = ctx.likelihood == "angles"
+        return {"models": {"value": "condition effects" if angles else
+                           "condition effects, and pooled (for the LOO comparison)",
+                           "reason": "the max-ent human's fit of the angles: leave-one-subject-out against the "
+                                     "delayed fit of the same angles replaces the pooled model's comparison"
+                           if angles else "the max-ent human's fit"},
                 "parameterization": {"value": parameterization_text(ctx.form), "reason": ctx.form_reason},
                 "tune": {"value": ctx.tune, "reason": "given" if ctx.tune_given else "the default warm-up"},
                 "target_accept": {"value": ctx.target_accept or NUTPIE_TARGET_ACCEPT,

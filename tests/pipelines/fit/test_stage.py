@@ -250,7 +250,7 @@ def test_the_sidecar_names_a_curved_whitenings_pivots_with_their_subjects_where_
         "diag (nutpie), per-subject whitened")
 
 
-def test_the_plan_names_each_choice_and_its_reason_and_writes_nothing(tiny_study, capsys):
+def test_the_plan_names_each_choice_and_its_reason_and_writes_nothing(tiny_study, capsys, monkeypatch):
     from scioc.pipelines.cli import main
 
     _, root = tiny_study
@@ -261,4 +261,11 @@ def test_the_plan_names_each_choice_and_its_reason_and_writes_nothing(tiny_study
     assert out.startswith("plan of the maxent fit (nothing sampled):")
     assert "  tune: 321  (given)" in out and "  target accept: 0.8  (nutpie's default)" in out
     assert "  parameterization: theta1_mc " in out and "median SE of log θ1 per unit" in out
+    assert "  likelihood: torques  (the human model's default for these recordings)" in out
+    assert sorted(root.rglob("*")) == before
+    # from inside the study's folder, where an output folder "." would hold the study: a plan writes nothing
+    monkeypatch.chdir(study.parent)
+    assert main(["fit", study.name, "--plan", "--likelihood", "angles"]) == 0
+    out = capsys.readouterr().out
+    assert "  likelihood: angles  (given)" in out and "  models: condition effects  (" in out
     assert sorted(root.rglob("*")) == before

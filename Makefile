@@ -1,6 +1,7 @@
 # One command sets up and runs the main job; one sets up and passes the tests.
 #   make run       -> creates .venv with Python >= 3.12 if missing, installs, runs `scioc run`
-#   make test      -> same setup, then the fast test tier (every test not marked `validation`)
+#   make test      -> same setup, then the fast test tier (every test not marked `validation`), in two pytest-xdist
+#                     workers, each test file whole on one worker (its module fixtures built once)
 #   make validate  -> same setup, then the validation tier; writes docs/validation.md
 VENV ?= .venv
 # Python >= 3.12 (PyMC 6). Tried in order: $(PYTHON) if given, python3.12/3.13 on PATH, pyenv installs.
@@ -23,10 +24,11 @@ run: $(STAMP)
 	$(VENV)/bin/scioc run
 
 test: $(STAMP)
-	$(VENV)/bin/python -m pytest tests -m "not validation"
+	$(VENV)/bin/python -m pytest tests -n 2 --dist loadfile -m "not validation"
 
 # Reduced-size statistical studies, SBC smoke runs, delayed fits and recovery; their report, stamped
-# with the commit, goes to docs/validation.md.
+# with the commit, goes to docs/validation.md. One process (no -n): the `measured` fixture keeps its numbers in
+# the process that runs the test, where the report is written.
 validate: $(STAMP) browser
 	$(VENV)/bin/python -m pytest tests -m validation --validation-report=docs/validation.md
 

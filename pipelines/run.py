@@ -3,9 +3,10 @@
 Stages, each also a command of its own: simulate → identify (from angles, like a lab) →
 identify from the true torques (what reconstruction costs; also with the paper's exogenous-u_A
 likelihood) → compare → fit → report. With the ``delayed`` human model (:func:`default_human_models`)
-the run adds ``identify_delayed/`` and ``compare_delayed.json`` and, with a torque sensor,
-``fit_delayed/`` and the leave-one-subject-out comparison ``human_models.json``
-(:func:`scioc.pipelines.fit.human_models.compare_human_models`), all from one prepared study.
+the run adds ``identify_delayed/`` and ``compare_delayed.json``, ``fit_delayed/`` and the leave-one-subject-out
+comparison ``human_models.json`` (:func:`scioc.pipelines.fit.human_models.compare_human_models`), all from one
+prepared study; where the torques are reconstructed, also ``fit_angles/`` (the max-ent human fitted to the angles,
+which the comparison then scores).
 """
 
 from __future__ import annotations
@@ -110,7 +111,7 @@ def _analyse(tmp: Path, study_path, prepared, settings: IdentifySettings, source
     ``{"dir", "trajectories"}``: identify from the true torques), compare, the choice of human models, the delayed
     model's stages, the fits, leave-one-subject-out, the report."""
     design = settings.design
-    sensor = design.torque_sensor
+    sensor = not any(p.reconstructed for p in prepared.segments)  # every torque recorded: the fits score torques
     delayed = ALTERNATIVE in requested if requested is not None else True
     at = lambda stage: f"[{stages.index(stage) + 1}/{len(stages)}]"  # noqa: E731
     log(f"{at('identify')} identifying every subject × condition from the recorded "
@@ -198,7 +199,7 @@ def run_all(out="reports", *, name: str = DEFAULT_NAME, n_subjects: int | None =
         raise ValueError("the settings were made for another experiment than the one simulated")
     requested = _requested(human_models)
     delayed = ALTERNATIVE in requested if requested is not None else True  # by default counted as if both ran
-    sensor = design.torque_sensor
+    sensor = design.torque_sensor and settings.reconstruct != "always"  # the torques recorded and used
     settings = replace(settings, human_model=PRIMARY)
     n_subjects = design.subjects if n_subjects is None else n_subjects
     root = Path(out) / name
@@ -247,11 +248,11 @@ def analyse_to_dir(study, out, *, experiment_file=None, seed: int = DEFAULT_SEED
     out = Path(out)
     refuse_inputs_inside(out, *loaded.files, *([source] if source else []))
     check_output_dir(out, force=force)
-    stages = _stages(fit, delayed, design.torque_sensor, simulated=False)
     t0 = time.perf_counter()
     log(f"analysing {len(loaded.segments)} segments of {study} (experiment: {source or 'the paper study'}) -> {out}")
     with staged_dir(out, force=force) as tmp:
         prepared = prepare_study(loaded, settings, show_progress=True)
+        stages = _stages(fit, delayed, not any(p.reconstructed for p in prepared.segments), simulated=False)
         _analyse(tmp, study, prepared, settings, source, seed=seed, fit=fit, requested=requested, stages=stages,
                  title=out.name)
     report = out / "index.html"

@@ -264,3 +264,26 @@ def test_by_default_a_maxent_model_that_fits_is_not_joined_by_the_delayed_one(tm
     assert run["human_models"] == ["maxent"] and run["requested"] is None
     html = unescape((root / "index.html").read_text())
     assert "The max-ent human model passes its adequacy checks, so the delayed human model was not run" in html
+
+
+def test_analyse_compares_the_torque_fits_where_the_torques_are_recorded(tmp_path, monkeypatch, capsys):
+    """Recorded torques decide, not the experiment's ``torque_sensor``: a lab's export with u_H whose experiment does
+    not say it has a sensor gets no fit of the angles, and the comparison reads the two torque fits."""
+    import scioc.pipelines.fit
+    import scioc.pipelines.fit.human_models
+    from scioc.pipelines.run import analyse_to_dir
+    from scioc.pipelines.simulate import simulate_to_dir
+
+    sim = simulate_to_dir(tmp_path / "data", n_subjects=2, seed=5, human="kbl", design=SENSOR)
+    exp = Path(sim["experiment"])
+    exp.write_text(exp.read_text().replace("torque_sensor = true", "torque_sensor = false"))
+    seen = {}
+    monkeypatch.setattr(scioc.pipelines.fit, "fit_to_dir",
+                        lambda study, out, *, likelihood=None, **kw: seen.__setitem__(Path(out).name, likelihood))
+    monkeypatch.setattr(scioc.pipelines.fit.human_models, "compare_human_models",
+                        lambda a, b, **kw: seen.__setitem__("human_models", (Path(a).name, Path(b).name)) or
+                        {"difference": {"elpd_diff": 1.0, "se": 1.0, "z": 1.0, "reliable": True, "n": 2,
+                                        "n_preferring_delayed": 1, "preferred": "delayed"}})
+    analyse_to_dir(sim["study"], tmp_path / "run", human_models=("maxent", "delayed"))
+    assert seen == {"fit": None, "fit_delayed": None, "human_models": ("fit", "fit_delayed")}
+    assert "[7/8] leave-one-subject-out" in capsys.readouterr().out

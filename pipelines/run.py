@@ -28,7 +28,7 @@ from scioc.pipelines.export import convention
 from scioc.pipelines.human_model.registry import ALTERNATIVE, PRIMARY
 from scioc.pipelines.identify import format_identify, identify_study, identify_to_dir
 from scioc.pipelines.io import load_study, validate_table
-from scioc.pipelines.prepare import IdentifySettings, prepare_study
+from scioc.pipelines.prepare import IdentifySettings, from_angles, prepare_study
 from scioc.pipelines.report import build_report
 from scioc.pipelines.report.human_models import ANGLE_FIT, ANGLE_ONLY, RUN_FILE
 from scioc.pipelines.simulate import DEFAULT_SEED, simulate_to_dir
@@ -111,7 +111,7 @@ def _analyse(tmp: Path, study_path, prepared, settings: IdentifySettings, source
     ``{"dir", "trajectories"}``: identify from the true torques), compare, the choice of human models, the delayed
     model's stages, the fits, leave-one-subject-out, the report."""
     design = settings.design
-    sensor = not any(p.reconstructed for p in prepared.segments)  # every torque recorded: the fits score torques
+    sensor = not from_angles(prepared.segments, range(len(prepared.segments)))  # every torque recorded
     delayed = ALTERNATIVE in requested if requested is not None else True
     at = lambda stage: f"[{stages.index(stage) + 1}/{len(stages)}]"  # noqa: E731
     log(f"{at('identify')} identifying every subject × condition from the recorded "
@@ -252,7 +252,8 @@ def analyse_to_dir(study, out, *, experiment_file=None, seed: int = DEFAULT_SEED
     log(f"analysing {len(loaded.segments)} segments of {study} (experiment: {source or 'the paper study'}) -> {out}")
     with staged_dir(out, force=force) as tmp:
         prepared = prepare_study(loaded, settings, show_progress=True)
-        stages = _stages(fit, delayed, not any(p.reconstructed for p in prepared.segments), simulated=False)
+        stages = _stages(fit, delayed, not from_angles(prepared.segments, range(len(prepared.segments))),
+                         simulated=False)
         _analyse(tmp, study, prepared, settings, source, seed=seed, fit=fit, requested=requested, stages=stages,
                  title=out.name)
     report = out / "index.html"

@@ -20,10 +20,10 @@ from pytensor.link.numba.dispatch import basic as numba_basic
 from pytensor.link.numba.dispatch.basic import numba_funcify
 
 from scioc.models.bayes.delayed_lag import lag_nb, lagged_wheel_nb, wheel_constants
-from scioc.models.bayes.delayed_op import N_PARAMETER_INPUTS, ParameterGradient, pack_tau0, warm_samples
+from scioc.models.bayes.delayed_op import N_PARAMETER_INPUTS, ParameterGradient, pack_tau0, window_start_torque
 from scioc.models.delayed.angle_kernel import OUT, window_kernel
 from scioc.models.delayed.angles import START_SD, AngleWindow
-from scioc.models.delayed.lag import arm_torque_recursion, check_wheel
+from scioc.models.delayed.lag import check_wheel
 from scioc.models.delayed.sample import known_inputs
 from scioc.models.design import WheelParameters
 from scioc.models.plant import DiscretePlant
@@ -47,16 +47,7 @@ def _evaluate(wheel, Phi, b, theta, tau_nm, sigma_m, rows, delay, s2y, y, ylen, 
     for i in range(n):
         w = rows[i]
         la, al, da, dal = lag_nb(tau_nm[i], dt, A_c, b_w, Pb, b1, poles)
-        j0 = wstart[w]
-        start = tstart[w]
-        m = warm_samples(la, al)
-        if j0 < J - m:  # the warm-up's older part weighs less than WARM_EPS
-            j0 = J - m
-            start = warm[w, j0 - 1]
-        tau[j0] = start
-        dtau[j0, 0] = 0.0
-        dtau[j0, 1] = 0.0
-        arm_torque_recursion(warm[w, j0:], la, al, tau[j0:], dtau[j0:], dct)
+        tau0, dtau0_a, dtau0_al = window_start_torque(la, al, warm[w], wstart[w], tstart[w], tau, dtau, dct)
         A, bc, dA, dbc_t = lagged_wheel_nb(tau_nm[i], dt, A_c, b_w, Phi, b, poles)
         Ab = A.copy()
         for r in range(3):
@@ -70,7 +61,7 @@ def _evaluate(wheel, Phi, b, theta, tau_nm, sigma_m, rows, delay, s2y, y, ylen, 
                 dAb[r, c, 2] = dA[r, c]
         K = ylen[w]
         N = nlen[w]
-        mu0 = np.array([y[w, 0], vel0[w], tau[J]])
+        mu0 = np.array([y[w, 0], vel0[w], tau0])
         P0 = np.diag(np.array([s2y, p0[0], p0[1]]))
         inn = np.empty(K - 1)
         window_kernel(Ab, bc, ba, dAb, dbc, theta[0, i], theta[1, i], theta[2, i], ref[w, :N + 1], known[w, :N],
@@ -80,7 +71,7 @@ def _evaluate(wheel, Phi, b, theta, tau_nm, sigma_m, rows, delay, s2y, y, ylen, 
             g[0, i] = out[1]
             g[1, i] = out[2]
             g[2, i] = out[3]
-            g[3, i] = out[4] + out[8] * (dtau[J, 0] * da + dtau[J, 1] * dal)
+            g[3, i] = out[4] + out[8] * (dtau0_a * da + dtau0_al * dal)
             g[4, i] = 2.0 * sigma_m[i] * out[5]
     return ll, g
 

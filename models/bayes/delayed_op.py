@@ -54,6 +54,23 @@ def warm_samples(a, alpha):
 
 
 @njit(cache=True, fastmath=False, error_model="python")
+def window_start_torque(la, al, warm, j0, start, tau, dtau, dct):
+    """The arm torque at a window's start and its (a, α) tangents, from its warm-up ``warm`` (J,) from index ``j0``
+    on (before it: ``start``), run only over its last :func:`warm_samples` samples; ``tau`` (J + 1,), ``dtau``
+    (J + 1, 2), ``dct`` (max(J, 1), 2) are work space."""
+    J = warm.shape[0]
+    m = warm_samples(la, al)
+    if j0 < J - m:  # the warm-up's older part weighs less than WARM_EPS (module docstring)
+        j0 = J - m
+        start = warm[j0 - 1]
+    tau[j0] = start
+    dtau[j0, 0] = 0.0
+    dtau[j0, 1] = 0.0
+    arm_torque_recursion(warm[j0:], la, al, tau[j0:], dtau[j0:], dct)
+    return tau[J], dtau[J, 0], dtau[J, 1]
+
+
+@njit(cache=True, fastmath=False, error_model="python")
 def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2, r, u, a, fb, delay, warm, wstart,
               tstart, grad=True):
     n = u.shape[0]
@@ -70,19 +87,7 @@ def _evaluate(A, b, dt, A_c, b_w, Pb, b1, poles, theta, tau_nm, sigma_m, x1, x2,
         lag[1, i] = al
         lag[2, i] = da
         lag[3, i] = dal
-        j0 = wstart[i]
-        start = tstart[i]
-        m = warm_samples(la, al)
-        if j0 < J - m:  # the warm-up's older part weighs less than WARM_EPS (module docstring)
-            j0 = J - m
-            start = warm[i, j0 - 1]
-        tau[j0] = start
-        dtau[j0, 0] = 0.0
-        dtau[j0, 1] = 0.0
-        arm_torque_recursion(warm[i, j0:], la, al, tau[j0:], dtau[j0:], dct)
-        t0[i] = tau[J]
-        dt0[i, 0] = dtau[J, 0]
-        dt0[i, 1] = dtau[J, 1]
+        t0[i], dt0[i, 0], dt0[i, 1] = window_start_torque(la, al, warm[i], wstart[i], tstart[i], tau, dtau, dct)
     out = np.empty((6, n))
     batch_kernel_serial(A, b, fb, theta, lag, sigma_m, delay, t0, dt0, x1, x2, r, u, a, True, grad, 1, out,
                         np.empty((n, 0)))
@@ -284,5 +289,5 @@ def delayed_loglik(theta, tau_nm, sigma_m, batch: SegmentBatch, plant: DiscreteP
     return ll
 
 
-__all__ = ["ParameterGradient", "WARM_EPS", "warm_samples", "DELAYED_DATA_NAMES", "DelayedLoglikDataOp", "DelayedLoglikOp", "delayed_loglik",
+__all__ = ["ParameterGradient", "WARM_EPS", "warm_samples", "window_start_torque", "DELAYED_DATA_NAMES", "DelayedLoglikDataOp", "DelayedLoglikOp", "delayed_loglik",
            "numba_funcify_delayed_loglik", "pack_tau0", "warmups_of"]

@@ -79,8 +79,8 @@ def check_angle_fit(prepared, delay_mode: str) -> None:
         raise InputDataError(f"{prepared.path}: the fit from the encoder's angles fixes each subject's delay at its "
                              "profile maximum; delay = \"sampled\" needs the recorded torque")
     if not prepared.settings.design.encoder_sd > 0:
-        raise InputDataError(f"{prepared.path}: the angle likelihood needs the encoder's resolution (experiment "
-                             "[rig] encoder counts)")
+        raise InputDataError(f"{prepared.path}: the angle likelihood needs the encoder's resolution (the "
+                             "experiment file's encoder.counts_per_rev > 0)")
 
 
 def unit_delays(prepared, estimates: pd.DataFrame | None, plant, estimates_path=None) -> Delays:

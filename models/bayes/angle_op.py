@@ -110,6 +110,31 @@ def pack_windows(windows: Sequence[AngleWindow]) -> dict:
             "wstart": wstart, "tstart": tstart}
 
 
+def _constants(plant: DiscretePlant, sigma_y: float, params: WheelParameters):
+    """What both Ops compile in: the wheel's constants, Φ, b, σ_y² and the start's prior variances."""
+    check_wheel(plant, params)
+    if not (np.isfinite(sigma_y) and sigma_y > 0):
+        raise ValueError(f"sigma_y must be a positive number of rad; got {sigma_y!r}")
+    return (wheel_constants(plant.dt, params), _frozen(plant.A), _frozen(plant.b), float(sigma_y) ** 2,
+            _frozen(np.square(START_SD)))
+
+
+#: The data inputs of :class:`AngleLoglikDataOp` after θ, τ_nm and σ_m: each window's delay and
+#: :func:`pack_windows`'s arrays.
+ANGLE_DATA_NAMES = ("delay", "y", "ylen", "ref", "known", "nlen", "gain", "vel0", "warm", "wstart", "tstart")
+_INT_DATA = ("delay", "ylen", "nlen", "wstart")
+
+
+def angle_data(windows: Sequence[AngleWindow], delay) -> dict:
+    """The inputs of :class:`AngleLoglikDataOp` by :data:`ANGLE_DATA_NAMES`: the windows and each one's delay."""
+    data = pack_windows(windows)
+    n = data["y"].shape[0]
+    d = np.broadcast_to(np.asarray(delay), (n,))
+    if not (np.all(np.isfinite(d.astype(float))) and np.all(d == np.round(d)) and np.all(d >= 0)):
+        raise ValueError(f"delay must be whole numbers of samples >= 0, one per window; got {delay!r}")
+    return {"delay": np.ascontiguousarray(d, dtype=np.int64), **data}
+
+
 class AngleLoglikOp(ParameterGradient, Op):
     """Per-window angle log-likelihood for fixed recorded windows: inputs θ (3, n), τ_nm (n,), σ_m (n,); outputs
     ``loglik`` (n,), nats, and ``grad`` (5, n) in each window's q11, q22, R, τ_nm, σ_m.
@@ -124,21 +149,12 @@ class AngleLoglikOp(ParameterGradient, Op):
 
     def __init__(self, windows: Sequence[AngleWindow], plant: DiscretePlant, *, delay, sigma_y: float,
                  params: WheelParameters = WheelParameters()):
-        check_wheel(plant, params)
-        n = len(windows)
-        d = np.broadcast_to(np.asarray(delay), (n,))
-        if not (np.all(np.isfinite(d.astype(float))) and np.all(d == np.round(d)) and np.all(d >= 0)):
-            raise ValueError(f"delay must be whole numbers of samples >= 0, one per window; got {delay!r}")
-        if not (np.isfinite(sigma_y) and sigma_y > 0):
-            raise ValueError(f"sigma_y must be a positive number of rad; got {sigma_y!r}")
-        self.wheel = wheel_constants(plant.dt, params)
-        self.Phi, self.b = _frozen(plant.A), _frozen(plant.b)
-        self.s2y = float(sigma_y) ** 2
-        self.p0 = _frozen(np.square(START_SD))
-        self.data = {k: _frozen(v, v.dtype) for k, v in pack_windows(windows).items()}
-        self.delay = _frozen(d, np.int64)
-        self.rows = _frozen(np.arange(n), np.int64)
-        self.n = n
+        self.wheel, self.Phi, self.b, self.s2y, self.p0 = _constants(plant, sigma_y, params)
+        data = angle_data(windows, delay)
+        self.delay = _frozen(data.pop("delay"), np.int64)
+        self.data = {k: _frozen(v, v.dtype) for k, v in data.items()}
+        self.n = self.delay.shape[0]
+        self.rows = _frozen(np.arange(self.n), np.int64)
 
     def __str__(self):
         return f"AngleLoglik{{n={self.n}, d={int(self.delay.min())}..{int(self.delay.max())}}}"
@@ -194,4 +210,61 @@ def numba_funcify_angle_loglik(op: AngleLoglikOp, node=None, **kwargs):
     return angle_loglik
 
 
-__all__ = ["AngleLoglikOp", "numba_funcify_angle_loglik", "pack_windows"]
+class AngleLoglikDataOp(ParameterGradient, Op):
+    """:class:`AngleLoglikOp` with the windows as inputs, so one compiled model serves every data set of one shape
+    (``pm.Data``) and the delay can be a graph (sampled). Inputs: θ (3, n), τ_nm (n,), σ_m (n,), then
+    :data:`ANGLE_DATA_NAMES` (:func:`angle_data`); outputs as :class:`AngleLoglikOp`'s."""
+
+    __props__ = ("key",)
+
+    def __init__(self, plant: DiscretePlant, *, sigma_y: float, params: WheelParameters = WheelParameters()):
+        self.wheel, self.Phi, self.b, self.s2y, self.p0 = _constants(plant, sigma_y, params)
+        self.key = (tuple(self.Phi.ravel().tolist()), tuple(self.b.tolist()), float(plant.dt), tuple(params), self.s2y)
+
+    def make_node(self, theta, tau_nm, sigma_m, *data):
+        if len(data) != len(ANGLE_DATA_NAMES):
+            raise TypeError(f"need the inputs {', '.join(ANGLE_DATA_NAMES)} after theta, tau_nm and sigma_m")
+        theta, tau_nm, sigma_m = (pt.cast(pt.as_tensor_variable(v), "float64") for v in (theta, tau_nm, sigma_m))
+        if theta.type.ndim != 2 or tau_nm.type.ndim != 1 or sigma_m.type.ndim != 1:
+            raise TypeError("theta must be a matrix (3, n), tau_nm and sigma_m vectors (n,)")
+        data = [pt.cast(pt.as_tensor_variable(v), "int64" if name in _INT_DATA else "float64")
+                for name, v in zip(ANGLE_DATA_NAMES, data)]
+        return Apply(self, [theta, tau_nm, sigma_m, *data], [pt.dvector(), pt.dmatrix()])
+
+    def values(self, inputs, grad: bool = True):
+        """(log-likelihood (n,), gradient (5, n)) at the parameters and data ``inputs`` (the Op's order)."""
+        theta, tau_nm, sigma_m = (np.ascontiguousarray(v, dtype=np.float64) for v in inputs[:N_PARAMETER_INPUTS])
+        d = dict(zip(ANGLE_DATA_NAMES, (np.ascontiguousarray(v) for v in inputs[N_PARAMETER_INPUTS:])))
+        rows = np.arange(theta.shape[1], dtype=np.int64)
+        return _evaluate(self.wheel, self.Phi, self.b, theta, tau_nm, sigma_m, rows, d["delay"], self.s2y, d["y"],
+                         d["ylen"], d["ref"], d["known"], d["nlen"], d["gain"], d["vel0"], d["warm"], d["wstart"],
+                         d["tstart"], self.p0, grad)
+
+    def perform(self, node, inputs, output_storage):
+        ll, g = self.values(inputs)
+        output_storage[0][0] = ll
+        output_storage[1][0] = g
+
+    def infer_shape(self, node, input_shapes):
+        n = input_shapes[0][1]
+        return [(n,), (5, n)]
+
+
+@numba_funcify.register(AngleLoglikDataOp)
+def numba_funcify_angle_loglik_data(op: AngleLoglikDataOp, node=None, **kwargs):
+    """Numba implementation of :class:`AngleLoglikDataOp`, no object mode."""
+    wheel, Phi, b, s2y, p0 = op.wheel, op.Phi, op.b, op.s2y, op.p0
+    evaluate = _evaluate
+
+    @numba_basic.numba_njit
+    def angle_loglik_data(theta, tau_nm, sigma_m, delay, y, ylen, ref, known, nlen, gain, vel0, warm, wstart, tstart):
+        c = np.ascontiguousarray
+        rows = np.arange(theta.shape[1])
+        return evaluate(wheel, Phi, b, c(theta), c(tau_nm), c(sigma_m), rows, c(delay), s2y, c(y), c(ylen), c(ref),
+                        c(known), c(nlen), c(gain), c(vel0), c(warm), c(wstart), c(tstart), p0, True)
+
+    return angle_loglik_data
+
+
+__all__ = ["ANGLE_DATA_NAMES", "AngleLoglikDataOp", "AngleLoglikOp", "angle_data", "numba_funcify_angle_loglik",
+           "numba_funcify_angle_loglik_data", "pack_windows"]

@@ -36,6 +36,7 @@ class CalibrationConfig:
     extra: dict = field(default_factory=dict)
     experiment: dict | None = None  # pipelines.experiment.resolved form; None: the paper's study
     human_model: str = "maxent"  # a registered human model, at the levels its calibration has
+    likelihood: str = "torques"  # what the replications record and fit: the human's torques, or the encoder's angles
 
     def __post_init__(self):
         if self.level not in ("unit", "study"):
@@ -50,6 +51,9 @@ class CalibrationConfig:
                 raise ValueError(f"{name} must be a positive integer; got {value!r}")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0; got {self.seed!r}")
+        if self.likelihood not in model.calibration_likelihoods:
+            raise ValueError(f"the {self.human_model} human model is calibrated through "
+                             f"{' or '.join(model.calibration_likelihoods)}; got likelihood {self.likelihood!r}")
         allowed = model.negative_controls
         if self.negative_control not in (None, *allowed):
             raise ValueError(f"negative_control of the {self.human_model} model must be None or one of "
@@ -63,8 +67,9 @@ class CalibrationConfig:
         d = asdict(self)
         d.pop("batch_size")
         d.pop("replications")
-        if d["experiment"] is None:
-            d.pop("experiment")  # a default is left out, so stored runs of the paper's study keep resuming
+        for name, default in (("experiment", None), ("likelihood", "torques")):
+            if d[name] == default:
+                d.pop(name)  # a default is left out, so stored runs keep resuming
         d["generator"] = GENERATOR  # a changed simulator invalidates stored replications
         d = get(self.human_model).calibration_fingerprint(d)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
@@ -81,17 +86,19 @@ DEFAULTS = {
 def level_configs(level: str, *, seed: int = 2018, replications: int | None = None, batch_size: int | None = None,
                   n_subjects: int | None = None, seconds: float | None = None,
                   negative_control: str | None = None, design: Design | None = None,
-                  human_model: str = "maxent") -> list[tuple[str, CalibrationConfig]]:
+                  human_model: str = "maxent", likelihood: str = "torques") -> list[tuple[str, CalibrationConfig]]:
     """The calibration of one level and, unless ``negative_control == "none"``, its negative control.
 
     ``replications``, ``batch_size`` and ``n_subjects`` override the level's :data:`DEFAULTS`.
     ``seconds``: window length, s (default: :data:`DEFAULTS` for the paper's study, else the
     experiment's analysis window or whole run at the unit level). ``negative_control``: one of
     the model's ``negative_controls`` or "none" (default: its ``default_negative_control``). ``design``: the
-    experiment (None: the paper's study). ``human_model``: at the levels its calibration has.
+    experiment (None: the paper's study). ``human_model``: at the levels its calibration has; ``likelihood``: what
+    the replications record and fit (``torques`` or, where the model has it, ``angles``).
 
     Returns the folder names and validated configurations: ``(stem, correct)`` and
-    ``(stem + "-negative", wrong)``, the stem being the level (``unit-delayed`` for the delayed human).
+    ``(stem + "-negative", wrong)``, the stem being the level (``unit-delayed`` for the delayed human,
+    ``unit-delayed-angles`` through its angles).
     """
     if level not in DEFAULTS:
         raise ValueError(f"level must be 'unit' or 'study'; got {level!r}")
@@ -110,13 +117,13 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     if seconds is not None:
         d["K"] = int(round(seconds / dt))
     model = get(human_model)
-    stem = level + model.calibration_suffix
+    stem = level + model.calibration_suffix + ("" if likelihood == "torques" else f"-{likelihood}")
     runs = [(stem, None)]
     nc = model.default_negative_control[level] if negative_control is None else negative_control
     if nc != "none":
         runs.append((f"{stem}-negative", nc))
     return [(name, CalibrationConfig(level=level, seed=seed, negative_control=wrong, experiment=experiment,
-                                     human_model=human_model, **d))
+                                     human_model=human_model, likelihood=likelihood, **d))
             for name, wrong in runs]
 
 

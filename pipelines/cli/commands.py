@@ -366,7 +366,7 @@ def cmd_calibrate(args) -> int:
     design = load_experiment(args.experiment) if args.experiment else None
     runs = level_configs(args.level, seed=args.seed, replications=args.replications, batch_size=args.batch_size,
                          n_subjects=args.subjects, seconds=args.window_seconds, negative_control=args.negative_control,
-                         design=design, human_model=args.human_model)
+                         design=design, human_model=args.human_model, likelihood=args.likelihood)
     summaries = calibrate_runs(runs, args.out, scheduler=args.scheduler, n_workers=args.workers)
     for summary in summaries:
         print(format_summary(summary))

@@ -283,6 +283,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--experiment", metavar="PATH",
                    help="calibrate this experiment's rate, wheel, levels, assistants and window (default: the "
                         "paper's study)")
+    p.add_argument("--likelihood", choices=LIKELIHOOD_NAMES, default="torques",
+                   help="what each replication records and fits: the human's torques (default), or the encoder's "
+                        "angles (--human-model delayed, unit level)")
     _add_human_model_option(p)
     p.set_defaults(func=commands.cmd_calibrate)
 

@@ -45,6 +45,9 @@ def arm_torque_at_start(p, tau_nm: float, dt: float, wheel) -> float:
 #: Version of how the delayed human's calibration replications simulate and fit; part of their fingerprints.
 DELAYED_GENERATOR = ("3: the likelihood's held-torque convention; the delay sampled (NUTS then DelayMetropolis); "
                      "numba-compiled once per worker")
+#: Version of how the angle calibration's replications simulate and fit; part of their fingerprints.
+ANGLE_GENERATOR = ("1: the physically lagged wheel; start velocity and arm torque from the likelihood's start prior; "
+                   "Gaussian encoder noise of the experiment's encoder SD")
 #: Tolerance for "the delay is exact", s (delays are whole samples).
 DELAY_EXACT_S = 1e-9
 
@@ -90,6 +93,7 @@ class Delayed(HumanModel):
     negative_controls = ("no-delay", "inertia")
     default_negative_control = {"unit": "no-delay"}
     calibration_suffix = "-delayed"
+    calibration_likelihoods = ("torques", "angles")
 
     @property
     def sampler_keys(self):
@@ -292,6 +296,8 @@ class Delayed(HumanModel):
 
     def calibration_fingerprint(self, d):
         d["delayed_generator"] = DELAYED_GENERATOR  # a changed simulator or likelihood invalidates stored runs
+        if d.get("likelihood") == "angles":
+            d["angle_generator"] = ANGLE_GENERATOR
         return d
 
     def posterior_adequacy(self, idata, prepared, plant, side, folder, at):

@@ -43,11 +43,12 @@ class HumanModel:
     sampler_keys: dict = {}
 
     #: Simulation-based calibration (scioc calibrate): the levels, the negative controls (a wrong fit of the same
-    #: data), the default one per level, and the suffix of the run folders.
+    #: data), the default one per level, the suffix of the run folders, and what the replications can record and fit.
     calibration_levels: tuple = ()
     negative_controls: tuple = ()
     default_negative_control: dict = {}
     calibration_suffix: str = ""
+    calibration_likelihoods: tuple = ("torques",)
 
     # identification (scioc identify)
     def identify_unit(self, prepared, idx, plant, settings):

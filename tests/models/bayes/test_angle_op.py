@@ -8,7 +8,7 @@ import pytensor.tensor as pt
 import pytest
 
 from scioc.models.assistant import design_assistant, human_feedback
-from scioc.models.bayes.angle_op import AngleLoglikOp
+from scioc.models.bayes.angle_op import ANGLE_DATA_NAMES, AngleLoglikDataOp, AngleLoglikOp, angle_data
 from scioc.models.bayes.delayed_lag import lagged_wheel_nb
 from scioc.models.delayed import sample_delayed
 from scioc.models.delayed.angles import AngleWindow, lagged_wheel, window_loglik_grad
@@ -80,6 +80,34 @@ def test_the_ops_gradient_through_pytensor_is_the_sum_of_the_windows(plant, stud
         np.testing.assert_allclose(g_th, g_ref[:3], rtol=1e-14)
         np.testing.assert_allclose(g_t, g_ref[3], rtol=1e-14)
         np.testing.assert_allclose(g_s, g_ref[4], rtol=1e-14)
+
+
+def test_the_op_with_the_windows_as_inputs_is_the_bound_op(plant, study):
+    """Same bits as :class:`AngleLoglikOp` in python and NUMBA modes, the delay a graph of an integer (as sampled)."""
+    ws, theta, tau, sig, delay = study
+    bound = AngleLoglikOp(ws, plant, delay=delay, sigma_y=SIGMA_Y)
+    op = AngleLoglikDataOp(plant, sigma_y=SIGMA_Y)
+    data = angle_data(ws, delay)
+    ll_ref, g_ref = bound.values([theta, tau, sig])
+    ll, g = op.values([theta, tau, sig, *(data[k] for k in ANGLE_DATA_NAMES)])
+    np.testing.assert_array_equal(ll, ll_ref)
+    np.testing.assert_array_equal(g, g_ref)
+    th, t, s, shift = pt.dmatrix("theta"), pt.dvector("tau"), pt.dvector("sigma"), pt.lscalar("shift")
+    inputs = {k: pt.as_tensor(v) for k, v in data.items() if k != "delay"}
+    d = pt.as_tensor(delay) + shift
+    ll_g, _ = op(th, t, s, d, *(inputs[k] for k in ANGLE_DATA_NAMES[1:]))
+    total = ll_g.sum()
+    for mode in ("FAST_COMPILE", "NUMBA"):
+        f = pytensor.function([th, t, s, shift], [ll_g, *pytensor.grad(total, [th, t, s])], mode=mode)
+        for k in (0, 2):
+            value, g_th, g_t, g_s = f(theta, tau, sig, k)
+            ll_k, g_k = AngleLoglikOp(ws, plant, delay=delay + k, sigma_y=SIGMA_Y).values([theta, tau, sig])
+            np.testing.assert_array_equal(value, ll_k)
+            np.testing.assert_allclose(g_th, g_k[:3], rtol=1e-14)
+            np.testing.assert_allclose(g_t, g_k[3], rtol=1e-14)
+            np.testing.assert_allclose(g_s, g_k[4], rtol=1e-14)
+    with pytest.raises(ValueError, match="delay"):
+        angle_data(ws, -1)
 
 
 @pytest.mark.parametrize("tau_nm", [0.0, 1e-12, 1e-9, 1e-5, 0.005, 0.06, 0.3, 2.0])

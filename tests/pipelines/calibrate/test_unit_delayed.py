@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from scioc.models.bayes.unit_delayed import UNIT_DELAYED_PARAMETERS, DelayedUnitPrior
+from scioc.models.design import STUDY
 from scioc.pipelines.calibrate import CalibrationConfig, calibrate, level_configs
 from scioc.pipelines.calibrate.config import replication_seed
-from scioc.pipelines.calibrate.unit_delayed import unit_delayed_replication
+from scioc.pipelines.calibrate.unit_delayed import simulate_unit_angles, unit_delayed_replication
 
 
 def test_configurations_of_the_delayed_model():
@@ -30,6 +31,35 @@ def test_configurations_of_the_delayed_model():
         CalibrationConfig(negative_control="no-delay")
     with pytest.raises(ValueError, match="human model must be one of"):
         CalibrationConfig(human_model="crossover")
+
+
+def test_configurations_of_the_angle_calibration():
+    (name, cfg), (nname, ncfg) = level_configs("unit", human_model="delayed", likelihood="angles")
+    assert (name, nname) == ("unit-delayed-angles", "unit-delayed-angles-negative")
+    assert cfg.likelihood == ncfg.likelihood == "angles" and ncfg.negative_control == "no-delay"
+    torques = level_configs("unit", human_model="delayed")[0][1]
+    assert cfg.fingerprint() != torques.fingerprint()
+    # the torque calibration's stored runs keep resuming: its fingerprint leaves the default likelihood out
+    assert torques.fingerprint() == CalibrationConfig(**{**dataclasses.asdict(torques), "likelihood": "torques"}
+                                                      ).fingerprint()
+    with pytest.raises(ValueError, match="calibrated through torques; got likelihood 'angles'"):
+        CalibrationConfig(likelihood="angles")
+    with pytest.raises(ValueError, match="encoder"):
+        simulate_unit_angles(DelayedUnitPrior().draw(np.random.default_rng(0)), "MC", 100, np.random.default_rng(0),
+                             dataclasses.replace(STUDY, encoder_counts=0))
+
+
+def test_an_angle_replications_window_is_the_delayed_human_read_by_the_encoder():
+    """The simulated window: the draw's angles plus Gaussian noise of the encoder's SD, from the reference's start,
+    the assistant's law on SC; the same seed gives the same window."""
+    prior = DelayedUnitPrior.for_design(STUDY)
+    truth = prior.draw(np.random.default_rng(3))
+    w = simulate_unit_angles(truth, "SC", 300, np.random.default_rng(4), STUDY)
+    again = simulate_unit_angles(truth, "SC", 300, np.random.default_rng(4), STUDY)
+    np.testing.assert_array_equal(w.angles, again.angles)
+    assert w.angles.shape == (301,) and w.feedback is not None and w.u_A is None and w.warmup is None
+    assert abs(w.angles[0] - w.angle_ref[0]) < 6 * STUDY.encoder_sd
+    assert simulate_unit_angles(truth, "MC", 300, np.random.default_rng(4), STUDY).feedback is None
 
 
 def test_prior_draws_cover_the_literature_ranges():
@@ -69,4 +99,37 @@ def test_small_delayed_sbc_catches_an_ignored_delay(tmp_path):
     base = dict(level="unit", replications=40, K=400, chains=2, tune=250, draws=250, L=39, batch_size=5, seed=11,
                 human_model="delayed")
     bad = calibrate(CalibrationConfig(**base, negative_control="no-delay"), tmp_path / "bad", show_progress=False)
+    assert not bad["passed"]
+
+
+@pytest.mark.validation
+def test_one_angle_replication_ranks_every_parameter_and_the_loglik():
+    cfg = CalibrationConfig(level="unit", replications=2, K=300, chains=1, tune=150, draws=150, L=19,
+                            human_model="delayed", likelihood="angles")
+    res = unit_delayed_replication(cfg, 1, replication_seed(cfg.seed, 1))
+    assert res["condition"] == "SC"
+    assert set(res["ranks"]) == {*UNIT_DELAYED_PARAMETERS, "loglik"}
+    assert all(0 <= r <= cfg.L for r in res["ranks"].values())
+    unit_delayed_replication(cfg, 0, replication_seed(cfg.seed, 0))  # the compiled sampler serves another fit between
+    again = unit_delayed_replication(cfg, 1, replication_seed(cfg.seed, 1))
+    assert again["ranks"] == res["ranks"] and again["delay_mean"] == res["delay_mean"]  # same seed, same result
+    assert all(np.array_equal(again["thinned"][k], res["thinned"][k]) for k in res["thinned"])
+
+
+@pytest.mark.validation
+def test_small_angle_sbc_passes_and_catches_an_ignored_delay(tmp_path, measured):
+    # Smoke size of the angle calibration (the full one, 500 replications of 6-s windows, is in the README): 30
+    # replications of 3-s windows. The correct model's check has a family-wise false-alarm rate of 1 %; the
+    # negative control fixes the delay at 0 where it is drawn from 0-300 ms.
+    base = dict(level="unit", replications=30, K=300, chains=2, tune=200, draws=200, L=39, batch_size=5, seed=12,
+                human_model="delayed", likelihood="angles")
+    good = calibrate(CalibrationConfig(**base), tmp_path / "good", show_progress=False)
+    bad = calibrate(CalibrationConfig(**base, negative_control="no-delay"), tmp_path / "bad", show_progress=False)
+    worst = min(good["parameters"], key=lambda k: good["parameters"][k]["p_value"])
+    measured("unit-level SBC from angles, 30 replications: smallest KS p",
+                      good["parameters"][worst]["p_value"], "passes at 0.01 family-wise")
+    caught = min(bad["parameters"], key=lambda k: bad["parameters"][k]["p_value"])
+    measured("unit-level SBC from angles, negative control (delay fixed at 0): smallest KS p",
+                      bad["parameters"][caught]["p_value"], "fails")
+    assert good["passed"]
     assert not bad["passed"]

@@ -51,9 +51,10 @@ class CalibrationConfig:
                 raise ValueError(f"{name} must be a positive integer; got {value!r}")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0; got {self.seed!r}")
-        if self.likelihood not in model.calibration_likelihoods:
-            raise ValueError(f"the {self.human_model} human model is calibrated through "
-                             f"{' or '.join(model.calibration_likelihoods)}; got likelihood {self.likelihood!r}")
+        through = model.calibration_likelihoods[self.level]
+        if self.likelihood not in through:
+            raise ValueError(f"the {self.human_model} human model is calibrated at the {self.level} level through "
+                             f"{' or '.join(through)}; got likelihood {self.likelihood!r}")
         allowed = model.negative_controls
         if self.negative_control not in (None, *allowed):
             raise ValueError(f"negative_control of the {self.human_model} model must be None or one of "

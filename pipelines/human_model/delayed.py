@@ -88,12 +88,12 @@ class Delayed(HumanModel):
     adequacy_check_text = CHECK_TEXT_DELAYED
     slow_identification = True
     likelihoods = ("torques", "angles")
-    calibration_levels = ("unit",)
+    calibration_levels = ("unit", "study")
     #: ``no-delay`` fixes the delay at 0; ``inertia`` fits a wheel 10 % too heavy.
     negative_controls = ("no-delay", "inertia")
-    default_negative_control = {"unit": "no-delay"}
+    default_negative_control = {"unit": "no-delay", "study": "no-delay"}
     calibration_suffix = "-delayed"
-    calibration_likelihoods = ("torques", "angles")
+    calibration_likelihoods = {"unit": ("torques", "angles"), "study": ("angles",)}
 
     @property
     def sampler_keys(self):
@@ -290,6 +290,10 @@ class Delayed(HumanModel):
                                                 baseline_log_R_prior=base_R)
 
     def calibration_replication(self, level):
+        if level == "study":
+            from scioc.pipelines.calibrate.study_angles import study_angle_replication
+
+            return study_angle_replication
         from scioc.pipelines.calibrate.unit_delayed import unit_delayed_replication
 
         return unit_delayed_replication

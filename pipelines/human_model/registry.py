@@ -48,7 +48,7 @@ class HumanModel:
     negative_controls: tuple = ()
     default_negative_control: dict = {}
     calibration_suffix: str = ""
-    calibration_likelihoods: tuple = ("torques",)
+    calibration_likelihoods: dict = {"unit": ("torques",), "study": ("torques",)}
 
     # identification (scioc identify)
     def identify_unit(self, prepared, idx, plant, settings):

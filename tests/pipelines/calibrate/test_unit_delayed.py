@@ -23,7 +23,7 @@ def test_configurations_of_the_delayed_model():
     (m, mc), _ = level_configs("unit")
     assert m == "unit" and mc.fingerprint() == dataclasses.replace(mc, human_model="maxent").fingerprint()
     assert cfg.fingerprint() != dataclasses.replace(cfg, human_model="maxent").fingerprint()
-    with pytest.raises(ValueError, match="unit level only"):
+    with pytest.raises(ValueError, match="at the study level through angles; got likelihood 'torques'"):
         CalibrationConfig(level="study", human_model="delayed")
     with pytest.raises(ValueError, match="negative_control of the delayed model"):
         CalibrationConfig(human_model="delayed", negative_control="ignore-uA")
@@ -42,7 +42,7 @@ def test_configurations_of_the_angle_calibration():
     # the torque calibration's stored runs keep resuming: its fingerprint leaves the default likelihood out
     assert torques.fingerprint() == CalibrationConfig(**{**dataclasses.asdict(torques), "likelihood": "torques"}
                                                       ).fingerprint()
-    with pytest.raises(ValueError, match="calibrated through torques; got likelihood 'angles'"):
+    with pytest.raises(ValueError, match="at the unit level through torques; got likelihood 'angles'"):
         CalibrationConfig(likelihood="angles")
     with pytest.raises(ValueError, match="encoder"):
         simulate_unit_angles(DelayedUnitPrior().draw(np.random.default_rng(0)), "MC", 100, np.random.default_rng(0),
@@ -133,3 +133,27 @@ def test_small_angle_sbc_passes_and_catches_an_ignored_delay(tmp_path, measured)
                       bad["parameters"][caught]["p_value"], "fails")
     assert good["passed"]
     assert not bad["passed"]
+
+
+def test_the_study_level_of_the_delayed_human_is_calibrated_through_its_angles():
+    (name, cfg), (nname, ncfg) = level_configs("study", human_model="delayed", likelihood="angles")
+    assert (name, nname) == ("study-delayed-angles", "study-delayed-angles-negative")
+    assert cfg.likelihood == "angles" and ncfg.negative_control == "no-delay"
+    assert cfg.fingerprint() != level_configs("unit", human_model="delayed", likelihood="angles")[0][1].fingerprint()
+
+
+@pytest.mark.validation
+def test_one_study_replication_of_the_angle_fit_ranks_the_population_and_a_subject():
+    from scioc.pipelines.calibrate.study_angles import study_angle_replication
+
+    cfg = CalibrationConfig(level="study", replications=1, K=100, n_subjects=3, chains=2, tune=60, draws=40, L=19,
+                            human_model="delayed", likelihood="angles")
+    res = study_angle_replication(cfg, 0, replication_seed(cfg.seed, 0))
+    expected = {"mu_log_theta1", "beta", "sigma_log_theta1", "sigma_beta", "mu_log_R", "beta_log_R", "sigma_log_R",
+                "sigma_beta_log_R", "tau_theta2", "tau_nm_scale", "sigma_m_scale", "log_theta1[0,0]",
+                "log_theta1[0,1]", "log_R[0,0]", "theta2[0,0]", "tau_nm[0]", "sigma_m[0]", "loglik"}
+    assert set(res["ranks"]) == expected
+    assert all(0 <= r <= cfg.L for r in res["ranks"].values())
+    assert len(res["delays_true"]) == 3 and all(0 <= d <= 30 for d in res["delays_true"])
+    again = study_angle_replication(cfg, 0, replication_seed(cfg.seed, 0))
+    assert again["ranks"] == res["ranks"] and again["truth"] == res["truth"]  # same seed, same result

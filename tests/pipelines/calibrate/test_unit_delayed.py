@@ -1,6 +1,7 @@
 """Unit-level SBC of the delayed human: the configuration, one replication, and a small run with its negative control.
 
-The full calibration (500 replications, ``reports/calibration-delayed-sampled``) is in the README.
+The full calibrations (500 replications from torques and from angles, 100 studies from angles) run outside the tests:
+reports/README.md gives their commands.
 """
 
 import dataclasses

@@ -11,6 +11,11 @@
 the ML estimates on whitened coordinates). The time judged is the fit's own ``seconds.total_s``.
 :data:`WORKFLOW_HUMANS`: ``maxent`` (the paper's agent) and ``kbl`` (Kleinman-Baron-Levison's operator,
 whose longer delays make the kernel dearer). :mod:`scioc.pipelines.bench.fit_delayed` measures another path.
+
+:func:`bench_angle_workflow` does the same on the paper's own design, angles only (``scioc bench --parts
+fit_angles``): the delayed fit scores the encoder's angles, and the max-ent human is fitted through the same
+likelihood (``scioc fit --human-model maxent --likelihood angles``). Its goals: the delayed fit with its
+identification within :data:`FIT_ANGLES_GOAL_S`, the max-ent one within :data:`MAXENT_ANGLES_GOAL_S`.
 """
 
 from __future__ import annotations
@@ -37,6 +42,12 @@ FIT_DELAYED_GOAL_SIZE = {"segments": 84, "chains": 4, "draws": 1000}
 EXPERIMENT = Path(__file__).resolve().parents[2] / "data" / "examples" / "paper-torque-sensor" / "experiment.toml"
 #: The humans ``scioc bench --parts fit_delayed`` fits by default.
 WORKFLOW_HUMANS = ("maxent", "kbl")
+#: The goal for the delayed fit from angles, identification included, s.
+FIT_ANGLES_GOAL_S = 1800.0
+#: The goal for the max-ent fit through the angle likelihood, s.
+MAXENT_ANGLES_GOAL_S = 900.0
+#: The humans ``scioc bench --parts fit_angles`` fits by default: one the max-ent model does not describe.
+ANGLE_WORKFLOW_HUMANS = ("kbl",)
 
 
 def within_goal(segments: int, chains: int, draws: int, fit_s: float) -> bool | None:
@@ -78,6 +89,77 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
     return summarize(side, res, human=human, identify_s=identify_s)
 
 
+def bench_angle_workflow(*, human: str = "kbl", seed: int = 2018, chains: int = 4, draws: int = 1000,
+                         tune: int | None = None, n_subjects: int | None = None, adequacy_boot: int | None = None,
+                         keep=None) -> dict:
+    """Simulate the paper's design (angles only), identify and fit the ``delayed`` human from the angles and the
+    max-ent human through the same likelihood, as ``scioc`` does, and time it (module docstring). Arguments as
+    :func:`bench_delayed_workflow`'s; ``keep`` also keeps ``fit_angles/``. Returns the delayed fit's
+    :func:`summarize`, with ``maxent`` (:func:`summarize_maxent`) and the goals' verdicts."""
+    from scioc.models.design import STUDY
+    from scioc.pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
+
+    settings = IdentifySettings.for_design(STUDY, human_model="delayed")
+    maxent_settings = IdentifySettings.for_design(STUDY)
+    if adequacy_boot is not None:
+        settings = replace(settings, adequacy_boot=adequacy_boot)
+        maxent_settings = replace(maxent_settings, adequacy_boot=adequacy_boot)
+    with _workspace(keep) as root:
+        sim = simulate_to_dir(root / "data", design=STUDY, seed=seed, human=human, n_subjects=n_subjects)
+        t0 = time.perf_counter()
+        prepared = prepare_study(load_study(sim["study"], STUDY), settings)
+        identify_to_dir(sim["study"], root / "identify_delayed", settings, show_progress=False, prepared=prepared,
+                        experiment_file=sim["experiment"])
+        identify_s = time.perf_counter() - t0
+        paths = fit_to_dir(sim["study"], root / "fit_delayed", seed=seed, chains=chains, draws=draws, tune=tune,
+                           settings=settings, prepared=prepared, experiment_file=sim["experiment"],
+                           truth_dir=root / "data", estimates_path=root / "identify_delayed" / "estimates.parquet")
+        side = json.loads(Path(paths["sidecar"]).read_text())
+        res = json.loads(Path(paths["contrasts"]).read_text())
+        mpaths = fit_to_dir(sim["study"], root / "fit_angles", seed=seed, chains=chains, draws=draws, tune=tune,
+                            settings=maxent_settings, experiment_file=sim["experiment"], truth_dir=root / "data",
+                            human_model="maxent", likelihood="angles")
+        mside = json.loads(Path(mpaths["sidecar"]).read_text())
+        mres = json.loads(Path(mpaths["contrasts"]).read_text())
+    out = summarize(side, res, human=human, identify_s=identify_s, experiment="the paper's design, angles only")
+    out["maxent"] = summarize_maxent(mside, mres)
+    full = within_goal(side["n_segments"], chains, draws, 0.0) is not None
+    out["goals"] = {"delayed_s": FIT_ANGLES_GOAL_S, "maxent_s": MAXENT_ANGLES_GOAL_S,
+                    "delayed_met": (identify_s + out["seconds"]["fit"] <= FIT_ANGLES_GOAL_S) if full else None,
+                    "maxent_met": (out["maxent"]["fit_s"] <= MAXENT_ANGLES_GOAL_S) if full else None}
+    out["within_goal"] = None  # the torque fit's goal does not apply
+    return out
+
+
+def summarize_maxent(side: dict, res: dict) -> dict:
+    """The max-ent fit through the angle likelihood: its time, sampler, convergence, adequacy and β."""
+    diag = side["diagnostics"]["condition"]
+    truth = res.get("truth") or {}
+    return {"fit_s": float(side["seconds"]["total_s"]), "likelihood": side.get("likelihood"),
+            "divergences": diag["sampler"]["divergences"], "convergence_verdict": diag["convergence_verdict"],
+            "adequacy": {k: res["adequacy"][k] for k in ("verdict", "segments", "segments_flagged")},
+            "beta": truth.get("beta")}
+
+
+def format_angle_workflow(res: dict) -> str:
+    """The angle workflow as plain text: the delayed fit (:func:`format_delayed_workflow`), the max-ent one, goals."""
+    g, m = res["goals"], res["maxent"]
+    verdict = {None: "not this size", True: "met", False: "NOT met"}
+    total = res["seconds"]["identify"] + res["seconds"]["fit"]
+    lines = [format_delayed_workflow(res),
+             f"  identification and delayed fit together {total:.0f} s (goal ≤ {g['delayed_s']:.0f} s: "
+             f"{verdict[g['delayed_met']]})",
+             f"  max-ent fit through the angle likelihood: {m['fit_s']:.0f} s (goal ≤ {g['maxent_s']:.0f} s: "
+             f"{verdict[g['maxent_met']]}); sampler convergence {m['convergence_verdict']} ({m['divergences']} "
+             f"divergent); adequacy {m['adequacy']['verdict']} ({m['adequacy']['segments_flagged']} of "
+             f"{m['adequacy']['segments']} segments flagged)"]
+    b = m["beta"]
+    if b:
+        lines.append(f"  max-ent β = {b['posterior_mean']:.3f}, 94 % HDI [{b['hdi'][0]:.3f}, {b['hdi'][1]:.3f}] "
+                     f"(truth {b['truth']:g}: {'inside' if b['in_hdi'] else 'OUTSIDE'})")
+    return "\n".join(lines)
+
+
 def refuse_used_folder(keep) -> Path:
     """``keep`` as a Path; ValueError if it exists and is not an empty folder (a benchmark keeps its files in a new
     one, never beside or over another run's)."""
@@ -100,8 +182,9 @@ def _workspace(keep):
     yield keep
 
 
-def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:
-    """:func:`bench_delayed_workflow`'s result from a delayed fit's ``posterior.json`` and ``contrasts.json``."""
+def summarize(side: dict, res: dict, *, human: str, identify_s: float, experiment: str | None = None) -> dict:
+    """:func:`bench_delayed_workflow`'s result from a delayed fit's ``posterior.json`` and ``contrasts.json``
+    (``experiment``: what was simulated, default :data:`EXPERIMENT`)."""
     diag, sec = side["diagnostics"]["condition"], side["seconds"]
     st, smp = side["sampler"], diag["sampler"]
     chains, draws, tune = st["chains"], st["draws"], st["tune"]
@@ -114,7 +197,8 @@ def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:
     truth = res.get("truth") or {}
     fit_s = float(sec["total_s"])
     return {
-        "settings": {"human": human, "experiment": str(EXPERIMENT.relative_to(EXPERIMENT.parents[3])),
+        "settings": {"human": human,
+                     "experiment": experiment or str(EXPERIMENT.relative_to(EXPERIMENT.parents[3])),
                      "segments": side["n_segments"], "subjects": side["n_subjects"], "K": side["K"],
                      "chains": chains, "draws": draws, "tune": tune, "seed": side["seed"], "cores": cores,
                      "cpus": os.cpu_count(), "delays": [min(delays), max(delays)],
@@ -138,6 +222,8 @@ def summarize(side: dict, res: dict, *, human: str, identify_s: float) -> dict:
 
 def goal_text(res: dict) -> str:
     """Whether the goal was met, or why it does not apply."""
+    if "goals" in res:  # the angle workflow's goals count the identification too
+        return "its goal, with the identification, below"
     if res["within_goal"] is None:
         g = FIT_DELAYED_GOAL_SIZE
         return (f"the goal ≤ {res['goal_s']:.0f} s is for {g['segments']} segments, {g['chains']} chains × "
@@ -175,5 +261,7 @@ def format_delayed_workflow(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["EXPERIMENT", "FIT_DELAYED_GOAL_S", "FIT_DELAYED_GOAL_SIZE", "WORKFLOW_HUMANS", "bench_delayed_workflow",
-           "format_delayed_workflow", "goal_text", "refuse_used_folder", "summarize", "within_goal"]
+__all__ = ["ANGLE_WORKFLOW_HUMANS", "EXPERIMENT", "FIT_ANGLES_GOAL_S", "FIT_DELAYED_GOAL_S", "FIT_DELAYED_GOAL_SIZE",
+           "MAXENT_ANGLES_GOAL_S", "WORKFLOW_HUMANS", "bench_angle_workflow", "bench_delayed_workflow",
+           "format_angle_workflow", "format_delayed_workflow", "goal_text", "refuse_used_folder", "summarize",
+           "summarize_maxent", "within_goal"]

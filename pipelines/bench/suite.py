@@ -14,7 +14,7 @@ from scioc.pipelines.provenance import commit_stamp, replace_section
 from scioc.pipelines.storage import write_text_atomic
 
 #: The parts of ``scioc bench``, in the order they run.
-PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "sbc", "example")
+PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "fit_angles", "sbc", "example")
 
 
 def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, keep=None, report=None) -> dict:
@@ -22,18 +22,25 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
     the Markdown report ``report`` (docs/validation.md), stamped with the commit.
 
     ``quick``: small sizes to test the command, without the fits and SBC. ``parts``: any of :data:`PARTS`
-    (the fit's dense comparison needs ``likelihood``). ``humans``: the ``fit_delayed`` part's simulated
-    humans (default :data:`scioc.pipelines.bench.delayed_workflow.WORKFLOW_HUMANS`), whose study,
-    estimates and fit ``keep`` keeps in ``keep/<human>/``.
+    (the fit's dense comparison needs ``likelihood``). ``humans``: the ``fit_delayed`` and ``fit_angles`` parts'
+    simulated humans (default :data:`scioc.pipelines.bench.delayed_workflow.WORKFLOW_HUMANS` and
+    :data:`~scioc.pipelines.bench.delayed_workflow.ANGLE_WORKFLOW_HUMANS`), whose study, estimates and fits ``keep``
+    keeps in ``keep/<human>/`` (``keep/angles-<human>/``).
     """
     unknown = set(parts) - set(PARTS)
     if unknown:
         raise ValueError(f"unknown benchmark part(s) {sorted(unknown)}; choose from {', '.join(PARTS)}")
-    if keep is not None and "fit_delayed" in parts:  # refused before the long parts run
-        from scioc.pipelines.bench.delayed_workflow import WORKFLOW_HUMANS, refuse_used_folder
+    if keep is not None:  # refused before the long parts run
+        from scioc.pipelines.bench.delayed_workflow import (
+            ANGLE_WORKFLOW_HUMANS,
+            WORKFLOW_HUMANS,
+            refuse_used_folder,
+        )
 
-        for human in WORKFLOW_HUMANS if humans is None else humans:
+        for human in (WORKFLOW_HUMANS if humans is None else humans) if "fit_delayed" in parts else ():
             refuse_used_folder(Path(keep) / human)
+        for human in (ANGLE_WORKFLOW_HUMANS if humans is None else humans) if "fit_angles" in parts else ():
+            refuse_used_folder(Path(keep) / f"angles-{human}")
     kw = {"dense_k": (50, 100), "long_k": 2000} if quick else {}
     study = default_study_segments(n_subjects=2 if quick else 42)
     result = {"machine": machine_info(), "quick": quick}
@@ -78,6 +85,18 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
             result["fit_delayed"]["workflow"][human] = bench_delayed_workflow(
                 human=human, keep=None if keep is None else Path(keep) / human)
             print(format_delayed_workflow(result["fit_delayed"]["workflow"][human]), flush=True)
+    if "fit_angles" in parts and not quick:
+        from scioc.pipelines.bench.delayed_workflow import (
+            ANGLE_WORKFLOW_HUMANS,
+            bench_angle_workflow,
+            format_angle_workflow,
+        )
+
+        result["fit_angles"] = {}
+        for human in ANGLE_WORKFLOW_HUMANS if humans is None else humans:
+            result["fit_angles"][human] = bench_angle_workflow(
+                human=human, keep=None if keep is None else Path(keep) / f"angles-{human}")
+            print(format_angle_workflow(result["fit_angles"][human]), flush=True)
     if "sbc" in parts and not quick:
         from scioc.pipelines.bench.sbc import bench_sbc, format_sbc  # lazy: Dask and PyMC take seconds to import
 

@@ -315,14 +315,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
     p.add_argument("--parts", default="likelihood,delayed,identify,fit,sbc,example", metavar="LIST", help="subset "
                    "of likelihood, delayed (its likelihood), identify, fit (the default study's, about 3 min), sbc "
-                   "and example (the second example's identify and fit; default: all but fit_delayed); fit_delayed: "
-                   "the delay's profile, and the delayed human's fit as scioc fit runs it, timed against issue 13's "
-                   "15 minutes (pipelines/bench/delayed_workflow.py; 15-35 minutes per human)")
+                   "and example (the second example's identify and fit; default: all but the two below); "
+                   "fit_delayed: the delay's profile, and the delayed human's fit as scioc fit runs it on the paper's "
+                   "study with a torque sensor, against its goal of 15 minutes (15-35 minutes per human); "
+                   "fit_angles: the paper's design, angles only: the delayed fit with its identification against "
+                   "30 minutes and the max-ent fit through the same likelihood against 15 "
+                   "(pipelines/bench/delayed_workflow.py)")
     p.add_argument("--humans", type=humans_list, default=None, metavar="LIST",
-                   help="simulated humans of the fit_delayed part (default: pipelines/bench/delayed_workflow.py's "
-                   "WORKFLOW_HUMANS, the paper's agent maxent and Kleinman-Baron-Levison's kbl)")
-    p.add_argument("--keep", metavar="DIR", default=None, help="keep the fit_delayed part's study, estimates and "
-                   "fit of each human in DIR/<human>/ (default: removed)")
+                   help="simulated humans of the fit_delayed and fit_angles parts (default: pipelines/bench/"
+                   "delayed_workflow.py's WORKFLOW_HUMANS, maxent and kbl, and ANGLE_WORKFLOW_HUMANS, kbl)")
+    p.add_argument("--keep", metavar="DIR", default=None, help="keep the study, estimates and fits of those parts "
+                   "in DIR/<human>/ and DIR/angles-<human>/ (default: removed)")
     p.set_defaults(func=commands.cmd_bench)
 
     # A developer tool: not in `scioc --help`'s list of commands.

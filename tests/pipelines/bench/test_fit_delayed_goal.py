@@ -1,11 +1,15 @@
 """The delayed fit's speed goal (``scioc bench --parts fit_delayed``): judged only at the size it is for, and measured
 on the path ``scioc fit --human-model delayed`` runs (ML start, whitening), not on ``scioc bench-fit``'s own study."""
 
+import json
+
 import pytest
 
 from scioc.pipelines.bench.delayed_workflow import (
     FIT_DELAYED_GOAL_S,
+    bench_angle_workflow,
     bench_delayed_workflow,
+    format_angle_workflow,
     format_delayed_workflow,
     goal_text,
     within_goal,
@@ -72,3 +76,22 @@ def test_bench_refuses_an_unknown_human_and_a_kept_folder_in_use_before_any_work
     assert main(argv) == 2
     assert "not empty" in capsys.readouterr().err and not (tmp_path / "b.json").exists()
     assert (tmp_path / "kbl" / "old.txt").read_text() == "earlier run"
+
+
+@pytest.mark.validation
+def test_the_angle_workflow_benchmark_fits_both_models_to_the_paper_designs_angles(tmp_path):
+    """Two subjects of the kbl human on the paper's design (no torque sensor): the delayed fit scores the angles,
+    the max-ent fit goes through the same likelihood, and neither goal is judged at this size."""
+    keep = tmp_path / "kept"
+    res = bench_angle_workflow(human="kbl", seed=3, chains=2, draws=30, tune=40, n_subjects=2, adequacy_boot=4,
+                               keep=keep)
+    assert {p.name for p in keep.iterdir()} == {"data", "identify_delayed", "fit_delayed", "fit_angles"}
+    side = json.loads((keep / "fit_delayed" / "posterior.json").read_text())
+    assert side["likelihood"] == "angles"
+    assert res["settings"]["experiment"] == "the paper's design, angles only" and res["settings"]["segments"] == 4
+    m = res["maxent"]
+    assert m["likelihood"] == "angles" and m["fit_s"] > 0 and m["adequacy"]["segments"] == 4
+    assert res["goals"]["delayed_met"] is None and res["goals"]["maxent_met"] is None
+    text = format_angle_workflow(res)
+    assert "max-ent fit through the angle likelihood" in text and "not this size" in text
+    assert "identification, below" in text

@@ -27,6 +27,9 @@ def test_bench_quick_writes_json(tmp_path, capsys):
     ang = res["delayed_angles"]
     assert ang["n"] == 4 and ang["K"] == 1500 and [r["delay"] for r in ang["rows"]] == [0, 10, 30]
     assert all(r["dense_s"] > r["filter_s"] > 0 for r in ang["dense"])
+    ident = ang["identify"]  # every unit from angles and torques; the goal is for the paper's 84, not these 4
+    assert len(ident["angles"]) == len(ident["torques"]) == 4 and ident["within_goal"] is None
+    assert ident["angles_total_s"] == pytest.approx(sum(ident["angles"]))
     # The second example's identification (its fit is left out of --quick).
     ex = res["example"]
     assert ex["units"] == 48 and ex["segments"] == 144 and ex["samples_per_segment"] == 2400

@@ -12,6 +12,6 @@
 :mod:`.suite`              :func:`run_bench`, all parts in order
 """
 
-from scioc.pipelines.bench.suite import PARTS, run_bench
+from scioc.pipelines.bench.suite import DEFAULT_PARTS, PARTS, run_bench
 
-__all__ = ["PARTS", "run_bench"]
+__all__ = ["DEFAULT_PARTS", "PARTS", "run_bench"]

@@ -46,8 +46,10 @@ WORKFLOW_HUMANS = ("maxent", "kbl")
 FIT_ANGLES_GOAL_S = 1800.0
 #: The goal for the max-ent fit through the angle likelihood, s.
 MAXENT_ANGLES_GOAL_S = 900.0
-#: The humans ``scioc bench --parts fit_angles`` fits by default: one the max-ent model does not describe.
-ANGLE_WORKFLOW_HUMANS = ("kbl",)
+#: The humans ``scioc bench --parts fit_angles`` fits by default: two the max-ent model does not describe.
+ANGLE_WORKFLOW_HUMANS = ("kbl", "combined")
+#: The true mean shifts of log θ1 (SC against MC) each of them is simulated with: a change and none.
+ANGLE_WORKFLOW_EFFECTS = (-0.7, 0.0)
 
 
 def within_goal(segments: int, chains: int, draws: int, fit_s: float) -> bool | None:
@@ -89,15 +91,18 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
     return summarize(side, res, human=human, identify_s=identify_s)
 
 
-def bench_angle_workflow(*, human: str = "kbl", seed: int = 2018, chains: int = 4, draws: int = 1000,
-                         tune: int | None = None, n_subjects: int | None = None, adequacy_boot: int | None = None,
-                         keep=None) -> dict:
-    """Simulate the paper's design (angles only), identify and fit the ``delayed`` human from the angles and the
-    max-ent human through the same likelihood, as ``scioc`` does, and time it (module docstring). Arguments as
-    :func:`bench_delayed_workflow`'s; ``keep`` also keeps ``fit_angles/``. Returns the delayed fit's
-    :func:`summarize`, with ``maxent`` (:func:`summarize_maxent`) and the goals' verdicts."""
-    from scioc.models.design import STUDY
+def bench_angle_workflow(*, human: str = "kbl", effect: float = ANGLE_WORKFLOW_EFFECTS[0], seed: int = 2018,
+                         chains: int = 4, draws: int = 1000, tune: int | None = None, n_subjects: int | None = None,
+                         adequacy_boot: int | None = None, keep=None) -> dict:
+    """Simulate the paper's design (angles only) with the true mean shift ``effect`` of log θ1, identify and fit the
+    ``delayed`` human from the angles and the max-ent human through the same likelihood, as ``scioc`` does, and time
+    it (module docstring). The other arguments as :func:`bench_delayed_workflow`'s; ``keep`` also keeps
+    ``fit_angles/``. Returns the delayed fit's :func:`summarize`, with ``maxent`` (:func:`summarize_maxent`) and
+    the goals' verdicts."""
+    from scioc.models.design import STUDY as PAPER
     from scioc.pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
+
+    STUDY = replace(PAPER, effects=(float(effect),))
 
     settings = IdentifySettings.for_design(STUDY, human_model="delayed")
     maxent_settings = IdentifySettings.for_design(STUDY)
@@ -121,7 +126,8 @@ def bench_angle_workflow(*, human: str = "kbl", seed: int = 2018, chains: int = 
                             human_model="maxent", likelihood="angles")
         mside = json.loads(Path(mpaths["sidecar"]).read_text())
         mres = json.loads(Path(mpaths["contrasts"]).read_text())
-    out = summarize(side, res, human=human, identify_s=identify_s, experiment="the paper's design, angles only")
+    out = summarize(side, res, human=human, identify_s=identify_s,
+                    experiment=f"the paper's design, angles only, true shift of log θ1 {float(effect):g}")
     out["maxent"] = summarize_maxent(mside, mres)
     full = within_goal(side["n_segments"], chains, draws, 0.0) is not None
     out["goals"] = {"delayed_s": FIT_ANGLES_GOAL_S, "maxent_s": MAXENT_ANGLES_GOAL_S,
@@ -261,7 +267,7 @@ def format_delayed_workflow(res: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["ANGLE_WORKFLOW_HUMANS", "EXPERIMENT", "FIT_ANGLES_GOAL_S", "FIT_DELAYED_GOAL_S", "FIT_DELAYED_GOAL_SIZE",
+__all__ = ["ANGLE_WORKFLOW_EFFECTS", "ANGLE_WORKFLOW_HUMANS", "EXPERIMENT", "FIT_ANGLES_GOAL_S", "FIT_DELAYED_GOAL_S", "FIT_DELAYED_GOAL_SIZE",
            "MAXENT_ANGLES_GOAL_S", "WORKFLOW_HUMANS", "bench_angle_workflow", "bench_delayed_workflow",
            "format_angle_workflow", "format_delayed_workflow", "goal_text", "refuse_used_folder", "summarize",
            "summarize_maxent", "within_goal"]

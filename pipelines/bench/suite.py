@@ -15,11 +15,20 @@ from scioc.pipelines.storage import write_text_atomic
 
 #: The parts of ``scioc bench``, in the order they run.
 PARTS = ("likelihood", "delayed", "identify", "fit", "fit_delayed", "fit_angles", "sbc", "example")
+#: The parts run when none are named: all but the long workflows.
+DEFAULT_PARTS = ("likelihood", "delayed", "identify", "fit", "sbc", "example")
 
 
-def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, keep=None, report=None) -> dict:
-    """Run the benchmarks; print tables; optionally write JSON (atomically) and the tables as the "speed" section of
-    the Markdown report ``report`` (docs/validation.md), stamped with the commit.
+def report_section(parts) -> str:
+    """The report section a run of ``parts`` writes: ``speed`` for the default parts, else one named by its parts,
+    so a run of other parts keeps the default run's tables."""
+    return "speed" if tuple(parts) == DEFAULT_PARTS else "speed-" + "-".join(parts)
+
+
+def run_bench(json_path=None, *, quick: bool = False, parts=DEFAULT_PARTS, humans=None, keep=None,
+              report=None) -> dict:
+    """Run the benchmarks; print tables; optionally write JSON (atomically) and the tables as a section of the
+    Markdown report ``report`` (docs/validation.md; :func:`report_section`), stamped with the commit.
 
     ``quick``: small sizes to test the command, without the fits and SBC. ``parts``: any of :data:`PARTS`
     (the fit's dense comparison needs ``likelihood``). ``humans``: the ``fit_delayed`` and ``fit_angles`` parts'
@@ -32,6 +41,7 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
         raise ValueError(f"unknown benchmark part(s) {sorted(unknown)}; choose from {', '.join(PARTS)}")
     if keep is not None:  # refused before the long parts run
         from scioc.pipelines.bench.delayed_workflow import (
+            ANGLE_WORKFLOW_EFFECTS,
             ANGLE_WORKFLOW_HUMANS,
             WORKFLOW_HUMANS,
             refuse_used_folder,
@@ -40,7 +50,8 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
         for human in (WORKFLOW_HUMANS if humans is None else humans) if "fit_delayed" in parts else ():
             refuse_used_folder(Path(keep) / human)
         for human in (ANGLE_WORKFLOW_HUMANS if humans is None else humans) if "fit_angles" in parts else ():
-            refuse_used_folder(Path(keep) / f"angles-{human}")
+            for effect in ANGLE_WORKFLOW_EFFECTS:
+                refuse_used_folder(Path(keep) / f"angles-{human}-{effect:g}")
     kw = {"dense_k": (50, 100), "long_k": 2000} if quick else {}
     study = default_study_segments(n_subjects=2 if quick else 42)
     result = {"machine": machine_info(), "quick": quick}
@@ -87,6 +98,7 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
             print(format_delayed_workflow(result["fit_delayed"]["workflow"][human]), flush=True)
     if "fit_angles" in parts and not quick:
         from scioc.pipelines.bench.delayed_workflow import (
+            ANGLE_WORKFLOW_EFFECTS,
             ANGLE_WORKFLOW_HUMANS,
             bench_angle_workflow,
             format_angle_workflow,
@@ -94,9 +106,11 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
 
         result["fit_angles"] = {}
         for human in ANGLE_WORKFLOW_HUMANS if humans is None else humans:
-            result["fit_angles"][human] = bench_angle_workflow(
-                human=human, keep=None if keep is None else Path(keep) / f"angles-{human}")
-            print(format_angle_workflow(result["fit_angles"][human]), flush=True)
+            for effect in ANGLE_WORKFLOW_EFFECTS:
+                name = f"{human}-{effect:g}"
+                result["fit_angles"][name] = bench_angle_workflow(
+                    human=human, effect=effect, keep=None if keep is None else Path(keep) / f"angles-{name}")
+                print(format_angle_workflow(result["fit_angles"][name]), flush=True)
     if "sbc" in parts and not quick:
         from scioc.pipelines.bench.sbc import bench_sbc, format_sbc  # lazy: Dask and PyMC take seconds to import
 
@@ -111,8 +125,10 @@ def run_bench(json_path=None, *, quick: bool = False, parts=PARTS, humans=None, 
         write_text_atomic(json_path, json.dumps(result, indent=2) + "\n")
     if report is not None:
         machine = ", ".join(f"{k} {v}" for k, v in result["machine"].items())
-        replace_section(report, "speed", "\n".join([
-            "## Speed (`make bench`)", "", f"- commit: `{commit_stamp()}`",
+        section = report_section(parts)
+        heading = "`make bench`" if section == "speed" else f"`scioc bench --parts {','.join(parts)}`"
+        replace_section(report, section, "\n".join([
+            f"## Speed ({heading})", "", f"- commit: `{commit_stamp()}`",
             f"- generated: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC",
             f"- parts: {', '.join(parts)}{' (quick sizes: not quotable)' if quick else ''}", f"- machine: {machine}",
             "", "```text", *tables, "```"]))

@@ -54,10 +54,10 @@ def cmd_power(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from scioc.pipelines.bench import run_bench
+    from scioc.pipelines.bench import DEFAULT_PARTS, run_bench
 
-    run_bench(args.json, quick=args.quick, parts=[p.strip() for p in args.parts.split(",") if p.strip()],
-              humans=args.humans, keep=args.keep, report=args.report)
+    parts = DEFAULT_PARTS if args.parts is None else tuple(p.strip() for p in args.parts.split(",") if p.strip())
+    run_bench(args.json, quick=args.quick, parts=parts, humans=args.humans, keep=args.keep, report=args.report)
     if args.json:
         print(f"wrote {args.json}")
     return 0

@@ -313,7 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="PATH", help="also write the tables as the speed section of this Markdown "
                    "report, stamped with the commit (make bench: docs/validation.md)")
     p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
-    p.add_argument("--parts", default="likelihood,delayed,identify,fit,sbc,example", metavar="LIST", help="subset "
+    p.add_argument("--parts", default=None, metavar="LIST", help="subset "
                    "of likelihood, delayed (its likelihood), identify, fit (the default study's, about 3 min), sbc "
                    "and example (the second example's identify and fit; default: all but the two below); "
                    "fit_delayed: the delay's profile, and the delayed human's fit as scioc fit runs it on the paper's "

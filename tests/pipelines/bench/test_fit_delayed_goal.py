@@ -88,10 +88,24 @@ def test_the_angle_workflow_benchmark_fits_both_models_to_the_paper_designs_angl
     assert {p.name for p in keep.iterdir()} == {"data", "identify_delayed", "fit_delayed", "fit_angles"}
     side = json.loads((keep / "fit_delayed" / "posterior.json").read_text())
     assert side["likelihood"] == "angles"
-    assert res["settings"]["experiment"] == "the paper's design, angles only" and res["settings"]["segments"] == 4
+    assert res["settings"]["experiment"] == "the paper's design, angles only, true shift of log θ1 -0.7"
+    assert res["settings"]["segments"] == 4
     m = res["maxent"]
     assert m["likelihood"] == "angles" and m["fit_s"] > 0 and m["adequacy"]["segments"] == 4
     assert res["goals"]["delayed_met"] is None and res["goals"]["maxent_met"] is None
     text = format_angle_workflow(res)
     assert "max-ent fit through the angle likelihood" in text and "not this size" in text
     assert "identification, below" in text
+
+
+def test_the_angle_workflow_refuses_a_kept_folder_in_use_and_writes_its_own_report_section(tmp_path, capsys):
+    from scioc.pipelines.bench.suite import DEFAULT_PARTS, report_section
+
+    (tmp_path / "angles-kbl-0").mkdir()
+    (tmp_path / "angles-kbl-0" / "old.txt").write_text("earlier run")
+    argv = ["bench", "--parts", "fit_angles", "--humans", "kbl", "--keep", str(tmp_path)]
+    assert main(argv) == 2
+    assert "angles-kbl-0" in capsys.readouterr().err
+    # make bench-angles keeps make bench's tables: each writes its own section of docs/validation.md
+    assert report_section(DEFAULT_PARTS) == "speed"
+    assert report_section(("delayed", "fit_angles")) == "speed-delayed-fit_angles"

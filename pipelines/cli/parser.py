@@ -285,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "paper's study)")
     p.add_argument("--likelihood", choices=LIKELIHOOD_NAMES, default="torques",
                    help="what each replication records and fits: the human's torques (default), or the encoder's "
-                        "angles (--human-model delayed, unit level)")
+                        "angles (--human-model delayed: the unit level, and the study level's only one)")
     _add_human_model_option(p)
     p.set_defaults(func=commands.cmd_calibrate)
 
@@ -310,8 +310,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="measured speed of the kernels, the identification, the full fit and SBC")
     p.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    p.add_argument("--report", metavar="PATH", help="also write the tables as the speed section of this Markdown "
-                   "report, stamped with the commit (make bench: docs/validation.md)")
+    p.add_argument("--report", metavar="PATH", help="also write the tables as a speed section of this Markdown "
+                   "report, stamped with the commit: the default parts' section, or one of its own for other parts "
+                   "(make bench: docs/validation.md)")
     p.add_argument("--quick", action="store_true", help="small sizes, to check the command (numbers not quotable)")
     p.add_argument("--parts", default=None, metavar="LIST", help="subset "
                    "of likelihood, delayed (its likelihood), identify, fit (the default study's, about 3 min), sbc "
@@ -323,9 +324,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "(pipelines/bench/delayed_workflow.py)")
     p.add_argument("--humans", type=humans_list, default=None, metavar="LIST",
                    help="simulated humans of the fit_delayed and fit_angles parts (default: pipelines/bench/"
-                   "delayed_workflow.py's WORKFLOW_HUMANS, maxent and kbl, and ANGLE_WORKFLOW_HUMANS, kbl)")
+                   "delayed_workflow.py's WORKFLOW_HUMANS, maxent and kbl, and ANGLE_WORKFLOW_HUMANS, kbl and "
+                   "combined, each with a true shift of log θ1 of -0.7 and 0)")
     p.add_argument("--keep", metavar="DIR", default=None, help="keep the study, estimates and fits of those parts "
-                   "in DIR/<human>/ and DIR/angles-<human>/ (default: removed)")
+                   "in DIR/<human>/ and DIR/angles-<human>-<shift>/ (default: removed)")
     p.set_defaults(func=commands.cmd_bench)
 
     # A developer tool: not in `scioc --help`'s list of commands.

@@ -117,6 +117,9 @@ def level_configs(level: str, *, seed: int = 2018, replications: int | None = No
     dt = STUDY.dt if design is None else design.dt
     if seconds is not None:
         d["K"] = int(round(seconds / dt))
+    if likelihood == "angles" and not (design or STUDY).encoder_sd > 0:
+        raise ValueError("the angle calibration reads the angles through the experiment's encoder: "
+                         "encoder.counts_per_rev must be > 0")
     model = get(human_model)
     stem = level + model.calibration_suffix + ("" if likelihood == "torques" else f"-{likelihood}")
     runs = [(stem, None)]

@@ -45,6 +45,9 @@ def test_configurations_of_the_angle_calibration():
                                                       ).fingerprint()
     with pytest.raises(ValueError, match="at the unit level through torques; got likelihood 'angles'"):
         CalibrationConfig(likelihood="angles")
+    with pytest.raises(ValueError, match="encoder.counts_per_rev"):  # refused before any worker starts
+        level_configs("unit", human_model="delayed", likelihood="angles",
+                      design=dataclasses.replace(STUDY, encoder_counts=0))
     with pytest.raises(ValueError, match="encoder"):
         simulate_unit_angles(DelayedUnitPrior().draw(np.random.default_rng(0)), "MC", 100, np.random.default_rng(0),
                              dataclasses.replace(STUDY, encoder_counts=0))

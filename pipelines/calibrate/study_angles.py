@@ -1,7 +1,8 @@
 """Study-level SBC replication of the ``delayed`` human's fit from the encoder's angles.
 
 Per replication: the population and unit parameters drawn by PyMC from the hierarchical angle model's own graph
-(:func:`scioc.models.bayes.angle_model.build_angle_model`, the fit's default priors), each subject's delay
+(:func:`scioc.models.bayes.angle_model.build_angle_model` with the log-normal population of R, which ``scioc fit``
+chooses or replaces by the data; here the fit keeps the one the studies are drawn from), each subject's delay
 uniform on the delay grid; each subject × level window simulated as the unit level's
 (:func:`scioc.pipelines.calibrate.unit_delayed.simulate_unit_angles`). The model is refitted as ``scioc fit`` samples
 it (:func:`fit_study`: whitened coordinates curved along each subject's ridge, the pilot runs, nutpie), from PyMC's
@@ -46,7 +47,7 @@ def _unit(draws: np.ndarray, c) -> np.ndarray:
     return draws[..., 0] if c is None else draws[..., 0, c]
 
 
-#: What the studies are drawn from and fitted with: the fit's default population of R and block forms.
+#: What the studies are drawn from and fitted with: the log-normal population of R and the default block forms.
 DELAYED_PRIORS = DelayedPriors()
 DELAYED_FORM = DelayedForm()
 

@@ -184,11 +184,6 @@ class AngleLoglikOp(ParameterGradient, Op):
         rows = np.full(tau_nm.shape[0], int(j), dtype=np.int64)
         return _evaluate(self.wheel, self.Phi, self.b, theta, tau_nm, sigma_m, rows, *self._args()[1:], False)[0]
 
-    def perform(self, node, inputs, output_storage):
-        ll, g = self.values(inputs)
-        output_storage[0][0] = ll
-        output_storage[1][0] = g
-
     def infer_shape(self, node, input_shapes):
         return [(self.n,), (5, self.n)]
 
@@ -239,11 +234,6 @@ class AngleLoglikDataOp(ParameterGradient, Op):
         return _evaluate(self.wheel, self.Phi, self.b, theta, tau_nm, sigma_m, rows, d["delay"], self.s2y, d["y"],
                          d["ylen"], d["ref"], d["known"], d["nlen"], d["gain"], d["vel0"], d["warm"], d["wstart"],
                          d["tstart"], self.p0, grad)
-
-    def perform(self, node, inputs, output_storage):
-        ll, g = self.values(inputs)
-        output_storage[0][0] = ll
-        output_storage[1][0] = g
 
     def infer_shape(self, node, input_shapes):
         n = input_shapes[0][1]

@@ -134,8 +134,14 @@ def _frozen(x, dtype=np.float64) -> np.ndarray:
 
 
 class ParameterGradient:
-    """The pullback of an Op whose outputs are ``loglik`` (n,) and ``grad`` (5, n) in its first
-    :data:`N_PARAMETER_INPUTS` inputs, θ (3, n), τ_nm (n,) and σ_m (n,): logp and gradient cost one call."""
+    """``perform`` and the pullback of an Op whose ``values(inputs)`` gives its outputs ``loglik`` (n,) and ``grad``
+    (5, n) in its first :data:`N_PARAMETER_INPUTS` inputs, θ (3, n), τ_nm (n,) and σ_m (n,): logp and gradient cost
+    one call."""
+
+    def perform(self, node, inputs, output_storage):
+        ll, g = self.values(inputs)
+        output_storage[0][0] = ll
+        output_storage[1][0] = g
 
     def pullback(self, inputs, outputs, cotangents):
         _, grad = outputs
@@ -187,11 +193,6 @@ class DelayedLoglikDataOp(ParameterGradient, Op):
         data = inputs[3:] or self.bound
         data = [np.ascontiguousarray(v, dtype=np.int64 if j in (6, 8) else np.float64) for j, v in enumerate(data)]
         return _evaluate(self.A, self.b, *self.wheel, theta, tau_nm, sigma_m, *data, grad)
-
-    def perform(self, node, inputs, output_storage):
-        ll, g = self.values(inputs)
-        output_storage[0][0] = ll
-        output_storage[1][0] = g
 
     def infer_shape(self, node, input_shapes):
         n = input_shapes[1][0]

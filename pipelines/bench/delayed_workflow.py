@@ -75,20 +75,28 @@ def bench_delayed_workflow(*, human: str = "maxent", seed: int = 2018, chains: i
     if adequacy_boot is not None:
         settings = replace(settings, adequacy_boot=adequacy_boot)
     with _workspace(keep) as root:
-        sim = simulate_to_dir(root / "data", design=design, seed=seed, human=human, n_subjects=n_subjects)
-        t0 = time.perf_counter()
-        prepared = prepare_study(load_study(sim["study"], design), settings)
-        identify_to_dir(sim["study"], root / "identify_delayed", settings, show_progress=False, prepared=prepared,
-                        experiment_file=sim["experiment"])
-        identify_s = time.perf_counter() - t0
-        from scioc.pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
-
-        paths = fit_to_dir(sim["study"], root / "fit_delayed", seed=seed, chains=chains, draws=draws, tune=tune,
-                           settings=settings, prepared=prepared, experiment_file=sim["experiment"],
-                           truth_dir=root / "data", estimates_path=root / "identify_delayed" / "estimates.parquet")
-        side = json.loads(Path(paths["sidecar"]).read_text())
-        res = json.loads(Path(paths["contrasts"]).read_text())
+        _, identify_s, side, res = _delayed_workflow(root, design, settings, human=human, seed=seed,
+                                                     n_subjects=n_subjects, chains=chains, draws=draws, tune=tune)
     return summarize(side, res, human=human, identify_s=identify_s)
+
+
+def _delayed_workflow(root: Path, design, settings, *, human: str, seed: int, n_subjects, chains: int, draws: int,
+                      tune):
+    """Into ``root``: simulate ``design``, identify the delayed human (timed) and fit it from the estimates.
+    Returns (simulate_to_dir's paths, identification seconds, the fit's posterior.json and contrasts.json)."""
+    from scioc.pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
+
+    sim = simulate_to_dir(root / "data", design=design, seed=seed, human=human, n_subjects=n_subjects)
+    t0 = time.perf_counter()
+    prepared = prepare_study(load_study(sim["study"], design), settings)
+    identify_to_dir(sim["study"], root / "identify_delayed", settings, show_progress=False, prepared=prepared,
+                    experiment_file=sim["experiment"])
+    identify_s = time.perf_counter() - t0
+    paths = fit_to_dir(sim["study"], root / "fit_delayed", seed=seed, chains=chains, draws=draws, tune=tune,
+                       settings=settings, prepared=prepared, experiment_file=sim["experiment"],
+                       truth_dir=root / "data", estimates_path=root / "identify_delayed" / "estimates.parquet")
+    return (sim, identify_s, json.loads(Path(paths["sidecar"]).read_text()),
+            json.loads(Path(paths["contrasts"]).read_text()))
 
 
 def bench_angle_workflow(*, human: str = "kbl", effect: float = ANGLE_WORKFLOW_EFFECTS[0], seed: int = 2018,
@@ -99,28 +107,18 @@ def bench_angle_workflow(*, human: str = "kbl", effect: float = ANGLE_WORKFLOW_E
     it (module docstring). The other arguments as :func:`bench_delayed_workflow`'s; ``keep`` also keeps
     ``fit_angles/``. Returns the delayed fit's :func:`summarize`, with ``maxent`` (:func:`summarize_maxent`) and
     the goals' verdicts."""
-    from scioc.models.design import STUDY as PAPER
+    from scioc.models.design import STUDY
     from scioc.pipelines.fit import fit_to_dir  # lazy: PyMC takes seconds to import
 
-    STUDY = replace(PAPER, effects=(float(effect),))
-
-    settings = IdentifySettings.for_design(STUDY, human_model="delayed")
-    maxent_settings = IdentifySettings.for_design(STUDY)
+    design = replace(STUDY, effects=(float(effect),))
+    settings = IdentifySettings.for_design(design, human_model="delayed")
+    maxent_settings = IdentifySettings.for_design(design)
     if adequacy_boot is not None:
         settings = replace(settings, adequacy_boot=adequacy_boot)
         maxent_settings = replace(maxent_settings, adequacy_boot=adequacy_boot)
     with _workspace(keep) as root:
-        sim = simulate_to_dir(root / "data", design=STUDY, seed=seed, human=human, n_subjects=n_subjects)
-        t0 = time.perf_counter()
-        prepared = prepare_study(load_study(sim["study"], STUDY), settings)
-        identify_to_dir(sim["study"], root / "identify_delayed", settings, show_progress=False, prepared=prepared,
-                        experiment_file=sim["experiment"])
-        identify_s = time.perf_counter() - t0
-        paths = fit_to_dir(sim["study"], root / "fit_delayed", seed=seed, chains=chains, draws=draws, tune=tune,
-                           settings=settings, prepared=prepared, experiment_file=sim["experiment"],
-                           truth_dir=root / "data", estimates_path=root / "identify_delayed" / "estimates.parquet")
-        side = json.loads(Path(paths["sidecar"]).read_text())
-        res = json.loads(Path(paths["contrasts"]).read_text())
+        sim, identify_s, side, res = _delayed_workflow(root, design, settings, human=human, seed=seed,
+                                                       n_subjects=n_subjects, chains=chains, draws=draws, tune=tune)
         mpaths = fit_to_dir(sim["study"], root / "fit_angles", seed=seed, chains=chains, draws=draws, tune=tune,
                             settings=maxent_settings, experiment_file=sim["experiment"], truth_dir=root / "data",
                             human_model="maxent", likelihood="angles")

@@ -73,39 +73,63 @@ def compiled_study(config, negative_control):
     return cached(("study-compiled", config.K, config.n_subjects, negative_control), build)
 
 
-def prior_draw(config, rng) -> dict:
-    """One draw of the population and unit parameters from the model's own prior (``pm.draw``)."""
+def unit_label(v: str, c) -> str:
+    """The label of the first subject's ``v``: in level index ``c``, or per subject (``c`` None)."""
+    return f"{v}[0]" if c is None else f"{v}[0,{c}]"
+
+
+def unit_entry(values: np.ndarray, c) -> np.ndarray:
+    """The first subject's entry of a (..., subject[, condition]) array (``c`` None: per subject)."""
+    return values[..., 0] if c is None else values[..., 0, c]
+
+
+def unit_targets(post, truth: dict, units) -> list:
+    """Targets of the first subject's unit parameters ``units``, (variable, level index or None)."""
+    return [Target(unit_label(v, c), unit_entry(post[v].values, c), float(unit_entry(truth[v], c))) for v, c in units]
+
+
+def prior_values(model, names, rng) -> dict:
+    """One draw of the variables ``names`` from ``model``'s own prior (``pm.draw``)."""
     import pymc as pm  # lazy: PyMC takes seconds to import
 
-    model = template(config, None)
-    names = list(POPULATION_PARAMETERS) + sorted({v for v, _ in UNITS} | {"theta1", "R"})
     values = pm.draw([model[n] for n in names], random_seed=rng)
     return {n: np.asarray(v, dtype=float) for n, v in zip(names, values)}
+
+
+def prior_variance_table(model, names, population, units, levels) -> dict:
+    """Prior variance of every ranked quantity over 4000 draws of ``names`` (seed 0): each ``population``
+    parameter (once per non-baseline level where it has a contrast axis) and each of ``units`` (:func:`unit_label`)."""
+    import pymc as pm  # lazy: PyMC takes seconds to import
+
+    draws = pm.draw([model[n] for n in names], draws=4000, random_seed=np.random.default_rng(0))
+    var = {}
+    for n, d in zip(names, draws):
+        d = np.asarray(d, dtype=float)
+        if n in population:
+            if d.ndim == 1:
+                var[n] = float(d.var())
+            else:  # one per non-baseline level
+                for j, level in enumerate(levels[1:]):
+                    var[f"{n}[{level}]"] = float(d[:, j].var())
+        for v, c in units:
+            if v == n:
+                var[unit_label(v, c)] = float(unit_entry(d, c).var())
+    return var
+
+
+def prior_draw(config, rng) -> dict:
+    """One draw of the population and unit parameters from the model's own prior (``pm.draw``)."""
+    names = list(POPULATION_PARAMETERS) + sorted({v for v, _ in UNITS} | {"theta1", "R"})
+    return prior_values(template(config, None), names, rng)
 
 
 def prior_variances(config) -> dict:
     """Prior variance of every ranked parameter (4000 prior draws, seed 0; cached per worker)."""
 
     def build():
-        import pymc as pm  # lazy: PyMC takes seconds to import
-
-        model = template(config, None)
         names = list(POPULATION_PARAMETERS) + sorted({v for v, _ in UNITS})
-        draws = pm.draw([model[n] for n in names], draws=4000, random_seed=np.random.default_rng(0))
-        levels = config_design(config).ordered_levels
-        var = {}
-        for n, d in zip(names, draws):
-            d = np.asarray(d, dtype=float)
-            if d.ndim == 1:
-                var[n] = float(d.var())
-            elif n in POPULATION_PARAMETERS:  # one per non-baseline level
-                for j, level in enumerate(levels[1:]):
-                    var[f"{n}[{level}]"] = float(d[:, j].var())
-            else:
-                for v, c in UNITS:
-                    if v == n:
-                        var[f"{n}[0,{c}]"] = float(d[:, 0, c].var())
-        return var
+        return prior_variance_table(template(config, None), names, POPULATION_PARAMETERS, UNITS,
+                                    config_design(config).ordered_levels)
 
     return cached(("study-prior-var", config.K, config.n_subjects, config_design(config)), build)
 
@@ -128,7 +152,7 @@ def study_replication(config, i: int, seed: np.random.SeedSequence) -> dict:
 
     def targets(post):
         out = [t for n in POPULATION_PARAMETERS for t in population_targets(n, post[n].values, truth[n], levels)]
-        out += [Target(f"{v}[0,{c}]", post[v].values[:, :, 0, c], truth[v][0, c]) for v, c in UNITS]
+        out += unit_targets(post, truth, UNITS)
         # θ of every segment per draw, in segment order (subject-major, levels in order, baseline first).
         t1, t2, r = (post[v].values.reshape(post[v].shape[:2] + (-1,)) for v in ("theta1", "theta2", "R"))
         ll = loglik_draws(np.moveaxis(from_normalized(t1, t2, r), 0, -2), batch, plant)

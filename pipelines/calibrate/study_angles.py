@@ -28,7 +28,13 @@ from scioc.models.delayed.identify import delay_grid
 from scioc.models.plant import discretize
 from scioc.pipelines.calibrate.ranking import LOGLIK, Target, sample_and_rank
 from scioc.pipelines.calibrate.simulation import cached, config_design
-from scioc.pipelines.calibrate.study import population_targets, study_labels
+from scioc.pipelines.calibrate.study import (
+    population_targets,
+    prior_values,
+    prior_variance_table,
+    study_labels,
+    unit_targets,
+)
 from scioc.pipelines.calibrate.unit_delayed import fit_wheel, rest_window, simulate_unit_angles
 from scioc.pipelines.fit.delayed_forms import THETA2_FORM, log_R_form
 from scioc.pipelines.fit.warmup import pilot_runs
@@ -36,15 +42,6 @@ from scioc.pipelines.fit.whiten import sample_whitened
 
 #: Unit parameters ranked (first subject): (variable, condition index or None for a per-subject one).
 UNITS = (("log_theta1", 0), ("log_theta1", 1), ("log_R", 0), ("theta2", 0), ("tau_nm", None), ("sigma_m", None))
-
-
-def _label(v: str, c) -> str:
-    return f"{v}[0]" if c is None else f"{v}[0,{c}]"
-
-
-def _unit(draws: np.ndarray, c) -> np.ndarray:
-    """The first subject's entry of a (..., subject[, condition]) array."""
-    return draws[..., 0] if c is None else draws[..., 0, c]
 
 
 #: What the studies are drawn from and fitted with: the log-normal population of R and the default block forms.
@@ -101,37 +98,16 @@ def _drawn(config) -> list:
 
 def prior_draw(config, rng) -> dict:
     """One draw of the population and unit parameters from the model's own prior (``pm.draw``)."""
-    import pymc as pm  # lazy: PyMC takes seconds to import
-
-    model = template(config)
-    names = _drawn(config)
-    values = pm.draw([model[n] for n in names], random_seed=rng)
-    return {n: np.asarray(v, dtype=float) for n, v in zip(names, values)}
+    return prior_values(template(config), _drawn(config), rng)
 
 
 def prior_variances(config) -> dict:
     """Prior variance of every ranked parameter (4000 prior draws, seed 0; cached per worker)."""
 
     def build():
-        import pymc as pm  # lazy: PyMC takes seconds to import
-
         model = template(config)
-        names = _drawn(config)
-        draws = pm.draw([model[n] for n in names], draws=4000, random_seed=np.random.default_rng(0))
-        levels = config_design(config).ordered_levels
-        var = {}
-        for n, d in zip(names, draws):
-            d = np.asarray(d, dtype=float)
-            if n in population_names(model):
-                if d.ndim == 1:
-                    var[n] = float(d.var())
-                else:
-                    for j, level in enumerate(levels[1:]):
-                        var[f"{n}[{level}]"] = float(d[:, j].var())
-            for v, c in UNITS:
-                if v == n:
-                    var[_label(v, c)] = float(_unit(d, c).var())
-        return var
+        return prior_variance_table(model, _drawn(config), population_names(model), UNITS,
+                                    config_design(config).ordered_levels)
 
     return cached(("study-angles-prior-var", config.K, config.n_subjects, config_design(config)), build)
 
@@ -165,7 +141,7 @@ def study_angle_replication(config, i: int, seed: np.random.SeedSequence) -> dic
 
     def targets(post):
         out = [t for n in population_names(model) for t in population_targets(n, post[n].values, truth[n], levels)]
-        out += [Target(_label(v, c), _unit(post[v].values, c), float(_unit(truth[v], c))) for v, c in UNITS]
+        out += unit_targets(post, truth, UNITS)
         # every window's parameters per draw, in window order (subject-major, levels in order)
         t1, t2, r = (post[v].values.reshape(post[v].shape[:2] + (-1,)) for v in ("theta1", "theta2", "R"))
         th = from_normalized(t1, t2, r)  # (3, chains, draws, windows)
